@@ -1,0 +1,183 @@
+"""Friction inside the plant integration.
+
+Three parts, summed into one torque at the motor shaft (N m), all of which
+oppose the motion:
+
+* rolling friction with pre-sliding hysteresis, as a Maxwell-slip element
+  set (rate-independent, a function of the displacement from the last
+  reversal, with non-local memory); the model behind the "region A/B"
+  characteristic of paper 000 Fig. 4 and paper 001 Sect. II;
+* Coulomb friction ``T_c sgn(w)``, regularised as ``T_c tanh(w / w_s)`` so
+  that an explicit integration step does not chatter at zero velocity;
+* viscous friction ``b w`` in addition to the plant's own damping ``D``.
+
+The displacement argument is the motor angle (rad); the pre-sliding width is
+given at the table (m) and converted with the lead ``R`` (m/rad).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from .errors import ConfigError, require_nonnegative, require_positive
+
+
+@dataclass(frozen=True, kw_only=True)
+class FrictionParams:
+    """Parameters of the friction model.
+
+    Parameters
+    ----------
+    rolling_coulomb_Nm : float
+        Level that the rolling (Maxwell-slip) friction reaches once the balls
+        roll fully (region B), at the motor, N m, >= 0. 0 switches it off.
+        Paper 001 gives 3.2 N m for the ball-screw X axis.
+    presliding_width_m : float
+        Displacement from a reversal, at the table, after which the rolling
+        friction reaches its Coulomb level on the virgin curve (region A), m,
+        > 0. About 10 um for the ball-screw X axis (DESIGN 7).
+    elements : int
+        Number of Maxwell-slip elements, 1..200. The virgin curve is
+        piecewise linear with this many knots.
+    coulomb_Nm : float
+        Plain Coulomb friction level at the motor, N m, >= 0.
+    coulomb_smoothing_rad_s : float
+        Velocity ``w_s`` of the ``tanh`` regularisation of the Coulomb term,
+        rad/s, > 0.
+    viscous_Nms_per_rad : float
+        Extra viscous friction at the motor, N m s/rad, >= 0.
+    """
+
+    rolling_coulomb_Nm: float = 0.0
+    presliding_width_m: float = 10e-6
+    elements: int = 8
+    coulomb_Nm: float = 0.0
+    coulomb_smoothing_rad_s: float = 1e-3
+    viscous_Nms_per_rad: float = 0.0
+
+    def __post_init__(self) -> None:
+        require_nonnegative("rolling_coulomb_Nm", self.rolling_coulomb_Nm)
+        require_positive("presliding_width_m", self.presliding_width_m)
+        if not isinstance(self.elements, int) or not 1 <= self.elements <= 200:
+            raise ConfigError(f"elements: expected an integer in 1..200, got {self.elements!r}")
+        require_nonnegative("coulomb_Nm", self.coulomb_Nm)
+        require_positive("coulomb_smoothing_rad_s", self.coulomb_smoothing_rad_s)
+        require_nonnegative("viscous_Nms_per_rad", self.viscous_Nms_per_rad)
+
+    @property
+    def enabled(self) -> bool:
+        """True when any friction term is non-zero."""
+        return self.rolling_coulomb_Nm > 0.0 or self.coulomb_Nm > 0.0 or self.viscous_Nms_per_rad > 0
+
+
+class MaxwellSlip:
+    """Maxwell-slip element set: rolling friction with pre-sliding hysteresis.
+
+    Element ``i`` (1..N) is a spring of deflection ``z_i`` that follows the
+    displacement until ``|z_i|`` reaches its break-away deflection
+    ``delta_i = (i / N) * width``, then slips. Each element carries
+    ``T_c / N`` at break-away, so the virgin curve rises piecewise linearly
+    from 0 to ``T_c`` over ``width`` and a reversal from full sliding swings
+    from ``-T_c`` to ``+T_c`` over ``2 width`` (Masing's rule). The torque
+    depends only on the displacement path, not on its rate, and keeps the
+    memory of inner reversal loops (non-local memory).
+
+    Parameters
+    ----------
+    coulomb_Nm : float
+        Sliding level ``T_c`` at the motor, N m, >= 0.
+    width_rad : float
+        Pre-sliding width on the virgin curve at the motor, rad, > 0.
+    elements : int
+        Number of elements N, >= 1.
+    """
+
+    def __init__(self, *, coulomb_Nm: float, width_rad: float, elements: int) -> None:
+        require_nonnegative("coulomb_Nm", coulomb_Nm)
+        require_positive("width_rad", width_rad)
+        if elements < 1:
+            raise ConfigError(f"elements: expected >= 1, got {elements!r}")
+        self._delta = [width_rad * (i + 1) / elements for i in range(elements)]
+        self._stiffness = [coulomb_Nm / elements / d for d in self._delta]
+        self._z = [0.0] * elements
+
+    def reset(self) -> None:
+        """Relax every element (virgin state)."""
+        self._z = [0.0] * len(self._z)
+
+    def torque(self) -> float:
+        """Friction torque the elements exert against the motion, N m."""
+        return math.fsum(k * z for k, z in zip(self._stiffness, self._z, strict=True))
+
+    def move(self, displacement_rad: float) -> float:
+        """Advance by ``displacement_rad`` and return the new torque, N m."""
+        z = self._z
+        total = 0.0
+        for i, (d, k) in enumerate(zip(self._delta, self._stiffness, strict=True)):
+            zi = z[i] + displacement_rad
+            if zi > d:
+                zi = d
+            elif zi < -d:
+                zi = -d
+            z[i] = zi
+            total += k * zi
+        return total
+
+
+class FrictionModel:
+    """Sum of rolling (Maxwell-slip), Coulomb and viscous friction.
+
+    Parameters
+    ----------
+    params : FrictionParams
+        The friction parameters.
+    lead_m_per_rad : float
+        Ball-screw lead ``R``, m/rad, > 0, to convert the pre-sliding width.
+    """
+
+    def __init__(self, params: FrictionParams, *, lead_m_per_rad: float) -> None:
+        require_positive("lead_m_per_rad", lead_m_per_rad)
+        self.params = params
+        self._rolling = (
+            MaxwellSlip(
+                coulomb_Nm=params.rolling_coulomb_Nm,
+                width_rad=params.presliding_width_m / lead_m_per_rad,
+                elements=params.elements,
+            )
+            if params.rolling_coulomb_Nm > 0.0
+            else None
+        )
+        self._rolling_torque = 0.0
+
+    def reset(self) -> None:
+        """Return to the virgin state."""
+        if self._rolling is not None:
+            self._rolling.reset()
+        self._rolling_torque = 0.0
+
+    def update(self, displacement_rad: float, velocity_rad_s: float) -> float:
+        """Advance the hysteresis by a displacement and return the torque.
+
+        Parameters
+        ----------
+        displacement_rad : float
+            Motor displacement since the previous call, rad.
+        velocity_rad_s : float
+            Motor velocity now, rad/s.
+
+        Returns
+        -------
+        float
+            Friction torque opposing the motion, N m (positive when it
+            resists positive motion).
+        """
+        p = self.params
+        if self._rolling is not None:
+            self._rolling_torque = self._rolling.move(displacement_rad)
+        torque = self._rolling_torque
+        if p.coulomb_Nm > 0.0:
+            torque += p.coulomb_Nm * math.tanh(velocity_rad_s / p.coulomb_smoothing_rad_s)
+        if p.viscous_Nms_per_rad > 0.0:
+            torque += p.viscous_Nms_per_rad * velocity_rad_s
+        return torque
