@@ -1,0 +1,375 @@
+"""Bring a scenario up, run it, record it, shut it down.
+
+``python -m servo_axis run <scenario.yaml> [--out DIR] [--composed]``
+
+Each node is its own process started with this interpreter (the venv's),
+in its own process group, with a private ROS domain, localhost discovery,
+UDP transport (no ``/dev/shm`` files left behind even on SIGKILL) and a fast
+discovery profile. The runner waits for the nodes to connect through their
+own handshakes (no fixed sleeps), follows ``recorder/progress`` to show
+progress, and when the plant has finished it stops the rest with SIGINT,
+then SIGKILL after a timeout. It then writes ``summary.json`` and the plots.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any, TextIO
+
+import yaml
+
+from servo_axis.core.errors import ConfigError
+
+ROLES = ("plant", "feedback", "feedforward", "recorder")
+SHARED_SECTION = "/**"
+STOP_TIMEOUT_S = 5.0
+
+
+class RunError(RuntimeError):
+    """The run could not complete (a node failed, stalled or refused its configuration)."""
+
+
+def load_scenario(path: Path) -> dict[str, Any]:
+    """Read a scenario (a ROS parameter file) and check its top-level layout."""
+    try:
+        data = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError) as err:
+        raise ConfigError(f"scenario {path}: cannot read it: {err}") from err
+    if not isinstance(data, dict):
+        raise ConfigError(f"scenario {path}: expected a mapping of node sections")
+    for key, value in data.items():
+        if key != SHARED_SECTION and key not in ROLES:
+            raise ConfigError(
+                f"scenario {path}: unknown section '{key}'; expected '/**' or one of {list(ROLES)}"
+            )
+        if not isinstance(value, dict) or set(value) != {"ros__parameters"}:
+            raise ConfigError(f"scenario {path}: section '{key}' must hold only 'ros__parameters'")
+    if "plant" not in data:
+        raise ConfigError(f"scenario {path}: a 'plant' section is required")
+    return data
+
+
+def shared(scenario: dict[str, Any]) -> dict[str, Any]:
+    """The ``/**`` parameters of a scenario."""
+    return dict(scenario.get(SHARED_SECTION, {}).get("ros__parameters", {}))
+
+
+def node_params(scenario: dict[str, Any], role: str) -> dict[str, Any]:
+    """The section of one node, flattened to dotted keys, on top of the shared ones."""
+
+    def flat(prefix: str, d: dict[str, Any], out: dict[str, Any]) -> None:
+        for k, v in d.items():
+            if isinstance(v, dict):
+                flat(f"{prefix}{k}.", v, out)
+            else:
+                out[f"{prefix}{k}"] = v
+
+    out: dict[str, Any] = {}
+    flat("", shared(scenario), out)
+    flat("", scenario.get(role, {}).get("ros__parameters", {}), out)
+    return out
+
+
+def roles_of(scenario: dict[str, Any]) -> list[str]:
+    """Nodes a scenario starts: those with a section, in start order."""
+    return [r for r in ("recorder", "feedforward", "feedback", "plant") if r in scenario]
+
+
+def handshake_args(scenario: dict[str, Any], roles: list[str], bag_dir: Path) -> list[str]:
+    """``-p`` overrides that tell each node whom to wait for."""
+    state_subs = ("feedback" in roles) + ("feedforward" in roles)
+    clock_subs = ("feedback" in roles) + ("feedforward" in roles)
+    ref_subs = "feedback" in roles
+    args: list[str] = []
+    if "recorder" in roles:
+        rec = node_params(scenario, "recorder")
+        topics = rec.get("topics", ["state", "command", "reference", "/clock"])
+        state_subs += "state" in topics
+        clock_subs += "/clock" in topics
+        ref_subs += "reference" in topics
+        args += ["-p", f"recorder:output_dir:={bag_dir}", "-p", "plant:flow_control:=true"]
+    args += [
+        "-p",
+        f"plant:wait_for_state_subscribers:={state_subs}",
+        "-p",
+        f"plant:wait_for_clock_subscribers:={clock_subs}",
+    ]
+    if "feedforward" in roles:
+        args += ["-p", f"feedforward:wait_for_reference_subscribers:={ref_subs}"]
+    return args
+
+
+def ros_environment(domain_id: int, log_dir: Path) -> dict[str, str]:
+    """Environment of the node processes."""
+    env = dict(os.environ)
+    profile = resources.files("servo_axis") / "data" / "fastdds_localhost.xml"
+    env.update(
+        ROS_DOMAIN_ID=str(domain_id),
+        ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+        ROS_LOG_DIR=str(log_dir),
+        FASTDDS_BUILTIN_TRANSPORTS="UDPv4",
+        FASTRTPS_DEFAULT_PROFILES_FILE=str(profile),
+        PYTHONUNBUFFERED="1",
+    )
+    return env
+
+
+def default_domain_id() -> int:
+    """ROS_DOMAIN_ID from the environment, else one derived from the pid (1..100)."""
+    if "ROS_DOMAIN_ID" in os.environ:
+        return int(os.environ["ROS_DOMAIN_ID"])
+    return os.getpid() % 100 + 1
+
+
+@dataclass
+class Proc:
+    """A node process and its log."""
+
+    role: str
+    popen: subprocess.Popen[bytes]
+    log_path: Path
+    log: Any = field(repr=False)
+
+    def tail(self, lines: int = 15) -> str:
+        self.log.flush()
+        text = self.log_path.read_text(errors="replace").splitlines()
+        return "\n".join(text[-lines:])
+
+
+def start_nodes(
+    scenario_path: Path,
+    roles: list[str],
+    extra_args: list[str],
+    env: dict[str, str],
+    log_dir: Path,
+    composed: bool,
+) -> list[Proc]:
+    """Start the node processes (or one composed process)."""
+    base = ["--ros-args", "--params-file", str(scenario_path), *extra_args]
+    jobs = (
+        [("composed", ["-m", "servo_axis.nodes.composed", *roles])]
+        if composed
+        else [(r, ["-m", f"servo_axis.nodes.{r}"]) for r in roles]
+    )
+    procs: list[Proc] = []
+    for role, cmd in jobs:
+        log_path = log_dir / f"{role}.log"
+        log = log_path.open("wb")
+        popen = subprocess.Popen(
+            [sys.executable, *cmd, *base],
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            env=env,
+            start_new_session=True,
+        )
+        procs.append(Proc(role, popen, log_path, log))
+    return procs
+
+
+def stop_nodes(procs: list[Proc], timeout_s: float = STOP_TIMEOUT_S) -> dict[str, int]:
+    """SIGINT every live process group, SIGKILL what is left after ``timeout_s``; reap all."""
+    for p in procs:
+        if p.popen.poll() is None:
+            _signal_group(p.popen, signal.SIGINT)
+    deadline = time.monotonic() + timeout_s
+    for p in procs:
+        try:
+            p.popen.wait(timeout=max(0.0, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            _signal_group(p.popen, signal.SIGKILL)
+            p.popen.wait()
+    for p in procs:
+        _signal_group(p.popen, signal.SIGKILL)  # stray children of the group, if any
+        p.log.close()
+    return {p.role: p.popen.returncode for p in procs}
+
+
+def _signal_group(popen: subprocess.Popen[bytes], sig: int) -> None:
+    try:
+        os.killpg(popen.pid, sig)
+    except (ProcessLookupError, PermissionError):
+        pass
+
+
+class ProgressWatcher:
+    """Follows ``recorder/progress`` from the runner (an rclpy node of its own)."""
+
+    def __init__(self, namespace: str) -> None:
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        from std_msgs.msg import Float64MultiArray
+
+        from servo_axis.nodes.common import LATCHED_QOS
+
+        self._rclpy = rclpy
+        self._context = rclpy.context.Context()
+        rclpy.init(args=[], context=self._context)
+        self.node = rclpy.create_node(
+            "servo_axis_run", namespace=namespace, context=self._context, enable_rosout=False,
+            start_parameter_services=False,
+        )
+        self.steps = -1
+        self.node.create_subscription(Float64MultiArray, "recorder/progress", self._on, LATCHED_QOS)
+        self._executor = SingleThreadedExecutor(context=self._context)
+        self._executor.add_node(self.node)
+
+    def _on(self, msg: Any) -> None:
+        if msg.data:
+            self.steps = max(self.steps, int(msg.data[0]))
+
+    def spin(self, seconds: float) -> None:
+        self._executor.spin_once(timeout_sec=seconds)
+
+    def close(self) -> None:
+        self._executor.shutdown()
+        self.node.destroy_node()
+        self._rclpy.try_shutdown(context=self._context)
+
+
+class ProgressLine:
+    """One progress line, rewritten in place on a terminal."""
+
+    def __init__(self, total: int, out: TextIO) -> None:
+        self.total = total
+        self.out = out
+        self.tty = out.isatty()
+        self._last = 0.0
+
+    def show(self, steps: int, elapsed_s: float, final: bool = False) -> None:
+        now = time.monotonic()
+        if not final and now - self._last < (0.25 if self.tty else 5.0):
+            return
+        self._last = now
+        frac = max(steps, 0) / self.total
+        bar = "#" * int(30 * frac)
+        rate = max(steps, 0) / elapsed_s if elapsed_s > 0 else 0.0
+        text = f"[{bar:<30}] {max(steps, 0)}/{self.total} steps  {rate:,.0f} steps/s"
+        if self.tty:
+            self.out.write("\r" + text + ("\n" if final else ""))
+        else:
+            self.out.write(text + "\n")
+        self.out.flush()
+
+
+@dataclass
+class RunResult:
+    """Outcome of :func:`run_scenario`."""
+
+    run_dir: Path
+    steps: int
+    wall_time_s: float
+    exit_codes: dict[str, int]
+    summary: dict[str, Any]
+
+
+def run_scenario(
+    scenario_path: Path,
+    *,
+    out_dir: Path | None = None,
+    composed: bool = False,
+    domain_id: int | None = None,
+    namespace: str = "",
+    progress: TextIO | None = sys.stdout,
+    stall_timeout_s: float = 60.0,
+    plots: bool = True,
+    extra_args: list[str] | None = None,
+    on_started: Any = None,
+) -> RunResult:
+    """Run one scenario end to end and return where it was written.
+
+    Raises
+    ------
+    ConfigError
+        For a scenario file that is not a valid scenario.
+    RunError
+        If a node exits with an error, the run stalls, or a node refuses its
+        parameters (its message is in the error).
+    """
+    from servo_axis import report
+
+    scenario_path = scenario_path.resolve()
+    scenario = load_scenario(scenario_path)
+    common = shared(scenario)
+    period = float(common.get("control_period_s", 1e-3))
+    steps = round(float(common.get("duration_s", 2.0)) / period)
+    name = common.get("scenario", {}).get("name") or scenario_path.stem
+    if out_dir is None:
+        out_dir = Path("runs") / f"{name}-{time.strftime('%Y%m%d-%H%M%S')}"
+    out_dir = out_dir.resolve()
+    if out_dir.exists() and any(out_dir.iterdir()):
+        raise ConfigError(f"--out {out_dir}: exists and is not empty")
+    log_dir = out_dir / "logs"
+    log_dir.mkdir(parents=True, exist_ok=True)
+    bag_dir = out_dir / "bag"
+    roles = roles_of(scenario)
+    ns_args = ["-r", f"__ns:={namespace}"] if namespace else []
+    args = [*handshake_args(scenario, roles, bag_dir), *ns_args, *(extra_args or [])]
+    domain = default_domain_id() if domain_id is None else domain_id
+    env = ros_environment(domain, log_dir)
+    os.environ.update({k: env[k] for k in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE",
+                                           "FASTDDS_BUILTIN_TRANSPORTS", "FASTRTPS_DEFAULT_PROFILES_FILE")})
+    os.environ.setdefault("ROS_LOG_DIR", str(log_dir))
+
+    line = ProgressLine(steps, progress) if progress is not None else None
+    watcher = ProgressWatcher(namespace or "/") if "recorder" in roles else None
+    t_start = time.monotonic()
+    t_first: float | None = None
+    procs = start_nodes(scenario_path, roles, args, env, log_dir, composed)
+    if on_started is not None:
+        on_started(procs)
+    plant_proc = procs[0] if composed else next(p for p in procs if p.role == "plant")
+    failure: str | None = None
+    try:
+        last_progress, last_change = -1, time.monotonic()
+        while True:
+            if watcher is not None:
+                watcher.spin(0.05)
+                if watcher.steps != last_progress:
+                    last_progress, last_change = watcher.steps, time.monotonic()
+                    if watcher.steps >= 0 and t_first is None:
+                        t_first = time.monotonic()
+            else:
+                time.sleep(0.05)
+            if line is not None and t_first is not None:
+                line.show(last_progress, time.monotonic() - t_first)
+            code = plant_proc.popen.poll()
+            if code is not None:
+                if code != 0:
+                    failure = f"{plant_proc.role} exited with code {code}:\n{plant_proc.tail()}"
+                break
+            dead = [p for p in procs if p.popen.poll() is not None]
+            if dead:
+                p = dead[0]
+                failure = f"{p.role} exited early with code {p.popen.returncode}:\n{p.tail()}"
+                break
+            if time.monotonic() - last_change > stall_timeout_s:
+                failure = f"no progress for {stall_timeout_s:.0f} s (see {log_dir})"
+                break
+    finally:
+        t_end = time.monotonic()
+        codes = stop_nodes(procs)
+        if watcher is not None:
+            watcher.close()
+    if line is not None and failure is None:
+        line.show(steps, t_end - (t_first or t_start), final=True)
+    if failure is not None:
+        raise RunError(failure)
+    wall = t_end - (t_first or t_start)
+    summary = report.summarise(
+        out_dir,
+        scenario=scenario,
+        scenario_path=scenario_path,
+        wall_time_s=wall,
+        mode="composed" if composed else "separate processes",
+    )
+    if plots:
+        report.plot(out_dir)
+    return RunResult(out_dir, steps, wall, codes, summary)

@@ -1,0 +1,155 @@
+"""Recorder node: every topic of the run into a rosbag2-layout MCAP directory.
+
+Subscribes to ``topics`` (with their ``types``) without deserialising
+(``raw=True``) and writes the CDR bytes as they come. Publishes
+``recorder/progress`` (Float64MultiArray ``[steps_recorded]``, latched): the
+smallest message count over ``counted_topics``, i.e. the number of steps that
+are fully on disk. The plant uses it for flow control in lockstep, so the
+recorder never loses a message. A first ``[0]`` means "all subscriptions
+matched, ready".
+
+The bag is closed (metadata.yaml written) on shutdown, SIGINT or SIGTERM.
+
+Run: ``python -m servo_axis.nodes.recorder --ros-args --params-file config/<scenario>.yaml -p recorder:output_dir:=<dir>``
+"""
+
+from __future__ import annotations
+
+import importlib
+import time
+from pathlib import Path
+from typing import Any
+
+from rclpy.node import Node
+from std_msgs.msg import Float64MultiArray
+
+from servo_axis import msgs
+from servo_axis.core.errors import ParameterFileError
+from servo_axis.nodes.common import LATCHED_QOS, STREAM_QOS, run_main, steady_clock
+from servo_axis.nodes.plant import PROGRESS_LABELS, run_steps
+from servo_axis.params import read_parameters
+from servo_axis.recording.bag import BagWriter
+
+SCHEMA: dict[str, object] = {
+    "output_dir": "",
+    "topics": ["state", "command", "reference", "/clock", "fault", "plant/status"],
+    "types": [
+        "sensor_msgs/msg/JointState",
+        "sensor_msgs/msg/JointState",
+        "sensor_msgs/msg/JointState",
+        "rosgraph_msgs/msg/Clock",
+        "std_msgs/msg/Float64MultiArray",
+        "std_msgs/msg/Float64MultiArray",
+    ],
+    "latched_topics": ["fault", "plant/status"],
+    "counted_topics": ["state", "command", "reference", "/clock"],
+    "compression": "zstd",
+    "ack_every_steps": 50,
+    "wait_for_publishers": True,
+}
+
+
+def message_class(type_name: str) -> type:
+    """Python class of ``pkg/msg/Type``; ParameterFileError if there is none."""
+    parts = type_name.split("/")
+    if len(parts) != 3 or parts[1] != "msg":
+        raise ParameterFileError(f"parameter 'types': expected 'pkg/msg/Type', got {type_name!r}")
+    try:
+        return getattr(importlib.import_module(f"{parts[0]}.msg"), parts[2])  # type: ignore[no-any-return]
+    except (ImportError, AttributeError) as err:
+        raise ParameterFileError(f"parameter 'types': unknown message type {type_name!r}") from err
+
+
+class RecorderNode(Node):
+    """Recorder; see the module docstring."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("recorder", **kwargs)
+        values = read_parameters(self, SCHEMA)
+        topics, types = values["topics"], values["types"]
+        if len(topics) != len(types) or not topics:
+            raise ParameterFileError(
+                f"parameter 'types': expected one type per topic ({len(topics)} topics), got {len(types)}"
+            )
+        for key in ("latched_topics", "counted_topics"):
+            extra = set(values[key]) - set(topics)
+            if extra:
+                raise ParameterFileError(f"parameter '{key}': {sorted(extra)} not in 'topics'")
+        if not values["output_dir"]:
+            raise ParameterFileError("parameter 'output_dir': required (the bag directory to create)")
+        if values["ack_every_steps"] < 1:
+            raise ParameterFileError(f"parameter 'ack_every_steps': expected >= 1, got {values['ack_every_steps']!r}")
+        classes = [message_class(t) for t in types]
+        self._v = values
+        self._steps = run_steps(values)
+        try:
+            self.writer = BagWriter(Path(values["output_dir"]), compression=values["compression"])
+        except (OSError, ValueError) as err:
+            raise ParameterFileError(f"parameter 'output_dir': {err}") from err
+
+        self._progress_pub = self.create_publisher(Float64MultiArray, "recorder/progress", LATCHED_QOS)
+        self._counts: dict[str, int] = {}
+        self._counted: list[str] = []
+        self._subs = []
+        for topic, type_name, cls in zip(topics, types, classes, strict=True):
+            name = self.resolve_topic_name(topic)
+            self.writer.add_topic(name, type_name)
+            self._counts[name] = 0
+            if topic in values["counted_topics"]:
+                self._counted.append(name)
+            qos = LATCHED_QOS if topic in values["latched_topics"] else STREAM_QOS
+            self._subs.append(
+                self.create_subscription(cls, topic, self._callback(name), qos, raw=True)
+            )
+        self.recorded = -1
+        self._ready_timer = self.create_timer(0.01, self._check_ready, clock=steady_clock())
+        self._closed = False
+
+    def _callback(self, name: str) -> Any:
+        writer = self.writer
+        counts = self._counts
+
+        def on_message(data: bytes) -> None:
+            writer.write(name, data, log_time_ns=time.time_ns())
+            counts[name] += 1
+            if name in self._counted:
+                self._update_progress()
+
+        return on_message
+
+    def _check_ready(self) -> None:
+        if self._v["wait_for_publishers"] and any(s.get_publisher_count() < 1 for s in self._subs):
+            return
+        self._ready_timer.cancel()
+        self.recorded = 0
+        self._update_progress(force=True)
+
+    def _update_progress(self, force: bool = False) -> None:
+        if self.recorded < 0:
+            return
+        done = min(self._counts[n] for n in self._counted) if self._counted else 0
+        if done == self.recorded and not force:
+            return
+        self.recorded = done
+        if force or done % self._v["ack_every_steps"] == 0 or done >= self._steps:
+            self._progress_pub.publish(msgs.labelled_array(PROGRESS_LABELS, [done]))
+
+    @property
+    def message_counts(self) -> dict[str, int]:
+        """Messages written per topic."""
+        return dict(self._counts)
+
+    def close(self) -> None:
+        """Finish the bag (idempotent)."""
+        if not self._closed:
+            self._closed = True
+            self.writer.close()
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point of ``python -m servo_axis.nodes.recorder``."""
+    return run_main("recorder", [RecorderNode], args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,245 @@
+"""Run summary and plots from a recorded bag.
+
+The tracking error is ``e[k] = R (r[k] - y[k])`` at the table (m), with
+``r`` the feedback reference of topic ``reference`` and ``y`` the angle of
+the feedback sensor in topic ``state``. With PTC the reference instants
+``T_r = 2 T_u`` (even ``k``) are where perfect tracking holds; the summary
+gives statistics over every sample and over those instants, for the whole
+run and per cycle of a periodic reference.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from servo_axis.recording.bag import read_messages
+
+FAULT_NAMES = {1: "following_error", 2: "travel", 3: "current", 4: "input_timeout"}
+
+
+def _stamp_ns(msg: Any) -> int:
+    return int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
+
+
+def load_signals(bag_dir: Path, period_s: float) -> dict[str, Any]:
+    """Arrays per step from a bag: state, reference and command, plus faults and counts."""
+    period_ns = round(period_s * 1e9)
+    state: dict[int, tuple[float, float]] = {}
+    ref: dict[int, tuple[float, float]] = {}
+    cmd: dict[int, float] = {}
+    faults: list[dict[str, Any]] = []
+    counts: dict[str, int] = {}
+    for m in read_messages(bag_dir):
+        counts[m.topic] = counts.get(m.topic, 0) + 1
+        leaf = m.topic.rsplit("/", 1)[-1]
+        if leaf == "state":
+            state[_stamp_ns(m.message) // period_ns] = (m.message.position[0], m.message.position[1])
+        elif leaf == "reference":
+            ref[_stamp_ns(m.message) // period_ns] = (m.message.position[0], m.message.effort[0])
+        elif leaf == "command":
+            cmd[_stamp_ns(m.message) // period_ns] = m.message.effort[0]
+        elif leaf == "fault":
+            step, code, value = m.message.data
+            faults.append(
+                {"step": int(step), "code": int(code), "name": FAULT_NAMES.get(int(code), "?"), "value": value}
+            )
+    steps = sorted(set(state) & set(ref))
+    k = np.array(steps, dtype=int)
+    return {
+        "step": k,
+        "encoder_rad": np.array([state[s][0] for s in steps]),
+        "scale_m": np.array([state[s][1] for s in steps]),
+        "reference_rad": np.array([ref[s][0] for s in steps]),
+        "feedforward_A": np.array([ref[s][1] for s in steps]),
+        "command_A": np.array([cmd.get(s, math.nan) for s in steps]),
+        "faults": faults,
+        "counts": counts,
+    }
+
+
+def _stats(e: np.ndarray) -> dict[str, float]:
+    if e.size == 0:
+        return {"rms_m": math.nan, "max_m": math.nan}
+    return {"rms_m": float(np.sqrt(np.mean(e**2))), "max_m": float(np.max(np.abs(e)))}
+
+
+def reference_period_s(params: dict[str, Any]) -> float | None:
+    """Period of the scenario's reference (feedforward parameters), or None."""
+    from servo_axis.core.reference import make_reference
+    from servo_axis.nodes.feedforward import REFERENCE_KEYS, SCHEMA
+
+    values = {**{k: v for k, v in SCHEMA.items() if k.startswith("reference.")}, **params}
+    kind = values["reference.kind"]
+    ref = make_reference(kind, **{k: values[f"reference.{k}"] for k in REFERENCE_KEYS[kind]})
+    return ref.period_s
+
+
+def error_statistics(
+    error_m: np.ndarray, step: np.ndarray, *, period_s: float, cycle_s: float | None
+) -> dict[str, Any]:
+    """Whole-run, reference-instant and per-cycle statistics of the error."""
+    at_tr = step % 2 == 0
+    out: dict[str, Any] = {
+        "all_samples": _stats(error_m),
+        "reference_instants": _stats(error_m[at_tr]),
+        "cycles": [],
+    }
+    if cycle_s:
+        per_cycle = round(cycle_s / period_s)
+        cycle = step // per_cycle
+        for c in range(int(cycle.max()) + 1 if step.size else 0):
+            sel = cycle == c
+            if np.count_nonzero(sel) < per_cycle:
+                continue  # incomplete last cycle
+            out["cycles"].append(
+                {
+                    "cycle": c + 1,
+                    **_stats(error_m[sel]),
+                    "reference_instants": _stats(error_m[sel & at_tr]),
+                }
+            )
+        after_first = step >= per_cycle
+        out["after_first_cycle"] = {
+            "all_samples": _stats(error_m[after_first]),
+            "reference_instants": _stats(error_m[after_first & at_tr]),
+        }
+    return out
+
+
+def summarise(
+    run_dir: Path,
+    *,
+    scenario: dict[str, Any],
+    scenario_path: Path,
+    wall_time_s: float,
+    mode: str,
+) -> dict[str, Any]:
+    """Compute the summary of a run, write ``summary.json`` and return it."""
+    from servo_axis.bringup import node_params, shared
+
+    common = shared(scenario)
+    period = float(common.get("control_period_s", 1e-3))
+    lead = float(common.get("lead_m_per_rad", 1.91e-3))
+    fb = node_params(scenario, "feedback")
+    ff = node_params(scenario, "feedforward")
+    sig = load_signals(run_dir / "bag", period)
+    if fb.get("sensor", "encoder") == "scale":
+        y = sig["scale_m"] / lead
+    else:
+        y = sig["encoder_rad"]
+    error = lead * (sig["reference_rad"] - y)
+    cycle = reference_period_s(ff) if "feedforward" in scenario else None
+    steps = int(sig["step"].size)
+    sim_time = steps * period
+    summary = {
+        "scenario": common.get("scenario", {}).get("name") or scenario_path.stem,
+        "description": common.get("scenario", {}).get("description", ""),
+        "scenario_file": str(scenario_path),
+        "processes": mode,
+        "time_mode": common.get("mode", "lockstep"),
+        "control_period_s": period,
+        "steps": steps,
+        "sim_time_s": sim_time,
+        "wall_time_s": wall_time_s,
+        "steps_per_s": steps / wall_time_s if wall_time_s > 0 else math.nan,
+        "realtime_factor": sim_time / wall_time_s if wall_time_s > 0 else math.nan,
+        "message_counts": sig["counts"],
+        "faults": sig["faults"],
+        "ptc": bool(ff.get("ptc.enabled", True)),
+        "friction_table": bool(ff.get("friction_table.enabled", False)),
+        "reference_period_s": cycle,
+        "tracking_error": error_statistics(error, sig["step"], period_s=period, cycle_s=cycle),
+    }
+    (run_dir / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=True))
+    return summary
+
+
+def _um(x: float) -> str:
+    return "-" if not math.isfinite(x) else f"{x * 1e6:.6g}"
+
+
+def format_summary(summary: dict[str, Any]) -> str:
+    """The summary as a plain-text table (errors in um)."""
+    te = summary["tracking_error"]
+    lines = [
+        f"scenario          {summary['scenario']}  ({summary['processes']}, {summary['time_mode']})",
+        f"steps             {summary['steps']}  ({summary['sim_time_s']:.3f} s simulated)",
+        f"wall time         {summary['wall_time_s']:.2f} s  ->  {summary['steps_per_s']:,.0f} steps/s, "
+        f"{summary['realtime_factor']:.2f}x real time",
+        "messages          " + ", ".join(f"{k}: {v}" for k, v in sorted(summary["message_counts"].items())),
+        "faults            "
+        + (", ".join(f"{f['name']} at step {f['step']}" for f in summary["faults"]) or "none"),
+        "",
+        "tracking error (um)          RMS            max",
+        f"  all samples          {_um(te['all_samples']['rms_m']):>12} {_um(te['all_samples']['max_m']):>14}",
+        f"  at T_r instants      {_um(te['reference_instants']['rms_m']):>12} "
+        f"{_um(te['reference_instants']['max_m']):>14}",
+    ]
+    if "after_first_cycle" in te:
+        a = te["after_first_cycle"]
+        lines += [
+            f"  after cycle 1        {_um(a['all_samples']['rms_m']):>12} {_um(a['all_samples']['max_m']):>14}",
+            f"  ... at T_r instants  {_um(a['reference_instants']['rms_m']):>12} "
+            f"{_um(a['reference_instants']['max_m']):>14}",
+            "",
+            "cycle   RMS (um)       max (um)       max at T_r (um)",
+        ]
+        for c in te["cycles"]:
+            lines.append(
+                f"{c['cycle']:>5} {_um(c['rms_m']):>12} {_um(c['max_m']):>14} "
+                f"{_um(c['reference_instants']['max_m']):>18}"
+            )
+    return "\n".join(lines)
+
+
+def plot(run_dir: Path) -> list[Path]:
+    """Write ``reference_position.png`` and ``error.png`` into the run directory."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    summary = json.loads((run_dir / "summary.json").read_text())
+    from servo_axis.bringup import load_scenario, node_params, shared
+
+    scenario = load_scenario(Path(summary["scenario_file"]))
+    common = shared(scenario)
+    period = summary["control_period_s"]
+    lead = float(common.get("lead_m_per_rad", 1.91e-3))
+    sig = load_signals(run_dir / "bag", period)
+    fb = node_params(scenario, "feedback")
+    y = sig["scale_m"] / lead if fb.get("sensor", "encoder") == "scale" else sig["encoder_rad"]
+    t = sig["step"] * period
+    paths = []
+    fig, ax = plt.subplots(figsize=(9, 4))
+    ax.plot(t, sig["reference_rad"] * lead * 1e3, label="reference r")
+    ax.plot(t, y * lead * 1e3, "--", label="position y")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("table position (mm)")
+    ax.set_title(f"{summary['scenario']}: reference and position")
+    ax.legend()
+    ax.grid(True)
+    fig.tight_layout()
+    paths.append(run_dir / "reference_position.png")
+    fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
+    fig, ax = plt.subplots(figsize=(9, 4))
+    err = lead * (sig["reference_rad"] - y) * 1e6
+    ax.plot(t, err, lw=0.8, label="all samples")
+    even = sig["step"] % 2 == 0
+    ax.plot(t[even], err[even], ".", ms=2, label="T_r instants")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("tracking error (um)")
+    ax.set_title(f"{summary['scenario']}: tracking error e = R (r - y)")
+    ax.legend()
+    ax.grid(True)
+    fig.tight_layout()
+    paths.append(run_dir / "error.png")
+    fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
+    return paths
