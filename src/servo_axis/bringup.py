@@ -82,7 +82,9 @@ def roles_of(scenario: dict[str, Any]) -> list[str]:
     return [r for r in ("recorder", "feedforward", "feedback", "plant") if r in scenario]
 
 
-def handshake_args(scenario: dict[str, Any], roles: list[str], bag_dir: Path) -> list[str]:
+def handshake_args(
+    scenario: dict[str, Any], roles: list[str], bag_dir: Path, scenario_dir: Path
+) -> list[str]:
     """``-p`` overrides that tell each node whom to wait for."""
     state_subs = ("feedback" in roles) + ("feedforward" in roles)
     clock_subs = ("feedback" in roles) + ("feedforward" in roles)
@@ -103,6 +105,10 @@ def handshake_args(scenario: dict[str, Any], roles: list[str], bag_dir: Path) ->
     ]
     if "feedforward" in roles:
         args += ["-p", f"feedforward:wait_for_reference_subscribers:={ref_subs}"]
+        table = node_params(scenario, "feedforward").get("friction_table.file", "")
+        if table and not Path(table).is_absolute():
+            # Relative table paths are relative to the scenario file.
+            args += ["-p", f"feedforward:friction_table.file:={scenario_dir / table}"]
     return args
 
 
@@ -311,7 +317,7 @@ def run_scenario(
     bag_dir = out_dir / "bag"
     roles = roles_of(scenario)
     ns_args = ["-r", f"__ns:={namespace}"] if namespace else []
-    args = [*handshake_args(scenario, roles, bag_dir), *ns_args, *(extra_args or [])]
+    args = [*handshake_args(scenario, roles, bag_dir, scenario_path.parent), *ns_args, *(extra_args or [])]
     domain = default_domain_id() if domain_id is None else domain_id
     env = ros_environment(domain, log_dir)
     os.environ.update({k: env[k] for k in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE",

@@ -18,7 +18,6 @@ from collections.abc import Callable, Mapping
 from typing import Any, TypeVar
 
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 
 from servo_axis.core.errors import ConfigError, ParameterFileError
 
@@ -44,35 +43,38 @@ MODES = ("lockstep", "realtime")
 T = TypeVar("T")
 
 
-def _coerce(name: str, default: object, param: Parameter) -> object:
-    value = param.value
-    t = param.type_
+def coerce(name: str, default: object, value: object) -> object:
+    """Check ``value`` against the type of ``default``; ints are accepted for floats.
+
+    Raises
+    ------
+    ParameterFileError
+        Naming ``name`` when the type is wrong.
+    """
     if isinstance(default, bool):
-        if t == Parameter.Type.BOOL:
-            return bool(value)
+        if isinstance(value, bool):
+            return value
     elif isinstance(default, int):
-        if t == Parameter.Type.INTEGER:
-            return int(value)
+        if isinstance(value, int) and not isinstance(value, bool):
+            return value
     elif isinstance(default, float):
-        if t in (Parameter.Type.DOUBLE, Parameter.Type.INTEGER):
+        if isinstance(value, int | float) and not isinstance(value, bool):
             return float(value)
     elif isinstance(default, str):
-        if t == Parameter.Type.STRING:
-            return str(value)
+        if isinstance(value, str):
+            return value
     elif isinstance(default, list):
-        if t == Parameter.Type.NOT_SET:
+        if value is None:
             return []
-        elem = default[0] if default else 0.0
-        if isinstance(elem, str) and t == Parameter.Type.STRING_ARRAY:
-            return [str(v) for v in value]
-        if isinstance(elem, float) and t in (
-            Parameter.Type.DOUBLE_ARRAY,
-            Parameter.Type.INTEGER_ARRAY,
-        ):
-            return [float(v) for v in value]
-    raise ParameterFileError(
-        f"parameter '{name}': expected {_type_name(default)}, got {value!r} ({t.name})"
-    )
+        if isinstance(value, list | tuple):
+            elem = default[0] if default else 0.0
+            if isinstance(elem, str) and all(isinstance(v, str) for v in value):
+                return [str(v) for v in value]
+            if isinstance(elem, float) and all(
+                isinstance(v, int | float) and not isinstance(v, bool) for v in value
+            ):
+                return [float(v) for v in value]
+    raise ParameterFileError(f"parameter '{name}': expected {_type_name(default)}, got {value!r}")
 
 
 def _type_name(default: object) -> str:
@@ -96,7 +98,7 @@ def read_parameters(node: Node, schema: Mapping[str, object]) -> dict[str, Any]:
     full = {**SHARED, **schema}
     # rclpy keeps the parameter-file values for this node here before any
     # declaration; it has no public accessor.
-    overrides: dict[str, Parameter] = dict(node._parameter_overrides)
+    overrides: dict[str, Any] = dict(node._parameter_overrides)
     unknown = sorted(set(overrides) - set(full) - _BUILTIN)
     if unknown:
         raise ParameterFileError(
@@ -106,15 +108,39 @@ def read_parameters(node: Node, schema: Mapping[str, object]) -> dict[str, Any]:
     values: dict[str, Any] = {}
     for name, default in full.items():
         if name in overrides:
-            values[name] = _coerce(name, default, overrides[name])
+            raw = overrides[name].value
+            values[name] = coerce(name, default, raw.tolist() if hasattr(raw, "tolist") else raw)
         else:
             values[name] = list(default) if isinstance(default, list) else default
+    check_mode(values)
     for name, value in values.items():
         if isinstance(value, list) and not value:
             continue  # rclpy cannot declare an untyped empty array; nothing to show
         node.declare_parameter(name, value)
+    return values
+
+
+def check_mode(values: Mapping[str, Any]) -> None:
+    """Reject an unknown time ``mode``."""
     if values["mode"] not in MODES:
         raise ParameterFileError(f"parameter 'mode': expected one of {MODES}, got {values['mode']!r}")
+
+
+def values_from_mapping(
+    schema: Mapping[str, object], mapping: Mapping[str, object], node: str = "node"
+) -> dict[str, Any]:
+    """Same checks as :func:`read_parameters` on a plain (dotted) mapping, without ROS."""
+    full = {**SHARED, **schema}
+    unknown = sorted(set(mapping) - set(full) - _BUILTIN)
+    if unknown:
+        raise ParameterFileError(f"unknown parameter '{unknown[0]}' for node '{node}'")
+    values = {
+        name: coerce(name, default, mapping[name])
+        if name in mapping
+        else (list(default) if isinstance(default, list) else default)
+        for name, default in full.items()
+    }
+    check_mode(values)
     return values
 
 

@@ -87,6 +87,9 @@ SCHEMA: dict[str, object] = {
 # all-zero frequency list means "no modes".
 _NO_MODES = [0.0]
 
+#: Wall time the plant waits at the end for the recorder to acknowledge everything.
+FINISH_TIMEOUT_S = 10.0
+
 STATUS_LABELS = ("step", "deadline_misses", "rejected_commands", "command_timeouts")
 PROGRESS_LABELS = ("steps_recorded",)
 
@@ -184,9 +187,9 @@ class PlantNode(Node):
         self._waiting_since = time.monotonic()
         self._complain = Throttle()
         self._start_timer = self.create_timer(0.01, self._try_start, clock=steady_clock())
-        self._rt_timer = None
-        if self._lockstep:
-            self.create_timer(0.05, self._watchdog, clock=steady_clock())
+        self._rt_timer: Any = None
+        self._finish_started = 0.0
+        self.create_timer(0.05, self._watchdog, clock=steady_clock())
 
     # -- start ---------------------------------------------------------------
     def _connected(self) -> bool:
@@ -236,11 +239,19 @@ class PlantNode(Node):
             self._reject(f"recorder/progress rejected: {err}")
             return
         self._recorded = max(self._recorded, int(recorded))
-        if self._lockstep and self.started:
+        if self.started:
             self._advance()
 
     def _watchdog(self) -> None:
-        if self._awaiting is None or self.done or self._command is not None:
+        if self._finishing and not self.done:
+            if time.monotonic() - self._finish_started > FINISH_TIMEOUT_S:
+                self.get_logger().error(
+                    f"recorder acknowledged {self._recorded} of {self._steps} steps within "
+                    f"{FINISH_TIMEOUT_S} s; stopping anyway"
+                )
+                self.done = True
+            return
+        if not self._lockstep or self._awaiting is None or self.done or self._command is not None:
             return
         if time.monotonic() - self._waiting_since > self._v["command_timeout_s"]:
             self._timeouts += 1
@@ -268,16 +279,14 @@ class PlantNode(Node):
         out = self.plant.step(current)
         if out.step >= self._steps:
             self._awaiting = None
-            self._finishing = True
-            self._publish_status()
-            self._advance()
+            self._finish()
             return
         self._awaiting = out.step
         self._waiting_since = time.monotonic()
         self._publish(out)
 
     def _realtime_tick(self) -> None:
-        if self.done:
+        if self._finishing:
             return
         if self._command is None:
             self._deadline_misses += 1
@@ -288,10 +297,17 @@ class PlantNode(Node):
         self._last_current = current
         out = self.plant.step(current)
         if out.step >= self._steps:
-            self._publish_status()
-            self.done = True
+            self._rt_timer.cancel()
+            self._finish()
             return
         self._publish(out)
+
+    def _finish(self) -> None:
+        """After the last step: publish the status, then wait for the recorder."""
+        self._finishing = True
+        self._finish_started = time.monotonic()
+        self._publish_status()
+        self._advance()
 
     def _publish(self, out: PlantOutput) -> None:
         if self._clock_pub is not None:

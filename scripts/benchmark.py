@@ -1,0 +1,186 @@
+#!/usr/bin/env python3
+"""Benchmark: steps/s of a scenario in lockstep, against a ping-pong baseline.
+
+Measures, in one run on this machine:
+
+* baseline: two processes that bounce a JointState back and forth in
+  lockstep (each round trip is what one plant <-> feedback step costs in
+  transport and executor alone);
+* the scenario with plant, feedback, feedforward and recorder as separate
+  processes;
+* the same composed in one process;
+* the same loop as plain function calls (core only, no ROS).
+
+Figures are printed as steps/s, as a ratio to real time at the control
+period (1.0x = as fast as the real axis) and as a ratio to the baseline
+measured in the same run, and written to docs/benchmarks.md.
+
+    .venv/bin/python scripts/benchmark.py [--scenario config/ptc_nominal.yaml] [--duration 10]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import yaml
+
+REPO = Path(__file__).resolve().parents[1]
+PING_ROUNDS = 5000
+
+
+def pong() -> None:
+    """Child process: echo every ``ping`` on ``pong``."""
+    import rclpy
+    from sensor_msgs.msg import JointState
+
+    from servo_axis.nodes.common import STREAM_QOS, make_executor
+
+    rclpy.init()
+    node = rclpy.create_node("pong")
+    pub = node.create_publisher(JointState, "pong", STREAM_QOS)
+    node.create_subscription(JointState, "ping", pub.publish, STREAM_QOS)
+    ex = make_executor()
+    ex.add_node(node)
+    try:
+        while rclpy.ok():
+            ex.spin_once(timeout_sec=0.1)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        ex.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+def ping_pong(env: dict[str, str]) -> float:
+    """Round trips per second between this process and a ``pong`` process."""
+    os.environ.update(env)
+    import rclpy
+    from sensor_msgs.msg import JointState
+
+    from servo_axis import msgs
+    from servo_axis.nodes.common import STREAM_QOS, make_executor
+
+    child = subprocess.Popen(
+        [sys.executable, __file__, "--pong"], env=env, start_new_session=True,
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    )
+    rclpy.init()
+    node = rclpy.create_node("ping")
+    pub = node.create_publisher(JointState, "ping", STREAM_QOS)
+    got = [0]
+    node.create_subscription(JointState, "pong", lambda m: got.__setitem__(0, got[0] + 1), STREAM_QOS)
+    ex = make_executor()
+    ex.add_node(node)
+    try:
+        while pub.get_subscription_count() < 1 or node.count_publishers("pong") < 1:
+            ex.spin_once(timeout_sec=0.05)
+        time.sleep(0.5)  # the reverse direction matches a little later
+        state = msgs.StateSample(0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+        def bounce(n: int) -> None:
+            for k in range(n):
+                pub.publish(msgs.state_to_msg(state, axis="x", period_ns_=1_000_000))
+                while got[0] <= k + offset[0]:
+                    ex.spin_once(timeout_sec=1.0)
+
+        offset = [-1]
+        bounce(200)  # warm-up
+        offset[0] = got[0] - 1
+        t0 = time.perf_counter()
+        bounce(PING_ROUNDS)
+        return PING_ROUNDS / (time.perf_counter() - t0)
+    finally:
+        ex.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+        child.send_signal(2)
+        child.wait(timeout=10)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--scenario", default=str(REPO / "config" / "ptc_nominal.yaml"))
+    parser.add_argument("--duration", type=float, default=10.0, help="simulated seconds per run")
+    parser.add_argument("--out", default=str(REPO / "docs" / "benchmarks.md"))
+    parser.add_argument("--pong", action="store_true", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.pong:
+        pong()
+        return 0
+
+    from servo_axis.bringup import load_scenario, ros_environment, run_scenario
+    from servo_axis.simulate import simulate
+
+    tmp = Path(tempfile.mkdtemp(prefix="servo_axis_bench_"))
+    data = load_scenario(Path(args.scenario))
+    data["/**"]["ros__parameters"]["duration_s"] = args.duration
+    ff = data.get("feedforward", {}).get("ros__parameters", {})
+    table = ff.get("friction_table", {}).get("file")
+    if table and not Path(table).is_absolute():
+        ff["friction_table"]["file"] = str(Path(args.scenario).resolve().parent / table)
+    scenario = tmp / Path(args.scenario).name
+    scenario.write_text(yaml.safe_dump(data))
+    period = float(data["/**"]["ros__parameters"].get("control_period_s", 1e-3))
+    steps = round(args.duration / period)
+    domain = 60 + os.getpid() % 30
+
+    results: list[tuple[str, float]] = []
+    env = ros_environment(domain, tmp)
+    print("ping-pong baseline (2 processes) ...", flush=True)
+    results.append(("baseline: 2-process ping-pong", ping_pong(env)))
+    for name, composed in (("separate processes (4)", False), ("composed (1 process)", True)):
+        print(f"{name} ...", flush=True)
+        r = run_scenario(scenario, out_dir=tmp / name.split()[0], composed=composed,
+                         domain_id=domain, progress=None, plots=False)
+        counts = r.summary["message_counts"]
+        lost = {t: steps - counts.get(t, 0) for t in ("/state", "/command", "/reference", "/clock")}
+        assert not any(lost.values()), f"recorder lost messages: {lost}"
+        results.append((f"{name}, recorder on", r.summary["steps_per_s"]))
+    print("core only ...", flush=True)
+    t0 = time.perf_counter()
+    simulate(scenario, steps=steps)
+    results.append(("core only (no ROS)", steps / (time.perf_counter() - t0)))
+
+    base = results[0][1]
+    lines = [
+        f"| {'case':<40} | {'steps/s':>10} | {'x real time':>11} | {'x baseline':>10} |",
+        f"|{'-' * 42}|{'-' * 12}|{'-' * 13}|{'-' * 12}|",
+    ]
+    for name, rate in results:
+        lines.append(f"| {name:<40} | {rate:>10,.0f} | {rate * period:>10.2f}x | {rate / base:>9.2f}x |")
+    table_text = "\n".join(lines)
+    print()
+    print(table_text)
+    header = (
+        f"Scenario `{Path(args.scenario).name}`, {steps} steps of T_u = {period * 1e3:g} ms per run, "
+        f"lockstep, measured {time.strftime('%Y-%m-%d %H:%M')} on {platform.node()} "
+        f"({os.cpu_count()} cores, Python {platform.python_version()}, "
+        f"executor {os.environ.get('SERVO_AXIS_EXECUTOR', 'events')}).\n\n"
+        f"Command: `.venv/bin/python scripts/benchmark.py --scenario {Path(args.scenario).relative_to(REPO) if Path(args.scenario).resolve().is_relative_to(REPO) else args.scenario} "
+        f"--duration {args.duration:g}`\n\n"
+    )
+    out = Path(args.out)
+    section = f"## {Path(args.scenario).stem}\n\n{header}{table_text}\n"
+    old = out.read_text() if out.exists() else "# Benchmarks\n\nRatios are to real time at the control period and to a ping-pong baseline measured in the same run (the machines are shared and noisy).\n\n"
+    marker = f"## {Path(args.scenario).stem}\n"
+    if marker in old:
+        start = old.index(marker)
+        end = old.find("\n## ", start + 1)
+        old = old[:start] + section + (old[end + 1:] if end != -1 else "")
+    else:
+        old = old.rstrip("\n") + "\n\n" + section
+    out.write_text(old)
+    print(f"\nwritten to {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,247 @@
+"""Real processes over real topics: whole runs, the bag, determinism, faults.
+
+Every test here starts node processes through the bringup (or by hand), in
+its own ROS domain with localhost discovery and a temporary log directory,
+and stops and reaps them before it ends.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+from mcap.reader import make_reader
+
+from servo_axis.bringup import (
+    ProgressWatcher,
+    RunError,
+    handshake_args,
+    load_scenario,
+    ros_environment,
+    run_scenario,
+    start_nodes,
+    stop_nodes,
+)
+from servo_axis.friction_id import table_from_run
+
+pytestmark = pytest.mark.integration
+
+CONFIG = Path(__file__).resolve().parents[2] / "config"
+
+
+def scenario_copy(src: Path, dst_dir: Path, **shared: Any) -> Path:
+    """The scenario with some ``/**`` values changed (table paths made absolute)."""
+    data = load_scenario(src)
+    data.setdefault("/**", {"ros__parameters": {}})["ros__parameters"].update(shared)
+    ff = data.get("feedforward", {}).get("ros__parameters", {})
+    table = ff.get("friction_table", {}).get("file")
+    if table and not Path(table).is_absolute():
+        ff["friction_table"]["file"] = str(src.parent / table)
+    dst = dst_dir / src.name
+    dst.write_text(yaml.safe_dump(data))
+    return dst
+
+
+def raw_payloads(bag_dir: Path) -> dict[str, list[bytes]]:
+    """CDR payloads per topic, in publication order, read with the mcap library."""
+    (mcap_file,) = bag_dir.glob("*.mcap")
+    out: dict[str, list[tuple[int, bytes]]] = {}
+    with mcap_file.open("rb") as f:
+        for _schema, channel, message in make_reader(f).iter_messages():
+            out.setdefault(channel.topic, []).append((message.sequence, message.data))
+    return {t: [d for _, d in sorted(v)] for t, v in out.items()}
+
+
+def test_ptc_tracks_the_nominal_plant_and_pid_alone_does_not(ros_env: int, tmp_path: Path) -> None:
+    ptc = run_scenario(CONFIG / "ptc_nominal.yaml", out_dir=tmp_path / "ptc", domain_id=ros_env, progress=None)
+    pid = run_scenario(CONFIG / "pid_nominal.yaml", out_dir=tmp_path / "pid", domain_id=ros_env, progress=None)
+    steps = 2000
+    for result in (ptc, pid):
+        s = result.summary
+        assert s["steps"] == steps
+        for topic in ("/state", "/command", "/reference", "/clock"):
+            assert s["message_counts"][topic] == steps  # the recorder lost nothing
+        assert not s["faults"]
+        assert (result.run_dir / "summary.json").is_file()
+        assert (result.run_dir / "error.png").stat().st_size > 10_000
+    ptc_ss = ptc.summary["tracking_error"]["after_first_cycle"]["reference_instants"]["max_m"]
+    pid_ss = pid.summary["tracking_error"]["after_first_cycle"]["reference_instants"]["max_m"]
+    assert ptc_ss < 1e-9  # below 1 nm at the T_r instants
+    assert pid_ss > 1e-6
+    assert pid_ss / max(ptc_ss, 1e-300) > 1e3
+    # Every cycle after the start-up transient is perfect, not only on average.
+    for cycle in ptc.summary["tracking_error"]["cycles"][1:]:
+        assert cycle["reference_instants"]["max_m"] < 1e-9
+
+
+def test_bag_reads_back_with_independent_readers(ros_env: int, tmp_path: Path) -> None:
+    from mcap_ros2.decoder import DecoderFactory
+    from rosbags.highlevel import AnyReader
+
+    scenario = scenario_copy(CONFIG / "ptc_nominal.yaml", tmp_path, duration_s=0.3)
+    result = run_scenario(scenario, out_dir=tmp_path / "run", domain_id=ros_env, progress=None, plots=False)
+    bag = result.run_dir / "bag"
+    with AnyReader([bag]) as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+        states = [
+            reader.deserialize(raw, conn.msgtype)
+            for conn, _t, raw in reader.messages(connections=[c for c in reader.connections if c.topic == "/state"])
+        ]
+    assert {t: counts[t] for t in ("/state", "/command", "/reference", "/clock")} == dict.fromkeys(
+        ("/state", "/command", "/reference", "/clock"), 300
+    )
+    assert [s.name for s in states[:1]] == [["x_motor", "x_table"]]
+    stamps = [s.header.stamp.sec * 10**9 + s.header.stamp.nanosec for s in states]
+    assert stamps == [k * 1_000_000 for k in range(300)]
+    (mcap_file,) = bag.glob("*.mcap")
+    with mcap_file.open("rb") as f:
+        decoded = [
+            m.decoded_message.effort[0]
+            for m in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages(topics=["/command"])
+        ]
+    assert len(decoded) == 300
+    # The PTC makes the loop track from the first sample on; the command
+    # equals the feedforward current the summary recomputes from the bag.
+    assert np.all(np.isfinite(decoded)) and max(abs(x) for x in decoded) > 0.1
+
+
+def test_lockstep_runs_are_identical_separate_and_composed(ros_env: int, tmp_path: Path) -> None:
+    scenario = scenario_copy(CONFIG / "ptc_friction.yaml", tmp_path, duration_s=0.6)
+    runs = [
+        run_scenario(scenario, out_dir=tmp_path / name, domain_id=ros_env, composed=composed, progress=None, plots=False)
+        for name, composed in (("a", False), ("b", False), ("c", True))
+    ]
+    payloads = [raw_payloads(r.run_dir / "bag") for r in runs]
+    for topic in ("/state", "/command", "/reference", "/clock"):
+        assert len(payloads[0][topic]) == 600
+        assert payloads[0][topic] == payloads[1][topic], f"{topic}: separate runs differ"
+        assert payloads[0][topic] == payloads[2][topic], f"{topic}: composed differs from separate"
+    # Not trivially equal: the friction makes the commands vary.
+    assert len(set(payloads[0]["/command"])) > 500
+
+
+def test_friction_table_halves_the_quadrant_glitches(ros_env: int, tmp_path: Path) -> None:
+    ident = run_scenario(
+        CONFIG / "friction_id.yaml", out_dir=tmp_path / "id", domain_id=ros_env, composed=True, progress=None, plots=False
+    )
+    table = table_from_run(ident.run_dir)
+    # The identified table spans the Coulomb level of the plant (3.2 N m).
+    assert table.torque_Nm[0] == pytest.approx(-3.2, rel=0.15)
+    assert table.torque_Nm[-1] == pytest.approx(3.2, rel=0.1)
+    table_path = tmp_path / "table.csv"
+    table.save(table_path)
+    plain = scenario_copy(CONFIG / "ptc_friction.yaml", tmp_path)
+    with_table = load_scenario(CONFIG / "ptc_friction_table.yaml")
+    with_table["feedforward"]["ros__parameters"]["friction_table"]["file"] = str(table_path)
+    (tmp_path / "wt").mkdir()
+    wt_path = tmp_path / "wt" / "ptc_friction_table.yaml"
+    wt_path.write_text(yaml.safe_dump(with_table))
+    a = run_scenario(plain, out_dir=tmp_path / "plain", domain_id=ros_env, progress=None, plots=False)
+    b = run_scenario(wt_path, out_dir=tmp_path / "table", domain_id=ros_env, progress=None, plots=False)
+    peak_plain = a.summary["tracking_error"]["after_first_cycle"]["all_samples"]["max_m"]
+    peak_table = b.summary["tracking_error"]["after_first_cycle"]["all_samples"]["max_m"]
+    assert peak_plain > 1e-6  # the glitches are there
+    assert peak_table <= 0.5 * peak_plain
+
+
+def test_killed_feedforward_trips_the_feedback_and_the_bag_survives(ros_env: int, tmp_path: Path) -> None:
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from rosbags.highlevel import AnyReader
+    from std_msgs.msg import Float64MultiArray
+
+    from servo_axis.nodes.common import LATCHED_QOS
+
+    scenario_path = scenario_copy(CONFIG / "ptc_nominal.yaml", tmp_path, duration_s=600.0)
+    scenario = load_scenario(scenario_path)
+    roles = ["recorder", "feedforward", "feedback", "plant"]
+    log_dir = tmp_path / "logs"
+    log_dir.mkdir()
+    bag = tmp_path / "bag"
+    env = ros_environment(ros_env, log_dir)
+    os.environ.update({k: env[k] for k in ("FASTRTPS_DEFAULT_PROFILES_FILE",)})
+    procs = start_nodes(scenario_path, roles, handshake_args(scenario, roles, bag, tmp_path), env, log_dir, False)
+    watcher = ProgressWatcher("/")
+    ctx = Context()
+    rclpy.init(args=[], context=ctx)
+    node = rclpy.create_node("fault_probe", context=ctx)
+    faults: list[tuple[float, list[float]]] = []
+    node.create_subscription(Float64MultiArray, "fault", lambda m: faults.append((time.monotonic(), list(m.data))), LATCHED_QOS)
+    ex = SingleThreadedExecutor(context=ctx)
+    ex.add_node(node)
+    try:
+        deadline = time.monotonic() + 60
+        while watcher.steps < 500:
+            assert time.monotonic() < deadline, "the run did not start"
+            watcher.spin(0.05)
+        ff = next(p for p in procs if p.role == "feedforward")
+        os.killpg(ff.popen.pid, signal.SIGKILL)
+        killed_at = time.monotonic()
+        while not faults:
+            assert time.monotonic() - killed_at < 10, "no fault published"
+            ex.spin_once(timeout_sec=0.05)
+        trip_delay = faults[0][0] - killed_at
+        step, code, _ = faults[0][1]
+        assert code == 4  # input_timeout
+        assert trip_delay < 0.5 + 1.0  # input_timeout_s + the README's margin
+        # The axis keeps running (zero current) and the recorder keeps recording.
+        target = watcher.steps + 300
+        while watcher.steps < target:
+            assert time.monotonic() - killed_at < 60
+            watcher.spin(0.05)
+    finally:
+        ex.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+        watcher.close()
+        codes = stop_nodes(procs)
+    assert all(p.popen.poll() is not None for p in procs)
+    assert codes["recorder"] == 0 and codes["plant"] == 0 and codes["feedback"] == 0
+    with AnyReader([bag]) as reader:
+        conns = {c.topic: c for c in reader.connections}
+        commands = [
+            reader.deserialize(raw, "sensor_msgs/msg/JointState")
+            for _c, _t, raw in reader.messages(connections=[conns["/command"]])
+        ]
+        fault_msgs = list(reader.messages(connections=[conns["/fault"]]))
+    assert len(fault_msgs) == 1
+    after = [c.effort[0] for c in commands if c.header.stamp.sec * 10**9 + c.header.stamp.nanosec >= step * 1e6]
+    assert len(after) >= 300 and all(x == 0.0 for x in after)
+
+
+def test_bad_parameter_file_stops_the_node_with_its_name(ros_env: int, tmp_path: Path) -> None:
+    data = load_scenario(CONFIG / "ptc_nominal.yaml")
+    data["plant"]["ros__parameters"]["damping_Nms_per_radd"] = 0.1
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(yaml.safe_dump(data))
+    env = ros_environment(ros_env, tmp_path)
+    done = subprocess.run(
+        [sys.executable, "-m", "servo_axis.nodes.plant", "--ros-args", "--params-file", str(bad)],
+        env=env, capture_output=True, text=True, timeout=60,
+    )
+    assert done.returncode == 2
+    assert "unknown parameter 'damping_Nms_per_radd'" in done.stderr
+    with pytest.raises(RunError, match="damping_Nms_per_radd"):
+        run_scenario(bad, out_dir=tmp_path / "run", domain_id=ros_env, progress=None)
+
+
+def test_realtime_mode_keeps_wall_time_and_counts_misses(ros_env: int, tmp_path: Path) -> None:
+    scenario = scenario_copy(CONFIG / "ptc_nominal.yaml", tmp_path, duration_s=1.0, mode="realtime")
+    result = run_scenario(scenario, out_dir=tmp_path / "rt", domain_id=ros_env, progress=None, plots=False)
+    s = result.summary
+    assert s["message_counts"]["/state"] == 1000
+    assert 0.5 < s["realtime_factor"] < 1.1
+    from servo_axis.recording.bag import read_messages
+
+    status = [m.message.data for m in read_messages(result.run_dir / "bag", topics=["/plant/status"])]
+    assert status, "plant/status was not published"
+    assert status[-1][0] == 1000 and status[-1][1] >= 0

@@ -1,0 +1,229 @@
+"""Nodes in one process: the lockstep loop against the core-only loop, bad input, parameters."""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import rclpy
+from numpy.testing import assert_array_equal
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+
+from servo_axis import msgs
+from servo_axis.bringup import load_scenario, node_params
+from servo_axis.core.errors import ParameterFileError
+from servo_axis.nodes.common import LATCHED_QOS, STREAM_QOS
+from servo_axis.nodes.feedback import FeedbackNode
+from servo_axis.nodes.feedforward import FeedforwardNode
+from servo_axis.nodes.plant import PlantNode
+from servo_axis.nodes.recorder import RecorderNode
+from servo_axis.recording.bag import read_messages
+from servo_axis.simulate import simulate
+
+pytestmark = pytest.mark.ros
+
+CONFIG = Path(__file__).resolve().parents[2] / "config"
+PERIOD_NS = 1_000_000
+
+
+@pytest.fixture
+def context(ros_env: int) -> Iterator[Context]:
+    ctx = Context()
+    rclpy.init(args=[], context=ctx)
+    yield ctx
+    rclpy.try_shutdown(context=ctx)
+
+
+def overrides(scenario: Path, role: str, **extra: Any) -> list[Parameter]:
+    values = {**node_params(load_scenario(scenario), role), **extra}
+    return [Parameter(k, value=v) for k, v in values.items()]
+
+
+def spin_until(ctx: Context, nodes: list[Node], cond: Callable[[], bool], timeout_s: float = 20.0) -> None:
+    ex = SingleThreadedExecutor(context=ctx)
+    for n in nodes:
+        ex.add_node(n)
+    deadline = time.monotonic() + timeout_s
+    try:
+        while not cond():
+            assert time.monotonic() < deadline, "timed out"
+            ex.spin_once(timeout_sec=0.05)
+    finally:
+        ex.shutdown()
+
+
+def test_composed_lockstep_equals_core_only_loop(context: Context, tmp_path: Path) -> None:
+    """The node graph in one process computes exactly what plain calls compute."""
+    scenario = CONFIG / "ptc_friction.yaml"
+    duration = 0.3
+    steps = 300
+    bag = tmp_path / "bag"
+    common = {"duration_s": duration}
+    nodes: list[Node] = [
+        RecorderNode(context=context, parameter_overrides=overrides(scenario, "recorder", output_dir=str(bag), **common)),
+        FeedforwardNode(context=context, parameter_overrides=overrides(scenario, "feedforward", wait_for_reference_subscribers=2, **common)),
+        FeedbackNode(context=context, parameter_overrides=overrides(scenario, "feedback", **common)),
+        PlantNode(
+            context=context,
+            parameter_overrides=overrides(
+                scenario, "plant", flow_control=True, wait_for_state_subscribers=3,
+                wait_for_clock_subscribers=3, **common,
+            ),
+        ),
+    ]
+    plant = nodes[-1]
+    try:
+        spin_until(context, nodes, lambda: plant.done)
+        counts = nodes[0].message_counts
+    finally:
+        nodes[0].close()
+        for n in nodes:
+            n.destroy_node()
+    for topic in ("/state", "/command", "/reference", "/clock"):
+        assert counts[topic] == steps, topic
+    recorded: dict[str, dict[int, Any]] = {"/state": {}, "/command": {}, "/reference": {}}
+    for m in read_messages(bag):
+        if m.topic in recorded:
+            recorded[m.topic][msgs.step_from_stamp(m.message.header.stamp, PERIOD_NS)] = m.message
+    core = simulate(scenario, steps=steps)
+    assert_array_equal([recorded["/state"][k].position[0] for k in range(steps)], core.encoder_rad)
+    assert_array_equal([recorded["/reference"][k].position[0] for k in range(steps)], core.reference_rad)
+    assert_array_equal([recorded["/command"][k].effort[0] for k in range(steps)], core.command_A)
+    # The run is not trivial: friction makes the axis lag, the loop reacts.
+    assert np.max(np.abs(core.command_A)) > 1.0
+
+
+class Probe(Node):
+    """Publishes hand-made messages to a node under test and collects its output."""
+
+    def __init__(self, context: Context) -> None:
+        super().__init__("probe", context=context)
+        self.state_pub = self.create_publisher(JointState, "state", STREAM_QOS)
+        self.ref_pub = self.create_publisher(JointState, "reference", STREAM_QOS)
+        self.commands: list[msgs.CommandSample] = []
+        self.faults: list[list[float]] = []
+        self.cmd_sub = self.create_subscription(JointState, "command", self._on_command, STREAM_QOS)
+        self.fault_sub = self.create_subscription(
+            Float64MultiArray, "fault", lambda m: self.faults.append(list(m.data)), LATCHED_QOS
+        )
+
+    def _on_command(self, msg: JointState) -> None:
+        self.commands.append(msgs.command_from_msg(msg, axis="x", period_ns_=PERIOD_NS))
+
+    def state(self, step: int, angle: float = 0.0) -> JointState:
+        return msgs.state_to_msg(msgs.StateSample(step, angle, angle * 1.91e-3, 0, 0, 0, 0), axis="x", period_ns_=PERIOD_NS)
+
+    def reference(self, step: int, angle: float = 0.0, current: float = 0.0) -> JointState:
+        return msgs.reference_to_msg(msgs.ReferenceSample(step, angle, 0.0, current), axis="x", period_ns_=PERIOD_NS)
+
+
+def connected(probe: Probe, fb: FeedbackNode) -> Callable[[], bool]:
+    """Both directions matched: probe -> feedback and feedback -> probe."""
+    return lambda: (
+        probe.state_pub.get_subscription_count() >= 1
+        and probe.ref_pub.get_subscription_count() >= 1
+        and probe.cmd_sub.get_publisher_count() >= 1
+        and probe.fault_sub.get_publisher_count() >= 1
+    )
+
+
+def test_feedback_rejects_bad_input_and_passes_nothing_on(context: Context) -> None:
+    fb = FeedbackNode(context=context, parameter_overrides=[Parameter("input_timeout_s", value=30.0)])
+    probe = Probe(context)
+    nodes = [fb, probe]
+    spin_until(context, nodes, connected(probe, fb))
+    probe.ref_pub.publish(probe.reference(0, 0.0, 1.5))
+    bad_ref = probe.reference(1)
+    bad_ref.position = [math.nan]
+    probe.ref_pub.publish(bad_ref)  # NaN: rejected
+    short = probe.reference(1)
+    short.effort = []
+    probe.ref_pub.publish(short)  # wrong length: rejected
+    nan_state = probe.state(0)
+    nan_state.position = [math.nan, 0.0]
+    probe.state_pub.publish(nan_state)  # rejected, no command for it
+    probe.state_pub.publish(probe.state(0, 0.0))  # good: answered with the feedforward 1.5 A
+    spin_until(context, nodes, lambda: len(probe.commands) >= 1 and fb.rejected >= 3)
+    probe.state_pub.publish(probe.state(0, 0.0))  # stale stamp: rejected
+    off_grid = probe.state(1)
+    off_grid.header.stamp.nanosec += 17
+    probe.state_pub.publish(off_grid)  # not on the control grid: rejected
+    spin_until(context, nodes, lambda: fb.rejected >= 5)
+    assert [c.step for c in probe.commands] == [0]
+    assert probe.commands[0].current_A == pytest.approx(1.5, abs=1e-12)  # PID sees zero error
+    assert not probe.faults
+    fb.destroy_node()
+    probe.destroy_node()
+
+
+def test_feedback_trips_on_following_error_and_holds_zero(context: Context) -> None:
+    fb = FeedbackNode(
+        context=context,
+        parameter_overrides=[Parameter("limits.following_error_m", value=1e-6), Parameter("input_timeout_s", value=30.0)],
+    )
+    probe = Probe(context)
+    nodes = [fb, probe]
+    spin_until(context, nodes, connected(probe, fb))
+    for k in range(3):
+        probe.ref_pub.publish(probe.reference(k, 0.01, 2.0))  # 0.01 rad = 19 um error
+    for k in range(3):
+        probe.state_pub.publish(probe.state(k, 0.0))
+    spin_until(context, nodes, lambda: len(probe.commands) >= 3 and len(probe.faults) >= 1)
+    assert [c.current_A for c in probe.commands] == [0.0, 0.0, 0.0]
+    step, code, value = probe.faults[0]
+    assert (step, code) == (0, 1)
+    assert value == pytest.approx(0.01 * 1.91e-3, rel=1e-12)
+    fb.destroy_node()
+    probe.destroy_node()
+
+
+def test_feedback_trips_when_reference_stops_arriving(context: Context) -> None:
+    fb = FeedbackNode(context=context, parameter_overrides=[Parameter("input_timeout_s", value=0.3)])
+    probe = Probe(context)
+    nodes = [fb, probe]
+    spin_until(context, nodes, connected(probe, fb))
+    t0 = time.monotonic()
+    probe.state_pub.publish(probe.state(0))  # no reference will ever come
+    spin_until(context, nodes, lambda: len(probe.faults) >= 1 and len(probe.commands) >= 1)
+    elapsed = time.monotonic() - t0
+    assert probe.faults[0][:2] == [0.0, 4.0]
+    assert probe.commands[0].current_A == 0.0
+    assert 0.3 <= elapsed < 0.3 + 1.0
+    fb.destroy_node()
+    probe.destroy_node()
+
+
+@pytest.mark.parametrize(
+    ("node_cls", "name", "value", "match"),
+    [
+        (PlantNode, "inertia_kgm", 0.01, "unknown parameter 'inertia_kgm'"),
+        (PlantNode, "inertia_kgm2", "heavy", "parameter 'inertia_kgm2': expected a number"),
+        (PlantNode, "inertia_kgm2", -0.01, "parameter 'inertia_kgm2'"),
+        (PlantNode, "friction.elements", 0, "parameter 'friction.elements'"),
+        (PlantNode, "dead_time_s", 75e-6, "parameter 'dead_time_s'"),
+        (FeedbackNode, "bandwidth_hz", -40.0, "bandwidth_hz"),
+        (FeedbackNode, "sensor", "laser", "parameter 'sensor'"),
+        (FeedforwardNode, "reference.kind", "square", "parameter 'reference.kind'"),
+        (FeedforwardNode, "mode", "fast", "parameter 'mode'"),
+    ],
+)
+def test_bad_parameters_stop_the_node_before_it_publishes(
+    context: Context, node_cls: type, name: str, value: object, match: str
+) -> None:
+    watcher = Node("watcher", context=context)
+    with pytest.raises(ParameterFileError, match=match):
+        node_cls(context=context, parameter_overrides=[Parameter(name, value=value)])
+    # Parameters are read before any publisher is made: nothing was offered.
+    for topic in ("state", "command", "reference", "/clock"):
+        assert watcher.count_publishers(topic) == 0
+    watcher.destroy_node()
