@@ -17,7 +17,6 @@ given at the table (m) and converted with the lead ``R`` (m/rad).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 from .errors import ConfigError, require_nonnegative, require_positive
@@ -104,11 +103,19 @@ class MaxwellSlip:
 
     def reset(self) -> None:
         """Relax every element (virgin state)."""
-        self._z = [0.0] * len(self._z)
+        self._z[:] = [0.0] * len(self._z)
 
     def torque(self) -> float:
         """Friction torque the elements exert against the motion, N m."""
         return math.fsum(k * z for k, z in zip(self._stiffness, self._z, strict=True))
+
+    def elements(self) -> tuple[list[float], list[float], list[float]]:
+        """Break-away deflections (rad), stiffnesses (N m/rad) and the live deflection list.
+
+        The deflection list is the element state itself: a caller that steps
+        the elements inline (the plant's inner loop) updates it in place.
+        """
+        return self._delta, self._stiffness, self._z
 
     def move(self, displacement_rad: float) -> float:
         """Advance by ``displacement_rad`` and return the new torque, N m."""
@@ -148,36 +155,13 @@ class FrictionModel:
             if params.rolling_coulomb_Nm > 0.0
             else None
         )
-        self._rolling_torque = 0.0
+
+    @property
+    def rolling(self) -> MaxwellSlip | None:
+        """The Maxwell-slip element set, or None when rolling friction is off."""
+        return self._rolling
 
     def reset(self) -> None:
         """Return to the virgin state."""
         if self._rolling is not None:
             self._rolling.reset()
-        self._rolling_torque = 0.0
-
-    def update(self, displacement_rad: float, velocity_rad_s: float) -> float:
-        """Advance the hysteresis by a displacement and return the torque.
-
-        Parameters
-        ----------
-        displacement_rad : float
-            Motor displacement since the previous call, rad.
-        velocity_rad_s : float
-            Motor velocity now, rad/s.
-
-        Returns
-        -------
-        float
-            Friction torque opposing the motion, N m (positive when it
-            resists positive motion).
-        """
-        p = self.params
-        if self._rolling is not None:
-            self._rolling_torque = self._rolling.move(displacement_rad)
-        torque = self._rolling_torque
-        if p.coulomb_Nm > 0.0:
-            torque += p.coulomb_Nm * math.tanh(velocity_rad_s / p.coulomb_smoothing_rad_s)
-        if p.viscous_Nms_per_rad > 0.0:
-            torque += p.viscous_Nms_per_rad * velocity_rad_s
-        return torque

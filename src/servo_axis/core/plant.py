@@ -15,8 +15,11 @@ Integration: the linear part is discretised exactly (zero-order hold, matrix
 exponential) at the simulation step ``h`` (a divisor of the control period).
 The dead time is a delay line of whole simulation steps, not a Pade
 approximation. Friction and disturbance are evaluated at the start of each
-simulation step and held over it. When neither is present the whole control
-period is advanced by precomputed exact matrices (same result to rounding).
+simulation step and held over it. Friction depends on the rigid-body motion
+``theta_r`` (the modes are structural vibration on top of it), so only the
+two rigid-body states are stepped one simulation step at a time; the modes
+and, without friction, the whole state are advanced per control period by
+precomputed exact matrices (the same result as stepping, to rounding).
 """
 
 from __future__ import annotations
@@ -265,18 +268,24 @@ class BallScrewPlant:
         q, r = divmod(params.dead_time_steps, n)
         self._delay_periods = q
         self._delay_rem = r
-        # Whole-period matrices for the linear fast path: r substeps with the
-        # older command, then n - r with the newer one.
-        ad_n = np.linalg.matrix_power(self._ad, n)
-        sum_b = [np.zeros_like(self._bd)]
-        power = np.eye(a.shape[0])
+        # Whole-period matrices: r substeps with the older command, then n - r
+        # with the newer one (linear fast path), and the response of the whole
+        # state to a per-substep input sequence (paths with friction or a
+        # disturbance): x_n = A^n x_0 + sum_j A^(n-1-j) B u_j.
+        powers = [np.eye(a.shape[0])]
         for _ in range(n):
-            sum_b.append(sum_b[-1] + power @ self._bd)
-            power = power @ self._ad
-        self._phi = ad_n
-        self._gamma_old = np.linalg.matrix_power(self._ad, n - r) @ sum_b[r]
-        self._gamma_new = sum_b[n - r]
-        self._nonlinear = params.friction.enabled or params.disturbance.amplitude_Nm > 0.0
+            powers.append(powers[-1] @ self._ad)
+        self._phi = powers[n]
+        self._gain_seq = np.column_stack([powers[n - 1 - j] @ self._bd for j in range(n)])
+        self._gamma_old = self._gain_seq[:, :r].sum(axis=1)
+        self._gamma_new = self._gain_seq[:, r:].sum(axis=1)
+        self._mode_phi = self._phi[2:, 2:]
+        self._mode_gain_seq = self._gain_seq[2:, :]
+        ad, bd = self._ad, self._bd
+        self._rigid = (float(ad[0, 0]), float(ad[0, 1]), float(ad[1, 1]), float(bd[0]), float(bd[1]))
+        self._has_friction = params.friction.enabled
+        self._has_disturbance = params.disturbance.amplitude_Nm > 0.0
+        self._substep_times = np.arange(n) * params.sim_step_s
         self.reset()
 
     def reset(self) -> None:
@@ -291,7 +300,7 @@ class BallScrewPlant:
         self._pipe: deque[float] = deque([0.0] * (self._delay_periods + 1))
         self._applied_A = 0.0
         self._friction_Nm = 0.0
-        self._last_angle = float(self._c[0] @ self._x)
+        self._last_angle = float(self._x[0])
 
     @property
     def step_index(self) -> int:
@@ -338,35 +347,69 @@ class BallScrewPlant:
         pipe.append(cmd)
         older, newer = pipe[0], pipe[1]
         pipe.popleft()
-        if not self._nonlinear:
-            self._x = self._phi @ self._x + self._gamma_old * older + self._gamma_new * newer
-            self._applied_A = newer
+        if self._has_friction:
+            self._integrate_with_friction(older, newer)
+        elif self._has_disturbance:
+            self._x = self._phi @ self._x + self._gain_seq @ self._inputs(older, newer)
         else:
-            self._integrate_nonlinear(older, newer)
+            self._x = self._phi @ self._x + self._gamma_old * older + self._gamma_new * newer
+        self._applied_A = newer
         self._step += 1
         return self.output()
 
-    def _integrate_nonlinear(self, older: float, newer: float) -> None:
-        p = self.params
-        kt = p.torque_constant_Nm_per_A
-        h = p.sim_step_s
-        ad, bd, c_angle, c_vel = self._ad, self._bd, self._c[0], self._c[1]
+    def _inputs(self, older: float, newer: float) -> np.ndarray:
+        """Effective input current (A) of every substep, friction aside."""
+        u = np.full(self._n, newer)
+        u[: self._delay_rem] = older
+        if self._has_disturbance:
+            p = self.params
+            t = self._step * p.control_period_s + self._substep_times
+            d = p.disturbance
+            u += d.amplitude_Nm * np.sin(2.0 * np.pi * d.frequency_hz * t + d.phase_rad) / p.torque_constant_Nm_per_A
+        return u
+
+    def _integrate_with_friction(self, older: float, newer: float) -> None:
+        # Friction acts on the rigid-body coordinates (theta_r, omega_r): the
+        # rolling elements follow the screw's rigid motion, the modes are
+        # structural vibration on top. So the rigid body and the friction are
+        # stepped together in scalar arithmetic (cheap), and the modes, which
+        # are linear, are advanced once per period from the input sequence.
+        kt = self.params.torque_constant_Nm_per_A
+        a00, a01, a11, b0, b1 = self._rigid
+        inputs = self._inputs(older, newer)
+        u_in = inputs.tolist()
         x = self._x
-        t0 = self._step * p.control_period_s
-        dist = p.disturbance
-        angle_prev = self._last_angle
-        friction = self._friction
+        th, w = float(x[0]), float(x[1])
+        prev = self._last_angle
+        fp = self.params.friction
+        rolling = self._friction.rolling
+        delta, stiff, z = rolling.elements() if rolling is not None else ([], [], [])
+        elems = list(zip(range(len(z)), delta, stiff, strict=True))
+        coulomb, smooth, visc = fp.coulomb_Nm, fp.coulomb_smoothing_rad_s, fp.viscous_Nms_per_rad
+        tanh = math.tanh
         fr = self._friction_Nm
+        # The Maxwell-slip update of friction.MaxwellSlip.move, inlined: this
+        # loop runs once per simulation step and dominates the plant's cost.
         for j in range(self._n):
-            angle = float(c_angle @ x)
-            fr = friction.update(angle - angle_prev, float(c_vel @ x))
-            angle_prev = angle
-            current = older if j < self._delay_rem else newer
-            torque = -fr
-            if dist.amplitude_Nm > 0.0:
-                torque += dist.torque_Nm(t0 + j * h)
-            x = ad @ x + bd * (current + torque / kt)
-        self._x = x
-        self._last_angle = angle_prev
+            d = th - prev
+            prev = th
+            fr = 0.0
+            for i, di, ki in elems:
+                zi = z[i] + d
+                if zi > di:
+                    zi = di
+                elif zi < -di:
+                    zi = -di
+                z[i] = zi
+                fr += ki * zi
+            if coulomb > 0.0:
+                fr += coulomb * tanh(w / smooth)
+            if visc > 0.0:
+                fr += visc * w
+            u = u_in[j] - fr / kt
+            inputs[j] = u
+            th, w = a00 * th + a01 * w + b0 * u, a11 * w + b1 * u
+        modes = self._mode_phi @ x[2:] + self._mode_gain_seq @ inputs
+        self._x = np.concatenate(([th, w], modes))
+        self._last_angle = prev
         self._friction_Nm = fr
-        self._applied_A = newer
