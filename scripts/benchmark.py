@@ -33,6 +33,12 @@ import yaml
 
 REPO = Path(__file__).resolve().parents[1]
 PING_ROUNDS = 5000
+INTRO = """# Benchmarks
+
+Written by `scripts/benchmark.py`. Ratios are to real time at the control
+period and to a two-process ping-pong baseline measured in the same run: the
+machines are shared and noisy, so only ratios within one run compare.
+"""
 
 
 def pong() -> None:
@@ -69,14 +75,19 @@ def ping_pong(env: dict[str, str]) -> float:
     from servo_axis.nodes.common import STREAM_QOS, make_executor
 
     child = subprocess.Popen(
-        [sys.executable, __file__, "--pong"], env=env, start_new_session=True,
-        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        [sys.executable, __file__, "--pong"],
+        env=env,
+        start_new_session=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
     )
     rclpy.init()
     node = rclpy.create_node("ping")
     pub = node.create_publisher(JointState, "ping", STREAM_QOS)
     got = [0]
-    node.create_subscription(JointState, "pong", lambda m: got.__setitem__(0, got[0] + 1), STREAM_QOS)
+    node.create_subscription(
+        JointState, "pong", lambda m: got.__setitem__(0, got[0] + 1), STREAM_QOS
+    )
     ex = make_executor()
     ex.add_node(node)
     try:
@@ -106,7 +117,9 @@ def ping_pong(env: dict[str, str]) -> float:
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--scenario", default=str(REPO / "config" / "ptc_nominal.yaml"))
     parser.add_argument("--duration", type=float, default=10.0, help="simulated seconds per run")
     parser.add_argument("--out", default=str(REPO / "docs" / "benchmarks.md"))
@@ -138,8 +151,14 @@ def main() -> int:
     results.append(("baseline: 2-process ping-pong", ping_pong(env)))
     for name, composed in (("separate processes (4)", False), ("composed (1 process)", True)):
         print(f"{name} ...", flush=True)
-        r = run_scenario(scenario, out_dir=tmp / name.split()[0], composed=composed,
-                         domain_id=domain, progress=None, plots=False)
+        r = run_scenario(
+            scenario,
+            out_dir=tmp / name.split()[0],
+            composed=composed,
+            domain_id=domain,
+            progress=None,
+            plots=False,
+        )
         counts = r.summary["message_counts"]
         lost = {t: steps - counts.get(t, 0) for t in ("/state", "/command", "/reference", "/clock")}
         assert not any(lost.values()), f"recorder lost messages: {lost}"
@@ -155,26 +174,28 @@ def main() -> int:
         f"|{'-' * 42}|{'-' * 12}|{'-' * 13}|{'-' * 12}|",
     ]
     for name, rate in results:
-        lines.append(f"| {name:<40} | {rate:>10,.0f} | {rate * period:>10.2f}x | {rate / base:>9.2f}x |")
+        lines.append(
+            f"| {name:<40} | {rate:>10,.0f} | {rate * period:>10.2f}x | {rate / base:>9.2f}x |"
+        )
     table_text = "\n".join(lines)
     print()
     print(table_text)
+    scen = Path(args.scenario).resolve()
+    shown = scen.relative_to(REPO) if scen.is_relative_to(REPO) else scen
     header = (
-        f"Scenario `{Path(args.scenario).name}`, {steps} steps of T_u = {period * 1e3:g} ms per run, "
-        f"lockstep, measured {time.strftime('%Y-%m-%d %H:%M')} on {platform.node()} "
-        f"({os.cpu_count()} cores, Python {platform.python_version()}, "
-        f"executor {os.environ.get('SERVO_AXIS_EXECUTOR', 'events')}).\n\n"
-        f"Command: `.venv/bin/python scripts/benchmark.py --scenario {Path(args.scenario).relative_to(REPO) if Path(args.scenario).resolve().is_relative_to(REPO) else args.scenario} "
-        f"--duration {args.duration:g}`\n\n"
+        f"Scenario `{scen.name}`, {steps} steps of T_u = {period * 1e3:g} ms per run, lockstep, "
+        f"measured {time.strftime('%Y-%m-%d %H:%M')} on {platform.node()} ({os.cpu_count()} cores, "
+        f"Python {platform.python_version()}, executor {os.environ.get('SERVO_AXIS_EXECUTOR', 'events')}).\n\n"
+        f"Command: `.venv/bin/python scripts/benchmark.py --scenario {shown} --duration {args.duration:g}`\n\n"
     )
     out = Path(args.out)
     section = f"## {Path(args.scenario).stem}\n\n{header}{table_text}\n"
-    old = out.read_text() if out.exists() else "# Benchmarks\n\nRatios are to real time at the control period and to a ping-pong baseline measured in the same run (the machines are shared and noisy).\n\n"
+    old = out.read_text() if out.exists() else INTRO
     marker = f"## {Path(args.scenario).stem}\n"
     if marker in old:
         start = old.index(marker)
         end = old.find("\n## ", start + 1)
-        old = old[:start] + section + (old[end + 1:] if end != -1 else "")
+        old = old[:start] + section + (old[end + 1 :] if end != -1 else "")
     else:
         old = old.rstrip("\n") + "\n\n" + section
     out.write_text(old)

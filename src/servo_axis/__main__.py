@@ -63,10 +63,14 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m servo_axis", description=__doc__)
     sub = parser.add_subparsers(dest="command")
     run = sub.add_parser("run", help="run a scenario end to end and record it")
-    run.add_argument("scenario", help="scenario file (ROS parameter YAML), e.g. config/ptc_nominal.yaml")
+    run.add_argument(
+        "scenario", help="scenario file (ROS parameter YAML), e.g. config/ptc_nominal.yaml"
+    )
     run.add_argument("--out", help="run directory to create (default runs/<name>-<time>)")
     run.add_argument("--composed", action="store_true", help="all nodes in one process")
-    run.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID (default: from env or pid)")
+    run.add_argument(
+        "--domain-id", type=int, default=None, help="ROS_DOMAIN_ID (default: from env or pid)"
+    )
     run.add_argument("--namespace", default="", help="namespace of the axis, e.g. /x")
     run.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     run.set_defaults(func=_run)

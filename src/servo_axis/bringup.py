@@ -219,7 +219,10 @@ class ProgressWatcher:
         self._context = rclpy.context.Context()
         rclpy.init(args=[], context=self._context)
         self.node = rclpy.create_node(
-            "servo_axis_run", namespace=namespace, context=self._context, enable_rosout=False,
+            "servo_axis_run",
+            namespace=namespace,
+            context=self._context,
+            enable_rosout=False,
             start_parameter_services=False,
         )
         self.steps = -1
@@ -317,11 +320,24 @@ def run_scenario(
     bag_dir = out_dir / "bag"
     roles = roles_of(scenario)
     ns_args = ["-r", f"__ns:={namespace}"] if namespace else []
-    args = [*handshake_args(scenario, roles, bag_dir, scenario_path.parent), *ns_args, *(extra_args or [])]
+    args = [
+        *handshake_args(scenario, roles, bag_dir, scenario_path.parent),
+        *ns_args,
+        *(extra_args or []),
+    ]
     domain = default_domain_id() if domain_id is None else domain_id
     env = ros_environment(domain, log_dir)
-    os.environ.update({k: env[k] for k in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE",
-                                           "FASTDDS_BUILTIN_TRANSPORTS", "FASTRTPS_DEFAULT_PROFILES_FILE")})
+    os.environ.update(
+        {
+            k: env[k]
+            for k in (
+                "ROS_DOMAIN_ID",
+                "ROS_AUTOMATIC_DISCOVERY_RANGE",
+                "FASTDDS_BUILTIN_TRANSPORTS",
+                "FASTRTPS_DEFAULT_PROFILES_FILE",
+            )
+        }
+    )
     os.environ.setdefault("ROS_LOG_DIR", str(log_dir))
 
     line = ProgressLine(steps, progress) if progress is not None else None

@@ -39,9 +39,9 @@ def table_from_run(
     run_dir: Path, *, bin_width_m: float = 0.5e-6, max_displacement_m: float = 40e-6
 ) -> FrictionTable:
     """Build the friction table from a recorded ``friction_id`` run directory."""
-    from servo_axis.bringup import load_scenario, shared
-
     import json
+
+    from servo_axis.bringup import load_scenario, shared
 
     summary = json.loads((run_dir / "summary.json").read_text())
     scenario = load_scenario(Path(summary["scenario_file"]))

@@ -47,9 +47,7 @@ def step_from_stamp(stamp: Time, period_ns_: int) -> int:
     ns = stamp.sec * NS_PER_S + stamp.nanosec
     step, rem = divmod(ns, period_ns_)
     if rem != 0 or ns < 0:
-        raise SignalError(
-            f"header.stamp: {ns} ns is not on the control grid of {period_ns_} ns"
-        )
+        raise SignalError(f"header.stamp: {ns} ns is not on the control grid of {period_ns_} ns")
     return int(step)
 
 
@@ -133,7 +131,9 @@ def state_to_msg(sample: StateSample, *, axis: str, period_ns_: int) -> JointSta
 
 def state_from_msg(msg: JointState, *, axis: str, period_ns_: int) -> StateSample:
     """Decode and validate a ``state`` message."""
-    step = _check_joint_state(msg, state_names(axis), ("position", "velocity", "effort"), period_ns_)
+    step = _check_joint_state(
+        msg, state_names(axis), ("position", "velocity", "effort"), period_ns_
+    )
     return StateSample(
         step=step,
         encoder_rad=msg.position[0],
@@ -196,7 +196,9 @@ def reference_to_msg(sample: ReferenceSample, *, axis: str, period_ns_: int) -> 
 
 def reference_from_msg(msg: JointState, *, axis: str, period_ns_: int) -> ReferenceSample:
     """Decode and validate a ``reference`` message."""
-    step = _check_joint_state(msg, motor_names(axis), ("position", "velocity", "effort"), period_ns_)
+    step = _check_joint_state(
+        msg, motor_names(axis), ("position", "velocity", "effort"), period_ns_
+    )
     return ReferenceSample(
         step=step,
         position_rad=msg.position[0],
@@ -208,7 +210,9 @@ def reference_from_msg(msg: JointState, *, axis: str, period_ns_: int) -> Refere
 def labelled_array(labels: Sequence[str], values: Sequence[float]) -> Float64MultiArray:
     """Float64MultiArray whose single dimension's label names every element."""
     if len(labels) != len(values):
-        raise SignalError(f"values: expected {len(labels)} values for {list(labels)}, got {len(values)}")
+        raise SignalError(
+            f"values: expected {len(labels)} values for {list(labels)}, got {len(values)}"
+        )
     for label in labels:
         if not label or "," in label:
             raise SignalError(f"labels: expected non-empty labels without commas, got {label!r}")

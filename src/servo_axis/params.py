@@ -81,9 +81,7 @@ def _type_name(default: object) -> str:
     if isinstance(default, list):
         elem = default[0] if default else 0.0
         return "a list of strings" if isinstance(elem, str) else "a list of numbers"
-    return {bool: "a boolean", int: "an integer", float: "a number", str: "a string"}[
-        type(default)
-    ]
+    return {bool: "a boolean", int: "an integer", float: "a number", str: "a string"}[type(default)]
 
 
 def read_parameters(node: Node, schema: Mapping[str, object]) -> dict[str, Any]:
@@ -123,7 +121,9 @@ def read_parameters(node: Node, schema: Mapping[str, object]) -> dict[str, Any]:
 def check_mode(values: Mapping[str, Any]) -> None:
     """Reject an unknown time ``mode``."""
     if values["mode"] not in MODES:
-        raise ParameterFileError(f"parameter 'mode': expected one of {MODES}, got {values['mode']!r}")
+        raise ParameterFileError(
+            f"parameter 'mode': expected one of {MODES}, got {values['mode']!r}"
+        )
 
 
 def values_from_mapping(

@@ -38,7 +38,10 @@ def load_signals(bag_dir: Path, period_s: float) -> dict[str, Any]:
         counts[m.topic] = counts.get(m.topic, 0) + 1
         leaf = m.topic.rsplit("/", 1)[-1]
         if leaf == "state":
-            state[_stamp_ns(m.message) // period_ns] = (m.message.position[0], m.message.position[1])
+            state[_stamp_ns(m.message) // period_ns] = (
+                m.message.position[0],
+                m.message.position[1],
+            )
         elif leaf == "reference":
             ref[_stamp_ns(m.message) // period_ns] = (m.message.position[0], m.message.effort[0])
         elif leaf == "command":
@@ -46,7 +49,12 @@ def load_signals(bag_dir: Path, period_s: float) -> dict[str, Any]:
         elif leaf == "fault":
             step, code, value = m.message.data
             faults.append(
-                {"step": int(step), "code": int(code), "name": FAULT_NAMES.get(int(code), "?"), "value": value}
+                {
+                    "step": int(step),
+                    "code": int(code),
+                    "name": FAULT_NAMES.get(int(code), "?"),
+                    "value": value,
+                }
             )
     steps = sorted(set(state) & set(ref))
     k = np.array(steps, dtype=int)
@@ -171,7 +179,8 @@ def format_summary(summary: dict[str, Any]) -> str:
         f"steps             {summary['steps']}  ({summary['sim_time_s']:.3f} s simulated)",
         f"wall time         {summary['wall_time_s']:.2f} s  ->  {summary['steps_per_s']:,.0f} steps/s, "
         f"{summary['realtime_factor']:.2f}x real time",
-        "messages          " + ", ".join(f"{k}: {v}" for k, v in sorted(summary["message_counts"].items())),
+        "messages          "
+        + ", ".join(f"{k}: {v}" for k, v in sorted(summary["message_counts"].items())),
         "faults            "
         + (", ".join(f"{f['name']} at step {f['step']}" for f in summary["faults"]) or "none"),
         "",

@@ -30,7 +30,9 @@ class Trajectory:
     command_A: np.ndarray
 
 
-def scenario_values(scenario: dict[str, Any], role: str, schema: dict[str, object]) -> dict[str, Any]:
+def scenario_values(
+    scenario: dict[str, Any], role: str, schema: dict[str, object]
+) -> dict[str, Any]:
     """Checked parameter values of one node of a scenario (no ROS)."""
     return values_from_mapping(schema, node_params(scenario, role), role)
 

@@ -61,8 +61,12 @@ def raw_payloads(bag_dir: Path) -> dict[str, list[bytes]]:
 
 
 def test_ptc_tracks_the_nominal_plant_and_pid_alone_does_not(ros_env: int, tmp_path: Path) -> None:
-    ptc = run_scenario(CONFIG / "ptc_nominal.yaml", out_dir=tmp_path / "ptc", domain_id=ros_env, progress=None)
-    pid = run_scenario(CONFIG / "pid_nominal.yaml", out_dir=tmp_path / "pid", domain_id=ros_env, progress=None)
+    ptc = run_scenario(
+        CONFIG / "ptc_nominal.yaml", out_dir=tmp_path / "ptc", domain_id=ros_env, progress=None
+    )
+    pid = run_scenario(
+        CONFIG / "pid_nominal.yaml", out_dir=tmp_path / "pid", domain_id=ros_env, progress=None
+    )
     steps = 2000
     for result in (ptc, pid):
         s = result.summary
@@ -87,13 +91,17 @@ def test_bag_reads_back_with_independent_readers(ros_env: int, tmp_path: Path) -
     from rosbags.highlevel import AnyReader
 
     scenario = scenario_copy(CONFIG / "ptc_nominal.yaml", tmp_path, duration_s=0.3)
-    result = run_scenario(scenario, out_dir=tmp_path / "run", domain_id=ros_env, progress=None, plots=False)
+    result = run_scenario(
+        scenario, out_dir=tmp_path / "run", domain_id=ros_env, progress=None, plots=False
+    )
     bag = result.run_dir / "bag"
     with AnyReader([bag]) as reader:
         counts = {c.topic: c.msgcount for c in reader.connections}
         states = [
             reader.deserialize(raw, conn.msgtype)
-            for conn, _t, raw in reader.messages(connections=[c for c in reader.connections if c.topic == "/state"])
+            for conn, _t, raw in reader.messages(
+                connections=[c for c in reader.connections if c.topic == "/state"]
+            )
         ]
     assert {t: counts[t] for t in ("/state", "/command", "/reference", "/clock")} == dict.fromkeys(
         ("/state", "/command", "/reference", "/clock"), 300
@@ -105,7 +113,9 @@ def test_bag_reads_back_with_independent_readers(ros_env: int, tmp_path: Path) -
     with mcap_file.open("rb") as f:
         decoded = [
             m.decoded_message.effort[0]
-            for m in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages(topics=["/command"])
+            for m in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages(
+                topics=["/command"]
+            )
         ]
     assert len(decoded) == 300
     # The PTC makes the loop track from the first sample on; the command
@@ -116,7 +126,14 @@ def test_bag_reads_back_with_independent_readers(ros_env: int, tmp_path: Path) -
 def test_lockstep_runs_are_identical_separate_and_composed(ros_env: int, tmp_path: Path) -> None:
     scenario = scenario_copy(CONFIG / "ptc_friction.yaml", tmp_path, duration_s=0.6)
     runs = [
-        run_scenario(scenario, out_dir=tmp_path / name, domain_id=ros_env, composed=composed, progress=None, plots=False)
+        run_scenario(
+            scenario,
+            out_dir=tmp_path / name,
+            domain_id=ros_env,
+            composed=composed,
+            progress=None,
+            plots=False,
+        )
         for name, composed in (("a", False), ("b", False), ("c", True))
     ]
     payloads = [raw_payloads(r.run_dir / "bag") for r in runs]
@@ -130,7 +147,12 @@ def test_lockstep_runs_are_identical_separate_and_composed(ros_env: int, tmp_pat
 
 def test_friction_table_halves_the_quadrant_glitches(ros_env: int, tmp_path: Path) -> None:
     ident = run_scenario(
-        CONFIG / "friction_id.yaml", out_dir=tmp_path / "id", domain_id=ros_env, composed=True, progress=None, plots=False
+        CONFIG / "friction_id.yaml",
+        out_dir=tmp_path / "id",
+        domain_id=ros_env,
+        composed=True,
+        progress=None,
+        plots=False,
     )
     table = table_from_run(ident.run_dir)
     # The identified table spans the Coulomb level of the plant (3.2 N m).
@@ -144,15 +166,21 @@ def test_friction_table_halves_the_quadrant_glitches(ros_env: int, tmp_path: Pat
     (tmp_path / "wt").mkdir()
     wt_path = tmp_path / "wt" / "ptc_friction_table.yaml"
     wt_path.write_text(yaml.safe_dump(with_table))
-    a = run_scenario(plain, out_dir=tmp_path / "plain", domain_id=ros_env, progress=None, plots=False)
-    b = run_scenario(wt_path, out_dir=tmp_path / "table", domain_id=ros_env, progress=None, plots=False)
+    a = run_scenario(
+        plain, out_dir=tmp_path / "plain", domain_id=ros_env, progress=None, plots=False
+    )
+    b = run_scenario(
+        wt_path, out_dir=tmp_path / "table", domain_id=ros_env, progress=None, plots=False
+    )
     peak_plain = a.summary["tracking_error"]["after_first_cycle"]["all_samples"]["max_m"]
     peak_table = b.summary["tracking_error"]["after_first_cycle"]["all_samples"]["max_m"]
     assert peak_plain > 1e-6  # the glitches are there
     assert peak_table <= 0.5 * peak_plain
 
 
-def test_killed_feedforward_trips_the_feedback_and_the_bag_survives(ros_env: int, tmp_path: Path) -> None:
+def test_killed_feedforward_trips_the_feedback_and_the_bag_survives(
+    ros_env: int, tmp_path: Path
+) -> None:
     import rclpy
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
@@ -169,13 +197,20 @@ def test_killed_feedforward_trips_the_feedback_and_the_bag_survives(ros_env: int
     bag = tmp_path / "bag"
     env = ros_environment(ros_env, log_dir)
     os.environ.update({k: env[k] for k in ("FASTRTPS_DEFAULT_PROFILES_FILE",)})
-    procs = start_nodes(scenario_path, roles, handshake_args(scenario, roles, bag, tmp_path), env, log_dir, False)
+    procs = start_nodes(
+        scenario_path, roles, handshake_args(scenario, roles, bag, tmp_path), env, log_dir, False
+    )
     watcher = ProgressWatcher("/")
     ctx = Context()
     rclpy.init(args=[], context=ctx)
     node = rclpy.create_node("fault_probe", context=ctx)
     faults: list[tuple[float, list[float]]] = []
-    node.create_subscription(Float64MultiArray, "fault", lambda m: faults.append((time.monotonic(), list(m.data))), LATCHED_QOS)
+    node.create_subscription(
+        Float64MultiArray,
+        "fault",
+        lambda m: faults.append((time.monotonic(), list(m.data))),
+        LATCHED_QOS,
+    )
     ex = SingleThreadedExecutor(context=ctx)
     ex.add_node(node)
     try:
@@ -214,7 +249,11 @@ def test_killed_feedforward_trips_the_feedback_and_the_bag_survives(ros_env: int
         ]
         fault_msgs = list(reader.messages(connections=[conns["/fault"]]))
     assert len(fault_msgs) == 1
-    after = [c.effort[0] for c in commands if c.header.stamp.sec * 10**9 + c.header.stamp.nanosec >= step * 1e6]
+    after = [
+        c.effort[0]
+        for c in commands
+        if c.header.stamp.sec * 10**9 + c.header.stamp.nanosec >= step * 1e6
+    ]
     assert len(after) >= 300 and all(x == 0.0 for x in after)
 
 
@@ -226,7 +265,10 @@ def test_bad_parameter_file_stops_the_node_with_its_name(ros_env: int, tmp_path:
     env = ros_environment(ros_env, tmp_path)
     done = subprocess.run(
         [sys.executable, "-m", "servo_axis.nodes.plant", "--ros-args", "--params-file", str(bad)],
-        env=env, capture_output=True, text=True, timeout=60,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
     )
     assert done.returncode == 2
     assert "unknown parameter 'damping_Nms_per_radd'" in done.stderr
@@ -236,12 +278,16 @@ def test_bad_parameter_file_stops_the_node_with_its_name(ros_env: int, tmp_path:
 
 def test_realtime_mode_keeps_wall_time_and_counts_misses(ros_env: int, tmp_path: Path) -> None:
     scenario = scenario_copy(CONFIG / "ptc_nominal.yaml", tmp_path, duration_s=1.0, mode="realtime")
-    result = run_scenario(scenario, out_dir=tmp_path / "rt", domain_id=ros_env, progress=None, plots=False)
+    result = run_scenario(
+        scenario, out_dir=tmp_path / "rt", domain_id=ros_env, progress=None, plots=False
+    )
     s = result.summary
     assert s["message_counts"]["/state"] == 1000
     assert 0.5 < s["realtime_factor"] < 1.1
     from servo_axis.recording.bag import read_messages
 
-    status = [m.message.data for m in read_messages(result.run_dir / "bag", topics=["/plant/status"])]
+    status = [
+        m.message.data for m in read_messages(result.run_dir / "bag", topics=["/plant/status"])
+    ]
     assert status, "plant/status was not published"
     assert status[-1][0] == 1000 and status[-1][1] >= 0

@@ -17,6 +17,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
+from servo_axis.recording.bag import read_messages
 from std_msgs.msg import Float64MultiArray
 
 from servo_axis import msgs
@@ -27,7 +28,6 @@ from servo_axis.nodes.feedback import FeedbackNode
 from servo_axis.nodes.feedforward import FeedforwardNode
 from servo_axis.nodes.plant import PlantNode
 from servo_axis.nodes.recorder import RecorderNode
-from servo_axis.recording.bag import read_messages
 from servo_axis.simulate import simulate
 
 pytestmark = pytest.mark.ros
@@ -49,7 +49,9 @@ def overrides(scenario: Path, role: str, **extra: Any) -> list[Parameter]:
     return [Parameter(k, value=v) for k, v in values.items()]
 
 
-def spin_until(ctx: Context, nodes: list[Node], cond: Callable[[], bool], timeout_s: float = 20.0) -> None:
+def spin_until(
+    ctx: Context, nodes: list[Node], cond: Callable[[], bool], timeout_s: float = 20.0
+) -> None:
     ex = SingleThreadedExecutor(context=ctx)
     for n in nodes:
         ex.add_node(n)
@@ -70,14 +72,28 @@ def test_composed_lockstep_equals_core_only_loop(context: Context, tmp_path: Pat
     bag = tmp_path / "bag"
     common = {"duration_s": duration}
     nodes: list[Node] = [
-        RecorderNode(context=context, parameter_overrides=overrides(scenario, "recorder", output_dir=str(bag), **common)),
-        FeedforwardNode(context=context, parameter_overrides=overrides(scenario, "feedforward", wait_for_reference_subscribers=2, **common)),
-        FeedbackNode(context=context, parameter_overrides=overrides(scenario, "feedback", **common)),
+        RecorderNode(
+            context=context,
+            parameter_overrides=overrides(scenario, "recorder", output_dir=str(bag), **common),
+        ),
+        FeedforwardNode(
+            context=context,
+            parameter_overrides=overrides(
+                scenario, "feedforward", wait_for_reference_subscribers=2, **common
+            ),
+        ),
+        FeedbackNode(
+            context=context, parameter_overrides=overrides(scenario, "feedback", **common)
+        ),
         PlantNode(
             context=context,
             parameter_overrides=overrides(
-                scenario, "plant", flow_control=True, wait_for_state_subscribers=3,
-                wait_for_clock_subscribers=3, **common,
+                scenario,
+                "plant",
+                flow_control=True,
+                wait_for_state_subscribers=3,
+                wait_for_clock_subscribers=3,
+                **common,
             ),
         ),
     ]
@@ -97,7 +113,9 @@ def test_composed_lockstep_equals_core_only_loop(context: Context, tmp_path: Pat
             recorded[m.topic][msgs.step_from_stamp(m.message.header.stamp, PERIOD_NS)] = m.message
     core = simulate(scenario, steps=steps)
     assert_array_equal([recorded["/state"][k].position[0] for k in range(steps)], core.encoder_rad)
-    assert_array_equal([recorded["/reference"][k].position[0] for k in range(steps)], core.reference_rad)
+    assert_array_equal(
+        [recorded["/reference"][k].position[0] for k in range(steps)], core.reference_rad
+    )
     assert_array_equal([recorded["/command"][k].effort[0] for k in range(steps)], core.command_A)
     # The run is not trivial: friction makes the axis lag, the loop reacts.
     assert np.max(np.abs(core.command_A)) > 1.0
@@ -121,10 +139,16 @@ class Probe(Node):
         self.commands.append(msgs.command_from_msg(msg, axis="x", period_ns_=PERIOD_NS))
 
     def state(self, step: int, angle: float = 0.0) -> JointState:
-        return msgs.state_to_msg(msgs.StateSample(step, angle, angle * 1.91e-3, 0, 0, 0, 0), axis="x", period_ns_=PERIOD_NS)
+        return msgs.state_to_msg(
+            msgs.StateSample(step, angle, angle * 1.91e-3, 0, 0, 0, 0),
+            axis="x",
+            period_ns_=PERIOD_NS,
+        )
 
     def reference(self, step: int, angle: float = 0.0, current: float = 0.0) -> JointState:
-        return msgs.reference_to_msg(msgs.ReferenceSample(step, angle, 0.0, current), axis="x", period_ns_=PERIOD_NS)
+        return msgs.reference_to_msg(
+            msgs.ReferenceSample(step, angle, 0.0, current), axis="x", period_ns_=PERIOD_NS
+        )
 
 
 def connected(probe: Probe, fb: FeedbackNode) -> Callable[[], bool]:
@@ -138,7 +162,9 @@ def connected(probe: Probe, fb: FeedbackNode) -> Callable[[], bool]:
 
 
 def test_feedback_rejects_bad_input_and_passes_nothing_on(context: Context) -> None:
-    fb = FeedbackNode(context=context, parameter_overrides=[Parameter("input_timeout_s", value=30.0)])
+    fb = FeedbackNode(
+        context=context, parameter_overrides=[Parameter("input_timeout_s", value=30.0)]
+    )
     probe = Probe(context)
     nodes = [fb, probe]
     spin_until(context, nodes, connected(probe, fb))
@@ -169,7 +195,10 @@ def test_feedback_rejects_bad_input_and_passes_nothing_on(context: Context) -> N
 def test_feedback_trips_on_following_error_and_holds_zero(context: Context) -> None:
     fb = FeedbackNode(
         context=context,
-        parameter_overrides=[Parameter("limits.following_error_m", value=1e-6), Parameter("input_timeout_s", value=30.0)],
+        parameter_overrides=[
+            Parameter("limits.following_error_m", value=1e-6),
+            Parameter("input_timeout_s", value=30.0),
+        ],
     )
     probe = Probe(context)
     nodes = [fb, probe]
@@ -188,7 +217,9 @@ def test_feedback_trips_on_following_error_and_holds_zero(context: Context) -> N
 
 
 def test_feedback_trips_when_reference_stops_arriving(context: Context) -> None:
-    fb = FeedbackNode(context=context, parameter_overrides=[Parameter("input_timeout_s", value=0.3)])
+    fb = FeedbackNode(
+        context=context, parameter_overrides=[Parameter("input_timeout_s", value=0.3)]
+    )
     probe = Probe(context)
     nodes = [fb, probe]
     spin_until(context, nodes, connected(probe, fb))

@@ -62,12 +62,22 @@ def test_round_trip_through_cdr(sample: object, encode: object, decode: object) 
 
 def test_state_rejects_nan_wrong_length_and_wrong_names() -> None:
     good = msgs.state_to_msg(msgs.StateSample(1, 0, 0, 0, 0, 0, 0), axis="x", period_ns_=PERIOD_NS)
-    bad = JointState(header=good.header, name=good.name, position=[0.0, math.nan],
-                     velocity=good.velocity, effort=good.effort)
+    bad = JointState(
+        header=good.header,
+        name=good.name,
+        position=[0.0, math.nan],
+        velocity=good.velocity,
+        effort=good.effort,
+    )
     with pytest.raises(SignalError, match=r"position\[1\]"):
         msgs.state_from_msg(bad, axis="x", period_ns_=PERIOD_NS)
-    short = JointState(header=good.header, name=good.name, position=[0.0],
-                       velocity=good.velocity, effort=good.effort)
+    short = JointState(
+        header=good.header,
+        name=good.name,
+        position=[0.0],
+        velocity=good.velocity,
+        effort=good.effort,
+    )
     with pytest.raises(SignalError, match="position: expected 2 values"):
         msgs.state_from_msg(short, axis="x", period_ns_=PERIOD_NS)
     with pytest.raises(SignalError, match="name"):
@@ -86,7 +96,7 @@ def test_labelled_array_round_trip_and_checks() -> None:
     assert wire.layout.dim[0].label == "step,code,value"
     assert wire.layout.dim[0].size == 3
     assert msgs.labelled_array_values(wire, labels) == [12.0, 4.0, 0.5]
-    with pytest.raises(SignalError, match="layout.dim"):
+    with pytest.raises(SignalError, match=r"layout\.dim"):
         msgs.labelled_array_values(wire, ("step", "code", "other"))
     wire.data = [1.0, 2.0]
     with pytest.raises(SignalError, match="data"):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import replace
 
@@ -83,7 +84,9 @@ def test_fast_path_equals_substep_integration() -> None:
     base = BallScrewParams(modes=BALL_SCREW_MODES, sim_step_s=10e-6, dead_time_s=70e-6)
     slow = replace(base, disturbance=DisturbanceParams(amplitude_Nm=1e-300))
     u = np.sin(np.arange(300) * 0.05) * 3.0
-    assert_allclose(run(BallScrewPlant(base), u), run(BallScrewPlant(slow), u), rtol=1e-9, atol=1e-15)
+    assert_allclose(
+        run(BallScrewPlant(base), u), run(BallScrewPlant(slow), u), rtol=1e-9, atol=1e-15
+    )
 
 
 def test_current_saturation() -> None:
@@ -147,7 +150,7 @@ def test_maxwell_slip_is_rate_independent_with_nonlocal_memory() -> None:
     for steps in (1, 7, 101):
         ms = MaxwellSlip(coulomb_Nm=tc, width_rad=width, elements=12)
         torques = []
-        for a, b in zip(path[:-1], path[1:], strict=True):
+        for a, b in itertools.pairwise(path):
             for _ in range(steps):
                 torque = ms.move((b - a) / steps)
             torques.append(torque)
@@ -198,14 +201,21 @@ def test_friction_path_matches_brute_force_substep_integration() -> None:
     import scipy.linalg
 
     fr = FrictionParams(rolling_coulomb_Nm=3.2, presliding_width_m=10e-6, elements=6)
-    params = BallScrewParams(modes=BALL_SCREW_MODES, sim_step_s=10e-6, dead_time_s=70e-6, friction=fr)
+    params = BallScrewParams(
+        modes=BALL_SCREW_MODES, sim_step_s=10e-6, dead_time_s=70e-6, friction=fr
+    )
     n_sub, delay = 100, 7
     a = np.zeros((8, 8))
     b = np.zeros(8)
     a[0, 1], a[1, 1], b[1] = 1.0, -D / J, KT / J
     for i, (f_hz, zeta, gain) in enumerate(BALL_SCREW_MODES):
         w, p = 2 * math.pi * f_hz, 2 + 2 * i
-        a[p, p + 1], a[p + 1, p], a[p + 1, p + 1], b[p + 1] = 1.0, -w * w, -2 * zeta * w, gain * KT / J
+        a[p, p + 1], a[p + 1, p], a[p + 1, p + 1], b[p + 1] = (
+            1.0,
+            -w * w,
+            -2 * zeta * w,
+            gain * KT / J,
+        )
     m = np.zeros((9, 9))
     m[:8, :8], m[:8, 8] = a * 10e-6, b * 10e-6
     e = scipy.linalg.expm(m)

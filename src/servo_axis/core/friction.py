@@ -17,6 +17,7 @@ given at the table (m) and converted with the lead ``R`` (m/rad).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from .errors import ConfigError, require_nonnegative, require_positive
@@ -67,7 +68,9 @@ class FrictionParams:
     @property
     def enabled(self) -> bool:
         """True when any friction term is non-zero."""
-        return self.rolling_coulomb_Nm > 0.0 or self.coulomb_Nm > 0.0 or self.viscous_Nms_per_rad > 0
+        return (
+            self.rolling_coulomb_Nm > 0.0 or self.coulomb_Nm > 0.0 or self.viscous_Nms_per_rad > 0
+        )
 
 
 class MaxwellSlip:

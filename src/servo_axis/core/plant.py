@@ -79,7 +79,9 @@ class DisturbanceParams:
 
     def torque_Nm(self, time_s: float) -> float:
         """Disturbance torque at ``time_s``, N m."""
-        return self.amplitude_Nm * math.sin(2.0 * math.pi * self.frequency_hz * time_s + self.phase_rad)
+        return self.amplitude_Nm * math.sin(
+            2.0 * math.pi * self.frequency_hz * time_s + self.phase_rad
+        )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -160,7 +162,9 @@ class BallScrewParams:
     @property
     def substeps(self) -> int:
         """Simulation steps per control period."""
-        return _whole_ratio("control_period_s", self.control_period_s, self.sim_step_s, "sim_step_s")
+        return _whole_ratio(
+            "control_period_s", self.control_period_s, self.sim_step_s, "sim_step_s"
+        )
 
     @property
     def dead_time_steps(self) -> int:
@@ -282,7 +286,13 @@ class BallScrewPlant:
         self._mode_phi = self._phi[2:, 2:]
         self._mode_gain_seq = self._gain_seq[2:, :]
         ad, bd = self._ad, self._bd
-        self._rigid = (float(ad[0, 0]), float(ad[0, 1]), float(ad[1, 1]), float(bd[0]), float(bd[1]))
+        self._rigid = (
+            float(ad[0, 0]),
+            float(ad[0, 1]),
+            float(ad[1, 1]),
+            float(bd[0]),
+            float(bd[1]),
+        )
         self._has_friction = params.friction.enabled
         self._has_disturbance = params.disturbance.amplitude_Nm > 0.0
         self._substep_times = np.arange(n) * params.sim_step_s
@@ -365,7 +375,11 @@ class BallScrewPlant:
             p = self.params
             t = self._step * p.control_period_s + self._substep_times
             d = p.disturbance
-            u += d.amplitude_Nm * np.sin(2.0 * np.pi * d.frequency_hz * t + d.phase_rad) / p.torque_constant_Nm_per_A
+            u += (
+                d.amplitude_Nm
+                * np.sin(2.0 * np.pi * d.frequency_hz * t + d.phase_rad)
+                / p.torque_constant_Nm_per_A
+            )
         return u
 
     def _integrate_with_friction(self, older: float, newer: float) -> None:

@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import IntEnum
 
-from .controllers import DisturbanceObserver, DiscretePid
+from .controllers import DiscretePid, DisturbanceObserver
 from .errors import require_positive
 
 

@@ -34,7 +34,9 @@ def factories(roles: list[str]) -> list[Callable[[], Node]]:
     }
     unknown = [r for r in roles if r not in table]
     if unknown:
-        raise SystemExit(f"composed: unknown node role(s) {unknown}; expected some of {list(ROLES)}")
+        raise SystemExit(
+            f"composed: unknown node role(s) {unknown}; expected some of {list(ROLES)}"
+        )
     return [table[r] for r in table if r in roles]
 
 

@@ -26,8 +26,8 @@ from std_msgs.msg import Float64MultiArray
 
 from servo_axis import msgs
 from servo_axis.core.controllers import (
-    DisturbanceObserver,
     DiscretePid,
+    DisturbanceObserver,
     design_pid_pole_placement,
 )
 from servo_axis.core.errors import ParameterFileError, SignalError
@@ -74,10 +74,18 @@ def use_sim_time_by_default(node: Node) -> None:
 def build_loop(values: dict[str, Any]) -> FeedbackLoop:
     """The core feedback loop from the node's parameter values."""
     period = values["control_period_s"]
-    gains = build("", design_pid_pole_placement, bandwidth_hz=values["bandwidth_hz"], **nominal(values))
+    gains = build(
+        "", design_pid_pole_placement, bandwidth_hz=values["bandwidth_hz"], **nominal(values)
+    )
     pid = build("", DiscretePid, gains=gains, period_s=period)
     dob = (
-        build("dob.", DisturbanceObserver, cutoff_hz=values["dob.cutoff_hz"], period_s=period, **nominal(values))
+        build(
+            "dob.",
+            DisturbanceObserver,
+            cutoff_hz=values["dob.cutoff_hz"],
+            period_s=period,
+            **nominal(values),
+        )
         if values["dob.enabled"]
         else None
     )
@@ -105,9 +113,13 @@ class FeedbackNode(Node):
         values = read_parameters(self, SCHEMA)
         use_sim_time_by_default(self)
         if values["sensor"] not in SENSORS:
-            raise ParameterFileError(f"parameter 'sensor': expected one of {SENSORS}, got {values['sensor']!r}")
+            raise ParameterFileError(
+                f"parameter 'sensor': expected one of {SENSORS}, got {values['sensor']!r}"
+            )
         if values["input_timeout_s"] <= 0.0:
-            raise ParameterFileError(f"parameter 'input_timeout_s': expected > 0, got {values['input_timeout_s']!r}")
+            raise ParameterFileError(
+                f"parameter 'input_timeout_s': expected > 0, got {values['input_timeout_s']!r}"
+            )
         self.loop = build_loop(values)
         self._v = values
         self._axis = values["axis"]
@@ -138,7 +150,9 @@ class FeedbackNode(Node):
             self._reject(f"state rejected: {err}")
             return
         if state.step <= self._last_state_step:
-            self._reject(f"state rejected: stale stamp (step {state.step} after {self._last_state_step})")
+            self._reject(
+                f"state rejected: stale stamp (step {state.step} after {self._last_state_step})"
+            )
             return
         self._last_state_step = state.step
         self._pending = state
@@ -152,7 +166,9 @@ class FeedbackNode(Node):
             self._reject(f"reference rejected: {err}")
             return
         if ref.step <= self._last_reference_step:
-            self._reject(f"reference rejected: stale stamp (step {ref.step} after {self._last_reference_step})")
+            self._reject(
+                f"reference rejected: stale stamp (step {ref.step} after {self._last_reference_step})"
+            )
             return
         if ref.step > max(self._last_state_step, 0) + self._v["max_preview_steps"]:
             self._reject(f"reference rejected: step {ref.step} is too far in the future")
@@ -180,7 +196,9 @@ class FeedbackNode(Node):
         if ref is None:
             out = LoopOutput(0.0, 0.0, 0.0, 0.0)
         else:
-            out = self.loop.update(angle_rad=angle, reference_rad=ref.position_rad, feedforward_A=ref.current_A)
+            out = self.loop.update(
+                angle_rad=angle, reference_rad=ref.position_rad, feedforward_A=ref.current_A
+            )
         if out.fault is not None:
             self._publish_fault(state.step, out.fault, out.fault_value)
         self._command_pub.publish(
@@ -201,7 +219,9 @@ class FeedbackNode(Node):
             self._try_answer()
 
     def _publish_fault(self, step: int, fault: Fault, value: float) -> None:
-        self.get_logger().error(f"TRIP at step {step}: {fault.name.lower()} ({value:.6g}); current set to zero")
+        self.get_logger().error(
+            f"TRIP at step {step}: {fault.name.lower()} ({value:.6g}); current set to zero"
+        )
         self._fault_pub.publish(msgs.labelled_array(FAULT_LABELS, [step, int(fault), value]))
 
     def _reject(self, text: str) -> None:

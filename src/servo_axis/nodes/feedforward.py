@@ -70,7 +70,9 @@ def build_generator(values: dict[str, Any]) -> FeedforwardGenerator:
     if values["friction_table.enabled"]:
         path = values["friction_table.file"]
         if not path:
-            raise ParameterFileError("parameter 'friction_table.file': required when friction_table.enabled is true")
+            raise ParameterFileError(
+                "parameter 'friction_table.file': required when friction_table.enabled is true"
+            )
         try:
             table = FrictionTable.load(path)
         except (OSError, ServoAxisError) as err:
@@ -95,7 +97,9 @@ class FeedforwardNode(Node):
         values = read_parameters(self, SCHEMA)
         use_sim_time_by_default(self)
         if values["preview_steps"] < 2:
-            raise ParameterFileError(f"parameter 'preview_steps': expected >= 2, got {values['preview_steps']!r}")
+            raise ParameterFileError(
+                f"parameter 'preview_steps': expected >= 2, got {values['preview_steps']!r}"
+            )
         self.generator = build_generator(values)
         self._v = values
         self._axis = values["axis"]
@@ -140,7 +144,9 @@ class FeedforwardNode(Node):
         for k, (pos, vel, cur) in enumerate(samples, start=self.published):
             self._pub.publish(
                 msgs.reference_to_msg(
-                    msgs.ReferenceSample(step=k, position_rad=pos, velocity_rad_s=vel, current_A=cur),
+                    msgs.ReferenceSample(
+                        step=k, position_rad=pos, velocity_rad_s=vel, current_A=cur
+                    ),
                     axis=self._axis,
                     period_ns_=self._period_ns,
                 )

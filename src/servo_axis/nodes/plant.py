@@ -24,7 +24,6 @@ from typing import Any
 
 import numpy as np
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
@@ -155,7 +154,9 @@ class PlantNode(Node):
         super().__init__("plant", **kwargs)
         values = read_parameters(self, SCHEMA)
         if self.get_parameter("use_sim_time").value:
-            raise ParameterFileError("parameter 'use_sim_time': the plant owns the clock; set it false")
+            raise ParameterFileError(
+                "parameter 'use_sim_time': the plant owns the clock; set it false"
+            )
         self._params = plant_params(values)
         self._axis = values["axis"]
         self._period_ns = msgs.period_ns(values["control_period_s"])

@@ -10,7 +10,10 @@ matched, ready".
 
 The bag is closed (metadata.yaml written) on shutdown, SIGINT or SIGTERM.
 
-Run: ``python -m servo_axis.nodes.recorder --ros-args --params-file config/<scenario>.yaml -p recorder:output_dir:=<dir>``
+Run::
+
+    python -m servo_axis.nodes.recorder --ros-args --params-file config/<scenario>.yaml \
+        -p recorder:output_dir:=<dir>
 """
 
 from __future__ import annotations
@@ -76,9 +79,13 @@ class RecorderNode(Node):
             if extra:
                 raise ParameterFileError(f"parameter '{key}': {sorted(extra)} not in 'topics'")
         if not values["output_dir"]:
-            raise ParameterFileError("parameter 'output_dir': required (the bag directory to create)")
+            raise ParameterFileError(
+                "parameter 'output_dir': required (the bag directory to create)"
+            )
         if values["ack_every_steps"] < 1:
-            raise ParameterFileError(f"parameter 'ack_every_steps': expected >= 1, got {values['ack_every_steps']!r}")
+            raise ParameterFileError(
+                f"parameter 'ack_every_steps': expected >= 1, got {values['ack_every_steps']!r}"
+            )
         classes = [message_class(t) for t in types]
         self._v = values
         self._steps = run_steps(values)
@@ -87,7 +94,9 @@ class RecorderNode(Node):
         except (OSError, ValueError) as err:
             raise ParameterFileError(f"parameter 'output_dir': {err}") from err
 
-        self._progress_pub = self.create_publisher(Float64MultiArray, "recorder/progress", LATCHED_QOS)
+        self._progress_pub = self.create_publisher(
+            Float64MultiArray, "recorder/progress", LATCHED_QOS
+        )
         self._counts: dict[str, int] = {}
         self._counted: list[str] = []
         self._subs = []
