@@ -18,7 +18,6 @@ Run::
 
 from __future__ import annotations
 
-import importlib
 import time
 from pathlib import Path
 from typing import Any
@@ -27,11 +26,12 @@ from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray
 
 from servo_axis import msgs
-from servo_axis.core.errors import ParameterFileError
+from servo_axis.core.errors import ConfigError, ParameterFileError
 from servo_axis.nodes.common import LATCHED_QOS, STREAM_QOS, run_main, steady_clock
 from servo_axis.nodes.plant import PROGRESS_LABELS, run_steps
 from servo_axis.params import read_parameters
 from servo_axis.recording.bag import BagWriter
+from servo_axis.recording.bag import message_class as bag_message_class
 
 SCHEMA: dict[str, object] = {
     "output_dir": "",
@@ -52,15 +52,12 @@ SCHEMA: dict[str, object] = {
 }
 
 
-def message_class(type_name: str) -> type:
+def message_class(type_name: str) -> Any:
     """Python class of ``pkg/msg/Type``; ParameterFileError if there is none."""
-    parts = type_name.split("/")
-    if len(parts) != 3 or parts[1] != "msg":
-        raise ParameterFileError(f"parameter 'types': expected 'pkg/msg/Type', got {type_name!r}")
     try:
-        return getattr(importlib.import_module(f"{parts[0]}.msg"), parts[2])  # type: ignore[no-any-return]
-    except (ImportError, AttributeError) as err:
-        raise ParameterFileError(f"parameter 'types': unknown message type {type_name!r}") from err
+        return bag_message_class(type_name)
+    except ConfigError as err:
+        raise ParameterFileError(f"parameter 'types': {err}") from err
 
 
 class RecorderNode(Node):

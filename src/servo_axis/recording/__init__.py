@@ -1,0 +1,1 @@
+"""Recording: rosbag2-layout MCAP bags."""
