@@ -86,14 +86,18 @@ def handshake_args(
     scenario: dict[str, Any], roles: list[str], bag_dir: Path, scenario_dir: Path
 ) -> list[str]:
     """``-p`` overrides that tell each node whom to wait for."""
-    state_subs = ("feedback" in roles) + ("feedforward" in roles)
+    state_subs = int("feedback" in roles)
+    status_subs = int("feedforward" in roles)
     clock_subs = ("feedback" in roles) + ("feedforward" in roles)
     ref_subs = "feedback" in roles
     args: list[str] = []
     if "recorder" in roles:
         rec = node_params(scenario, "recorder")
-        topics = rec.get("topics", ["state", "command", "reference", "/clock"])
+        topics = rec.get(
+            "topics", ["state", "command", "reference", "/clock", "fault", "plant/status"]
+        )
         state_subs += "state" in topics
+        status_subs += "plant/status" in topics
         clock_subs += "/clock" in topics
         ref_subs += "reference" in topics
         args += ["-p", f"recorder:output_dir:={bag_dir}", "-p", "plant:flow_control:=true"]
@@ -102,6 +106,8 @@ def handshake_args(
         f"plant:wait_for_state_subscribers:={state_subs}",
         "-p",
         f"plant:wait_for_clock_subscribers:={clock_subs}",
+        "-p",
+        f"plant:wait_for_status_subscribers:={status_subs}",
     ]
     if "feedforward" in roles:
         args += ["-p", f"feedforward:wait_for_reference_subscribers:={ref_subs}"]

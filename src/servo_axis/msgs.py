@@ -14,6 +14,7 @@ Decoders validate: names, lengths, finiteness and the stamp grid. They raise
 
 from __future__ import annotations
 
+import array
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -56,12 +57,16 @@ def clock_message(step: int, period_ns_: int) -> Clock:
     return Clock(clock=stamp_from_step(step, period_ns_))
 
 
-def _finite(name: str, values: Sequence[float]) -> list[float]:
-    out = [float(v) for v in values]
-    for i, v in enumerate(out):
+def _finite(name: str, values: Sequence[float]) -> Sequence[float]:
+    # Fast path: the sum of finite values is finite (sums beyond 1e308 are
+    # no physical signal either and are rejected too).
+    total = sum(values)
+    if total - total == 0.0:
+        return values
+    for i, v in enumerate(values):
         if not math.isfinite(v):
             raise SignalError(f"{name}[{i}]: expected a finite number, got {v!r}")
-    return out
+    raise SignalError(f"{name}: values too large to be a physical signal, got {list(values)}")
 
 
 def _check_joint_state(
@@ -77,14 +82,23 @@ def _check_joint_state(
     return step_from_stamp(msg.header.stamp, period_ns_)
 
 
-def _joint_state(
-    step: int, period_ns_: int, names: Sequence[str], **fields: Sequence[float]
-) -> JointState:
+def joint_state_template(names: Sequence[str], fields: Sequence[str]) -> JointState:
+    """A JointState with ``names`` and zeroed ``fields`` of matching length, to be filled."""
     msg = JointState()
-    msg.header.stamp = stamp_from_step(step, period_ns_)
     msg.name = list(names)
+    for field in fields:
+        setattr(msg, field, array.array("d", [0.0] * len(names)))
+    return msg
+
+
+def _fill(msg: JointState, step: int, period_ns_: int, **fields: Sequence[float]) -> JointState:
+    """Write stamp and values into a template in place (no message construction)."""
+    ns = step * period_ns_
+    stamp = msg.header.stamp
+    stamp.sec = ns // NS_PER_S
+    stamp.nanosec = ns % NS_PER_S
     for field, values in fields.items():
-        setattr(msg, field, _finite(field, values))
+        getattr(msg, field)[:] = array.array("d", _finite(field, values))
     return msg
 
 
@@ -119,13 +133,19 @@ def motor_names(axis: str) -> list[str]:
 
 def state_to_msg(sample: StateSample, *, axis: str, period_ns_: int) -> JointState:
     """Encode a :class:`StateSample`."""
-    return _joint_state(
+    template = joint_state_template(state_names(axis), ("position", "velocity", "effort"))
+    return write_state(template, sample, period_ns_=period_ns_)
+
+
+def write_state(msg: JointState, sample: StateSample, *, period_ns_: int) -> JointState:
+    """Fill a template from :func:`state_to_msg` with ``sample`` (publisher reuse)."""
+    return _fill(
+        msg,
         sample.step,
         period_ns_,
-        state_names(axis),
-        position=[sample.encoder_rad, sample.scale_m],
-        velocity=[sample.velocity_rad_s, sample.velocity_m_s],
-        effort=[sample.motor_torque_Nm, sample.friction_force_N],
+        position=(sample.encoder_rad, sample.scale_m),
+        velocity=(sample.velocity_rad_s, sample.velocity_m_s),
+        effort=(sample.motor_torque_Nm, sample.friction_force_N),
     )
 
 
@@ -158,7 +178,13 @@ class CommandSample:
 
 def command_to_msg(sample: CommandSample, *, axis: str, period_ns_: int) -> JointState:
     """Encode a :class:`CommandSample`."""
-    return _joint_state(sample.step, period_ns_, motor_names(axis), effort=[sample.current_A])
+    template = joint_state_template(motor_names(axis), ("effort",))
+    return write_command(template, sample, period_ns_=period_ns_)
+
+
+def write_command(msg: JointState, sample: CommandSample, *, period_ns_: int) -> JointState:
+    """Fill a template from :func:`command_to_msg` with ``sample`` (publisher reuse)."""
+    return _fill(msg, sample.step, period_ns_, effort=(sample.current_A,))
 
 
 def command_from_msg(msg: JointState, *, axis: str, period_ns_: int) -> CommandSample:
@@ -184,13 +210,19 @@ class ReferenceSample:
 
 def reference_to_msg(sample: ReferenceSample, *, axis: str, period_ns_: int) -> JointState:
     """Encode a :class:`ReferenceSample`."""
-    return _joint_state(
+    template = joint_state_template(motor_names(axis), ("position", "velocity", "effort"))
+    return write_reference(template, sample, period_ns_=period_ns_)
+
+
+def write_reference(msg: JointState, sample: ReferenceSample, *, period_ns_: int) -> JointState:
+    """Fill a template from :func:`reference_to_msg` with ``sample`` (publisher reuse)."""
+    return _fill(
+        msg,
         sample.step,
         period_ns_,
-        motor_names(axis),
-        position=[sample.position_rad],
-        velocity=[sample.velocity_rad_s],
-        effort=[sample.current_A],
+        position=(sample.position_rad,),
+        velocity=(sample.velocity_rad_s,),
+        effort=(sample.current_A,),
     )
 
 
@@ -220,7 +252,7 @@ def labelled_array(labels: Sequence[str], values: Sequence[float]) -> Float64Mul
     msg.layout.dim = [
         MultiArrayDimension(label=",".join(labels), size=len(labels), stride=len(labels))
     ]
-    msg.data = _finite("data", values)
+    msg.data = [float(v) for v in _finite("data", values)]
     return msg
 
 
@@ -233,4 +265,4 @@ def labelled_array_values(msg: Float64MultiArray, labels: Sequence[str]) -> list
         raise SignalError(f"layout.dim: expected one dimension labelled {expected!r}, got {got}")
     if len(msg.data) != len(labels) or dims[0].size != len(labels):
         raise SignalError(f"data: expected {len(labels)} values, got {len(msg.data)}")
-    return _finite("data", msg.data)
+    return [float(v) for v in _finite("data", msg.data)]

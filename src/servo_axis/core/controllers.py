@@ -10,7 +10,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.signal
 
 from .errors import ConfigError, require_nonnegative, require_positive
 
@@ -50,9 +49,34 @@ class DiscreteFilter:
 
 
 def tustin(num: np.ndarray, den: np.ndarray, period_s: float) -> DiscreteFilter:
-    """Bilinear (Tustin) discretisation of ``num(s) / den(s)`` as a filter."""
-    numd, dend, _ = scipy.signal.cont2discrete((num, den), period_s, method="bilinear")
-    return DiscreteFilter(np.ravel(numd), np.ravel(dend))
+    """Bilinear (Tustin) discretisation of ``num(s) / den(s)`` as a filter.
+
+    Substitutes ``s = (2 / T) (1 - z^-1) / (1 + z^-1)`` and multiplies through
+    by ``(1 + z^-1)^n``, ``n`` the order of the denominator.
+    """
+    num = np.atleast_1d(np.asarray(num, dtype=float))
+    den = np.atleast_1d(np.asarray(den, dtype=float))
+    n = len(den) - 1
+    if len(num) - 1 > n:
+        raise ConfigError("num: expected a proper transfer function (deg num <= deg den)")
+    num = np.concatenate((np.zeros(n + 1 - len(num)), num))
+    k = 2.0 / period_s
+    minus = np.array([1.0, -1.0])  # 1 - z^-1, coefficients in powers of z^-1
+    plus = np.array([1.0, 1.0])  # 1 + z^-1
+
+    def substitute(poly: np.ndarray) -> np.ndarray:
+        out = np.zeros(n + 1)
+        for i, c in enumerate(poly):  # c multiplies s^(n - i)
+            power = n - i
+            term = np.array([c * k**power])
+            for _ in range(power):
+                term = np.convolve(term, minus)
+            for _ in range(n - power):
+                term = np.convolve(term, plus)
+            out += term
+        return out
+
+    return DiscreteFilter(substitute(num), substitute(den))
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -66,7 +66,10 @@ class FrictionTable:
     def save(self, path: Path | str) -> None:
         """Write the table as CSV with a header naming the units."""
         lines = [HEADER_LINE, COLUMNS_LINE]
-        lines += [f"{d!r},{t!r}" for d, t in zip(self.displacement_m.tolist(), self.torque_Nm.tolist(), strict=True)]
+        lines += [
+            f"{d!r},{t!r}"
+            for d, t in zip(self.displacement_m.tolist(), self.torque_Nm.tolist(), strict=True)
+        ]
         Path(path).write_text("\n".join(lines) + "\n")
 
     @classmethod
@@ -98,7 +101,9 @@ class FrictionTable:
                     raise ValueError
                 d, t = float(parts[0]), float(parts[1])
             except ValueError:
-                raise TableError(f"{path}: line {number}: expected two numbers, got {line!r}") from None
+                raise TableError(
+                    f"{path}: line {number}: expected two numbers, got {line!r}"
+                ) from None
             if not (math.isfinite(d) and math.isfinite(t)):
                 raise TableError(f"{path}: line {number}: expected finite numbers, got {line!r}")
             if disp and d <= disp[-1]:
@@ -196,7 +201,9 @@ def build_friction_table(
     pos = np.asarray(position_m, dtype=float)
     tq = np.asarray(torque_Nm, dtype=float)
     if pos.shape != tq.shape or pos.ndim != 1:
-        raise TableError(f"position_m, torque_Nm: expected 1-D arrays of one length, got {pos.shape}, {tq.shape}")
+        raise TableError(
+            f"position_m, torque_Nm: expected 1-D arrays of one length, got {pos.shape}, {tq.shape}"
+        )
     w = require_positive("bin_width_m", bin_width_m)
     top = require_positive("max_displacement_m", max_displacement_m)
     tracker = ReversalTracker()

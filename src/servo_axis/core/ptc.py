@@ -69,7 +69,9 @@ class MultiratePtc:
         kt = require_positive("torque_constant_Nm_per_A", torque_constant_Nm_per_A)
         tu = require_positive("control_period_s", control_period_s)
         if ratio != 2:
-            raise ConfigError(f"ratio: expected 2 (T_r = 2 T_u for the order-2 plant), got {ratio!r}")
+            raise ConfigError(
+                f"ratio: expected 2 (T_r = 2 T_u for the order-2 plant), got {ratio!r}"
+            )
         m = np.zeros((3, 3))
         m[0, 1] = 1.0
         m[1, 1] = -d / j

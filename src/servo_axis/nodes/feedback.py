@@ -127,6 +127,7 @@ class FeedbackNode(Node):
         self._period_ns = msgs.period_ns(values["control_period_s"])
         self._lockstep = values["mode"] == "lockstep"
 
+        self._command_msg = msgs.joint_state_template(msgs.motor_names(self._axis), ("effort",))
         self._command_pub = self.create_publisher(JointState, "command", STREAM_QOS)
         self._fault_pub = self.create_publisher(Float64MultiArray, "fault", LATCHED_QOS)
         self.create_subscription(JointState, "state", self._on_state, STREAM_QOS)
@@ -190,8 +191,9 @@ class FeedbackNode(Node):
         else:
             self._held = ref
         self._pending = None
-        for old in [s for s in self._references if s < state.step]:
-            del self._references[old]
+        if state.step % 1000 == 0:  # drop references of samples that never came
+            for old in [s for s in self._references if s < state.step]:
+                del self._references[old]
         angle = state.encoder_rad if self._v["sensor"] == "encoder" else state.scale_m / self._lead
         if ref is None:
             out = LoopOutput(0.0, 0.0, 0.0, 0.0)
@@ -202,9 +204,9 @@ class FeedbackNode(Node):
         if out.fault is not None:
             self._publish_fault(state.step, out.fault, out.fault_value)
         self._command_pub.publish(
-            msgs.command_to_msg(
+            msgs.write_command(
+                self._command_msg,
                 msgs.CommandSample(step=state.step, current_A=out.current_A),
-                axis=self._axis,
                 period_ns_=self._period_ns,
             )
         )

@@ -4,7 +4,8 @@ Topics (relative to the namespace):
 
 * publishes ``reference`` (JointState, one message per control sample,
   published up to ``preview_steps`` samples ahead of the plant);
-* subscribes ``state`` (JointState, newest only) to know how far the plant is.
+* subscribes ``plant/status`` (Float64MultiArray, every ``status_every_steps``
+  of the plant) to know how far the plant is, without a callback per sample.
 
 It publishes the first window as soon as ``wait_for_reference_subscribers``
 subscribers have matched, then tops the window up whenever the plant has
@@ -20,15 +21,16 @@ from typing import Any
 
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
 
 from servo_axis import msgs
 from servo_axis.core.errors import ParameterFileError, ServoAxisError, SignalError
 from servo_axis.core.feedforward import FeedforwardGenerator
 from servo_axis.core.friction_table import FrictionTable
 from servo_axis.core.reference import make_reference
-from servo_axis.nodes.common import LATEST_QOS, STREAM_QOS, Throttle, run_main, steady_clock
+from servo_axis.nodes.common import STREAM_QOS, Throttle, run_main, steady_clock
 from servo_axis.nodes.feedback import nominal, use_sim_time_by_default
-from servo_axis.nodes.plant import run_steps
+from servo_axis.nodes.plant import STATUS_LABELS, run_steps
 from servo_axis.params import build, read_parameters, section
 
 SCHEMA: dict[str, object] = {
@@ -107,8 +109,11 @@ class FeedforwardNode(Node):
         self._steps = run_steps(values)
         self._window = values["preview_steps"]
 
+        self._msg = msgs.joint_state_template(
+            msgs.motor_names(self._axis), ("position", "velocity", "effort")
+        )
         self._pub = self.create_publisher(JointState, "reference", STREAM_QOS)
-        self.create_subscription(JointState, "state", self._on_state, LATEST_QOS)
+        self.create_subscription(Float64MultiArray, "plant/status", self._on_status, STREAM_QOS)
         self._start_timer = self.create_timer(0.01, self._try_start, clock=steady_clock())
 
         self.started = False
@@ -124,13 +129,13 @@ class FeedforwardNode(Node):
         self.started = True
         self._fill(self._window)
 
-    def _on_state(self, msg: JointState) -> None:
+    def _on_status(self, msg: Float64MultiArray) -> None:
         try:
-            step = msgs.step_from_stamp(msg.header.stamp, self._period_ns)
+            step = int(msgs.labelled_array_values(msg, STATUS_LABELS)[0])
         except SignalError as err:
             self.rejected += 1
             if self._complain.ready():
-                self.get_logger().warning(f"state rejected: {err}")
+                self.get_logger().warning(f"plant/status rejected: {err}")
             return
         self._plant_step = max(self._plant_step, step)
         if self.started and self.published - self._plant_step <= self._window // 2:

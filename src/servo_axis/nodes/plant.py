@@ -2,8 +2,12 @@
 
 Topics (relative to the node's namespace):
 
-* publishes ``state`` (JointState, every sample), ``/clock`` (every sample),
-  ``plant/status`` (Float64MultiArray, every ``status_every_steps``);
+* publishes ``state`` (JointState, every sample), ``/clock`` (every
+  ``clock_every_steps`` samples: nodes use the clock for logs and timers,
+  never for per-sample logic, so 100 Hz suffices and saves every node a
+  callback per sample), ``plant/status`` (Float64MultiArray ``[step,
+  deadline_misses, rejected_commands, command_timeouts]``, every
+  ``status_every_steps``: the feedforward generator's progress signal);
 * subscribes ``command`` (JointState) and ``recorder/progress``
   (Float64MultiArray, for flow control).
 
@@ -74,12 +78,14 @@ SCHEMA: dict[str, object] = {
     "scale.noise_std": 0.0,
     "noise_seed": 0,
     "publish_clock": True,
+    "clock_every_steps": 10,
     "wait_for_state_subscribers": 0,
     "wait_for_clock_subscribers": 0,
+    "wait_for_status_subscribers": 0,
     "flow_control": False,
     "max_recorder_lag_steps": 200,
     "command_timeout_s": 2.0,
-    "status_every_steps": 1000,
+    "status_every_steps": 50,
 }
 
 # The modes lists default to [0.0] only so that their type is known; an
@@ -162,14 +168,22 @@ class PlantNode(Node):
         self._period_ns = msgs.period_ns(values["control_period_s"])
         self._steps = run_steps(values)
         self._lockstep = values["mode"] == "lockstep"
+        for key in ("clock_every_steps", "status_every_steps", "max_recorder_lag_steps"):
+            if values[key] < 1:
+                raise ParameterFileError(f"parameter '{key}': expected >= 1, got {values[key]!r}")
         self._v = values
         self.plant = BallScrewPlant(self._params, rng=np.random.default_rng(values["noise_seed"]))
 
+        # One message per publisher, refilled each sample: publish() serialises
+        # at once, and building a fresh JointState costs more than the physics.
+        self._state_msg = msgs.joint_state_template(
+            msgs.state_names(self._axis), ("position", "velocity", "effort")
+        )
         self._state_pub = self.create_publisher(JointState, "state", STREAM_QOS)
         self._clock_pub = (
             self.create_publisher(Clock, "/clock", STREAM_QOS) if values["publish_clock"] else None
         )
-        self._status_pub = self.create_publisher(Float64MultiArray, "plant/status", LATCHED_QOS)
+        self._status_pub = self.create_publisher(Float64MultiArray, "plant/status", STREAM_QOS)
         self.create_subscription(JointState, "command", self._on_command, STREAM_QOS)
         self.create_subscription(
             Float64MultiArray, "recorder/progress", self._on_progress, LATCHED_QOS
@@ -196,6 +210,8 @@ class PlantNode(Node):
     def _connected(self) -> bool:
         v = self._v
         if self._state_pub.get_subscription_count() < v["wait_for_state_subscribers"]:
+            return False
+        if self._status_pub.get_subscription_count() < v["wait_for_status_subscribers"]:
             return False
         if self._clock_pub is not None:
             if self._clock_pub.get_subscription_count() < v["wait_for_clock_subscribers"]:
@@ -311,16 +327,16 @@ class PlantNode(Node):
         self._advance()
 
     def _publish(self, out: PlantOutput) -> None:
-        if self._clock_pub is not None:
+        if self._clock_pub is not None and out.step % self._v["clock_every_steps"] == 0:
             self._clock_pub.publish(msgs.clock_message(out.step, self._period_ns))
         self._state_pub.publish(
-            msgs.state_to_msg(
+            msgs.write_state(
+                self._state_msg,
                 state_sample(out, self._params.lead_m_per_rad),
-                axis=self._axis,
                 period_ns_=self._period_ns,
             )
         )
-        if out.step % self._v["status_every_steps"] == 0 and out.step > 0:
+        if out.step % self._v["status_every_steps"] == 0:
             self._publish_status()
 
     def _publish_status(self) -> None:

@@ -140,7 +140,11 @@ def type_hash(type_name: str) -> str | None:
     return None
 
 
-_COMPRESSION = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
+_COMPRESSION = {
+    "zstd": CompressionType.ZSTD,
+    "lz4": CompressionType.LZ4,
+    "none": CompressionType.NONE,
+}
 
 
 class BagWriter:
@@ -156,9 +160,13 @@ class BagWriter:
         Chunk size in bytes.
     """
 
-    def __init__(self, directory: Path, *, compression: str = "zstd", chunk_size: int = 1024 * 1024) -> None:
+    def __init__(
+        self, directory: Path, *, compression: str = "zstd", chunk_size: int = 1024 * 1024
+    ) -> None:
         if compression not in _COMPRESSION:
-            raise ConfigError(f"compression: expected one of {sorted(_COMPRESSION)}, got {compression!r}")
+            raise ConfigError(
+                f"compression: expected one of {sorted(_COMPRESSION)}, got {compression!r}"
+            )
         directory = Path(directory)
         if directory.exists() and any(directory.iterdir()):
             raise ConfigError(f"directory: {directory} exists and is not empty")
@@ -166,7 +174,9 @@ class BagWriter:
         self.directory = directory
         self.file_name = f"{directory.name}_0.mcap"
         self._file = (directory / self.file_name).open("wb")
-        self._writer = Writer(self._file, chunk_size=chunk_size, compression=_COMPRESSION[compression])
+        self._writer = Writer(
+            self._file, chunk_size=chunk_size, compression=_COMPRESSION[compression]
+        )
         self._writer.start(profile="ros2", library="servo_axis (mcap python)")
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
@@ -207,7 +217,9 @@ class BagWriter:
         self._counts[name] = 0
         return self._channels[name]
 
-    def write(self, topic: str, data: bytes, *, log_time_ns: int, publish_time_ns: int | None = None) -> None:
+    def write(
+        self, topic: str, data: bytes, *, log_time_ns: int, publish_time_ns: int | None = None
+    ) -> None:
         """Append one serialised message of a registered topic."""
         channel = self._channels.get(topic)
         if channel is None:
@@ -247,7 +259,8 @@ class BagWriter:
             "starting_time": {"nanoseconds_since_epoch": start},
             "message_count": total,
             "topics_with_message_count": [
-                {"topic_metadata": self._topics[t], "message_count": self._counts[t]} for t in self._topics
+                {"topic_metadata": self._topics[t], "message_count": self._counts[t]}
+                for t in self._topics
             ],
             "compression_format": "",
             "compression_mode": "",
@@ -315,9 +328,13 @@ def read_messages(directory: Path, *, topics: Iterable[str] | None = None) -> It
     classes: dict[str, Any] = {}
     for path in sorted(Path(directory).glob("*.mcap")):
         with path.open("rb") as f:
-            for schema, channel, msg in make_reader(f).iter_messages(topics=wanted, log_time_order=True):
+            for schema, channel, msg in make_reader(f).iter_messages(
+                topics=wanted, log_time_order=True
+            ):
                 type_name = schema.name if schema is not None else ""
                 cls = classes.get(type_name)
                 if cls is None:
                     cls = classes[type_name] = message_class(type_name)
-                yield BagMessage(channel.topic, type_name, msg.log_time, deserialize_message(msg.data, cls))
+                yield BagMessage(
+                    channel.topic, type_name, msg.log_time, deserialize_message(msg.data, cls)
+                )
