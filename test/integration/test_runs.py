@@ -71,18 +71,20 @@ def test_ptc_tracks_the_nominal_plant_and_pid_alone_does_not(ros_env: int, tmp_p
     for result in (ptc, pid):
         s = result.summary
         assert s["steps"] == steps
-        for topic in ("/state", "/command", "/reference", "/clock"):
+        for topic in ("/state", "/command", "/reference"):
             assert s["message_counts"][topic] == steps  # the recorder lost nothing
+        assert s["message_counts"]["/clock"] == steps // 10  # /clock every 10 samples
         assert not s["faults"]
         assert (result.run_dir / "summary.json").is_file()
         assert (result.run_dir / "error.png").stat().st_size > 10_000
-    ptc_ss = ptc.summary["tracking_error"]["after_first_cycle"]["reference_instants"]["max_m"]
-    pid_ss = pid.summary["tracking_error"]["after_first_cycle"]["reference_instants"]["max_m"]
+    # The reference starts at rest with the axis, so PTC tracks from sample 0.
+    ptc_ss = ptc.summary["tracking_error"]["reference_instants"]["max_m"]
+    pid_ss = pid.summary["tracking_error"]["reference_instants"]["max_m"]
     assert ptc_ss < 1e-9  # below 1 nm at the T_r instants
     assert pid_ss > 1e-6
     assert pid_ss / max(ptc_ss, 1e-300) > 1e3
-    # Every cycle after the start-up transient is perfect, not only on average.
-    for cycle in ptc.summary["tracking_error"]["cycles"][1:]:
+    # Every cycle is perfect, not only on average.
+    for cycle in ptc.summary["tracking_error"]["cycles"]:
         assert cycle["reference_instants"]["max_m"] < 1e-9
 
 
@@ -103,9 +105,12 @@ def test_bag_reads_back_with_independent_readers(ros_env: int, tmp_path: Path) -
                 connections=[c for c in reader.connections if c.topic == "/state"]
             )
         ]
-    assert {t: counts[t] for t in ("/state", "/command", "/reference", "/clock")} == dict.fromkeys(
-        ("/state", "/command", "/reference", "/clock"), 300
-    )
+    assert {t: counts[t] for t in ("/state", "/command", "/reference", "/clock")} == {
+        "/state": 300,
+        "/command": 300,
+        "/reference": 300,
+        "/clock": 30,
+    }
     assert [s.name for s in states[:1]] == [["x_motor", "x_table"]]
     stamps = [s.header.stamp.sec * 10**9 + s.header.stamp.nanosec for s in states]
     assert stamps == [k * 1_000_000 for k in range(300)]
@@ -137,8 +142,8 @@ def test_lockstep_runs_are_identical_separate_and_composed(ros_env: int, tmp_pat
         for name, composed in (("a", False), ("b", False), ("c", True))
     ]
     payloads = [raw_payloads(r.run_dir / "bag") for r in runs]
-    for topic in ("/state", "/command", "/reference", "/clock"):
-        assert len(payloads[0][topic]) == 600
+    for topic in ("/state", "/command", "/reference", "/clock", "/plant/status"):
+        assert len(payloads[0][topic]) == {"/clock": 60, "/plant/status": 12}.get(topic, 600)
         assert payloads[0][topic] == payloads[1][topic], f"{topic}: separate runs differ"
         assert payloads[0][topic] == payloads[2][topic], f"{topic}: composed differs from separate"
     # Not trivially equal: the friction makes the commands vary.
@@ -205,7 +210,7 @@ def test_killed_feedforward_trips_the_feedback_and_the_bag_survives(
     rclpy.init(args=[], context=ctx)
     node = rclpy.create_node("fault_probe", context=ctx)
     faults: list[tuple[float, list[float]]] = []
-    node.create_subscription(
+    fault_sub = node.create_subscription(
         Float64MultiArray,
         "fault",
         lambda m: faults.append((time.monotonic(), list(m.data))),
@@ -215,7 +220,8 @@ def test_killed_feedforward_trips_the_feedback_and_the_bag_survives(
     ex.add_node(node)
     try:
         deadline = time.monotonic() + 60
-        while watcher.steps < 500:
+        while watcher.steps < 500 or fault_sub.get_publisher_count() < 1:
+            ex.spin_once(timeout_sec=0.01)
             assert time.monotonic() < deadline, "the run did not start"
             watcher.spin(0.05)
         ff = next(p for p in procs if p.role == "feedforward")
@@ -227,9 +233,12 @@ def test_killed_feedforward_trips_the_feedback_and_the_bag_survives(
         trip_delay = faults[0][0] - killed_at
         step, code, _ = faults[0][1]
         assert code == 4  # input_timeout
-        assert trip_delay < 0.5 + 1.0  # input_timeout_s + the README's margin
+        # README: the preview left (<= 200 samples, well under 1 s) drains,
+        # then input_timeout_s (0.5 s) + one watchdog period (0.05 s).
+        print(f"trip {trip_delay:.3f} s after the kill, at step {int(step)}")
+        assert trip_delay < 2.5
         # The axis keeps running (zero current) and the recorder keeps recording.
-        target = watcher.steps + 300
+        target = int(step) + 400
         while watcher.steps < target:
             assert time.monotonic() - killed_at < 60
             watcher.spin(0.05)
@@ -290,4 +299,4 @@ def test_realtime_mode_keeps_wall_time_and_counts_misses(ros_env: int, tmp_path:
         m.message.data for m in read_messages(result.run_dir / "bag", topics=["/plant/status"])
     ]
     assert status, "plant/status was not published"
-    assert status[-1][0] == 1000 and status[-1][1] >= 0
+    assert status[-1][0] == 1000 and status[-1][1] >= 0  # the final status, at step N

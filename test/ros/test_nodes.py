@@ -17,7 +17,6 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
-from servo_axis.recording.bag import read_messages
 from std_msgs.msg import Float64MultiArray
 
 from servo_axis import msgs
@@ -28,6 +27,7 @@ from servo_axis.nodes.feedback import FeedbackNode
 from servo_axis.nodes.feedforward import FeedforwardNode
 from servo_axis.nodes.plant import PlantNode
 from servo_axis.nodes.recorder import RecorderNode
+from servo_axis.recording.bag import read_messages
 from servo_axis.simulate import simulate
 
 pytestmark = pytest.mark.ros

@@ -213,7 +213,7 @@ def build_friction_table(
     for k, (p, t) in enumerate(zip(pos.tolist(), tq.tolist(), strict=True)):
         direction, d = tracker.update(p)
         disp[k], signed[k], keep[k] = d, direction * t, tracker.reversals > 0
-    n_bins = int(math.floor(top / w + 1e-9))
+    n_bins = math.floor(top / w + 1e-9)
     idx = np.floor(disp[keep] / w).astype(int)
     vals = signed[keep]
     inside = idx < n_bins

@@ -84,7 +84,13 @@ def spin_nodes(nodes: Sequence[Node], done: Callable[[], bool]) -> None:
         executor.add_node(node)
     try:
         while rclpy.ok() and not done():
-            executor.spin_once(timeout_sec=0.1)
+            try:
+                executor.spin_once(timeout_sec=0.1)
+            except RuntimeError:
+                # A signal shut the context down while the EventsExecutor was
+                # handing a message to Python; that is a normal stop.
+                if rclpy.ok():
+                    raise
     finally:
         executor.shutdown()
 

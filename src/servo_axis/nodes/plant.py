@@ -320,10 +320,17 @@ class PlantNode(Node):
         self._publish(out)
 
     def _finish(self) -> None:
-        """After the last step: publish the status, then wait for the recorder."""
+        """After the last step: wait for the recorder to have everything.
+
+        In realtime a last status carries the final deadline-miss count. In
+        lockstep there is none: the recorder acknowledges only the per-sample
+        topics, so a message after the last sample might or might not make
+        it into the bag, and the bag must be the same every run.
+        """
         self._finishing = True
         self._finish_started = time.monotonic()
-        self._publish_status()
+        if not self._lockstep:
+            self._publish_status()
         self._advance()
 
     def _publish(self, out: PlantOutput) -> None:

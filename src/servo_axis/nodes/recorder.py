@@ -45,7 +45,10 @@ SCHEMA: dict[str, object] = {
         "std_msgs/msg/Float64MultiArray",
     ],
     "latched_topics": ["fault"],
-    "counted_topics": ["state", "command", "reference"],
+    # The per-sample topics of the loop itself. Not the reference: it runs
+    # ahead of the loop, and a dead feedforward generator must not stall the
+    # axis that its feedback loop has just tripped to a safe state.
+    "counted_topics": ["state", "command"],
     "compression": "zstd",
     "ack_every_steps": 50,
     "wait_for_publishers": True,
