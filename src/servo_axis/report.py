@@ -224,31 +224,37 @@ def plot(run_dir: Path) -> list[Path]:
     fb = node_params(scenario, "feedback")
     y = sig["scale_m"] / lead if fb.get("sensor", "encoder") == "scale" else sig["encoder_rad"]
     t = sig["step"] * period
-    paths = []
-    fig, ax = plt.subplots(figsize=(9, 4))
-    ax.plot(t, sig["reference_rad"] * lead * 1e3, label="reference r")
-    ax.plot(t, y * lead * 1e3, "--", label="position y")
-    ax.set_xlabel("time (s)")
-    ax.set_ylabel("table position (mm)")
-    ax.set_title(f"{summary['scenario']}: reference and position")
-    ax.legend()
-    ax.grid(True)
-    fig.tight_layout()
-    paths.append(run_dir / "reference_position.png")
-    fig.savefig(paths[-1], dpi=110)
-    plt.close(fig)
-    fig, ax = plt.subplots(figsize=(9, 4))
     err = lead * (sig["reference_rad"] - y) * 1e6
-    ax.plot(t, err, lw=0.8, label="all samples")
     even = sig["step"] % 2 == 0
-    ax.plot(t[even], err[even], ".", ms=2, label="T_r instants")
-    ax.set_xlabel("time (s)")
-    ax.set_ylabel("tracking error (um)")
-    ax.set_title(f"{summary['scenario']}: tracking error e = R (r - y)")
-    ax.legend()
-    ax.grid(True)
-    fig.tight_layout()
-    paths.append(run_dir / "error.png")
-    fig.savefig(paths[-1], dpi=110)
-    plt.close(fig)
+    figures = [
+        (
+            "reference_position.png",
+            "table position (mm)",
+            "reference and position",
+            [
+                (t, sig["reference_rad"] * lead * 1e3, "-", "reference r"),
+                (t, y * lead * 1e3, "--", "position y"),
+            ],
+        ),
+        (
+            "error.png",
+            "tracking error (um)",
+            "tracking error e = R (r - y)",
+            [(t, err, "-", "all samples"), (t[even], err[even], ".", "T_r instants")],
+        ),
+    ]
+    paths = []
+    for name, ylabel, title, lines in figures:
+        fig, ax = plt.subplots(figsize=(9, 4))
+        for x_values, y_values, style, label in lines:
+            ax.plot(x_values, y_values, style, label=label, lw=0.8, ms=2)
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel(ylabel)
+        ax.set_title(f"{summary['scenario']}: {title}")
+        ax.legend()
+        ax.grid(True)
+        fig.tight_layout()
+        paths.append(run_dir / name)
+        fig.savefig(paths[-1], dpi=110)
+        plt.close(fig)
     return paths

@@ -61,7 +61,10 @@ class FrictionTable:
         Linear interpolation; the last value is held beyond the table.
         """
         d = np.asarray(displacement_m, dtype=float)
-        return float(np.sign(direction)) * np.interp(d, self.displacement_m, self.torque_Nm)
+        torque: NDArray[np.float64] = float(np.sign(direction)) * np.interp(
+            d, self.displacement_m, self.torque_Nm
+        )
+        return torque
 
     def save(self, path: Path | str) -> None:
         """Write the table as CSV with a header naming the units."""
