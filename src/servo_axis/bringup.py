@@ -82,15 +82,15 @@ def roles_of(scenario: dict[str, Any]) -> list[str]:
     return [r for r in ("recorder", "feedforward", "feedback", "plant") if r in scenario]
 
 
-def handshake_args(
+def handshake_overrides(
     scenario: dict[str, Any], roles: list[str], bag_dir: Path, scenario_dir: Path
-) -> list[str]:
-    """``-p`` overrides that tell each node whom to wait for."""
+) -> dict[str, dict[str, Any]]:
+    """Per-node parameters the bringup adds: whom to wait for, where to record."""
     state_subs = int("feedback" in roles)
     status_subs = int("feedforward" in roles)
     clock_subs = ("feedback" in roles) + ("feedforward" in roles)
-    ref_subs = "feedback" in roles
-    args: list[str] = []
+    ref_subs = int("feedback" in roles)
+    out: dict[str, dict[str, Any]] = {"plant": {}}
     if "recorder" in roles:
         rec = node_params(scenario, "recorder")
         topics = rec.get(
@@ -100,22 +100,40 @@ def handshake_args(
         status_subs += "plant/status" in topics
         clock_subs += "/clock" in topics
         ref_subs += "reference" in topics
-        args += ["-p", f"recorder:output_dir:={bag_dir}", "-p", "plant:flow_control:=true"]
-    args += [
-        "-p",
-        f"plant:wait_for_state_subscribers:={state_subs}",
-        "-p",
-        f"plant:wait_for_clock_subscribers:={clock_subs}",
-        "-p",
-        f"plant:wait_for_status_subscribers:={status_subs}",
-    ]
+        out["recorder"] = {"output_dir": str(bag_dir)}
+        out["plant"]["flow_control"] = True
+    out["plant"].update(
+        wait_for_state_subscribers=state_subs,
+        wait_for_clock_subscribers=clock_subs,
+        wait_for_status_subscribers=status_subs,
+    )
     if "feedforward" in roles:
-        args += ["-p", f"feedforward:wait_for_reference_subscribers:={ref_subs}"]
+        out["feedforward"] = {"wait_for_reference_subscribers": ref_subs}
         table = node_params(scenario, "feedforward").get("friction_table.file", "")
         if table and not Path(table).is_absolute():
             # Relative table paths are relative to the scenario file.
-            args += ["-p", f"feedforward:friction_table.file:={scenario_dir / table}"]
-    return args
+            out["feedforward"]["friction_table.file"] = str(scenario_dir / table)
+    return out
+
+
+def write_run_params(
+    scenario: dict[str, Any], overrides: dict[str, dict[str, Any]], path: Path
+) -> Path:
+    """The parameter file the nodes of a run get: the scenario plus the overrides.
+
+    Node sections are keyed ``/**/<node>`` so that they apply under any
+    namespace; the file is kept in the run directory as the exact record of
+    what ran.
+    """
+    out: dict[str, Any] = {SHARED_SECTION: {"ros__parameters": shared(scenario)}}
+    for role in ROLES:
+        if role not in scenario and role not in overrides:
+            continue
+        params = dict(scenario.get(role, {}).get("ros__parameters", {}))
+        params.update(overrides.get(role, {}))
+        out[f"/**/{role}"] = {"ros__parameters": params}
+    path.write_text(yaml.safe_dump(out, sort_keys=False))
+    return path
 
 
 def ros_environment(domain_id: int, log_dir: Path) -> dict[str, str]:
@@ -156,7 +174,7 @@ class Proc:
 
 
 def start_nodes(
-    scenario_path: Path,
+    params_path: Path,
     roles: list[str],
     extra_args: list[str],
     env: dict[str, str],
@@ -164,7 +182,7 @@ def start_nodes(
     composed: bool,
 ) -> list[Proc]:
     """Start the node processes (or one composed process)."""
-    base = ["--ros-args", "--params-file", str(scenario_path), *extra_args]
+    base = ["--ros-args", "--params-file", str(params_path), *extra_args]
     jobs = (
         [("composed", ["-m", "servo_axis.nodes.composed", *roles])]
         if composed
@@ -326,11 +344,12 @@ def run_scenario(
     bag_dir = out_dir / "bag"
     roles = roles_of(scenario)
     ns_args = ["-r", f"__ns:={namespace}"] if namespace else []
-    args = [
-        *handshake_args(scenario, roles, bag_dir, scenario_path.parent),
-        *ns_args,
-        *(extra_args or []),
-    ]
+    args = [*ns_args, *(extra_args or [])]
+    params_path = write_run_params(
+        scenario,
+        handshake_overrides(scenario, roles, bag_dir, scenario_path.parent),
+        out_dir / "params.yaml",
+    )
     domain = default_domain_id() if domain_id is None else domain_id
     env = ros_environment(domain, log_dir)
     os.environ.update(
@@ -350,7 +369,7 @@ def run_scenario(
     watcher = ProgressWatcher(namespace or "/") if "recorder" in roles else None
     t_start = time.monotonic()
     t_first: float | None = None
-    procs = start_nodes(scenario_path, roles, args, env, log_dir, composed)
+    procs = start_nodes(params_path, roles, args, env, log_dir, composed)
     if on_started is not None:
         on_started(procs)
     plant_proc = procs[0] if composed else next(p for p in procs if p.role == "plant")

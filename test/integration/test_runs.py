@@ -23,12 +23,13 @@ from mcap.reader import make_reader
 from servo_axis.bringup import (
     ProgressWatcher,
     RunError,
-    handshake_args,
+    handshake_overrides,
     load_scenario,
     ros_environment,
     run_scenario,
     start_nodes,
     stop_nodes,
+    write_run_params,
 )
 from servo_axis.friction_id import table_from_run
 
@@ -203,7 +204,14 @@ def test_killed_feedforward_trips_the_feedback_and_the_bag_survives(
     env = ros_environment(ros_env, log_dir)
     os.environ.update({k: env[k] for k in ("FASTRTPS_DEFAULT_PROFILES_FILE",)})
     procs = start_nodes(
-        scenario_path, roles, handshake_args(scenario, roles, bag, tmp_path), env, log_dir, False
+        write_run_params(
+            scenario, handshake_overrides(scenario, roles, bag, tmp_path), tmp_path / "params.yaml"
+        ),
+        roles,
+        [],
+        env,
+        log_dir,
+        False,
     )
     watcher = ProgressWatcher("/")
     ctx = Context()
@@ -300,3 +308,27 @@ def test_realtime_mode_keeps_wall_time_and_counts_misses(ros_env: int, tmp_path:
     ]
     assert status, "plant/status was not published"
     assert status[-1][0] == 1000 and status[-1][1] >= 0  # the final status, at step N
+
+
+def test_namespaced_composed_run_leaves_nothing_behind(ros_env: int, tmp_path: Path) -> None:
+    shm_before = {p.name for p in Path("/dev/shm").glob("fastrtps_*")}
+    scenario = scenario_copy(CONFIG / "ptc_nominal.yaml", tmp_path, duration_s=0.3)
+    result = run_scenario(
+        scenario,
+        out_dir=tmp_path / "ns",
+        domain_id=ros_env,
+        composed=True,
+        namespace="/x",
+        progress=None,
+        plots=False,
+    )
+    counts = result.summary["message_counts"]
+    assert counts["/x/state"] == counts["/x/command"] == counts["/x/reference"] == 300
+    assert counts["/clock"] == 30  # the clock stays global
+    assert result.exit_codes == {"composed": 0}
+    # UDP transport: no shared-memory files, so none can be left behind.
+    assert {p.name for p in Path("/dev/shm").glob("fastrtps_*")} - shm_before == set()
+    leftovers = subprocess.run(
+        ["pgrep", "-f", str(scenario)], capture_output=True, text=True
+    ).stdout.split()
+    assert leftovers == []

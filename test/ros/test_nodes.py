@@ -260,3 +260,81 @@ def test_bad_parameters_stop_the_node_before_it_publishes(
     for topic in ("state", "command", "reference", "/clock"):
         assert watcher.count_publishers(topic) == 0
     watcher.destroy_node()
+
+
+def test_plant_rejects_bad_commands_and_waits_for_a_valid_one(context: Context) -> None:
+    plant = PlantNode(
+        context=context, parameter_overrides=[Parameter("wait_for_state_subscribers", value=1)]
+    )
+    probe = Node("cmd_probe", context=context)
+    cmd_pub = probe.create_publisher(JointState, "command", STREAM_QOS)
+    states: list[msgs.StateSample] = []
+    probe.create_subscription(
+        JointState,
+        "state",
+        lambda m: states.append(msgs.state_from_msg(m, axis="x", period_ns_=PERIOD_NS)),
+        STREAM_QOS,
+    )
+    nodes = [plant, probe]
+    spin_until(
+        context,
+        nodes,
+        lambda: plant.started and cmd_pub.get_subscription_count() >= 1 and len(states) == 1,
+    )
+
+    def command(step: int, current: float) -> JointState:
+        return msgs.command_to_msg(
+            msgs.CommandSample(step, current), axis="x", period_ns_=PERIOD_NS
+        )
+
+    nan_cmd = command(0, 0.0)
+    nan_cmd.effort = [math.nan]
+    wrong_name = command(0, 1.0)
+    wrong_name.name = ["y_motor"]
+    for bad in (nan_cmd, wrong_name, command(1, 1.0)):  # NaN, wrong axis, future stamp
+        cmd_pub.publish(bad)
+    spin_until(context, nodes, lambda: plant._rejected >= 3)
+    assert len(states) == 1 and plant.plant.step_index == 0  # nothing moved
+    cmd_pub.publish(command(0, 2.0))
+    spin_until(context, nodes, lambda: len(states) == 2)
+    assert states[1].step == 1 and states[1].motor_torque_Nm == pytest.approx(
+        2.0 * 0.715, rel=1e-12
+    )
+    cmd_pub.publish(command(0, 2.0))  # stale: step 0 is done
+    spin_until(context, nodes, lambda: plant._rejected >= 4)
+    assert plant.plant.step_index == 1
+    plant.destroy_node()
+    probe.destroy_node()
+
+
+def test_feedforward_rejects_a_bad_status_and_publishes_ahead(context: Context) -> None:
+    ff = FeedforwardNode(
+        context=context, parameter_overrides=[Parameter("preview_steps", value=20)]
+    )
+    probe = Node("status_probe", context=context)
+    status_pub = probe.create_publisher(Float64MultiArray, "plant/status", STREAM_QOS)
+    refs: list[msgs.ReferenceSample] = []
+    probe.create_subscription(
+        JointState,
+        "reference",
+        lambda m: refs.append(msgs.reference_from_msg(m, axis="x", period_ns_=PERIOD_NS)),
+        STREAM_QOS,
+    )
+    nodes = [ff, probe]
+    spin_until(context, nodes, lambda: status_pub.get_subscription_count() >= 1 and len(refs) == 20)
+    bad = msgs.labelled_array(
+        ("step", "deadline_misses", "rejected_commands", "command_timeouts"), [15, 0, 0, 0]
+    )
+    bad.layout.dim[0].label = "step,misses"
+    status_pub.publish(bad)
+    spin_until(context, nodes, lambda: ff.rejected >= 1)
+    assert len(refs) == 20  # a bad status moves nothing
+    status_pub.publish(
+        msgs.labelled_array(
+            ("step", "deadline_misses", "rejected_commands", "command_timeouts"), [15, 0, 0, 0]
+        )
+    )
+    spin_until(context, nodes, lambda: len(refs) == 35)
+    assert [r.step for r in refs] == list(range(35))
+    ff.destroy_node()
+    probe.destroy_node()
