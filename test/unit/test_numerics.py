@@ -72,6 +72,7 @@ def test_sine_and_one_minus_cos_are_the_closed_forms() -> None:
     pos, vel, acc = OneMinusCosReference(amplitude_m=0.025, frequency_hz=1.0).sample(t)
     w = 2 * math.pi
     assert_allclose(pos, 0.025 * (1 - np.cos(w * t)), atol=1e-15)
+    assert_allclose(vel, 0.025 * w * np.sin(w * t), atol=1e-14)
     assert_allclose(acc, 0.025 * w * w * np.cos(w * t), atol=1e-13)
     pos, _, _ = SineReference(
         amplitude_m=0.01, frequency_hz=2.0, offset_m=0.01, phase_rad=-math.pi / 2
