@@ -192,8 +192,10 @@ def start_nodes(
     for role, cmd in jobs:
         log_path = log_dir / f"{role}.log"
         log = log_path.open("wb")
+        cpus = _cpu_set(role) if os.environ.get("SERVO_AXIS_PIN", "1") == "1" else None
         popen = subprocess.Popen(
             [sys.executable, *cmd, *base],
+            preexec_fn=(lambda c=cpus: os.sched_setaffinity(0, c)) if cpus else None,
             stdout=log,
             stderr=subprocess.STDOUT,
             stdin=subprocess.DEVNULL,
@@ -202,6 +204,15 @@ def start_nodes(
         )
         procs.append(Proc(role, popen, log_path, log))
     return procs
+
+
+def _cpu_set(role: str) -> set[int] | None:
+    cpus = sorted(os.sched_getaffinity(0))
+    if len(cpus) < 2:
+        return None
+    # plant and feedback take turns (lockstep): one core is enough for both;
+    # the recorder and the feedforward generator get the rest.
+    return {cpus[0]} if role in ("plant", "feedback") else set(cpus[1:])
 
 
 def stop_nodes(procs: list[Proc], timeout_s: float = STOP_TIMEOUT_S) -> dict[str, int]:
