@@ -51,6 +51,20 @@ def scenario_copy(src: Path, dst_dir: Path, **shared: Any) -> Path:
     return dst
 
 
+def processes_mentioning(text: str) -> list[int]:
+    """PIDs of live processes whose command line contains ``text`` (from /proc)."""
+    pids = []
+    for proc in Path("/proc").iterdir():
+        if proc.name.isdigit():
+            try:
+                cmdline = (proc / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+            except OSError:
+                continue
+            if text in cmdline:
+                pids.append(int(proc.name))
+    return pids
+
+
 def raw_payloads(bag_dir: Path) -> dict[str, list[bytes]]:
     """CDR payloads per topic, in publication order, read with the mcap library."""
     (mcap_file,) = bag_dir.glob("*.mcap")
