@@ -3,22 +3,25 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 import scipy.linalg
 from numpy.testing import assert_allclose
 
-from servo_axis.core.errors import ConfigError, SignalError
+from servo_axis.core.errors import ConfigError, SignalError, TableError
 from servo_axis.core.rptc import (
     LearningParams,
     PeriodicSignalGenerator,
     circular_filter,
     convergence_measure,
+    load_memory,
     n_times_gain,
     n_times_taps,
     q_filter_taps,
     q_gain,
+    save_memory,
 )
 
 
@@ -141,3 +144,40 @@ def test_circular_filter_and_convergence_measure() -> None:
     f = np.linspace(0, 250, 100)
     q = n_times_gain(f, nq=20, n=5, period_s=2e-3)
     assert convergence_measure(q, np.ones_like(f), np.zeros_like(f)) <= 1.0 + 1e-15
+
+
+def test_memory_file_round_trip_and_every_kind_of_bad_file(tmp_path: Path) -> None:
+    params = LearningParams(samples_per_cycle=50, nq=2, n=3)
+    psg = PeriodicSignalGenerator(params)
+    rng = np.random.default_rng(5)
+    for _ in range(2):
+        psg.learn(rng.standard_normal(50))
+    path = tmp_path / "memory.json"
+    save_memory(path, psg, scenario="rptc_detailed")
+    correction, cycles = load_memory(path, params=params, scenario="rptc_detailed")
+    assert correction.tolist() == psg.correction.tolist() and cycles == 2  # exact
+    good = path.read_text()
+    cases = {
+        "truncated": good[: len(good) // 2],
+        "garbage": "\x00\x01not json",
+        "edited": good.replace(
+            repr(float(psg.correction[3])), repr(float(psg.correction[3]) + 1e-9)
+        ),
+    }
+    for name, text in cases.items():
+        assert text != good
+        path.write_text(text)
+        with pytest.raises(TableError, match=r"memory\.json") as err:
+            load_memory(path, params=params, scenario="rptc_detailed")
+        assert name != "edited" or "checksum" in str(err.value)
+    path.write_text(good)
+    with pytest.raises(TableError, match="scenario"):
+        load_memory(path, params=params, scenario="rptc_ideal")
+    with pytest.raises(TableError, match="samples_per_cycle"):
+        load_memory(
+            path, params=LearningParams(samples_per_cycle=60, nq=2, n=3), scenario="rptc_detailed"
+        )
+    with pytest.raises(TableError, match="n is 3"):
+        load_memory(
+            path, params=LearningParams(samples_per_cycle=50, nq=2, n=1), scenario="rptc_detailed"
+        )

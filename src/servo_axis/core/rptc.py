@@ -24,13 +24,17 @@ hold exactly in the lifted model with ``Delta = 0``.
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
+import os
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .errors import ConfigError, SignalError, require_positive
+from .errors import ConfigError, SignalError, TableError, require_positive
 
 FloatArray = NDArray[np.float64]
 
@@ -225,3 +229,87 @@ class PeriodicSignalGenerator:
         c = self._correction
         vel = (np.roll(c, -1) - np.roll(c, 1)) / (2.0 * self.params.period_s)
         return c.copy(), vel
+
+
+MEMORY_FORMAT = "servo_axis rptc memory v1"
+
+
+def save_memory(path: str | Path, psg: PeriodicSignalGenerator, *, scenario: str) -> None:
+    """Persist the PSG memory atomically (write a temporary file, then rename).
+
+    The file is JSON: format tag, scenario name, the learning parameters, the
+    number of cycles learned, the correction (exact float text) and a SHA-256
+    of the correction, so that a truncated or edited file is detected.
+    """
+    p = psg.params
+    correction = psg.correction.tolist()
+    body = {
+        "format": MEMORY_FORMAT,
+        "scenario": scenario,
+        "samples_per_cycle": p.samples_per_cycle,
+        "nq": p.nq,
+        "n": p.n,
+        "period_s": p.period_s,
+        "cycles_learned": psg.cycles_learned,
+        "correction": correction,
+        "sha256": _digest(correction),
+    }
+    target = Path(path)
+    tmp = target.with_name(target.name + ".tmp")
+    tmp.write_text(json.dumps(body))
+    os.replace(tmp, target)
+
+
+def load_memory(
+    path: str | Path, *, params: LearningParams, scenario: str
+) -> tuple[FloatArray, int]:
+    """Read a memory written by :func:`save_memory` and check it belongs to this run.
+
+    Returns
+    -------
+    correction, cycles_learned
+
+    Raises
+    ------
+    TableError
+        Naming the file and what is wrong: not JSON or truncated, another
+        format, a checksum mismatch, another scenario or other learning
+        parameters (``Nd``, ``Nq``, ``n``, ``Tr``).
+    OSError
+        If the file cannot be read.
+    """
+    target = Path(path)
+    try:
+        body = json.loads(target.read_text())
+    except ValueError as err:
+        raise TableError(
+            f"{target}: not a readable memory file (corrupt or truncated): {err}"
+        ) from None
+    if not isinstance(body, dict) or body.get("format") != MEMORY_FORMAT:
+        raise TableError(f"{target}: expected format {MEMORY_FORMAT!r}")
+    correction = body.get("correction")
+    if not isinstance(correction, list) or body.get("sha256") != _digest(correction):
+        raise TableError(
+            f"{target}: the correction does not match its checksum (corrupt or edited)"
+        )
+    expected = {
+        "scenario": scenario,
+        "samples_per_cycle": params.samples_per_cycle,
+        "nq": params.nq,
+        "n": params.n,
+        "period_s": params.period_s,
+    }
+    for key, value in expected.items():
+        if body.get(key) != value:
+            raise TableError(f"{target}: {key} is {body.get(key)!r}, this run has {value!r}")
+    values = np.array(correction, dtype=float)
+    if values.shape != (params.samples_per_cycle,) or not np.all(np.isfinite(values)):
+        raise TableError(f"{target}: expected {params.samples_per_cycle} finite correction values")
+    cycles = body.get("cycles_learned")
+    if not isinstance(cycles, int) or cycles < 0:
+        raise TableError(f"{target}: cycles_learned must be an integer >= 0, got {cycles!r}")
+    return values, cycles
+
+
+def _digest(values: list[float]) -> str:
+    return hashlib.sha256(json.dumps(values).encode()).hexdigest()
