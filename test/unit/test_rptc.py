@@ -14,9 +14,11 @@ from servo_axis.core.errors import ConfigError, SignalError, TableError
 from servo_axis.core.rptc import (
     LearningParams,
     PeriodicSignalGenerator,
+    ball_screw_response,
     circular_filter,
     convergence_measure,
     load_memory,
+    modelling_error_and_sensitivity,
     n_times_gain,
     n_times_taps,
     q_filter_taps,
@@ -181,3 +183,32 @@ def test_memory_file_round_trip_and_every_kind_of_bad_file(tmp_path: Path) -> No
         load_memory(
             path, params=LearningParams(samples_per_cycle=50, nq=2, n=1), scenario="rptc_detailed"
         )
+
+
+def test_modelling_error_of_eq30_and_the_convergence_condition() -> None:
+    from servo_axis.core.controllers import design_pid_pole_placement
+    from servo_axis.core.plant import BALL_SCREW_MODES
+
+    nominal = {"torque_constant_Nm_per_A": 0.715, "inertia_kgm2": 0.01, "damping_Nms_per_rad": 0.1}
+    f = np.linspace(0.1, 249.0, 2000)
+    p = ball_screw_response(f, modes=BALL_SCREW_MODES, dead_time_s=70e-6, **nominal)
+    pn = ball_screw_response(f, **nominal)
+    s = 2j * np.pi * f
+    assert_allclose(pn, 0.715 / (0.01 * s**2 + 0.1 * s), rtol=1e-12)
+    gains = design_pid_pole_placement(bandwidth_hz=45.0, **nominal)
+    num, den = gains.transfer_function()
+    c = np.polyval(num, s) / np.polyval(den, s)
+    delta, sens = modelling_error_and_sensitivity(f, plant=p, nominal=pn, controller=c)
+    # Low frequency: the rigid body dominates, Delta -> 0; near the 180 Hz
+    # mode the error is large (000 Fig. 14).
+    assert abs(delta[0]) < 1e-3
+    assert np.max(np.abs(delta[(f > 170) & (f < 190)])) > 1.0
+    assert_allclose(sens, 1 / (1 + pn * c), rtol=1e-12)
+    q = q_gain(f, nq=20, period_s=2e-3)
+    q5 = n_times_gain(f, nq=20, n=5, period_s=2e-3)
+    # Condition (15)/(21): with the roll-off of Q (Nq = 20) and of Q~5 no
+    # frequency grows from cycle to cycle (the sup is 1 where Q -> 0);
+    # learning without a filter (Q = I) diverges at the resonance.
+    assert convergence_measure(q, sens, delta) <= 1.0 + 1e-9
+    assert convergence_measure(q5, sens, delta) <= 1.0 + 1e-9
+    assert convergence_measure(np.ones_like(f), sens, delta) > 1.5

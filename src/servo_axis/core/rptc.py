@@ -313,3 +313,48 @@ def load_memory(
 
 def _digest(values: list[float]) -> str:
     return hashlib.sha256(json.dumps(values).encode()).hexdigest()
+
+
+def ball_screw_response(
+    freq_hz: ArrayLike,
+    *,
+    torque_constant_Nm_per_A: float,
+    inertia_kgm2: float,
+    damping_Nms_per_rad: float,
+    modes: tuple[tuple[float, float, float], ...] = (),
+    dead_time_s: float = 0.0,
+) -> NDArray[np.complex128]:
+    """Frequency response of eq. (30) of 000, current (A) to motor angle (rad).
+
+    ``P(jw) = [K_T/(J s^2 + D s) + sum_i K_i/(s^2 + 2 zeta_i w_i s + w_i^2)] e^{-T_d s}``
+    with ``K_i = a_i K_T / J`` and ``modes`` as ``(f_i Hz, zeta_i, a_i)``;
+    without modes and dead time it is the nominal ``P_n`` of eq. (1).
+    """
+    s = 2j * np.pi * np.asarray(freq_hz, dtype=float)
+    kt, j, d = torque_constant_Nm_per_A, inertia_kgm2, damping_Nms_per_rad
+    p = kt / (j * s**2 + d * s)
+    for f_i, zeta, a in modes:
+        w = 2 * np.pi * f_i
+        p = p + (a * kt / j) / (s**2 + 2 * zeta * w * s + w**2)
+    result: NDArray[np.complex128] = p * np.exp(-s * dead_time_s)
+    return result
+
+
+def modelling_error_and_sensitivity(
+    freq_hz: ArrayLike,
+    *,
+    plant: NDArray[np.complex128],
+    nominal: NDArray[np.complex128],
+    controller: NDArray[np.complex128],
+) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+    """``Delta = (P - P_n) / P_n`` and ``S_n = 1 / (1 + P_n C)`` (000 Fig. 14, eq. (11)).
+
+    The responses are given on the grid ``freq_hz`` (used only for the shape check).
+    """
+    f = np.asarray(freq_hz, dtype=float)
+    for name, v in (("plant", plant), ("nominal", nominal), ("controller", controller)):
+        if np.shape(v) != f.shape:
+            raise SignalError(f"{name}: expected the shape of freq_hz {f.shape}, got {np.shape(v)}")
+    delta: NDArray[np.complex128] = (plant - nominal) / nominal
+    sens: NDArray[np.complex128] = 1.0 / (1.0 + nominal * controller)
+    return delta, sens
