@@ -13,6 +13,7 @@ then SIGKILL after a timeout. It then writes ``summary.json`` and the plots.
 
 from __future__ import annotations
 
+import fcntl
 import os
 import signal
 import subprocess
@@ -166,6 +167,7 @@ class Proc:
     popen: subprocess.Popen[bytes]
     log_path: Path
     log: Any = field(repr=False)
+    started_at: float = field(default_factory=time.time)
 
     def tail(self, lines: int = 15) -> str:
         self.log.flush()
@@ -230,7 +232,51 @@ def stop_nodes(procs: list[Proc], timeout_s: float = STOP_TIMEOUT_S) -> dict[str
     for p in procs:
         _signal_group(p.popen, signal.SIGKILL)  # stray children of the group, if any
         p.log.close()
+    if procs and any(p.popen.returncode == -signal.SIGKILL for p in procs):
+        clean_stale_shm(since=min(p.started_at for p in procs))
     return {p.role: p.popen.returncode for p in procs}
+
+
+def _lock_held(path: Path) -> bool:
+    try:
+        fd = os.open(path, os.O_RDWR)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        return True
+    finally:
+        os.close(fd)  # closing releases a lock we took
+    return False
+
+
+def clean_stale_shm(*, since: float, shm_dir: Path = Path("/dev/shm")) -> list[str]:
+    """Remove Fast DDS shared-memory files a SIGKILLed node left behind.
+
+    With localhost discovery rmw_fastrtps uses shared memory; a clean exit
+    removes its files, SIGKILL does not. A segment is stale when nobody holds
+    the lock on its ``_el`` file (live owners hold it; the kernel releases it
+    when the owner dies) or, for a port segment, when it has no ``_el`` at
+    all. Only files touched since ``since`` (epoch seconds: the start of the
+    run) are considered, so other users' files are left alone.
+    """
+    removed = []
+    for seg in sorted(shm_dir.glob("fastrtps_*")):
+        if seg.name.endswith("_el"):
+            continue
+        try:
+            if seg.stat().st_mtime < since:
+                continue
+        except OSError:
+            continue
+        lock = shm_dir / f"{seg.name}_el"
+        if lock.exists() and _lock_held(lock):
+            continue
+        for path in (seg, lock, shm_dir / f"sem.{seg.name}_mutex"):
+            path.unlink(missing_ok=True)
+        removed.append(seg.name)
+    return removed
 
 
 def _signal_group(popen: subprocess.Popen[bytes], sig: int) -> None:

@@ -211,6 +211,7 @@ def test_killed_feedforward_trips_the_feedback_and_the_bag_survives(
 
     from servo_axis.nodes.common import LATCHED_QOS
 
+    shm_before = {p.name for p in Path("/dev/shm").glob("fastrtps_*")}
     scenario_path = scenario_copy(CONFIG / "ptc_nominal.yaml", tmp_path, duration_s=600.0)
     scenario = load_scenario(scenario_path)
     roles = ["recorder", "feedforward", "feedback", "plant"]
@@ -273,6 +274,10 @@ def test_killed_feedforward_trips_the_feedback_and_the_bag_survives(
         watcher.close()
         codes = stop_nodes(procs)
     assert all(p.popen.poll() is not None for p in procs)
+    assert codes["feedforward"] == -signal.SIGKILL
+    # The killed node's shared-memory files were cleaned up by stop_nodes
+    # (the test's own rclpy contexts are shut down cleanly above).
+    assert {p.name for p in Path("/dev/shm").glob("fastrtps_*")} - shm_before == set()
     assert codes["recorder"] == 0 and codes["plant"] == 0 and codes["feedback"] == 0
     with AnyReader([bag]) as reader:
         conns = {c.topic: c for c in reader.connections}
