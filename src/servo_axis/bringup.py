@@ -28,7 +28,7 @@ import yaml
 
 from servo_axis.core.errors import ConfigError
 
-ROLES = ("plant", "feedback", "feedforward", "recorder")
+ROLES = ("plant", "feedback", "feedforward", "learning", "recorder")
 SHARED_SECTION = "/**"
 STOP_TIMEOUT_S = 5.0
 
@@ -80,28 +80,47 @@ def node_params(scenario: dict[str, Any], role: str) -> dict[str, Any]:
 
 def roles_of(scenario: dict[str, Any]) -> list[str]:
     """Nodes a scenario starts: those with a section, in start order."""
-    return [r for r in ("recorder", "feedforward", "feedback", "plant") if r in scenario]
+    return [
+        r for r in ("recorder", "learning", "feedforward", "feedback", "plant") if r in scenario
+    ]
 
 
 def handshake_overrides(
     scenario: dict[str, Any], roles: list[str], bag_dir: Path, scenario_dir: Path
 ) -> dict[str, dict[str, Any]]:
     """Per-node parameters the bringup adds: whom to wait for, where to record."""
-    state_subs = int("feedback" in roles)
+    state_subs = ("feedback" in roles) + ("learning" in roles)
     status_subs = int("feedforward" in roles)
-    clock_subs = ("feedback" in roles) + ("feedforward" in roles)
+    clock_subs = ("feedback" in roles) + ("feedforward" in roles) + ("learning" in roles)
     ref_subs = int("feedback" in roles)
     out: dict[str, dict[str, Any]] = {"plant": {}}
+    if "learning" in roles:
+        ff = node_params(scenario, "feedforward")
+        learning = {k: v for k, v in ff.items() if k.startswith("reference.")}
+        # The learning unit needs the original target and the cycle of the
+        # feedforward generator: one source, copied here.
+        learning["cycle_s"] = ff.get("learning.cycle_s", 0.5)
+        if "memory.file" not in node_params(scenario, "learning"):
+            learning["memory.file"] = str(bag_dir.parent / "learning_memory.json")
+        out["learning"] = learning
     if "recorder" in roles:
         rec = node_params(scenario, "recorder")
-        topics = rec.get(
-            "topics", ["state", "command", "reference", "/clock", "fault", "plant/status"]
-        )
+        default_topics = ["state", "command", "reference", "/clock", "fault", "plant/status"]
+        topics = rec.get("topics", default_topics)
+        if "learning" in roles and "topics" not in rec:
+            topics = [*default_topics, "learning/correction", "learning/cycle_stats"]
+            out["recorder"] = {
+                "topics": topics,
+                "types": ["sensor_msgs/msg/JointState"] * 3
+                + ["rosgraph_msgs/msg/Clock"]
+                + ["std_msgs/msg/Float64MultiArray"] * 2
+                + ["sensor_msgs/msg/JointState", "std_msgs/msg/Float64MultiArray"],
+            }
         state_subs += "state" in topics
         status_subs += "plant/status" in topics
         clock_subs += "/clock" in topics
         ref_subs += "reference" in topics
-        out["recorder"] = {"output_dir": str(bag_dir)}
+        out.setdefault("recorder", {})["output_dir"] = str(bag_dir)
         out["plant"]["flow_control"] = True
     out["plant"].update(
         wait_for_state_subscribers=state_subs,

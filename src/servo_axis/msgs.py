@@ -266,3 +266,40 @@ def labelled_array_values(msg: Float64MultiArray, labels: Sequence[str]) -> list
     if len(msg.data) != len(labels) or dims[0].size != len(labels):
         raise SignalError(f"data: expected {len(labels)} values, got {len(msg.data)}")
     return [float(v) for v in _finite("data", msg.data)]
+
+
+@dataclass(frozen=True)
+class CorrectionSample:
+    """Learning correction of the target at a reference instant (topic ``learning/correction``).
+
+    JointState name ``[<axis>_motor]``, stamped with the instant it applies
+    to: ``position`` = correction of the target angle (rad), ``velocity`` =
+    its velocity (rad/s).
+    """
+
+    step: int
+    position_rad: float
+    velocity_rad_s: float
+
+
+def write_correction(msg: JointState, sample: CorrectionSample, *, period_ns_: int) -> JointState:
+    """Fill a template from :func:`correction_to_msg` with ``sample`` (publisher reuse)."""
+    return _fill(
+        msg,
+        sample.step,
+        period_ns_,
+        position=(sample.position_rad,),
+        velocity=(sample.velocity_rad_s,),
+    )
+
+
+def correction_to_msg(sample: CorrectionSample, *, axis: str, period_ns_: int) -> JointState:
+    """Encode a :class:`CorrectionSample`."""
+    template = joint_state_template(motor_names(axis), ("position", "velocity"))
+    return write_correction(template, sample, period_ns_=period_ns_)
+
+
+def correction_from_msg(msg: JointState, *, axis: str, period_ns_: int) -> CorrectionSample:
+    """Decode and validate a ``learning/correction`` message."""
+    step = _check_joint_state(msg, motor_names(axis), ("position", "velocity"), period_ns_)
+    return CorrectionSample(step=step, position_rad=msg.position[0], velocity_rad_s=msg.velocity[0])

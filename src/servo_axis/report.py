@@ -119,6 +119,43 @@ def error_statistics(
     return out
 
 
+def learning_enabled(scenario: dict[str, Any]) -> bool:
+    """True when the scenario's feedforward generator applies learning corrections."""
+    from servo_axis.bringup import node_params
+
+    return "feedforward" in scenario and bool(
+        node_params(scenario, "feedforward").get("learning.enabled")
+    )
+
+
+def tracking(
+    scenario: dict[str, Any], scenario_path: Path, sig: dict[str, Any]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Target (rad) and measured angle (rad) per recorded step.
+
+    The target is the reference the feedback got, except with learning: then
+    it is the original target without the learned correction (the ``r`` of
+    000 eq. (9)), recomputed with the same generator.
+    """
+    from servo_axis.bringup import node_params, shared
+    from servo_axis.nodes import feedforward
+    from servo_axis.simulate import scenario_values
+
+    lead = float(shared(scenario).get("lead_m_per_rad", 1.91e-3))
+    fb = node_params(scenario, "feedback")
+    y = sig["scale_m"] / lead if fb.get("sensor", "encoder") == "scale" else sig["encoder_rad"]
+    target = sig["reference_rad"]
+    if learning_enabled(scenario) and sig["step"].size:
+        values = scenario_values(scenario, "feedforward", feedforward.SCHEMA)
+        values["learning.enabled"] = False
+        table = values["friction_table.file"]
+        if table and not Path(table).is_absolute():
+            values["friction_table.file"] = str(scenario_path.resolve().parent / table)
+        rows = feedforward.build_generator(values).samples(0, int(sig["step"].max()) + 1)
+        target = np.array([rows[k][0] for k in sig["step"]])
+    return target, y
+
+
 def summarise(
     run_dir: Path,
     *,
@@ -133,15 +170,14 @@ def summarise(
     common = shared(scenario)
     period = float(common.get("control_period_s", 1e-3))
     lead = float(common.get("lead_m_per_rad", 1.91e-3))
-    fb = node_params(scenario, "feedback")
     ff = node_params(scenario, "feedforward")
     sig = load_signals(run_dir / "bag", period)
-    if fb.get("sensor", "encoder") == "scale":
-        y = sig["scale_m"] / lead
+    target, y = tracking(scenario, scenario_path, sig)
+    error = lead * (target - y)
+    if learning_enabled(scenario):
+        cycle: float | None = float(ff.get("learning.cycle_s", 0.5))
     else:
-        y = sig["encoder_rad"]
-    error = lead * (sig["reference_rad"] - y)
-    cycle = reference_period_s(ff) if "feedforward" in scenario else None
+        cycle = reference_period_s(ff) if "feedforward" in scenario else None
     steps = int(sig["step"].size)
     sim_time = steps * period
     summary = {
@@ -214,17 +250,16 @@ def plot(run_dir: Path) -> list[Path]:
     import matplotlib.pyplot as plt
 
     summary = json.loads((run_dir / "summary.json").read_text())
-    from servo_axis.bringup import load_scenario, node_params, shared
+    from servo_axis.bringup import load_scenario, shared
 
     scenario = load_scenario(Path(summary["scenario_file"]))
     common = shared(scenario)
     period = summary["control_period_s"]
     lead = float(common.get("lead_m_per_rad", 1.91e-3))
     sig = load_signals(run_dir / "bag", period)
-    fb = node_params(scenario, "feedback")
-    y = sig["scale_m"] / lead if fb.get("sensor", "encoder") == "scale" else sig["encoder_rad"]
+    target, y = tracking(scenario, Path(summary["scenario_file"]), sig)
     t = sig["step"] * period
-    err = lead * (sig["reference_rad"] - y) * 1e6
+    err = lead * (target - y) * 1e6
     even = sig["step"] % 2 == 0
     figures = [
         (

@@ -16,18 +16,20 @@ from rclpy.node import Node
 
 from servo_axis.nodes.common import run_main
 
-ROLES = ("plant", "feedback", "feedforward", "recorder")
+ROLES = ("plant", "feedback", "feedforward", "learning", "recorder")
 
 
 def factories(roles: list[str]) -> list[Callable[[], Node]]:
     """Node constructors for ``roles``, in a fixed order (recorder first, plant last)."""
     from servo_axis.nodes.feedback import FeedbackNode
     from servo_axis.nodes.feedforward import FeedforwardNode
+    from servo_axis.nodes.learning import LearningNode
     from servo_axis.nodes.plant import PlantNode
     from servo_axis.nodes.recorder import RecorderNode
 
     table: dict[str, Callable[[], Node]] = {
         "recorder": RecorderNode,
+        "learning": LearningNode,
         "feedforward": FeedforwardNode,
         "feedback": FeedbackNode,
         "plant": PlantNode,

@@ -17,8 +17,10 @@ Run: ``python -m servo_axis.nodes.feedforward --ros-args --params-file config/<s
 
 from __future__ import annotations
 
+import time
 from typing import Any
 
+import numpy as np
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
@@ -47,6 +49,9 @@ SCHEMA: dict[str, object] = {
     "friction_table.file": "",
     "preview_steps": 200,
     "wait_for_reference_subscribers": 0,
+    "learning.enabled": False,
+    "learning.cycle_s": 0.5,
+    "learning.timeout_s": 0.5,
 }
 
 #: Which reference.* keys each kind takes.
@@ -79,9 +84,18 @@ def build_generator(values: dict[str, Any]) -> FeedforwardGenerator:
             table = FrictionTable.load(path)
         except (OSError, ServoAxisError) as err:
             raise ParameterFileError(f"parameter 'friction_table.file': {err}") from err
+    cycle_steps = None
+    if values["learning.enabled"]:
+        cycle_steps = round(values["learning.cycle_s"] / values["control_period_s"])
+        if abs(cycle_steps * values["control_period_s"] - values["learning.cycle_s"]) > 1e-9:
+            raise ParameterFileError(
+                f"parameter 'learning.cycle_s': expected a whole number of control periods, "
+                f"got {values['learning.cycle_s']!r}"
+            )
     return build(
         "",
         FeedforwardGenerator,
+        learning_cycle_steps=cycle_steps,
         reference=reference,
         control_period_s=values["control_period_s"],
         lead_m_per_rad=values["lead_m_per_rad"],
@@ -113,6 +127,18 @@ class FeedforwardNode(Node):
             msgs.motor_names(self._axis), ("position", "velocity", "effort")
         )
         self._pub = self.create_publisher(JointState, "reference", STREAM_QOS)
+        self._learning = values["learning.enabled"]
+        self._corrections: dict[int, dict[int, tuple[float, float]]] = {}
+        self.missed_corrections = 0
+        self._waiting_since: float | None = None
+        if self._learning:
+            self._cycle_steps = round(values["learning.cycle_s"] / values["control_period_s"])
+            self.create_subscription(
+                JointState, "learning/correction", self._on_correction, STREAM_QOS
+            )
+            self.create_timer(
+                values["learning.timeout_s"] / 5.0, self._learning_watchdog, clock=steady_clock()
+            )
         self.create_subscription(Float64MultiArray, "plant/status", self._on_status, STREAM_QOS)
         self._start_timer = self.create_timer(0.01, self._try_start, clock=steady_clock())
 
@@ -138,11 +164,68 @@ class FeedforwardNode(Node):
                 self.get_logger().warning(f"plant/status rejected: {err}")
             return
         self._plant_step = max(self._plant_step, step)
+        if self._waiting_since is not None:
+            self._waiting_since = time.monotonic()  # the plant still moves: not stalled yet
         if self.started and self.published - self._plant_step <= self._window // 2:
             self._fill(self._plant_step + self._window)
 
+    def _on_correction(self, msg: JointState) -> None:
+        try:
+            c = msgs.correction_from_msg(msg, axis=self._axis, period_ns_=self._period_ns)
+        except SignalError as err:
+            self._reject(f"learning/correction rejected: {err}")
+            return
+        nd = self._cycle_steps // 2
+        if c.step % 2:
+            self._reject(f"learning/correction rejected: step {c.step} is not a reference instant")
+            return
+        cycle, idx = divmod(c.step // 2, nd)
+        ready = self.generator.ready_until()
+        if cycle < 1 or (ready is not None and cycle * self._cycle_steps - 2 < ready):
+            self._reject(f"learning/correction rejected: cycle {cycle + 1} is already under way")
+            return
+        part = self._corrections.setdefault(cycle, {})
+        part[idx] = (c.position_rad, c.velocity_rad_s)
+        if len(part) == nd:
+            del self._corrections[cycle]
+            values = np.array([part[i] for i in range(nd)])
+            self.generator.set_correction(cycle, values[:, 0], values[:, 1])
+            self._waiting_since = None
+            self._fill(self._plant_step + self._window)
+
+    def _learning_watchdog(self) -> None:
+        # A dead learning unit must not stop the axis: once the preview is used
+        # up to the cycle boundary and no plant/status has come for
+        # learning.timeout_s (the plant is stalled at the boundary), go on with
+        # the last correction (no learning for that cycle). Keep it below the
+        # feedback's input_timeout_s.
+        ready = self.generator.ready_until()
+        if ready is None or self.published < ready or ready >= self._steps:
+            self._waiting_since = None
+            return
+        if self._waiting_since is None:
+            self._waiting_since = time.monotonic()
+        elif time.monotonic() - self._waiting_since > self._v["learning.timeout_s"]:
+            cycle = (ready + 2) // self._cycle_steps
+            self.generator.repeat_correction(cycle)
+            self.missed_corrections += 1
+            self.get_logger().warning(
+                f"no learning correction for cycle {cycle + 1} within {self._v['learning.timeout_s']} s: "
+                f"keeping the last one ({self.missed_corrections} missed)"
+            )
+            self._waiting_since = None
+            self._fill(self._plant_step + self._window)
+
+    def _reject(self, text: str) -> None:
+        self.rejected += 1
+        if self._complain.ready():
+            self.get_logger().warning(f"{text} ({self.rejected} rejected so far)")
+
     def _fill(self, until: int) -> None:
         until = min(until, self._steps)
+        ready = self.generator.ready_until()
+        if ready is not None:
+            until = min(until, ready)
         if until <= self.published:
             return
         samples = self.generator.samples(self.published, until)
