@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from servo_axis.nodes import feedback, feedforward, plant, recorder
+from servo_axis.nodes import feedback, feedforward, learning, plant, recorder
 from servo_axis.params import SHARED
 
 REPO = Path(__file__).resolve().parents[1]
@@ -47,6 +47,12 @@ def render() -> str:
             "feedforward",
             feedforward.SCHEMA,
             "`wait_for_reference_subscribers` is set by the bringup.\n",
+        ),
+        table(
+            "learning",
+            learning.SCHEMA,
+            "The bringup copies `reference.*` and `cycle_s` from the feedforward section "
+            "(`learning.cycle_s`) and sets `memory.file` to `<run>/learning_memory.json` unless given.\n",
         ),
         table("recorder", recorder.SCHEMA, "`output_dir` is set by the bringup (`<run>/bag`).\n"),
     ]
