@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import itertools
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -33,3 +33,21 @@ def ros_env(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[int]:
     log_dir.mkdir()
     monkeypatch.setenv("ROS_LOG_DIR", str(log_dir))
     yield domain
+
+
+def read_raw_payloads(bag_dir: Path) -> dict[str, list[bytes]]:
+    """CDR payloads per topic, in publication order, read with the mcap library."""
+    from mcap.reader import make_reader
+
+    (mcap_file,) = bag_dir.glob("*.mcap")
+    out: dict[str, list[tuple[int, bytes]]] = {}
+    with mcap_file.open("rb") as f:
+        for _schema, channel, message in make_reader(f).iter_messages():
+            out.setdefault(channel.topic, []).append((message.sequence, message.data))
+    return {t: [d for _, d in sorted(v)] for t, v in out.items()}
+
+
+@pytest.fixture
+def raw_payloads() -> Callable[[Path], dict[str, list[bytes]]]:
+    """The bag reader for payload comparisons (independent of servo_axis)."""
+    return read_raw_payloads

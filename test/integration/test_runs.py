@@ -67,16 +67,6 @@ def processes_mentioning(text: str) -> list[int]:
     return pids
 
 
-def raw_payloads(bag_dir: Path) -> dict[str, list[bytes]]:
-    """CDR payloads per topic, in publication order, read with the mcap library."""
-    (mcap_file,) = bag_dir.glob("*.mcap")
-    out: dict[str, list[tuple[int, bytes]]] = {}
-    with mcap_file.open("rb") as f:
-        for _schema, channel, message in make_reader(f).iter_messages():
-            out.setdefault(channel.topic, []).append((message.sequence, message.data))
-    return {t: [d for _, d in sorted(v)] for t, v in out.items()}
-
-
 def test_ptc_tracks_the_nominal_plant_and_pid_alone_does_not(ros_env: int, tmp_path: Path) -> None:
     ptc = run_scenario(
         CONFIG / "ptc_nominal.yaml", out_dir=tmp_path / "ptc", domain_id=ros_env, progress=None
@@ -145,7 +135,9 @@ def test_bag_reads_back_with_independent_readers(ros_env: int, tmp_path: Path) -
     assert np.all(np.isfinite(decoded)) and max(abs(x) for x in decoded) > 0.1
 
 
-def test_lockstep_runs_are_identical_separate_and_composed(ros_env: int, tmp_path: Path) -> None:
+def test_lockstep_runs_are_identical_separate_and_composed(
+    ros_env: int, tmp_path: Path, raw_payloads: Any
+) -> None:
     scenario = scenario_copy(CONFIG / "ptc_friction.yaml", tmp_path, duration_s=0.6)
     runs = [
         run_scenario(
