@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import re
 from pathlib import Path
 from typing import Any
 
@@ -87,3 +88,95 @@ def test_detailed_axis_learns_and_is_deterministic(
     ):
         assert a[topic] == b[topic], topic
     assert len(a["/learning/correction"]) == 5 * 250
+
+
+def test_killed_learning_unit_resumes_from_its_memory(ros_env: int, tmp_path: Path) -> None:
+    import os
+    import signal
+    import time
+
+    import rclpy
+    import yaml
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from std_msgs.msg import Float64MultiArray
+
+    from servo_axis.bringup import (
+        ProgressWatcher,
+        handshake_overrides,
+        load_scenario,
+        ros_environment,
+        start_nodes,
+        stop_nodes,
+        write_run_params,
+    )
+    from servo_axis.nodes.common import STREAM_QOS
+
+    data = load_scenario(CONFIG / "rptc_detailed.yaml")
+    data["/**"]["ros__parameters"]["duration_s"] = 60.0
+    scenario = tmp_path / "rptc_detailed.yaml"
+    scenario.write_text(yaml.safe_dump(data))
+    roles = ["recorder", "learning", "feedforward", "feedback", "plant"]
+    log_dir = tmp_path / "logs"
+    log_dir.mkdir()
+    env = ros_environment(ros_env, log_dir)
+    os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = env["FASTRTPS_DEFAULT_PROFILES_FILE"]
+    params = write_run_params(
+        data, handshake_overrides(data, roles, tmp_path / "bag", tmp_path), tmp_path / "params.yaml"
+    )
+    procs = start_nodes(params, roles, [], env, log_dir, False)
+    watcher = ProgressWatcher("/")
+    ctx = Context()
+    rclpy.init(args=[], context=ctx)
+    probe = rclpy.create_node("stats_probe", context=ctx)
+    stats: list[list[float]] = []
+    probe.create_subscription(
+        Float64MultiArray, "learning/cycle_stats", lambda m: stats.append(list(m.data)), STREAM_QOS
+    )
+    ex = SingleThreadedExecutor(context=ctx)
+    ex.add_node(probe)
+
+    def spin_until(cond: Any, timeout_s: float) -> None:
+        deadline = time.monotonic() + timeout_s
+        while not cond():
+            assert time.monotonic() < deadline, "timed out"
+            ex.spin_once(timeout_sec=0.02)
+            watcher.spin(0.0)
+
+    restarted: list[Any] = []
+    try:
+        spin_until(lambda: len(stats) >= 3, 90)
+        learned_before = stats[-1][3]
+        peak_before = stats[-1][2]
+        learning = next(p for p in procs if p.role == "learning")
+        os.killpg(learning.popen.pid, signal.SIGKILL)
+        killed_at_step = watcher.steps
+        # The axis keeps running on feedforward + feedback (the feedforward
+        # generator falls back to the last correction): the recorder advances
+        # by more than a cycle while the learning unit is dead.
+        spin_until(lambda: watcher.steps > killed_at_step + 1500, 60)
+        count_before_restart = len(stats)
+        restarted = (
+            start_nodes(params, ["learning"], [], env, log_dir / "restart", False)
+            if (log_dir / "restart").mkdir() is None
+            else []
+        )
+        spin_until(lambda: len(stats) >= count_before_restart + 3, 90)
+    finally:
+        ex.shutdown()
+        probe.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+        watcher.close()
+        stop_nodes(procs + restarted)
+    resumed = re.search(
+        r"resumed (\d+) learned cycles", (log_dir / "restart" / "learning.log").read_text()
+    )
+    assert resumed is not None and int(resumed.group(1)) >= learned_before
+    after = stats[count_before_restart:]
+    # Learning goes on from the persisted memory (more cycles learned than
+    # before the kill) and the error keeps falling.
+    assert after[-1][3] > learned_before
+    assert after[-1][2] < peak_before
+    # The feedback never tripped: the axis ran on throughout.
+    assert "TRIP" not in (log_dir / "feedback.log").read_text()
+    assert "no learning correction for cycle" in (log_dir / "feedforward.log").read_text()
