@@ -338,3 +338,76 @@ def test_feedforward_rejects_a_bad_status_and_publishes_ahead(context: Context) 
     assert [r.step for r in refs] == list(range(35))
     ff.destroy_node()
     probe.destroy_node()
+
+
+def test_learning_node_bad_memory_file_fails_or_starts_clean(
+    context: Context, tmp_path: Path
+) -> None:
+    from servo_axis.core.rptc import LearningParams, PeriodicSignalGenerator, save_memory
+    from servo_axis.nodes.learning import LearningNode
+
+    memory = tmp_path / "memory.json"
+    memory.write_text('{"format": "servo_axis rptc memory v1", "correction": [0.1, ')  # truncated
+
+    def node(**extra: object) -> LearningNode:
+        overrides = {"memory.file": str(memory), "scenario.name": "rptc_ideal", **extra}
+        return LearningNode(
+            context=context,
+            parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()],
+        )
+
+    with pytest.raises(ParameterFileError, match=r"memory\.file.*corrupt or truncated"):
+        node()
+    clean = node(**{"memory.on_bad_file": "clear"})
+    assert clean.psg.cycles_learned == 0 and not clean.psg.correction.any()
+    clean.destroy_node()
+    # A sound file of another scenario is not silently used either.
+    other = PeriodicSignalGenerator(
+        LearningParams(samples_per_cycle=250, nq=20, n=1, period_s=2e-3)
+    )
+    other.learn(np.ones(250))
+    save_memory(memory, other, scenario="rptc_detailed")
+    with pytest.raises(ParameterFileError, match="scenario"):
+        node()
+    save_memory(memory, other, scenario="rptc_ideal")
+    resumed = node()
+    assert resumed.psg.cycles_learned == 1
+    np.testing.assert_array_equal(resumed.psg.correction, other.correction)
+    resumed.destroy_node()
+
+
+def test_feedforward_rejects_bad_corrections(context: Context) -> None:
+    ff = FeedforwardNode(
+        context=context,
+        parameter_overrides=[
+            Parameter("learning.enabled", value=True),
+            Parameter("learning.cycle_s", value=0.02),  # 20 samples, 10 reference instants
+            Parameter("preview_steps", value=100),
+        ],
+    )
+    probe = Node("corr_probe", context=context)
+    pub = probe.create_publisher(JointState, "learning/correction", STREAM_QOS)
+    nodes = [ff, probe]
+    spin_until(context, nodes, lambda: pub.get_subscription_count() >= 1 and ff.published == 18)
+    assert ff.generator.ready_until() == 18  # the boundary samples wait for cycle 2's correction
+
+    def corr(step: int, pos: float = 1e-6) -> JointState:
+        return msgs.correction_to_msg(
+            msgs.CorrectionSample(step, pos, 0.0), axis="x", period_ns_=PERIOD_NS
+        )
+
+    nan = corr(20)
+    nan.position[0] = math.nan  # the encoder refuses NaN; a foreign publisher might not
+    bad = [nan, corr(21), corr(0)]  # NaN, not a reference instant, a cycle under way
+    short = corr(22)
+    short.velocity = []
+    for m in [*bad, short]:
+        pub.publish(m)
+    spin_until(context, nodes, lambda: ff.rejected >= 4)
+    assert ff.generator.ready_until() == 18 and ff.published == 18  # nothing moved
+    for k in range(20, 40, 2):
+        pub.publish(corr(k))
+    spin_until(context, nodes, lambda: ff.published == 38)
+    assert ff.generator.ready_until() == 38
+    ff.destroy_node()
+    probe.destroy_node()
