@@ -88,6 +88,20 @@ def test_detailed_axis_learns_and_is_deterministic(
     ):
         assert a[topic] == b[topic], topic
     assert len(a["/learning/correction"]) == 5 * 250
+    # 000 Fig. 17/18 on one axis: the friction table takes the quadrant
+    # glitch out of cycle 1, where nothing is learned yet; RPTC goes on from
+    # there to below what RPTC alone reaches.
+    table = run_scenario(
+        CONFIG / "rptc_friction_table.yaml",
+        out_dir=tmp_path / "table",
+        domain_id=ros_env,
+        composed=True,
+        progress=None,
+    )
+    with_table = max_per_cycle(table.summary)
+    assert with_table[0] < 0.5 * max_per_cycle(q5.summary)[0]
+    assert with_table[-1] < max_per_cycle(q5.summary)[-1]
+    assert all(b < a for a, b in itertools.pairwise(with_table)), with_table
 
 
 def test_killed_learning_unit_resumes_from_its_memory(ros_env: int, tmp_path: Path) -> None:
