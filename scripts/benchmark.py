@@ -21,6 +21,7 @@ measured in the same run, and written to docs/benchmarks.md.
 from __future__ import annotations
 
 import argparse
+import copy
 import os
 import platform
 import subprocess
@@ -116,6 +117,75 @@ def ping_pong(env: dict[str, str]) -> float:
         child.wait(timeout=10)
 
 
+def learning_cost(
+    args: argparse.Namespace,
+    data: dict,
+    scenario: Path,
+    tmp: Path,
+    domain: int,
+    steps: int,
+    period: float,
+) -> int:
+    """Steps/s with and without the learning unit as its own process (issue 3's < 15 % budget)."""
+    from servo_axis.bringup import run_scenario
+
+    if "learning" not in data:
+        raise SystemExit("--learning-cost needs a scenario with a learning section")
+    plain = copy.deepcopy(data)
+    del plain["learning"]
+    plain["feedforward"]["ros__parameters"]["learning"]["enabled"] = False
+    without = tmp / f"without_{scenario.name}"
+    without.write_text(yaml.safe_dump(plain))
+    # The host is noisy: alternate the two cases and take medians.
+    samples: dict[str, list[float]] = {"without learning unit": [], "with learning unit": []}
+    for rep in range(args.repeat):
+        for name, path in (("without learning unit", without), ("with learning unit", scenario)):
+            print(f"{name}, run {rep + 1} of {args.repeat} ...", flush=True)
+            out_dir = tmp / f"{name.replace(' ', '_')}_{rep}"
+            r = run_scenario(path, out_dir=out_dir, domain_id=domain, progress=None, plots=False)
+            samples[name].append(r.summary["steps_per_s"])
+    rates = {name: float(sorted(v)[len(v) // 2]) for name, v in samples.items()}
+    base = rates["without learning unit"]
+    with_ = rates["with learning unit"]
+    table_text = "\n".join(
+        [
+            f"| {'case (separate processes, recorder on)':<40} | {'steps/s':>10} | {'x real time':>11} |",
+            f"|{'-' * 42}|{'-' * 12}|{'-' * 13}|",
+            *(f"| {n:<40} | {v:>10,.0f} | {v * period:>10.2f}x |" for n, v in rates.items()),
+        ]
+    )
+    spread = "; ".join(
+        f"{n}: " + ", ".join(f"{v:,.0f}" for v in vals) for n, vals in samples.items()
+    )
+    text = (
+        f"{table_text}\n\nMedians of {args.repeat} alternating runs ({spread} steps/s).\n"
+        f"Cost of the learning unit: {100 * (1 - with_ / base):.1f} % of the steps/s.\n"
+    )
+    print()
+    print(text)
+    out = Path(args.out)
+    command = (
+        f"`.venv/bin/python scripts/benchmark.py --scenario config/{scenario.name} "
+        f"--duration {args.duration:g} --learning-cost --repeat {args.repeat}`"
+    )
+    when = time.strftime("%Y-%m-%d %H:%M")
+    section = (
+        f"## learning unit cost ({scenario.stem})\n\n{steps} steps per run, measured {when}.\n"
+        f"Command: {command}\n\n{text}"
+    )
+    old = out.read_text() if out.exists() else INTRO
+    marker = f"## learning unit cost ({scenario.stem})\n"
+    if marker in old:
+        start = old.index(marker)
+        end = old.find("\n## ", start + 1)
+        old = old[:start] + section + (old[end + 1 :] if end != -1 else "")
+    else:
+        old = old.rstrip("\n") + "\n\n" + section
+    out.write_text(old)
+    print(f"written to {out}")
+    return 0
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -123,6 +193,12 @@ def main() -> int:
     parser.add_argument("--scenario", default=str(REPO / "config" / "ptc_nominal.yaml"))
     parser.add_argument("--duration", type=float, default=10.0, help="simulated seconds per run")
     parser.add_argument("--out", default=str(REPO / "docs" / "benchmarks.md"))
+    parser.add_argument(
+        "--learning-cost",
+        action="store_true",
+        help="instead: steps/s of a learning scenario with and without its learning unit",
+    )
+    parser.add_argument("--repeat", type=int, default=3, help="runs per case for --learning-cost")
     parser.add_argument("--pong", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.pong:
@@ -144,6 +220,9 @@ def main() -> int:
     period = float(data["/**"]["ros__parameters"].get("control_period_s", 1e-3))
     steps = round(args.duration / period)
     domain = 60 + os.getpid() % 30
+
+    if args.learning_cost:
+        return learning_cost(args, data, scenario, tmp, domain, steps, period)
 
     results: list[tuple[str, float]] = []
     env = ros_environment(domain, tmp)

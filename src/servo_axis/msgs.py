@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import array
 import math
+import struct
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -50,6 +51,21 @@ def step_from_stamp(stamp: Time, period_ns_: int) -> int:
     if rem != 0 or ns < 0:
         raise SignalError(f"header.stamp: {ns} ns is not on the control grid of {period_ns_} ns")
     return int(step)
+
+
+def stamp_ns_from_cdr(data: bytes) -> int:
+    """``header.stamp`` (ns) of a CDR-serialised message that starts with a ``std_msgs/Header``.
+
+    Reads the two stamp fields right after the 4-byte encapsulation header
+    (CDR, either byte order) without deserialising the message: a node that
+    needs only some samples of a stream can skip the others cheaply.
+    """
+    if len(data) < 12 or data[0] != 0 or data[1] not in (0, 1):
+        raise SignalError("data: expected a CDR-encapsulated message with a header")
+    sec, nanosec = struct.unpack_from("<iI" if data[1] == 1 else ">iI", data, 4)
+    if not 0 <= nanosec < NS_PER_S:
+        raise SignalError(f"header.stamp.nanosec: expected 0..999999999, got {nanosec}")
+    return sec * NS_PER_S + nanosec
 
 
 def clock_message(step: int, period_ns_: int) -> Clock:

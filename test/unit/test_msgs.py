@@ -103,3 +103,13 @@ def test_labelled_array_round_trip_and_checks() -> None:
         msgs.labelled_array_values(wire, labels)
     with pytest.raises(SignalError, match="labels"):
         msgs.labelled_array(("a,b",), [1.0])
+
+
+def test_stamp_from_cdr_reads_the_header_without_deserialising() -> None:
+    for step in (0, 7, 123_457, 2**31 // 1000):
+        msg = msgs.state_to_msg(
+            msgs.StateSample(step, 1, 2, 3, 4, 5, 6), axis="x", period_ns_=PERIOD_NS
+        )
+        assert msgs.stamp_ns_from_cdr(serialize_message(msg)) == step * PERIOD_NS
+    with pytest.raises(SignalError, match="CDR"):
+        msgs.stamp_ns_from_cdr(b"\x07\x07")

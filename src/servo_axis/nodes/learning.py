@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 from rclpy.node import Node
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
@@ -115,9 +116,12 @@ class LearningNode(Node):
         self._stats_pub = self.create_publisher(
             Float64MultiArray, "learning/cycle_stats", STREAM_QOS
         )
-        self.create_subscription(JointState, "state", self._on_state, STREAM_QOS)
+        # raw: only every second sample (the reference instants) is decoded.
+        self.create_subscription(JointState, "state", self._on_state, STREAM_QOS, raw=True)
 
         self._error = np.full(nd, math.nan)
+        self._target = np.zeros(nd)
+        self._target_cycle = -1
         self._last_step = -1
         self.rejected = 0
         self._complain = Throttle()
@@ -137,22 +141,28 @@ class LearningNode(Node):
         self.psg.load(correction, cycles)
         self.get_logger().info(f"resumed {cycles} learned cycles from {self._memory}")
 
-    def _on_state(self, msg: JointState) -> None:
+    def _on_state(self, data: bytes) -> None:
         try:
+            step, rem = divmod(msgs.stamp_ns_from_cdr(data), self._period_ns)
+            if rem:
+                raise SignalError(f"header.stamp: not on the control grid of {self._period_ns} ns")
+            if step <= self._last_step:
+                raise SignalError(f"stale stamp (step {step} after {self._last_step})")
+            self._last_step = step
+            if step % 2:
+                return  # only the reference instants are learned from
+            msg = deserialize_message(data, JointState)
             state = msgs.state_from_msg(msg, axis=self._axis, period_ns_=self._period_ns)
         except SignalError as err:
             self._reject(f"state rejected: {err}")
             return
-        if state.step <= self._last_step:
-            self._reject(f"state rejected: stale stamp (step {state.step} after {self._last_step})")
-            return
-        self._last_step = state.step
-        if state.step % 2:
-            return
-        instant = state.step // 2
-        cycle, idx = divmod(instant, self._nd)
-        (target,), _, _ = self.reference.sample(np.array([instant * self._tr]))
-        self._error[idx] = target / self._lead - state.encoder_rad
+        cycle, idx = divmod(state.step // 2, self._nd)
+        if cycle != self._target_cycle:
+            # The original target of a whole cycle in one call.
+            t = (cycle * self._nd + np.arange(self._nd)) * self._tr
+            self._target = self.reference.sample(t)[0] / self._lead
+            self._target_cycle = cycle
+        self._error[idx] = self._target[idx] - state.encoder_rad
         # The run's last cycle ends with the run: nothing after it would be
         # used, and a message published as the run stops may or may not make
         # it into the bag (which must be the same every run).
