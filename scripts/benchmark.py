@@ -117,6 +117,19 @@ def ping_pong(env: dict[str, str]) -> float:
         child.wait(timeout=10)
 
 
+def write_section(out: Path, marker: str, section: str) -> None:
+    """Replace the section that starts with ``marker`` in ``out`` (or append it)."""
+    old = out.read_text() if out.exists() else INTRO
+    if marker in old:
+        start = old.index(marker)
+        end = old.find("\n## ", start + 1)
+        old = old[:start] + section + (old[end + 1 :] if end != -1 else "")
+    else:
+        old = old.rstrip("\n") + "\n\n" + section
+    out.write_text(old)
+    print(f"\nwritten to {out}")
+
+
 def learning_cost(
     args: argparse.Namespace,
     data: dict,
@@ -173,16 +186,7 @@ def learning_cost(
         f"## learning unit cost ({scenario.stem})\n\n{steps} steps per run, measured {when}.\n"
         f"Command: {command}\n\n{text}"
     )
-    old = out.read_text() if out.exists() else INTRO
-    marker = f"## learning unit cost ({scenario.stem})\n"
-    if marker in old:
-        start = old.index(marker)
-        end = old.find("\n## ", start + 1)
-        old = old[:start] + section + (old[end + 1 :] if end != -1 else "")
-    else:
-        old = old.rstrip("\n") + "\n\n" + section
-    out.write_text(old)
-    print(f"written to {out}")
+    write_section(out, f"## learning unit cost ({scenario.stem})\n", section)
     return 0
 
 
@@ -270,16 +274,7 @@ def main() -> int:
     )
     out = Path(args.out)
     section = f"## {Path(args.scenario).stem}\n\n{header}{table_text}\n"
-    old = out.read_text() if out.exists() else INTRO
-    marker = f"## {Path(args.scenario).stem}\n"
-    if marker in old:
-        start = old.index(marker)
-        end = old.find("\n## ", start + 1)
-        old = old[:start] + section + (old[end + 1 :] if end != -1 else "")
-    else:
-        old = old.rstrip("\n") + "\n\n" + section
-    out.write_text(old)
-    print(f"\nwritten to {out}")
+    write_section(out, f"## {Path(args.scenario).stem}\n", section)
     return 0
 
 
