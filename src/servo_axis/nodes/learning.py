@@ -176,6 +176,10 @@ class LearningNode(Node):
         # ``cycle + 2``; learning is on from ``start_cycle`` (1-based, >= 2).
         if complete and cycle + 2 >= self._v["start_cycle"]:
             self.psg.learn(error)
+        # Persist before publishing: whatever a listener has seen of this
+        # cycle (correction, stats) is already on disk if the unit dies now.
+        if self._memory is not None:
+            save_memory(self._memory, self.psg, scenario=self._scenario)
         position, velocity = self.psg.states()
         first = (cycle + 1) * self._nd
         for idx in range(self._nd):
@@ -194,8 +198,6 @@ class LearningNode(Node):
         self._stats_pub.publish(
             msgs.labelled_array(STATS_LABELS, [cycle + 1, rms, peak, self.psg.cycles_learned])
         )
-        if self._memory is not None:
-            save_memory(self._memory, self.psg, scenario=self._scenario)
         self._error = np.full(self._nd, math.nan)
 
     def _reject(self, text: str) -> None:
