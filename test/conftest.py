@@ -24,7 +24,10 @@ def next_domain_id() -> int:
 
 @pytest.fixture
 def ros_env(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[int]:
-    """Distinct ROS_DOMAIN_ID, localhost discovery, UDP only, temporary ROS_LOG_DIR."""
+    """Distinct ROS_DOMAIN_ID, localhost discovery, UDP only, temporary ROS_LOG_DIR.
+
+    Everything it sets is restored when the test ends.
+    """
     domain = next_domain_id()
     monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
     monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
@@ -32,6 +35,11 @@ def ros_env(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[int]:
     log_dir = tmp_path / "ros_log"
     log_dir.mkdir()
     monkeypatch.setenv("ROS_LOG_DIR", str(log_dir))
+    # The in-test probes use the nodes' discovery profile (restored after).
+    from servo_axis.bringup import ros_environment
+
+    profile = ros_environment(domain, log_dir)["FASTRTPS_DEFAULT_PROFILES_FILE"]
+    monkeypatch.setenv("FASTRTPS_DEFAULT_PROFILES_FILE", profile)
     yield domain
 
 

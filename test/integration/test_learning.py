@@ -134,7 +134,6 @@ def test_killed_learning_unit_resumes_from_its_memory(ros_env: int, tmp_path: Pa
     log_dir = tmp_path / "logs"
     log_dir.mkdir()
     env = ros_environment(ros_env, log_dir)
-    os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = env["FASTRTPS_DEFAULT_PROFILES_FILE"]
     params = write_run_params(
         data, handshake_overrides(data, roles, tmp_path / "bag", tmp_path), tmp_path / "params.yaml"
     )

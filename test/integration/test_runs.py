@@ -211,7 +211,6 @@ def test_killed_feedforward_trips_the_feedback_and_the_bag_survives(
     log_dir.mkdir()
     bag = tmp_path / "bag"
     env = ros_environment(ros_env, log_dir)
-    os.environ.update({k: env[k] for k in ("FASTRTPS_DEFAULT_PROFILES_FILE",)})
     procs = start_nodes(
         write_run_params(
             scenario, handshake_overrides(scenario, roles, bag, tmp_path), tmp_path / "params.yaml"
