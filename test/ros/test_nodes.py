@@ -398,16 +398,53 @@ def test_feedforward_rejects_bad_corrections(context: Context) -> None:
 
     nan = corr(20)
     nan.position[0] = math.nan  # the encoder refuses NaN; a foreign publisher might not
-    bad = [nan, corr(21), corr(0)]  # NaN, not a reference instant, a cycle under way
+    # NaN, not a reference instant, a cycle under way, cycles too far ahead
+    bad = [nan, corr(21), corr(0), corr(60), corr(10**6)]
     short = corr(22)
     short.velocity = []
     for m in [*bad, short]:
         pub.publish(m)
-    spin_until(context, nodes, lambda: ff.rejected >= 4)
+    spin_until(context, nodes, lambda: ff.rejected >= 6)
     assert ff.generator.ready_until() == 18 and ff.published == 18  # nothing moved
     for k in range(20, 40, 2):
         pub.publish(corr(k))
     spin_until(context, nodes, lambda: ff.published == 38)
     assert ff.generator.ready_until() == 38
     ff.destroy_node()
+    probe.destroy_node()
+
+
+def test_learning_node_learns_only_from_whole_cycles_of_valid_states(context: Context) -> None:
+    from servo_axis.nodes.learning import LearningNode
+
+    def node(**extra: object) -> LearningNode:
+        values = {"cycle_s": 0.02, "nq": 2, **extra}  # 10 reference instants per cycle
+        return LearningNode(
+            context=context, parameter_overrides=[Parameter(k, value=v) for k, v in values.items()]
+        )
+
+    with pytest.raises(ParameterFileError, match=r"'cycle_s': at most"):
+        node(cycle_s=2.0)  # more than the state stream's history can hold
+    learning = node()
+    probe = Probe(context)
+    stats: list[list[float]] = []
+    probe.create_subscription(
+        Float64MultiArray, "learning/cycle_stats", lambda m: stats.append(list(m.data)), STREAM_QOS
+    )
+    nodes = [learning, probe]
+    spin_until(context, nodes, lambda: probe.state_pub.get_subscription_count() >= 1)
+    probe.state_pub.publish(probe.state(10**6))  # beyond the run's 2,000 steps: rejected
+    spin_until(context, nodes, lambda: learning.rejected >= 1)
+    for k in range(40):
+        if k != 4:  # one reference instant of cycle 1 never arrives
+            probe.state_pub.publish(probe.state(k))
+    spin_until(context, nodes, lambda: len(stats) >= 2)
+    assert learning.rejected == 1
+    # Cycle 1 lacks an instant: reported but not learned; cycle 2 is learned.
+    assert [s[0] for s in stats] == [1.0, 2.0] and [s[3] for s in stats] == [0.0, 1.0]
+    # The axis stood still at 0: the error is the reference itself.
+    target_m = learning.reference.sample(np.arange(10, 20) * 2e-3)[0]
+    np.testing.assert_allclose(stats[1][1], np.sqrt(np.mean(target_m**2)), rtol=1e-12)
+    np.testing.assert_allclose(stats[1][2], np.max(np.abs(target_m)), rtol=1e-12)
+    learning.destroy_node()
     probe.destroy_node()

@@ -184,6 +184,12 @@ class FeedforwardNode(Node):
         if cycle < 1 or (ready is not None and cycle * self._cycle_steps - 2 < ready):
             self._reject(f"learning/correction rejected: cycle {cycle + 1} is already under way")
             return
+        under_way = 0 if ready is None else ready // self._cycle_steps
+        if cycle * self._cycle_steps >= self._steps or cycle > under_way + 2:
+            self._reject(
+                f"learning/correction rejected: cycle {cycle + 1} is too far in the future"
+            )
+            return
         part = self._corrections.setdefault(cycle, {})
         part[idx] = (c.position_rad, c.velocity_rad_s)
         if len(part) == nd:

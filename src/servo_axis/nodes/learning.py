@@ -73,6 +73,14 @@ class LearningNode(Node):
                 f"parameter 'cycle_s': expected a whole number (>= 4) of reference periods {tr!r} s, "
                 f"got {values['cycle_s']!r}"
             )
+        # In lockstep the plant can run up to one whole cycle ahead of this
+        # node (the feedforward generator holds the next cycle until its
+        # correction is out); the state stream's history must hold that much.
+        if 2 * nd > STREAM_QOS.depth - 10:
+            raise ParameterFileError(
+                f"parameter 'cycle_s': at most {(STREAM_QOS.depth - 10) * tu!r} s "
+                f"({STREAM_QOS.depth - 10} control samples) per learning cycle, got {values['cycle_s']!r}"
+            )
         if values["start_cycle"] < 2:
             raise ParameterFileError(
                 f"parameter 'start_cycle': expected >= 2 (nothing is learned before cycle 1 ends), "
@@ -148,6 +156,10 @@ class LearningNode(Node):
                 raise SignalError(f"header.stamp: not on the control grid of {self._period_ns} ns")
             if step <= self._last_step:
                 raise SignalError(f"stale stamp (step {step} after {self._last_step})")
+            if step >= self._steps:
+                raise SignalError(
+                    f"stamp beyond the run's last step {self._steps - 1} (step {step})"
+                )
             self._last_step = step
             if step % 2:
                 return  # only the reference instants are learned from
@@ -176,6 +188,13 @@ class LearningNode(Node):
         # ``cycle + 2``; learning is on from ``start_cycle`` (1-based, >= 2).
         if complete and cycle + 2 >= self._v["start_cycle"]:
             self.psg.learn(error)
+        elif not complete and cycle + 2 >= self._v["start_cycle"]:
+            # Started or restarted mid-cycle, or states were rejected: a
+            # partial error would teach a wrong correction.
+            received = int(np.count_nonzero(np.isfinite(error)))
+            self.get_logger().warning(
+                f"cycle {cycle + 1} not learned: {received} of {self._nd} reference instants received"
+            )
         # Persist before publishing: whatever a listener has seen of this
         # cycle (correction, stats) is already on disk if the unit dies now.
         if self._memory is not None:
