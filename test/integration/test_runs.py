@@ -270,6 +270,9 @@ def test_killed_feedforward_trips_the_feedback_and_the_bag_survives(
     # (the test's own rclpy contexts are shut down cleanly above).
     assert {p.name for p in Path("/dev/shm").glob("fastrtps_*")} - shm_before == set()
     assert codes["recorder"] == 0 and codes["plant"] == 0 and codes["feedback"] == 0
+    for log in log_dir.rglob("*.log"):  # stopped mid-run, between callbacks
+        text = log.read_text()
+        assert "Traceback" not in text and "[FATAL]" not in text, log
     with AnyReader([bag]) as reader:
         conns = {c.topic: c for c in reader.connections}
         commands = [

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import signal
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -12,6 +13,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
 
 from servo_axis.core.errors import ServoAxisError
 
@@ -106,14 +108,27 @@ def run_main(
     A node whose parameters are bad raises a :class:`ServoAxisError` in its
     constructor, before it creates any publisher; that is reported on stderr
     and the process exits with :data:`EXIT_BAD_CONFIG`.
+
+    SIGINT and SIGTERM end the spin loop between callbacks, and the context
+    is shut down only after it: rclpy's own handler shuts the context down at
+    once, so a callback under way (a stop in the middle of a run) would fail
+    to publish and log a traceback.
     """
-    rclpy.init(args=args)
+    stop_requested: list[int] = []
+
+    def request_stop(signum: int, _frame: object) -> None:
+        stop_requested.append(signum)
+
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    previous = {sig: signal.signal(sig, request_stop) for sig in (signal.SIGINT, signal.SIGTERM)}
     nodes: list[Node] = []
     code = 0
     try:
         for factory in factories:
             nodes.append(factory())
-        spin_nodes(nodes, (lambda: done(nodes)) if done else (lambda: False))
+            if stop_requested:
+                return code
+        spin_nodes(nodes, lambda: bool(stop_requested) or (done is not None and done(nodes)))
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except ServoAxisError as err:
@@ -126,4 +141,6 @@ def run_main(
                 close()
             node.destroy_node()
         rclpy.try_shutdown()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     return code
