@@ -18,7 +18,7 @@ DEFAULT_SCENARIO = CONFIG_DIR / "ptc_nominal.yaml"
 
 def _run(args: argparse.Namespace) -> int:
     from servo_axis import report
-    from servo_axis.bringup import RunError, run_scenario
+    from servo_axis.bringup import RunError, RunInterruptedError, run_scenario
 
     try:
         result = run_scenario(
@@ -29,6 +29,9 @@ def _run(args: argparse.Namespace) -> int:
             namespace=args.namespace,
             plots=not args.no_plots,
         )
+    except RunInterruptedError as err:
+        print(f"\nrun {err}", file=sys.stderr)
+        return 128 + err.signum
     except RunError as err:
         print(f"run failed: {err}", file=sys.stderr)
         return 1

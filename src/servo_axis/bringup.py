@@ -18,6 +18,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from dataclasses import dataclass, field
 from importlib import resources
@@ -35,6 +36,14 @@ STOP_TIMEOUT_S = 5.0
 
 class RunError(RuntimeError):
     """The run could not complete (a node failed, stalled or refused its configuration)."""
+
+
+class RunInterruptedError(RunError):
+    """SIGINT or SIGTERM stopped the run; the nodes were stopped and the bag closed."""
+
+    def __init__(self, text: str, signum: int) -> None:
+        super().__init__(text)
+        self.signum = signum
 
 
 def load_scenario(path: Path) -> dict[str, Any]:
@@ -298,6 +307,21 @@ def clean_stale_shm(*, since: float, shm_dir: Path = Path("/dev/shm")) -> list[s
     return removed
 
 
+def _catch_stop_signals(received: list[int]) -> dict[int, Any]:
+    """Record SIGINT/SIGTERM in ``received`` instead of dying (main thread only).
+
+    Returns the handlers to restore. Without this a SIGTERM would kill the
+    runner and leave its nodes running.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+
+    def record(signum: int, _frame: object) -> None:
+        received.append(signum)
+
+    return {sig: signal.signal(sig, record) for sig in (signal.SIGINT, signal.SIGTERM)}
+
+
 def _signal_group(popen: subprocess.Popen[bytes], sig: int) -> None:
     try:
         os.killpg(popen.pid, sig)
@@ -311,13 +335,15 @@ class ProgressWatcher:
     def __init__(self, namespace: str) -> None:
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
+        from rclpy.signals import SignalHandlerOptions
         from std_msgs.msg import Float64MultiArray
 
         from servo_axis.nodes.common import LATCHED_QOS
 
         self._rclpy = rclpy
         self._context = rclpy.context.Context()
-        rclpy.init(args=[], context=self._context)
+        # The runner handles SIGINT/SIGTERM itself (it must stop the nodes).
+        rclpy.init(args=[], context=self._context, signal_handler_options=SignalHandlerOptions.NO)
         self.node = rclpy.create_node(
             "servo_axis_run",
             namespace=namespace,
@@ -401,6 +427,10 @@ def run_scenario(
     RunError
         If a node exits with an error, the run stalls, or a node refuses its
         parameters (its message is in the error).
+    RunInterruptedError
+        If SIGINT or SIGTERM reached the runner (called from the main
+        thread): the nodes are stopped, the bag written so far is closed and
+        readable, no summary is made.
     """
     from servo_axis import report
 
@@ -445,14 +475,20 @@ def run_scenario(
     watcher = ProgressWatcher(namespace or "/") if "recorder" in roles else None
     t_start = time.monotonic()
     t_first: float | None = None
-    procs = start_nodes(params_path, roles, args, env, log_dir, composed)
-    if on_started is not None:
-        on_started(procs)
-    plant_proc = procs[0] if composed else next(p for p in procs if p.role == "plant")
     failure: str | None = None
+    stop_signals: list[int] = []
+    previous_handlers = _catch_stop_signals(stop_signals)
+    procs: list[Proc] = []
+    last_progress = -1
     try:
-        last_progress, last_change = -1, time.monotonic()
+        procs = start_nodes(params_path, roles, args, env, log_dir, composed)
+        if on_started is not None:
+            on_started(procs)
+        plant_proc = procs[0] if composed else next(p for p in procs if p.role == "plant")
+        last_change = time.monotonic()
         while True:
+            if stop_signals:
+                break
             if watcher is not None:
                 watcher.spin(0.05)
                 if watcher.steps != last_progress:
@@ -481,6 +517,15 @@ def run_scenario(
         codes = stop_nodes(procs)
         if watcher is not None:
             watcher.close()
+        for sig, handler in previous_handlers.items():
+            signal.signal(sig, handler)
+    if stop_signals:
+        name = signal.Signals(stop_signals[0]).name
+        raise RunInterruptedError(
+            f"interrupted by {name} at step {max(last_progress, 0)} of {steps}; "
+            f"the nodes were stopped, the bag written so far is in {bag_dir}",
+            stop_signals[0],
+        )
     if line is not None and failure is None:
         line.show(steps, t_end - (t_first or t_start), final=True)
     if failure is not None:

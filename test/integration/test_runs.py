@@ -347,3 +347,48 @@ def test_namespaced_composed_run_leaves_nothing_behind(ros_env: int, tmp_path: P
         ["pgrep", "-f", str(scenario)], capture_output=True, text=True
     ).stdout.split()
     assert leftovers == []
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_signal_to_the_runner_stops_every_node_and_keeps_the_bag(
+    ros_env: int, tmp_path: Path, sig: signal.Signals
+) -> None:
+    from rosbags.highlevel import AnyReader
+
+    scenario = scenario_copy(CONFIG / "ptc_nominal.yaml", tmp_path, duration_s=600.0)
+    out = tmp_path / "run"
+    runner = subprocess.Popen(
+        [sys.executable, "-m", "servo_axis", "run", str(scenario), "--out", str(out)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    try:
+        deadline = time.monotonic() + 60
+        # Mid-run: the recorder has written a few chunks (it writes as it goes).
+        while sum(f.stat().st_size for f in out.glob("bag/*.mcap")) < 200_000:
+            assert runner.poll() is None and time.monotonic() < deadline, "the run did not start"
+            time.sleep(0.1)
+        runner.send_signal(sig)
+        _, stderr = runner.communicate(timeout=60)
+    finally:
+        if runner.poll() is None:
+            runner.kill()
+            runner.wait()
+        left = processes_mentioning(str(out))
+        for pid in left:
+            os.kill(pid, signal.SIGKILL)
+    assert left == [], "node processes outlived the runner"
+    assert runner.returncode == 128 + sig, stderr
+    assert f"interrupted by {sig.name}" in stderr
+    for log in (out / "logs").glob("*.log"):
+        text = log.read_text()
+        assert "Traceback" not in text and "[FATAL]" not in text, log
+    with AnyReader([out / "bag"]) as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+    # Everything up to the stop is there: a state per command, and the
+    # preview of references ahead of them.
+    assert counts["/state"] > 500
+    assert counts["/state"] - 1 <= counts["/command"] <= counts["/state"]
+    assert counts["/reference"] >= counts["/command"]
