@@ -290,20 +290,21 @@ def clean_stale_shm(*, since: float, shm_dir: Path = Path("/dev/shm")) -> list[s
     run) are considered, so other users' files are left alone.
     """
     removed = []
-    for seg in sorted(shm_dir.glob("fastrtps_*")):
-        if seg.name.endswith("_el"):
-            continue
+    # A lock file whose segment is gone counts too: Fast DDS may remove a
+    # dead owner's port segment when another participant reopens the port,
+    # and leave the lock file behind.
+    names = {p.name.removesuffix("_el") for p in shm_dir.glob("fastrtps_*")}
+    for name in sorted(names):
+        seg, lock = shm_dir / name, shm_dir / f"{name}_el"
         try:
-            if seg.stat().st_mtime < since:
-                continue
-        except OSError:
+            touched = max(p.stat().st_mtime for p in (seg, lock) if p.exists())
+        except (OSError, ValueError):
             continue
-        lock = shm_dir / f"{seg.name}_el"
-        if lock.exists() and _lock_held(lock):
+        if touched < since or (lock.exists() and _lock_held(lock)):
             continue
-        for path in (seg, lock, shm_dir / f"sem.{seg.name}_mutex"):
+        for path in (seg, lock, shm_dir / f"sem.{name}_mutex"):
             path.unlink(missing_ok=True)
-        removed.append(seg.name)
+        removed.append(name)
     return removed
 
 

@@ -23,6 +23,7 @@ from mcap.reader import make_reader
 from servo_axis.bringup import (
     ProgressWatcher,
     RunError,
+    clean_stale_shm,
     handshake_overrides,
     load_scenario,
     ros_environment,
@@ -357,6 +358,7 @@ def test_a_signal_to_the_runner_stops_every_node_and_keeps_the_bag(
 
     scenario = scenario_copy(CONFIG / "ptc_nominal.yaml", tmp_path, duration_s=600.0)
     out = tmp_path / "run"
+    started = time.time()
     runner = subprocess.Popen(
         [sys.executable, "-m", "servo_axis", "run", str(scenario), "--out", str(out)],
         stdout=subprocess.DEVNULL,
@@ -379,6 +381,8 @@ def test_a_signal_to_the_runner_stops_every_node_and_keeps_the_bag(
         left = processes_mentioning(str(out))
         for pid in left:
             os.kill(pid, signal.SIGKILL)
+        if left:
+            clean_stale_shm(since=started)
     assert left == [], "node processes outlived the runner"
     assert runner.returncode == 128 + sig, stderr
     assert f"interrupted by {sig.name}" in stderr
