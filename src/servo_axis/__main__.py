@@ -61,6 +61,24 @@ def _summary(args: argparse.Namespace) -> int:
     return 0
 
 
+def _compare(args: argparse.Namespace) -> int:
+    from servo_axis import report
+
+    summaries = [json.loads((Path(d) / "summary.json").read_text()) for d in args.run_dirs]
+    labels = args.labels.split(",") if args.labels else [Path(d).name for d in args.run_dirs]
+    if len(labels) != len(summaries):
+        print(
+            f"error: --labels: expected {len(summaries)} comma-separated labels, got {len(labels)}",
+            file=sys.stderr,
+        )
+        return 2
+    print(report.compare_table(summaries, labels))
+    if args.out:
+        report.plot_cycles(summaries, labels, Path(args.out), title=args.title)
+        print(f"figure written to {args.out}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``python -m servo_axis``."""
     parser = argparse.ArgumentParser(prog="python -m servo_axis", description=__doc__)
@@ -86,6 +104,14 @@ def main(argv: list[str] | None = None) -> int:
     sm = sub.add_parser("summary", help="print the summary of a run directory")
     sm.add_argument("run_dir")
     sm.set_defaults(func=_summary)
+    cmp = sub.add_parser(
+        "compare", help="max/RMS error per cycle of several runs (e.g. Q vs Q~n, 000 Fig. 15)"
+    )
+    cmp.add_argument("run_dirs", nargs="+")
+    cmp.add_argument("--labels", help="comma-separated, one per run (default: directory names)")
+    cmp.add_argument("--out", help="PNG to write")
+    cmp.add_argument("--title", default="tracking error per cycle")
+    cmp.set_defaults(func=_compare)
     args = parser.parse_args(argv)
     if args.command is None:
         args = parser.parse_args(["run", str(DEFAULT_SCENARIO)])

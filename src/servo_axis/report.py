@@ -242,8 +242,64 @@ def format_summary(summary: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def cycle_errors(summary: dict[str, Any]) -> dict[str, np.ndarray]:
+    """Per-cycle tracking error of a run summary, as arrays (cycle number, m).
+
+    Returns ``{"cycle", "max_m", "rms_m", "max_at_tr_m"}``; empty arrays when
+    the reference is not periodic.
+    """
+    cycles = summary.get("tracking_error", {}).get("cycles", [])
+    return {
+        "cycle": np.array([c["cycle"] for c in cycles], dtype=int),
+        "max_m": np.array([c["max_m"] for c in cycles], dtype=float),
+        "rms_m": np.array([c["rms_m"] for c in cycles], dtype=float),
+        "max_at_tr_m": np.array([c["reference_instants"]["max_m"] for c in cycles], dtype=float),
+    }
+
+
+def compare_table(summaries: list[dict[str, Any]], labels: list[str]) -> str:
+    """Max tracking error per cycle of several runs side by side (000 Fig. 15 as a table)."""
+    per_run = [cycle_errors(s) for s in summaries]
+    n = max((len(c["cycle"]) for c in per_run), default=0)
+    width = max(14, *(len(label) + 2 for label in labels))
+    lines = ["max error per cycle (um)", "cycle" + "".join(f"{x:>{width}}" for x in labels)]
+    for k in range(n):
+        cells = [
+            f"{1e6 * c['max_m'][k]:>{width}.6g}" if k < len(c["max_m"]) else " " * width
+            for c in per_run
+        ]
+        lines.append(f"{k + 1:>5}" + "".join(cells))
+    return "\n".join(lines)
+
+
+def plot_cycles(
+    summaries: list[dict[str, Any]], labels: list[str], path: Path, *, title: str
+) -> Path:
+    """Max and RMS tracking error per cycle of one or more runs (000 Fig. 15), log scale."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for summary, label, marker in zip(summaries, labels, "osd^v<>", strict=False):
+        c = cycle_errors(summary)
+        ax.semilogy(c["cycle"], 1e6 * c["max_m"], "-" + marker, label=f"{label}: max")
+        ax.semilogy(c["cycle"], 1e6 * c["rms_m"], ":" + marker, label=f"{label}: RMS", ms=4)
+    ax.set_xlabel("cycle")
+    ax.set_ylabel("tracking error (um)")
+    ax.set_title(title)
+    ax.grid(True, which="both", lw=0.3)
+    ax.legend(fontsize="small")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def plot(run_dir: Path) -> list[Path]:
-    """Write ``reference_position.png`` and ``error.png`` into the run directory."""
+    """Write ``reference_position.png``, ``error.png`` and, for a periodic
+    reference, ``cycle_errors.png`` into the run directory."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -292,4 +348,13 @@ def plot(run_dir: Path) -> list[Path]:
         paths.append(run_dir / name)
         fig.savefig(paths[-1], dpi=110)
         plt.close(fig)
+    if len(cycle_errors(summary)["cycle"]) >= 2:
+        paths.append(
+            plot_cycles(
+                [summary],
+                [summary["scenario"]],
+                run_dir / "cycle_errors.png",
+                title=f"{summary['scenario']}: tracking error per cycle",
+            )
+        )
     return paths

@@ -16,7 +16,7 @@ from servo_axis.core.plant import BallScrewParams, BallScrewPlant
 from servo_axis.core.ptc import MultiratePtc
 from servo_axis.core.reference import SineReference
 from servo_axis.core.servo import Fault, FeedbackLoop, SafetyLimits
-from servo_axis.report import error_statistics
+from servo_axis.report import compare_table, cycle_errors, error_statistics
 
 NOMINAL = {"inertia_kgm2": 0.01, "damping_Nms_per_rad": 0.1, "torque_constant_Nm_per_A": 0.715}
 R = 1.91e-3
@@ -134,3 +134,19 @@ def test_error_statistics_per_cycle() -> None:
     assert_allclose(
         stats["after_first_cycle"]["all_samples"]["max_m"], np.max(np.abs(e[250:])), rtol=0
     )
+
+
+def test_compare_table_lines_up_the_cycles_of_each_run() -> None:
+    step = np.arange(1000)
+    runs = []
+    for decay in (0.5, 0.2):  # per cycle: the second run's error falls faster
+        e = decay ** (step // 250) * np.sin(2 * np.pi * step / 250 + 0.3)
+        stats = error_statistics(e, step, period_s=1e-3, cycle_s=0.25)
+        runs.append({"tracking_error": stats})
+    per_cycle = cycle_errors(runs[1])
+    assert_allclose(per_cycle["max_m"], [0.2**k * np.max(np.abs(e[:250])) for k in range(4)])
+    rows = compare_table(runs, ["Q", "Q~5"]).splitlines()
+    assert rows[1].split() == ["cycle", "Q", "Q~5"]
+    table = np.array([[float(x) for x in row.split()] for row in rows[2:]])
+    assert_allclose(table[:, 0], [1, 2, 3, 4])
+    assert_allclose(table[:, 1] / table[:, 2], [(0.5 / 0.2) ** k for k in range(4)], rtol=1e-5)
