@@ -284,8 +284,15 @@ def plot_cycles(
     fig, ax = plt.subplots(figsize=(7, 4))
     for summary, label, marker in zip(summaries, labels, "osd^v<>", strict=False):
         c = cycle_errors(summary)
-        ax.semilogy(c["cycle"], 1e6 * c["max_m"], "-" + marker, label=f"{label}: max")
-        ax.semilogy(c["cycle"], 1e6 * c["rms_m"], ":" + marker, label=f"{label}: RMS", ms=4)
+        (line,) = ax.semilogy(c["cycle"], 1e6 * c["max_m"], "-" + marker, label=f"{label}: max")
+        ax.semilogy(
+            c["cycle"],
+            1e6 * c["rms_m"],
+            ":" + marker,
+            color=line.get_color(),
+            ms=4,
+            label=f"{label}: RMS",
+        )
     ax.set_xlabel("cycle")
     ax.set_ylabel("tracking error (um)")
     ax.set_title(title)
