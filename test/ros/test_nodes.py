@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 import rclpy
-from numpy.testing import assert_array_equal
+from numpy.testing import assert_allclose, assert_array_equal
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -303,6 +303,54 @@ def test_plant_rejects_bad_commands_and_waits_for_a_valid_one(context: Context) 
     cmd_pub.publish(command(0, 2.0))  # stale: step 0 is done
     spin_until(context, nodes, lambda: plant._rejected >= 4)
     assert plant.plant.step_index == 1
+    plant.destroy_node()
+    probe.destroy_node()
+
+
+def test_realtime_plant_holds_the_newest_command_and_counts_misses(context: Context) -> None:
+    period_ns = 100_000_000  # 0.1 s ticks: the probe answers well within one
+    plant = PlantNode(
+        context=context,
+        parameter_overrides=[
+            Parameter("mode", value="realtime"),
+            Parameter("control_period_s", value=0.1),
+            Parameter("sim_step_s", value=1e-3),
+            Parameter("duration_s", value=0.6),
+            Parameter("flow_control", value=False),
+            Parameter("wait_for_state_subscribers", value=1),
+        ],
+    )
+    probe = Node("rt_probe", context=context)
+    cmd_pub = probe.create_publisher(JointState, "command", STREAM_QOS)
+
+    def command(step: int, current: float) -> JointState:
+        return msgs.command_to_msg(
+            msgs.CommandSample(step, current), axis="x", period_ns_=period_ns
+        )
+
+    # What the probe sends when it sees state k: late, on time, or older
+    # than the command the plant already holds.
+    answers = {1: command(0, 2.0), 2: command(2, 3.0), 3: command(1, 5.0)}
+    states: list[msgs.StateSample] = []
+
+    def on_state(m: JointState) -> None:
+        states.append(msgs.state_from_msg(m, axis="x", period_ns_=period_ns))
+        if states[-1].step in answers:
+            cmd_pub.publish(answers[states[-1].step])
+
+    probe.create_subscription(JointState, "state", on_state, STREAM_QOS)
+    spin_until(context, [plant, probe], lambda: len(states) >= 5, timeout_s=30)
+    torque_per_A = 0.715
+    assert [s.step for s in states[:5]] == [0, 1, 2, 3, 4]
+    # tick 1: nothing yet (0 A); tick 2: the late command of step 0 is the
+    # newest, held; tick 3: on time; tick 4: step 1's command is older than
+    # the held one: stale, rejected, changes nothing.
+    assert_allclose(
+        [s.motor_torque_Nm for s in states[1:5]],
+        [0.0, 2.0 * torque_per_A, 3.0 * torque_per_A, 3.0 * torque_per_A],
+        rtol=1e-12,
+    )
+    assert plant._deadline_misses == 3 and plant._rejected == 1
     plant.destroy_node()
     probe.destroy_node()
 

@@ -16,7 +16,10 @@ then integrates one control period. Before publishing ``state[k]`` it waits
 until the recorder has acknowledged step ``k - max_recorder_lag_steps``;
 after the last step it waits until the recorder has everything, then stops.
 Realtime: a wall-clock timer steps at the control period; a command that has
-not arrived is a deadline miss and the previous current is held.
+not arrived is a deadline miss and the newest current received is held, as a
+drive holds its last set-point: a command that arrives after its tick is not
+applied for its own step but replaces the held value (it is newer than what
+is held), and the miss was counted at the tick.
 
 Run: ``python -m servo_axis.nodes.plant --ros-args --params-file config/<scenario>.yaml``
 """
@@ -194,6 +197,7 @@ class PlantNode(Node):
         self._awaiting: int | None = None  # step whose command we wait for
         self._command: float | None = None
         self._last_current = 0.0
+        self._held_step = -1  # step of the command whose current is held
         self._recorded = -1
         self._finishing = False
         self._deadline_misses = 0
@@ -241,6 +245,9 @@ class PlantNode(Node):
             self._reject(f"command rejected: {err}")
             return
         expected = self.plant.step_index
+        if not self._lockstep and self._held_step < cmd.step < expected:
+            self._last_current, self._held_step = cmd.current_A, cmd.step
+            return
         if cmd.step != expected:
             when = "stale" if cmd.step < expected else "future"
             self._reject(f"command rejected: {when} stamp (step {cmd.step}, expected {expected})")
@@ -310,6 +317,7 @@ class PlantNode(Node):
             current = self._last_current
         else:
             current = self._command
+            self._held_step = self.plant.step_index
         self._command = None
         self._last_current = current
         out = self.plant.step(current)
