@@ -123,7 +123,8 @@ def write_section(out: Path, marker: str, section: str) -> None:
     if marker in old:
         start = old.index(marker)
         end = old.find("\n## ", start + 1)
-        old = old[:start] + section + (old[end + 1 :] if end != -1 else "")
+        rest = old[end + 1 :] if end != -1 else ""
+        old = old[:start] + section.rstrip("\n") + "\n" + ("\n" + rest if rest else "")
     else:
         old = old.rstrip("\n") + "\n\n" + section
     out.write_text(old)
