@@ -258,17 +258,28 @@ def cycle_errors(summary: dict[str, Any]) -> dict[str, np.ndarray]:
 
 
 def compare_table(summaries: list[dict[str, Any]], labels: list[str]) -> str:
-    """Max tracking error per cycle of several runs side by side (000 Fig. 15 as a table)."""
+    """Max and RMS tracking error per cycle of several runs side by side (000 Fig. 15).
+
+    Two blocks, ``max error per cycle (um)`` and ``RMS error per cycle (um)``,
+    a row per cycle and a column per run; 6 significant digits.
+    """
     per_run = [cycle_errors(s) for s in summaries]
     n = max((len(c["cycle"]) for c in per_run), default=0)
     width = max(14, *(len(label) + 2 for label in labels))
-    lines = ["max error per cycle (um)", "cycle" + "".join(f"{x:>{width}}" for x in labels)]
-    for k in range(n):
-        cells = [
-            f"{1e6 * c['max_m'][k]:>{width}.6g}" if k < len(c["max_m"]) else " " * width
-            for c in per_run
+    lines: list[str] = []
+    for title, key in (("max", "max_m"), ("RMS", "rms_m")):
+        if lines:
+            lines.append("")
+        lines += [
+            f"{title} error per cycle (um)",
+            "cycle" + "".join(f"{x:>{width}}" for x in labels),
         ]
-        lines.append(f"{k + 1:>5}" + "".join(cells))
+        for k in range(n):
+            cells = [
+                f"{1e6 * c[key][k]:>{width}.6g}" if k < len(c[key]) else " " * width
+                for c in per_run
+            ]
+            lines.append(f"{k + 1:>5}" + "".join(cells))
     return "\n".join(lines)
 
 

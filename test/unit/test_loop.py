@@ -145,8 +145,12 @@ def test_compare_table_lines_up_the_cycles_of_each_run() -> None:
         runs.append({"tracking_error": stats})
     per_cycle = cycle_errors(runs[1])
     assert_allclose(per_cycle["max_m"], [0.2**k * np.max(np.abs(e[:250])) for k in range(4)])
-    rows = compare_table(runs, ["Q", "Q~5"]).splitlines()
-    assert rows[1].split() == ["cycle", "Q", "Q~5"]
-    table = np.array([[float(x) for x in row.split()] for row in rows[2:]])
-    assert_allclose(table[:, 0], [1, 2, 3, 4])
-    assert_allclose(table[:, 1] / table[:, 2], [(0.5 / 0.2) ** k for k in range(4)], rtol=1e-5)
+    max_block, rms_block = compare_table(runs, ["Q", "Q~5"]).split("\n\n")
+    for block, key in ((max_block, "max_m"), (rms_block, "rms_m")):
+        rows = block.splitlines()
+        assert rows[1].split() == ["cycle", "Q", "Q~5"]
+        table = np.array([[float(x) for x in row.split()] for row in rows[2:]])
+        assert_allclose(table[:, 0], [1, 2, 3, 4])
+        assert_allclose(table[:, 2], 1e6 * cycle_errors(runs[1])[key], rtol=1e-5)
+        assert_allclose(table[:, 1] / table[:, 2], [2.5**k for k in range(4)], rtol=1e-5)
+    assert_allclose(float(rms_block.splitlines()[2].split()[1]), 1e6 / np.sqrt(2), rtol=1e-5)
