@@ -35,6 +35,11 @@ def test_n_times_filter_learns_n_times_faster_through_the_node_graph(
         assert counts["/learning/correction"] == 6 * 250  # one correction per cycle boundary
         assert counts["/learning/cycle_stats"] == 6  # not for the cycle that ends the run
         assert not run.summary["faults"]
+        # Every boundary got its correction in time, the run's end included
+        # (nothing is awaited for the cycle after it).
+        assert (
+            "no learning correction" not in (run.run_dir / "logs" / "feedforward.log").read_text()
+        )
     # Learning cycle m is axis cycle m + 1 (cycle 1 lets the disturbance
     # response settle). Eq. (27): after 1 learning cycle with Q~3 the error
     # equals the error after 3 learning cycles with Q.

@@ -496,3 +496,33 @@ def test_learning_node_learns_only_from_whole_cycles_of_valid_states(context: Co
     np.testing.assert_allclose(stats[1][2], np.max(np.abs(target_m)), rtol=1e-12)
     learning.destroy_node()
     probe.destroy_node()
+
+
+def test_feedforward_ends_the_run_without_waiting_for_a_correction_after_it(
+    context: Context,
+) -> None:
+    ff = FeedforwardNode(
+        context=context,
+        parameter_overrides=[
+            Parameter("learning.enabled", value=True),
+            Parameter("learning.cycle_s", value=0.02),  # 20 samples, 10 reference instants
+            Parameter("duration_s", value=0.04),  # two cycles
+            Parameter("preview_steps", value=100),
+        ],
+    )
+    probe = Node("end_probe", context=context)
+    pub = probe.create_publisher(JointState, "learning/correction", STREAM_QOS)
+    nodes = [ff, probe]
+    spin_until(context, nodes, lambda: pub.get_subscription_count() >= 1 and ff.published == 18)
+    for k in range(20, 40, 2):  # the correction of cycle 2, the run's last
+        pub.publish(
+            msgs.correction_to_msg(
+                msgs.CorrectionSample(k, 1e-6, 0.0), axis="x", period_ns_=PERIOD_NS
+            )
+        )
+    # Samples 38 and 39 look into a cycle after the run, for which no
+    # correction comes: all 40 go out at once, not after learning.timeout_s.
+    spin_until(context, nodes, lambda: ff.published == 40)
+    assert ff.missed_corrections == 0 and ff.rejected == 0
+    ff.destroy_node()
+    probe.destroy_node()
