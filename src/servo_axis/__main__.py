@@ -79,6 +79,15 @@ def _compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def _list(args: argparse.Namespace) -> int:
+    from servo_axis.bringup import load_scenario, shared
+
+    for path in sorted(Path(args.config_dir).glob("*.yaml")):
+        about = shared(load_scenario(path)).get("scenario", {})
+        print(f"{path.name:<28} {about.get('description', '')}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``python -m servo_axis``."""
     parser = argparse.ArgumentParser(prog="python -m servo_axis", description=__doc__)
@@ -104,6 +113,9 @@ def main(argv: list[str] | None = None) -> int:
     sm = sub.add_parser("summary", help="print the summary of a run directory")
     sm.add_argument("run_dir")
     sm.set_defaults(func=_summary)
+    ls = sub.add_parser("list", help="the scenarios in config/ and what each runs")
+    ls.add_argument("--config-dir", default=str(CONFIG_DIR))
+    ls.set_defaults(func=_list)
     cmp = sub.add_parser(
         "compare", help="max/RMS error per cycle of several runs (e.g. Q vs Q~n, 000 Fig. 15)"
     )

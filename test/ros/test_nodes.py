@@ -20,7 +20,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 from servo_axis import msgs
-from servo_axis.bringup import load_scenario, node_params
+from servo_axis.bringup import handshake_overrides, load_scenario, node_params, roles_of, shared
 from servo_axis.core.errors import ParameterFileError
 from servo_axis.nodes.common import LATCHED_QOS, STREAM_QOS
 from servo_axis.nodes.feedback import FeedbackNode
@@ -526,3 +526,38 @@ def test_feedforward_ends_the_run_without_waiting_for_a_correction_after_it(
     assert ff.missed_corrections == 0 and ff.rejected == 0
     ff.destroy_node()
     probe.destroy_node()
+
+
+SCENARIOS = sorted(CONFIG.glob("*.yaml"))
+
+
+@pytest.mark.parametrize("scenario", SCENARIOS, ids=[p.stem for p in SCENARIOS])
+def test_every_scenario_is_accepted_by_each_of_its_nodes(
+    context: Context, scenario: Path, tmp_path: Path
+) -> None:
+    from servo_axis.nodes.learning import LearningNode
+
+    data = load_scenario(scenario)
+    # `python -m servo_axis list` shows it; the summary carries it.
+    assert shared(data)["scenario"]["description"]
+    roles = roles_of(data)
+    assert {"plant", "feedback"} <= set(roles)
+    extra = handshake_overrides(data, roles, tmp_path / "bag", scenario.parent)
+    classes = {
+        "plant": PlantNode,
+        "feedback": FeedbackNode,
+        "feedforward": FeedforwardNode,
+        "learning": LearningNode,
+        "recorder": RecorderNode,
+    }
+    for role in roles:
+        values = {**node_params(data, role), **extra.get(role, {})}
+        # The full validation of the node's constructor (schema, ranges,
+        # physical consistency, files): it raises on anything wrong.
+        node = classes[role](
+            context=context, parameter_overrides=[Parameter(k, value=v) for k, v in values.items()]
+        )
+        close = getattr(node, "close", None)
+        if close is not None:
+            close()
+        node.destroy_node()
