@@ -76,6 +76,15 @@ def _compare(args: argparse.Namespace) -> int:
     if args.out:
         report.plot_cycles(summaries, labels, Path(args.out), title=args.title)
         print(f"figure written to {args.out}")
+    if args.error_out:
+        report.plot_error_overlay(
+            [Path(d) for d in args.run_dirs],
+            labels,
+            Path(args.error_out),
+            zoom_cycle=args.zoom_cycle,
+            title=args.title,
+        )
+        print(f"figure written to {args.error_out}")
     return 0
 
 
@@ -121,7 +130,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     cmp.add_argument("run_dirs", nargs="+")
     cmp.add_argument("--labels", help="comma-separated, one per run (default: directory names)")
-    cmp.add_argument("--out", help="PNG to write")
+    cmp.add_argument("--out", help="PNG to write: max and RMS error per cycle")
+    cmp.add_argument("--error-out", help="PNG to write: error against time, one cycle enlarged")
+    cmp.add_argument("--zoom-cycle", type=int, default=3, help="the cycle enlarged (default 3)")
     cmp.add_argument("--title", default="tracking error per cycle")
     cmp.set_defaults(func=_compare)
     args = parser.parse_args(argv)

@@ -315,6 +315,53 @@ def plot_cycles(
     return path
 
 
+def _run_series(
+    run_dir: Path,
+) -> tuple[dict[str, Any], dict[str, Any], np.ndarray, np.ndarray, float]:
+    """Summary, recorded signals, target and measured angle (rad), lead (m/rad) of a run."""
+    from servo_axis.bringup import load_scenario, shared
+
+    summary = json.loads((run_dir / "summary.json").read_text())
+    scenario = load_scenario(Path(summary["scenario_file"]))
+    lead = float(shared(scenario).get("lead_m_per_rad", 1.91e-3))
+    sig = load_signals(run_dir / "bag", summary["control_period_s"])
+    target, y = tracking(scenario, Path(summary["scenario_file"]), sig)
+    return summary, sig, target, y, lead
+
+
+def plot_error_overlay(
+    run_dirs: list[Path], labels: list[str], path: Path, *, zoom_cycle: int, title: str
+) -> Path:
+    """Tracking error of several runs against time, whole run and one cycle
+    enlarged (000 Fig. 13(b)-(c), Fig. 15(b)-(c))."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (whole, zoom) = plt.subplots(2, 1, figsize=(9, 6))
+    for run_dir, label in zip(run_dirs, labels, strict=True):
+        summary, sig, target, y, lead = _run_series(run_dir)
+        t = sig["step"] * summary["control_period_s"]
+        err_um = lead * (target - y) * 1e6
+        whole.plot(t, err_um, lw=0.7, label=label)
+        cycle_s = summary.get("reference_period_s")
+        if cycle_s:
+            inside = (t >= (zoom_cycle - 1) * cycle_s) & (t < zoom_cycle * cycle_s)
+            zoom.plot(t[inside], err_um[inside], lw=0.8, label=label)
+    whole.set_title(title)
+    zoom.set_title(f"cycle {zoom_cycle} enlarged")
+    for ax in (whole, zoom):
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel("tracking error (um)")
+        ax.grid(True, lw=0.3)
+        ax.legend(fontsize="small")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def plot(run_dir: Path) -> list[Path]:
     """Write ``reference_position.png``, ``error.png`` and, for a periodic
     reference, ``cycle_errors.png`` into the run directory."""
@@ -323,16 +370,8 @@ def plot(run_dir: Path) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    summary = json.loads((run_dir / "summary.json").read_text())
-    from servo_axis.bringup import load_scenario, shared
-
-    scenario = load_scenario(Path(summary["scenario_file"]))
-    common = shared(scenario)
-    period = summary["control_period_s"]
-    lead = float(common.get("lead_m_per_rad", 1.91e-3))
-    sig = load_signals(run_dir / "bag", period)
-    target, y = tracking(scenario, Path(summary["scenario_file"]), sig)
-    t = sig["step"] * period
+    summary, sig, target, y, lead = _run_series(run_dir)
+    t = sig["step"] * summary["control_period_s"]
     err = lead * (target - y) * 1e6
     even = sig["step"] % 2 == 0
     figures = [
