@@ -36,9 +36,15 @@ def _run(args: argparse.Namespace) -> int:
         print(f"run failed: {err}", file=sys.stderr)
         return 1
     print()
-    print(report.format_summary(result.summary))
+    print(report.format_any_summary(result.summary))
     print()
-    print(f"run directory: {result.run_dir}  (bag/, summary.json, *.png, logs/)")
+    contents = (
+        f"{', '.join(a + '/' for a in result.summary['axes'])} (one axis each: bag/, summary.json, "
+        "*.png, logs/), summary.json, contour.png"
+        if "axes" in result.summary
+        else "bag/, summary.json, *.png, logs/"
+    )
+    print(f"run directory: {result.run_dir}  ({contents})")
     return 0
 
 
@@ -57,7 +63,7 @@ def _summary(args: argparse.Namespace) -> int:
     from servo_axis import report
 
     summary = json.loads((Path(args.run_dir) / "summary.json").read_text())
-    print(report.format_summary(summary))
+    print(report.format_any_summary(summary))
     return 0
 
 

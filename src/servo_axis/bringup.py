@@ -55,15 +55,63 @@ def load_scenario(path: Path) -> dict[str, Any]:
     if not isinstance(data, dict):
         raise ConfigError(f"scenario {path}: expected a mapping of node sections")
     for key, value in data.items():
-        if key != SHARED_SECTION and key not in ROLES:
+        if key != SHARED_SECTION and key not in ROLES and _axis_section(key) is None:
             raise ConfigError(
-                f"scenario {path}: unknown section '{key}'; expected '/**' or one of {list(ROLES)}"
+                f"scenario {path}: unknown section '{key}'; expected '/**', one of {list(ROLES)} "
+                "or '/<axis>/<node>'"
             )
         if not isinstance(value, dict) or set(value) != {"ros__parameters"}:
             raise ConfigError(f"scenario {path}: section '{key}' must hold only 'ros__parameters'")
     if "plant" not in data:
         raise ConfigError(f"scenario {path}: a 'plant' section is required")
     return data
+
+
+def _axis_section(key: str) -> tuple[str, str] | None:
+    """``(axis, role)`` of a per-axis section key ``/<axis>/<role>``, else None."""
+    parts = key.split("/")
+    if len(parts) == 3 and parts[0] == "" and parts[1].isidentifier() and parts[2] in ROLES:
+        return parts[1], parts[2]
+    return None
+
+
+def axes_of(scenario: dict[str, Any]) -> list[str]:
+    """Axes of a multi-axis scenario (from its ``/<axis>/<node>`` sections), sorted; [] if none."""
+    return sorted({a[0] for key in scenario if (a := _axis_section(key)) is not None})
+
+
+def axis_view(scenario: dict[str, Any], axis: str, scenario_dir: Path) -> dict[str, Any]:
+    """The single-axis scenario of one axis of a multi-axis scenario.
+
+    Each ``/<axis>/<node>`` section is merged into the node's common section
+    (nested keys merge, the axis wins), ``axis`` is set to the axis name and
+    a relative friction-table path is made absolute, so that the result runs
+    and is reported like any single-axis scenario.
+    """
+
+    def merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
+        out = dict(base)
+        for k, v in over.items():
+            out[k] = merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
+        return out
+
+    view: dict[str, Any] = {}
+    common = shared(scenario)
+    common["axis"] = axis
+    about = dict(common.get("scenario", {}))
+    about["name"] = f"{about.get('name', 'scenario')}/{axis}"
+    common["scenario"] = about
+    view[SHARED_SECTION] = {"ros__parameters": common}
+    for role in ROLES:
+        own = scenario.get(f"/{axis}/{role}", {}).get("ros__parameters", {})
+        if role in scenario or own:
+            base = scenario.get(role, {}).get("ros__parameters", {})
+            view[role] = {"ros__parameters": merge(base, own)}
+    ff = view.get("feedforward", {}).get("ros__parameters", {})
+    table = ff.get("friction_table", {}).get("file")
+    if table and not Path(table).is_absolute():
+        ff["friction_table"] = {**ff["friction_table"], "file": str(scenario_dir / table)}
+    return view
 
 
 def shared(scenario: dict[str, Any]) -> dict[str, Any]:
@@ -145,6 +193,21 @@ def handshake_overrides(
     return out
 
 
+class _QuotingDumper(yaml.SafeDumper):
+    """Quotes every string: rcl's parameter parser reads a bare ``y``, ``on``
+    or ``1e3`` as a bool or a number, PyYAML writes them bare."""
+
+
+_QuotingDumper.add_representer(
+    str, lambda dumper, value: dumper.represent_scalar("tag:yaml.org,2002:str", value, style='"')
+)
+
+
+def dump_params(data: dict[str, Any]) -> str:
+    """A ROS parameter file's text, every string quoted."""
+    return yaml.dump(data, Dumper=_QuotingDumper, sort_keys=False)
+
+
 def write_run_params(
     scenario: dict[str, Any], overrides: dict[str, dict[str, Any]], path: Path
 ) -> Path:
@@ -161,7 +224,7 @@ def write_run_params(
         params = dict(scenario.get(role, {}).get("ros__parameters", {}))
         params.update(overrides.get(role, {}))
         out[f"/**/{role}"] = {"ros__parameters": params}
-    path.write_text(yaml.safe_dump(out, sort_keys=False))
+    path.write_text(dump_params(out))
     return path
 
 
@@ -421,6 +484,12 @@ def run_scenario(
 ) -> RunResult:
     """Run one scenario end to end and return where it was written.
 
+    A scenario with per-axis sections (``/x/<node>``, ``/y/<node>``) runs
+    one set of nodes per axis, each in its own namespace with its own
+    ``/<axis>/clock``, all at once; each axis gets a subdirectory of the run
+    directory (its own bag, logs, summary) and the run's summary holds the
+    per-axis summaries and the contour (XY) figures.
+
     Raises
     ------
     ConfigError
@@ -446,19 +515,36 @@ def run_scenario(
     out_dir = out_dir.resolve()
     if out_dir.exists() and any(out_dir.iterdir()):
         raise ConfigError(f"--out {out_dir}: exists and is not empty")
-    log_dir = out_dir / "logs"
-    log_dir.mkdir(parents=True, exist_ok=True)
-    bag_dir = out_dir / "bag"
-    roles = roles_of(scenario)
-    ns_args = ["-r", f"__ns:={namespace}"] if namespace else []
-    args = [*ns_args, *(extra_args or [])]
-    params_path = write_run_params(
-        scenario,
-        handshake_overrides(scenario, roles, bag_dir, scenario_path.parent),
-        out_dir / "params.yaml",
-    )
+    names = axes_of(scenario)
+    if names and (composed or namespace):
+        raise ConfigError(
+            f"scenario {scenario_path}: a multi-axis scenario runs as separate processes, "
+            "each axis in its own namespace (no --composed, no --namespace)"
+        )
+    runs: list[_AxisRun] = []
+    for axis in names or [""]:
+        axis_dir = out_dir / axis if axis else out_dir
+        (axis_dir / "logs").mkdir(parents=True, exist_ok=True)
+        if axis:
+            axis_scenario = axis_view(scenario, axis, scenario_path.parent)
+            axis_path = axis_dir / "scenario.yaml"
+            axis_path.write_text(dump_params(axis_scenario))
+            ns = f"/{axis}"
+            args = ["-r", f"__ns:={ns}", "-r", f"/clock:={ns}/clock", *(extra_args or [])]
+        else:
+            axis_scenario, axis_path, ns = scenario, scenario_path, namespace
+            args = [*(["-r", f"__ns:={ns}"] if ns else []), *(extra_args or [])]
+        roles = roles_of(axis_scenario)
+        params_path = write_run_params(
+            axis_scenario,
+            handshake_overrides(axis_scenario, roles, axis_dir / "bag", scenario_path.parent),
+            axis_dir / "params.yaml",
+        )
+        runs.append(
+            _AxisRun(axis, ns, axis_scenario, axis_path, axis_dir, roles, params_path, args)
+        )
     domain = default_domain_id() if domain_id is None else domain_id
-    env = ros_environment(domain, log_dir)
+    env = ros_environment(domain, runs[0].out_dir / "logs")
     os.environ.update(
         {
             k: env[k]
@@ -470,61 +556,67 @@ def run_scenario(
             )
         }
     )
-    os.environ.setdefault("ROS_LOG_DIR", str(log_dir))
+    os.environ.setdefault("ROS_LOG_DIR", str(runs[0].out_dir / "logs"))
 
     line = ProgressLine(steps, progress) if progress is not None else None
-    watcher = ProgressWatcher(namespace or "/") if "recorder" in roles else None
+    for run in runs:
+        if "recorder" in run.roles:
+            run.watcher = ProgressWatcher(run.namespace or "/")
     t_start = time.monotonic()
     t_first: float | None = None
     failure: str | None = None
     stop_signals: list[int] = []
     previous_handlers = _catch_stop_signals(stop_signals)
-    procs: list[Proc] = []
     last_progress = -1
     try:
-        procs = start_nodes(params_path, roles, args, env, log_dir, composed)
+        for run in runs:
+            log_dir = run.out_dir / "logs"
+            run_env = {**env, "ROS_LOG_DIR": str(log_dir)}
+            run.procs = start_nodes(
+                run.params_path, run.roles, run.args, run_env, log_dir, composed
+            )
         if on_started is not None:
-            on_started(procs)
-        plant_proc = procs[0] if composed else next(p for p in procs if p.role == "plant")
+            on_started([p for run in runs for p in run.procs])
         last_change = time.monotonic()
-        while True:
-            if stop_signals:
-                break
-            if watcher is not None:
-                watcher.spin(0.05)
-                if watcher.steps != last_progress:
-                    last_progress, last_change = watcher.steps, time.monotonic()
-                    if watcher.steps >= 0 and t_first is None:
-                        t_first = time.monotonic()
-            else:
-                time.sleep(0.05)
+        while not stop_signals:
+            for run in runs:
+                if run.watcher is not None:
+                    run.watcher.spin(0.05 / len(runs))
+                else:
+                    time.sleep(0.05 / len(runs))
+            watched = [run.watcher.steps for run in runs if run.watcher is not None]
+            slowest = min(watched) if watched else -1
+            if slowest != last_progress:
+                last_progress, last_change = slowest, time.monotonic()
+                if slowest >= 0 and t_first is None:
+                    t_first = time.monotonic()
             if line is not None and t_first is not None:
                 line.show(last_progress, time.monotonic() - t_first)
-            code = plant_proc.popen.poll()
-            if code is not None:
-                if code != 0:
-                    failure = f"{plant_proc.role} exited with code {code}:\n{plant_proc.tail()}"
-                break
-            dead = [p for p in procs if p.popen.poll() is not None]
-            if dead:
-                p = dead[0]
-                failure = f"{p.role} exited early with code {p.popen.returncode}:\n{p.tail()}"
+            failure = _check_processes(runs, composed)
+            if failure is not None or all(run.plant_done for run in runs):
                 break
             if time.monotonic() - last_change > stall_timeout_s:
-                failure = f"no progress for {stall_timeout_s:.0f} s (see {log_dir})"
+                failure = f"no progress for {stall_timeout_s:.0f} s (see {out_dir})"
                 break
     finally:
         t_end = time.monotonic()
-        codes = stop_nodes(procs)
-        if watcher is not None:
-            watcher.close()
+        stop_nodes([p for run in runs for p in run.procs])
+        codes = {
+            f"{run.axis}/{p.role}" if run.axis else p.role: p.popen.returncode
+            for run in runs
+            for p in run.procs
+        }
+        for run in runs:
+            if run.watcher is not None:
+                run.watcher.close()
         for sig, handler in previous_handlers.items():
             signal.signal(sig, handler)
     if stop_signals:
-        name = signal.Signals(stop_signals[0]).name
+        signame = signal.Signals(stop_signals[0]).name
+        bags = ", ".join(str(run.out_dir / "bag") for run in runs)
         raise RunInterruptedError(
-            f"interrupted by {name} at step {max(last_progress, 0)} of {steps}; "
-            f"the nodes were stopped, the bag written so far is in {bag_dir}",
+            f"interrupted by {signame} at step {max(last_progress, 0)} of {steps}; "
+            f"the nodes were stopped, the bag written so far is in {bags}",
             stop_signals[0],
         )
     if line is not None and failure is None:
@@ -532,13 +624,56 @@ def run_scenario(
     if failure is not None:
         raise RunError(failure)
     wall = t_end - (t_first or t_start)
-    summary = report.summarise(
-        out_dir,
-        scenario=scenario,
-        scenario_path=scenario_path,
-        wall_time_s=wall,
-        mode="composed" if composed else "separate processes",
-    )
+    summaries = {}
+    for run in runs:
+        summaries[run.axis] = report.summarise(
+            run.out_dir,
+            scenario=run.scenario,
+            scenario_path=run.scenario_path,
+            wall_time_s=wall,
+            mode="composed" if composed else "separate processes",
+        )
+        if plots:
+            report.plot(run.out_dir)
+    if not names:
+        return RunResult(out_dir, steps, wall, codes, summaries[""])
+    summary = report.summarise_axes(out_dir, scenario=scenario, axes=summaries, wall_time_s=wall)
     if plots:
-        report.plot(out_dir)
+        report.plot_contour(out_dir)
     return RunResult(out_dir, steps, wall, codes, summary)
+
+
+@dataclass
+class _AxisRun:
+    """The nodes of one axis in a run."""
+
+    axis: str  # "" for a single-axis scenario
+    namespace: str
+    scenario: dict[str, Any]
+    scenario_path: Path
+    out_dir: Path
+    roles: list[str]
+    params_path: Path
+    args: list[str]
+    procs: list[Proc] = field(default_factory=list)
+    watcher: ProgressWatcher | None = None
+
+    @property
+    def plant_done(self) -> bool:
+        plant = next((p for p in self.procs if p.role in ("plant", "composed")), None)
+        return plant is not None and plant.popen.poll() == 0
+
+
+def _check_processes(runs: list[_AxisRun], composed: bool) -> str | None:
+    """Why the run must stop now (a node failed or quit early), or None."""
+    for run in runs:
+        where = f"{run.axis}/" if run.axis else ""
+        for p in run.procs:
+            code = p.popen.poll()
+            if code is None or (code == 0 and p.role in ("plant", "composed")):
+                continue
+            if p.role in ("plant", "composed"):
+                return f"{where}{p.role} exited with code {code}:\n{p.tail()}"
+            if not run.plant_done:
+                return f"{where}{p.role} exited early with code {code}:\n{p.tail()}"
+    return None

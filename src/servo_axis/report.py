@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from servo_axis.core.errors import ConfigError
 from servo_axis.recording.bag import read_messages
 
 FAULT_NAMES = {1: "following_error", 2: "travel", 3: "current", 4: "input_timeout"}
@@ -415,3 +416,169 @@ def plot(run_dir: Path) -> list[Path]:
             )
         )
     return paths
+
+
+def contour(run_dir: Path, axes: list[str]) -> dict[str, Any]:
+    """Contour error of a two-axis circle run (000 Fig. 18).
+
+    The target circle is the least-squares circle through the axes'
+    original targets (their own radial deviation from it is reported as
+    ``target_radial_deviation_m``, so that a path that is not a circle shows).
+    The radial deviation of the measured path is ``|p - c| - R``; per cycle
+    of the reference its circular deviation (max - min, as ISO 230-4 defines
+    it for a circular test) and its largest magnitude.
+    """
+    if len(axes) != 2:
+        raise ConfigError(f"axes: expected two, got {axes!r}")
+    series = [_run_series(run_dir / a) for a in axes]
+    steps = np.intersect1d(series[0][1]["step"], series[1][1]["step"])
+    target = np.empty((steps.size, 2))
+    measured = np.empty((steps.size, 2))
+    for col, (_summary, sig, tgt, y, lead) in enumerate(series):
+        idx = np.searchsorted(sig["step"], steps)
+        target[:, col] = lead * tgt[idx]
+        measured[:, col] = lead * y[idx]
+    # Least-squares (Kasa) circle through the target: exact for points on a
+    # circle, however they are sampled.
+    lhs = np.column_stack((2 * target, np.ones(len(target))))
+    (cx, cy, c0), *_ = np.linalg.lstsq(lhs, np.sum(target**2, axis=1), rcond=None)
+    centre = np.array([cx, cy])
+    radius = float(np.sqrt(c0 + cx * cx + cy * cy))
+    radial = np.hypot(*(measured - centre).T) - radius
+    target_radial = np.hypot(*(target - centre).T) - radius
+    summary = series[0][0]
+    period = float(summary["control_period_s"])
+    cycle_s = summary.get("reference_period_s")
+    cycles = []
+    if cycle_s:
+        per_cycle = round(cycle_s / period)
+        for c in range(int(steps.max() + 1) // per_cycle):
+            inside = (steps >= c * per_cycle) & (steps < (c + 1) * per_cycle)
+            if inside.any():
+                r = radial[inside]
+                cycles.append(
+                    {
+                        "cycle": c + 1,
+                        "circular_deviation_m": float(r.max() - r.min()),
+                        "max_radial_m": float(np.max(np.abs(r))),
+                    }
+                )
+    return {
+        "axes": axes,
+        "centre_m": centre.tolist(),
+        "radius_m": radius,
+        "target_radial_deviation_m": float(np.max(np.abs(target_radial))),
+        "circular_deviation_m": float(radial.max() - radial.min()),
+        "max_radial_m": float(np.max(np.abs(radial))),
+        "cycles": cycles,
+        "_series": (steps, target, measured, radial),
+    }
+
+
+def summarise_axes(
+    run_dir: Path,
+    *,
+    scenario: dict[str, Any],
+    axes: dict[str, dict[str, Any]],
+    wall_time_s: float,
+) -> dict[str, Any]:
+    """Summary of a multi-axis run: the axes' summaries and, for two, the contour."""
+    from servo_axis.bringup import shared
+
+    about = shared(scenario).get("scenario", {})
+    summary: dict[str, Any] = {
+        "scenario": about.get("name", ""),
+        "description": about.get("description", ""),
+        "wall_time_s": wall_time_s,
+        "axes": axes,
+    }
+    if len(axes) == 2:
+        c = contour(run_dir, sorted(axes))
+        c.pop("_series")
+        summary["contour"] = c
+    (run_dir / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=True))
+    return summary
+
+
+def format_axes_summary(summary: dict[str, Any]) -> str:
+    """A multi-axis summary as text: each axis, then the contour per cycle (um)."""
+    lines = [f"scenario          {summary['scenario']}  (axes {', '.join(summary['axes'])})"]
+    for axis, s in summary["axes"].items():
+        lines += ["", f"== axis {axis}", format_summary(s)]
+    c = summary.get("contour")
+    if c:
+        lines += [
+            "",
+            f"== contour: circle of radius {1e3 * c['radius_m']:.3f} mm "
+            f"(target off the circle by {_um(c['target_radial_deviation_m'])} um)",
+            f"circular deviation {_um(c['circular_deviation_m'])} um, "
+            f"max radial error {_um(c['max_radial_m'])} um",
+            "cycle   circular deviation (um)   max radial error (um)",
+        ]
+        for row in c["cycles"]:
+            lines.append(
+                f"{row['cycle']:>5} {_um(row['circular_deviation_m']):>25} "
+                f"{_um(row['max_radial_m']):>23}"
+            )
+    return "\n".join(lines)
+
+
+def plot_contour(run_dir: Path) -> Path:
+    """``contour.png``: the path of the first and last cycle with the radial
+    error magnified (000 Fig. 18), and the circular deviation per cycle."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    summary = json.loads((run_dir / "summary.json").read_text())
+    c = contour(run_dir, summary["contour"]["axes"])
+    steps, _target, measured, radial = c["_series"]
+    centre, radius = np.array(c["centre_m"]), c["radius_m"]
+    per_cycle = round(
+        summary["axes"][c["axes"][0]]["reference_period_s"]
+        / summary["axes"][c["axes"][0]]["control_period_s"]
+    )
+    gain = 0.2 * radius / max(c["max_radial_m"], 1e-15)
+    fig, (xy, bars) = plt.subplots(1, 2, figsize=(11, 5))
+    angle = np.arctan2(*(measured - centre).T[::-1])
+    phi = np.linspace(0, 2 * np.pi, 400)
+    xy.plot(
+        1e3 * (centre[0] + radius * np.cos(phi)),
+        1e3 * (centre[1] + radius * np.sin(phi)),
+        "k:",
+        lw=0.8,
+        label="target",
+    )
+    last = max(0, (int(steps.max()) + 1) // per_cycle - 1)  # the last whole cycle
+    for cycle, style in ((0, "-"), (last, "-")):
+        inside = (steps >= cycle * per_cycle) & (steps < (cycle + 1) * per_cycle)
+        r = radius + gain * radial[inside]
+        xy.plot(
+            1e3 * (centre[0] + r * np.cos(angle[inside])),
+            1e3 * (centre[1] + r * np.sin(angle[inside])),
+            style,
+            lw=0.9,
+            label=f"cycle {cycle + 1}",
+        )
+    xy.set_aspect("equal")
+    xy.set_xlabel(f"{c['axes'][0]} (mm)")
+    xy.set_ylabel(f"{c['axes'][1]} (mm)")
+    xy.set_title(f"radial error x {gain:,.0f}")
+    xy.legend(fontsize="small")
+    rows = summary["contour"]["cycles"]
+    bars.bar([r["cycle"] for r in rows], [1e6 * r["circular_deviation_m"] for r in rows])
+    bars.set_xlabel("cycle")
+    bars.set_ylabel("circular deviation (um)")
+    bars.set_title(f"{summary['scenario']}: circularity per cycle")
+    bars.grid(True, lw=0.3)
+    fig.tight_layout()
+    path = run_dir / "contour.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def format_any_summary(summary: dict[str, Any]) -> str:
+    """:func:`format_axes_summary` for a multi-axis run, else :func:`format_summary`."""
+    return format_axes_summary(summary) if "axes" in summary else format_summary(summary)

@@ -20,7 +20,15 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 from servo_axis import msgs
-from servo_axis.bringup import handshake_overrides, load_scenario, node_params, roles_of, shared
+from servo_axis.bringup import (
+    axes_of,
+    axis_view,
+    handshake_overrides,
+    load_scenario,
+    node_params,
+    roles_of,
+    shared,
+)
 from servo_axis.core.errors import ParameterFileError
 from servo_axis.nodes.common import LATCHED_QOS, STREAM_QOS
 from servo_axis.nodes.feedback import FeedbackNode
@@ -540,9 +548,6 @@ def test_every_scenario_is_accepted_by_each_of_its_nodes(
     data = load_scenario(scenario)
     # `python -m servo_axis list` shows it; the summary carries it.
     assert shared(data)["scenario"]["description"]
-    roles = roles_of(data)
-    assert {"plant", "feedback"} <= set(roles)
-    extra = handshake_overrides(data, roles, tmp_path / "bag", scenario.parent)
     classes = {
         "plant": PlantNode,
         "feedback": FeedbackNode,
@@ -550,14 +555,21 @@ def test_every_scenario_is_accepted_by_each_of_its_nodes(
         "learning": LearningNode,
         "recorder": RecorderNode,
     }
-    for role in roles:
-        values = {**node_params(data, role), **extra.get(role, {})}
-        # The full validation of the node's constructor (schema, ranges,
-        # physical consistency, files): it raises on anything wrong.
-        node = classes[role](
-            context=context, parameter_overrides=[Parameter(k, value=v) for k, v in values.items()]
-        )
-        close = getattr(node, "close", None)
-        if close is not None:
-            close()
-        node.destroy_node()
+    # A multi-axis scenario: each axis's merged view, as the bringup runs it.
+    views = [axis_view(data, a, scenario.parent) for a in axes_of(data)] or [data]
+    for number, view in enumerate(views):
+        roles = roles_of(view)
+        assert {"plant", "feedback"} <= set(roles)
+        extra = handshake_overrides(view, roles, tmp_path / f"{number}" / "bag", scenario.parent)
+        for role in roles:
+            values = {**node_params(view, role), **extra.get(role, {})}
+            # The full validation of the node's constructor (schema, ranges,
+            # physical consistency, files): it raises on anything wrong.
+            node = classes[role](
+                context=context,
+                parameter_overrides=[Parameter(k, value=v) for k, v in values.items()],
+            )
+            close = getattr(node, "close", None)
+            if close is not None:
+                close()
+            node.destroy_node()

@@ -80,6 +80,32 @@ def test_sine_and_one_minus_cos_are_the_closed_forms() -> None:
     assert_allclose(pos, 0.01 * (1 - np.cos(2 * w * t)), atol=1e-15)
 
 
+def test_ramped_sine_starts_at_rest_and_is_the_plain_sine_after_the_ramp() -> None:
+    ramp, f = 0.5, 2.0
+    ref = SineReference(amplitude_m=0.01, frequency_hz=f, phase_rad=0.3, ramp_s=ramp)
+    t = np.linspace(0.0, 1.5, 150_001)
+    pos, vel, acc = ref.sample(t)
+    h = t[1] - t[0]
+    # Derivatives consistent through the ramp and its end (continuous jerk).
+    assert_allclose(np.gradient(pos, h)[1:-1], vel[1:-1], atol=1e-4 * np.max(np.abs(vel)))
+    assert_allclose(np.gradient(vel, h)[2:-2], acc[2:-2], atol=2e-3 * np.max(np.abs(acc)))
+    assert_allclose([vel[0], acc[0]], [0.0, 0.0], atol=1e-15)
+    # After the ramp: the plain sine, its phase late by w T / 2.
+    late = t >= ramp
+    plain = SineReference(
+        amplitude_m=0.01, frequency_hz=f, phase_rad=0.3 - 2 * math.pi * f * ramp / 2
+    ).sample(t[late])
+    for got, want in zip((pos[late], vel[late], acc[late]), plain, strict=True):
+        assert_allclose(got, want, atol=1e-12)
+    # Two axes with the same ramp, a quarter period apart, stay on a circle.
+    radius = 0.01
+    x = SineReference(
+        amplitude_m=radius, frequency_hz=f, offset_m=radius, phase_rad=-math.pi / 2, ramp_s=ramp
+    ).sample(t)[0]
+    y = SineReference(amplitude_m=radius, frequency_hz=f, ramp_s=ramp).sample(t)[0]
+    assert_allclose(np.hypot(x - radius, y), radius, rtol=1e-12)
+
+
 def test_point_to_point_endpoints_rest_and_return() -> None:
     ref = PointToPointReference(distance_m=0.02, move_time_s=0.3, dwell_s=0.1, start_m=0.005)
     pos, vel, acc = ref.sample(np.array([0.0, 0.3, 0.35, 0.4, 0.7, 0.75]))

@@ -33,7 +33,16 @@ class Reference(Protocol):
 
 @dataclass(frozen=True, kw_only=True)
 class SineReference:
-    """``x = offset + A sin(2 pi f t + phase)``.
+    """``x = offset + A sin(2 pi f s(t) + phase)``, ``s(t) = t`` unless ramped.
+
+    With ``ramp_s = T > 0`` the phase speeds up smoothly from rest: the time
+    warp ``s`` has ``s'(t) = 10 u^3 - 15 u^4 + 6 u^5`` (``u = t / T``), so
+    ``s(t) = T (2.5 u^4 - 3 u^5 + u^6)`` for ``t < T`` and
+    ``s(t) = t - T / 2`` after it: the speed of the phase goes from 0 to
+    ``2 pi f`` with continuous acceleration and jerk, and the signal is
+    periodic from ``T`` on. Two axes with the same ramp trace a circle that
+    starts at rest, which a constant-speed circle cannot (000 Fig. 18
+    starts at full speed and needs a very large input at t = 0).
 
     Parameters
     ----------
@@ -43,18 +52,34 @@ class SineReference:
         ``f``, Hz, > 0.
     offset_m, phase_rad : float
         Offset (m) and phase at t = 0 (rad).
+    ramp_s : float
+        ``T``, s, >= 0 (0: no ramp).
     """
 
     amplitude_m: float
     frequency_hz: float
     offset_m: float = 0.0
     phase_rad: float = 0.0
+    ramp_s: float = 0.0
 
     def __post_init__(self) -> None:
         require_nonnegative("amplitude_m", self.amplitude_m)
         require_positive("frequency_hz", self.frequency_hz)
         require_finite("offset_m", self.offset_m)
         require_finite("phase_rad", self.phase_rad)
+        require_nonnegative("ramp_s", self.ramp_s)
+
+    def _warp(self, t: np.ndarray) -> Arrays:
+        """``s, s', s''`` of the ramp at ``t``."""
+        if self.ramp_s == 0.0:
+            return t, np.ones_like(t), np.zeros_like(t)
+        big_t = self.ramp_s
+        u = np.clip(t / big_t, 0.0, 1.0)
+        ramping = t < big_t
+        s = np.where(ramping, big_t * (2.5 * u**4 - 3 * u**5 + u**6), t - big_t / 2)
+        ds = np.where(ramping, 10 * u**3 - 15 * u**4 + 6 * u**5, 1.0)
+        dds = np.where(ramping, (30 * u**2 - 60 * u**3 + 30 * u**4) / big_t, 0.0)
+        return s, ds, dds
 
     @property
     def period_s(self) -> float:
@@ -64,9 +89,14 @@ class SineReference:
     def sample(self, t_s: ArrayLike) -> Arrays:
         t = np.asarray(t_s, dtype=float)
         w = 2.0 * math.pi * self.frequency_hz
-        arg = w * t + self.phase_rad
+        s, ds, dds = self._warp(t)
+        arg = w * s + self.phase_rad
         a = self.amplitude_m
-        return self.offset_m + a * np.sin(arg), a * w * np.cos(arg), -a * w * w * np.sin(arg)
+        return (
+            self.offset_m + a * np.sin(arg),
+            a * w * ds * np.cos(arg),
+            a * w * (dds * np.cos(arg) - w * ds * ds * np.sin(arg)),
+        )
 
 
 @dataclass(frozen=True, kw_only=True)

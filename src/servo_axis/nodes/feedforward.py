@@ -41,6 +41,7 @@ SCHEMA: dict[str, object] = {
     "reference.frequency_hz": 2.0,
     "reference.offset_m": 0.0,
     "reference.phase_rad": 0.0,
+    "reference.ramp_s": 0.0,
     "reference.distance_m": 0.01,
     "reference.move_time_s": 0.2,
     "reference.dwell_s": 0.1,
@@ -56,7 +57,7 @@ SCHEMA: dict[str, object] = {
 
 #: Which reference.* keys each kind takes.
 REFERENCE_KEYS = {
-    "sine": ("amplitude_m", "frequency_hz", "offset_m", "phase_rad"),
+    "sine": ("amplitude_m", "frequency_hz", "offset_m", "phase_rad", "ramp_s"),
     "one_minus_cos": ("amplitude_m", "frequency_hz"),
     "point_to_point": ("distance_m", "move_time_s", "dwell_s"),
 }
