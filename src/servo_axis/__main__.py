@@ -71,6 +71,11 @@ def _compare(args: argparse.Namespace) -> int:
     from servo_axis import report
 
     summaries = [json.loads((Path(d) / "summary.json").read_text()) for d in args.run_dirs]
+    for run_dir, summary in zip(args.run_dirs, summaries, strict=True):
+        if "axes" in summary:
+            axes = ", ".join(str(Path(run_dir) / a) for a in summary["axes"])
+            print(f"error: {run_dir}: a multi-axis run; compare its axes: {axes}", file=sys.stderr)
+            return 2
     labels = args.labels.split(",") if args.labels else [Path(d).name for d in args.run_dirs]
     if len(labels) != len(summaries):
         print(
