@@ -18,7 +18,6 @@ import os
 import signal
 import subprocess
 import sys
-import threading
 import time
 from dataclasses import dataclass, field
 from importlib import resources
@@ -28,6 +27,7 @@ from typing import Any, TextIO
 import yaml
 
 from servo_axis.core.errors import ConfigError
+from servo_axis.stop_signals import catch_stop_signals, restore_handlers
 
 ROLES = ("plant", "feedback", "feedforward", "learning", "recorder")
 SHARED_SECTION = "/**"
@@ -108,10 +108,17 @@ def axis_view(scenario: dict[str, Any], axis: str, scenario_dir: Path) -> dict[s
             base = scenario.get(role, {}).get("ros__parameters", {})
             view[role] = {"ros__parameters": merge(base, own)}
     ff = view.get("feedforward", {}).get("ros__parameters", {})
-    table = ff.get("friction_table", {}).get("file")
-    if table and not Path(table).is_absolute():
-        ff["friction_table"] = {**ff["friction_table"], "file": str(scenario_dir / table)}
+    if ff.get("friction_table", {}).get("file"):
+        table = resolve_table(ff["friction_table"]["file"], scenario_dir)
+        ff["friction_table"] = {**ff["friction_table"], "file": table}
     return view
+
+
+def resolve_table(path_text: str, scenario_dir: Path) -> str:
+    """A friction-table path of a scenario: relative ones are relative to the scenario's directory."""
+    if path_text and not Path(path_text).is_absolute():
+        return str(scenario_dir / path_text)
+    return path_text
 
 
 def shared(scenario: dict[str, Any]) -> dict[str, Any]:
@@ -187,9 +194,8 @@ def handshake_overrides(
     if "feedforward" in roles:
         out["feedforward"] = {"wait_for_reference_subscribers": ref_subs}
         table = node_params(scenario, "feedforward").get("friction_table.file", "")
-        if table and not Path(table).is_absolute():
-            # Relative table paths are relative to the scenario file.
-            out["feedforward"]["friction_table.file"] = str(scenario_dir / table)
+        if table:
+            out["feedforward"]["friction_table.file"] = resolve_table(table, scenario_dir)
     return out
 
 
@@ -369,21 +375,6 @@ def clean_stale_shm(*, since: float, shm_dir: Path = Path("/dev/shm")) -> list[s
             path.unlink(missing_ok=True)
         removed.append(name)
     return removed
-
-
-def _catch_stop_signals(received: list[int]) -> dict[int, Any]:
-    """Record SIGINT/SIGTERM in ``received`` instead of dying (main thread only).
-
-    Returns the handlers to restore. Without this a SIGTERM would kill the
-    runner and leave its nodes running.
-    """
-    if threading.current_thread() is not threading.main_thread():
-        return {}
-
-    def record(signum: int, _frame: object) -> None:
-        received.append(signum)
-
-    return {sig: signal.signal(sig, record) for sig in (signal.SIGINT, signal.SIGTERM)}
 
 
 def _signal_group(popen: subprocess.Popen[bytes], sig: int) -> None:
@@ -566,7 +557,7 @@ def run_scenario(
     t_first: float | None = None
     failure: str | None = None
     stop_signals: list[int] = []
-    previous_handlers = _catch_stop_signals(stop_signals)
+    previous_handlers = catch_stop_signals(stop_signals)
     last_progress = -1
     try:
         for run in runs:
@@ -609,8 +600,7 @@ def run_scenario(
         for run in runs:
             if run.watcher is not None:
                 run.watcher.close()
-        for sig, handler in previous_handlers.items():
-            signal.signal(sig, handler)
+        restore_handlers(previous_handlers)
     if stop_signals:
         signame = signal.Signals(stop_signals[0]).name
         bags = ", ".join(str(run.out_dir / "bag") for run in runs)

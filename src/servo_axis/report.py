@@ -140,18 +140,15 @@ def tracking(
     """
     from servo_axis.bringup import node_params, shared
     from servo_axis.nodes import feedforward
-    from servo_axis.simulate import scenario_values
+    from servo_axis.simulate import feedforward_values
 
     lead = float(shared(scenario).get("lead_m_per_rad", 1.91e-3))
     fb = node_params(scenario, "feedback")
     y = sig["scale_m"] / lead if fb.get("sensor", "encoder") == "scale" else sig["encoder_rad"]
     target = sig["reference_rad"]
     if learning_enabled(scenario) and sig["step"].size:
-        values = scenario_values(scenario, "feedforward", feedforward.SCHEMA)
+        values = feedforward_values(scenario, scenario_path)
         values["learning.enabled"] = False
-        table = values["friction_table.file"]
-        if table and not Path(table).is_absolute():
-            values["friction_table.file"] = str(scenario_path.resolve().parent / table)
         rows = feedforward.build_generator(values).samples(0, int(sig["step"].max()) + 1)
         target = np.array([rows[k][0] for k in sig["step"]])
     return target, y

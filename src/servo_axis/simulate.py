@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from servo_axis.bringup import load_scenario, node_params
+from servo_axis.bringup import load_scenario, node_params, resolve_table
 from servo_axis.nodes import feedback, feedforward, plant
 from servo_axis.params import values_from_mapping
 
@@ -37,15 +37,21 @@ def scenario_values(
     return values_from_mapping(schema, node_params(scenario, role), role)
 
 
+def feedforward_values(scenario: dict[str, Any], scenario_path: Path) -> dict[str, Any]:
+    """Checked feedforward parameters, the friction-table path made absolute."""
+    values = scenario_values(scenario, "feedforward", feedforward.SCHEMA)
+    values["friction_table.file"] = resolve_table(
+        values["friction_table.file"], scenario_path.resolve().parent
+    )
+    return values
+
+
 def simulate(scenario_path: Path, *, steps: int | None = None) -> Trajectory:
     """Run the scenario's loop (plant, feedback, feedforward) as plain calls."""
     scenario = load_scenario(scenario_path)
     pv = scenario_values(scenario, "plant", plant.SCHEMA)
     fbv = scenario_values(scenario, "feedback", feedback.SCHEMA)
-    ffv = scenario_values(scenario, "feedforward", feedforward.SCHEMA)
-    table = ffv["friction_table.file"]
-    if table and not Path(table).is_absolute():
-        ffv["friction_table.file"] = str(scenario_path.resolve().parent / table)
+    ffv = feedforward_values(scenario, scenario_path)
     n = plant.run_steps(pv) if steps is None else steps
     sim = plant.BallScrewPlant(plant.plant_params(pv), rng=np.random.default_rng(pv["noise_seed"]))
     loop = feedback.build_loop(fbv)

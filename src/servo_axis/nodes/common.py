@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-import signal
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -16,6 +15,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.signals import SignalHandlerOptions
 
 from servo_axis.core.errors import ServoAxisError
+from servo_axis.stop_signals import catch_stop_signals, restore_handlers
 
 #: Per-sample streams: reliable, deep enough for the preview window and the
 #: recorder's flow-control lag.
@@ -115,12 +115,8 @@ def run_main(
     to publish and log a traceback.
     """
     stop_requested: list[int] = []
-
-    def request_stop(signum: int, _frame: object) -> None:
-        stop_requested.append(signum)
-
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    previous = {sig: signal.signal(sig, request_stop) for sig in (signal.SIGINT, signal.SIGTERM)}
+    previous = catch_stop_signals(stop_requested)
     nodes: list[Node] = []
     code = 0
     try:
@@ -141,6 +137,5 @@ def run_main(
                 close()
             node.destroy_node()
         rclpy.try_shutdown()
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+        restore_handlers(previous)
     return code

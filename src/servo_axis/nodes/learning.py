@@ -186,15 +186,16 @@ class LearningNode(Node):
         complete = bool(np.all(np.isfinite(error)))
         # Cycle ``cycle`` (0-based) ends; its correction is for 1-based cycle
         # ``cycle + 2``; learning is on from ``start_cycle`` (1-based, >= 2).
-        if complete and cycle + 2 >= self._v["start_cycle"]:
-            self.psg.learn(error)
-        elif not complete and cycle + 2 >= self._v["start_cycle"]:
-            # Started or restarted mid-cycle, or states were rejected: a
-            # partial error would teach a wrong correction.
-            received = int(np.count_nonzero(np.isfinite(error)))
-            self.get_logger().warning(
-                f"cycle {cycle + 1} not learned: {received} of {self._nd} reference instants received"
-            )
+        if cycle + 2 >= self._v["start_cycle"]:
+            if complete:
+                self.psg.learn(error)
+            else:
+                # Started or restarted mid-cycle, or states were rejected: a
+                # partial error would teach a wrong correction.
+                received = int(np.count_nonzero(np.isfinite(error)))
+                self.get_logger().warning(
+                    f"cycle {cycle + 1} not learned: {received} of {self._nd} reference instants received"
+                )
         # Persist before publishing: whatever a listener has seen of this
         # cycle (correction, stats) is already on disk if the unit dies now.
         if self._memory is not None:
