@@ -126,6 +126,8 @@ def test_reference_validation_names_the_field() -> None:
         SineReference(amplitude_m=0.01, frequency_hz=0.0)
     with pytest.raises(ConfigError, match="distance_m"):
         PointToPointReference(distance_m=0.0, move_time_s=1.0)
+    with pytest.raises(ConfigError, match="ramp_s"):
+        SineReference(amplitude_m=0.01, frequency_hz=2.0, ramp_s=-0.1)
 
 
 # -- PID and DOB ----------------------------------------------------------------

@@ -61,3 +61,35 @@ def test_a_section_that_is_no_node_or_axis_is_refused_by_name(tmp_path: Path, ke
     data = {"plant": {"ros__parameters": {}}, key: {"ros__parameters": {}}}
     with pytest.raises(ConfigError, match=re.escape(f"unknown section '{key}'")):
         load_scenario(write(tmp_path, data))
+
+
+def test_a_multi_axis_scenario_refuses_composed_and_namespace_before_starting(
+    tmp_path: Path,
+) -> None:
+    from servo_axis.bringup import run_scenario
+
+    config = Path(__file__).resolve().parents[2] / "config" / "xy_circle.yaml"
+    for options in ({"composed": True}, {"namespace": "/a"}):
+        out = tmp_path / "run"
+        with pytest.raises(ConfigError, match="multi-axis scenario runs as separate processes"):
+            run_scenario(config, out_dir=out, progress=None, **options)
+        assert not out.exists()  # nothing was started or written
+
+
+def test_compare_refuses_a_multi_axis_run_and_a_wrong_label_count(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import json
+
+    from servo_axis.__main__ import main
+
+    xy = tmp_path / "xy"
+    xy.mkdir()
+    (xy / "summary.json").write_text(json.dumps({"axes": {"x": {}, "y": {}}}))
+    assert main(["compare", str(xy)]) == 2
+    assert f"compare its axes: {xy / 'x'}, {xy / 'y'}" in capsys.readouterr().err
+    one = tmp_path / "one"
+    one.mkdir()
+    (one / "summary.json").write_text(json.dumps({"tracking_error": {"cycles": []}}))
+    assert main(["compare", str(one), "--labels", "Q,Q~5"]) == 2
+    assert "--labels: expected 1 comma-separated labels, got 2" in capsys.readouterr().err
