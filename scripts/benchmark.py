@@ -46,7 +46,6 @@ def pong() -> None:
     """Child process: echo every ``ping`` on ``pong``."""
     import rclpy
     from sensor_msgs.msg import JointState
-
     from servo_axis.nodes.common import STREAM_QOS, make_executor
 
     rclpy.init()
@@ -71,9 +70,9 @@ def ping_pong(env: dict[str, str]) -> float:
     os.environ.update(env)
     import rclpy
     from sensor_msgs.msg import JointState
+    from servo_axis.nodes.common import STREAM_QOS, make_executor
 
     from servo_axis import msgs
-    from servo_axis.nodes.common import STREAM_QOS, make_executor
 
     child = subprocess.Popen(
         [sys.executable, __file__, "--pong"],
@@ -141,7 +140,7 @@ def learning_cost(
     period: float,
 ) -> int:
     """Steps/s with and without the learning unit as its own process (issue 3's < 15 % budget)."""
-    from servo_axis.bringup import run_scenario
+    from servo_axis.run.runner import run_scenario
 
     if "learning" not in data:
         raise SystemExit("--learning-cost needs a scenario with a learning section")
@@ -157,7 +156,7 @@ def learning_cost(
             print(f"{name}, run {rep + 1} of {args.repeat} ...", flush=True)
             out_dir = tmp / f"{name.replace(' ', '_')}_{rep}"
             r = run_scenario(path, out_dir=out_dir, domain_id=domain, progress=None, plots=False)
-            samples[name].append(r.summary["steps_per_s"])
+            samples[name].append(r.summary.steps_per_s)
     rates = {name: float(sorted(v)[len(v) // 2]) for name, v in samples.items()}
     base = rates["without learning unit"]
     with_ = rates["with learning unit"]
@@ -210,7 +209,9 @@ def main() -> int:
         pong()
         return 0
 
-    from servo_axis.bringup import load_scenario, ros_environment, run_scenario
+    from servo_axis.params.scenario import load_scenario
+    from servo_axis.run.processes import ros_environment
+    from servo_axis.run.runner import run_scenario
     from servo_axis.simulate import simulate
 
     tmp = Path(tempfile.mkdtemp(prefix="servo_axis_bench_"))
@@ -243,11 +244,11 @@ def main() -> int:
             progress=None,
             plots=False,
         )
-        counts = r.summary["message_counts"]
+        counts = r.summary.message_counts
         expected = {"/state": steps, "/command": steps, "/reference": steps, "/clock": steps // 10}
         lost = {t: n - counts.get(t, 0) for t, n in expected.items()}
         assert not any(lost.values()), f"recorder lost messages: {lost}"
-        results.append((f"{name}, recorder on", r.summary["steps_per_s"]))
+        results.append((f"{name}, recorder on", r.summary.steps_per_s))
     print("core only ...", flush=True)
     t0 = time.perf_counter()
     simulate(scenario, steps=steps)

@@ -13,7 +13,6 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-
 from servo_axis.core.controllers import design_pid_pole_placement
 from servo_axis.core.plant import BALL_SCREW_MODES
 from servo_axis.core.rptc import (

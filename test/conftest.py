@@ -36,7 +36,7 @@ def ros_env(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[int]:
     log_dir.mkdir()
     monkeypatch.setenv("ROS_LOG_DIR", str(log_dir))
     # The in-test probes use the nodes' discovery profile (restored after).
-    from servo_axis.bringup import ros_environment
+    from servo_axis.run.processes import ros_environment
 
     profile = ros_environment(domain, log_dir)["FASTRTPS_DEFAULT_PROFILES_FILE"]
     monkeypatch.setenv("FASTRTPS_DEFAULT_PROFILES_FILE", profile)

@@ -1,28 +1,38 @@
-"""Command line: ``python -m servo_axis [run SCENARIO | friction-table RUN_DIR | summary RUN_DIR]``.
+"""Command line of the suite.
 
-With no arguments it runs the default scenario (``config/ptc_nominal.yaml``).
+``python -m servo_axis run SCENARIO``
+    run a scenario end to end and record it; SCENARIO is the name of a
+    shipped scenario (``rptc_detailed``) or a scenario file;
+``python -m servo_axis list``
+    the shipped scenarios and what each runs;
+``python -m servo_axis summary RUN_DIR`` / ``compare RUN_DIR...`` / ``friction-table RUN_DIR``
+    a run's summary again, runs side by side, a friction table from a run.
+
+With no arguments it runs the shipped scenario ``rptc_friction_table``: the
+detailed axis (resonances, dead time, rolling friction) with the friction
+table from cycle 1 and repetitive PTC learning from cycle 2.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
 from servo_axis.core.errors import ServoAxisError
 
-CONFIG_DIR = Path(__file__).resolve().parents[2] / "config"
-DEFAULT_SCENARIO = CONFIG_DIR / "ptc_nominal.yaml"
+#: The shipped scenario ``python -m servo_axis`` runs.
+DEFAULT_SCENARIO = "rptc_friction_table"
 
 
 def _run(args: argparse.Namespace) -> int:
-    from servo_axis import report
-    from servo_axis.bringup import RunError, RunInterruptedError, run_scenario
+    from servo_axis.analysis.summary import AxesSummary
+    from servo_axis.analysis.text import format_any_summary
+    from servo_axis.run.runner import RunError, RunInterruptedError, run_scenario
 
     try:
         result = run_scenario(
-            Path(args.scenario),
+            args.scenario,
             out_dir=Path(args.out) if args.out else None,
             composed=args.composed,
             domain_id=args.domain_id,
@@ -36,12 +46,12 @@ def _run(args: argparse.Namespace) -> int:
         print(f"run failed: {err}", file=sys.stderr)
         return 1
     print()
-    print(report.format_any_summary(result.summary))
+    print(format_any_summary(result.summary))
     print()
     contents = (
-        f"{', '.join(a + '/' for a in result.summary['axes'])} (one axis each: bag/, summary.json, "
+        f"{', '.join(a + '/' for a in result.summary.axes)} (one axis each: bag/, summary.json, "
         "*.png, logs/), summary.json, contour.png"
-        if "axes" in result.summary
+        if isinstance(result.summary, AxesSummary)
         else "bag/, summary.json, *.png, logs/"
     )
     print(f"run directory: {result.run_dir}  ({contents})")
@@ -60,22 +70,26 @@ def _friction_table(args: argparse.Namespace) -> int:
 
 
 def _summary(args: argparse.Namespace) -> int:
-    from servo_axis import report
+    from servo_axis.analysis.summary import load_summary
+    from servo_axis.analysis.text import format_any_summary
 
-    summary = json.loads((Path(args.run_dir) / "summary.json").read_text())
-    print(report.format_any_summary(summary))
+    print(format_any_summary(load_summary(Path(args.run_dir))))
     return 0
 
 
 def _compare(args: argparse.Namespace) -> int:
-    from servo_axis import report
+    from servo_axis.analysis.plots import plot_cycles, plot_error_overlay
+    from servo_axis.analysis.summary import AxesSummary, RunSummary, load_summary
+    from servo_axis.analysis.text import compare_table
 
-    summaries = [json.loads((Path(d) / "summary.json").read_text()) for d in args.run_dirs]
-    for run_dir, summary in zip(args.run_dirs, summaries, strict=True):
-        if "axes" in summary:
-            axes = ", ".join(str(Path(run_dir) / a) for a in summary["axes"])
+    loaded = [load_summary(Path(d)) for d in args.run_dirs]
+    summaries: list[RunSummary] = []
+    for run_dir, summary in zip(args.run_dirs, loaded, strict=True):
+        if isinstance(summary, AxesSummary):
+            axes = ", ".join(str(Path(run_dir) / a) for a in summary.axes)
             print(f"error: {run_dir}: a multi-axis run; compare its axes: {axes}", file=sys.stderr)
             return 2
+        summaries.append(summary)
     labels = args.labels.split(",") if args.labels else [Path(d).name for d in args.run_dirs]
     if len(labels) != len(summaries):
         print(
@@ -83,12 +97,12 @@ def _compare(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
-    print(report.compare_table(summaries, labels))
+    print(compare_table(summaries, labels))
     if args.out:
-        report.plot_cycles(summaries, labels, Path(args.out), title=args.title)
+        plot_cycles(summaries, labels, Path(args.out), title=args.title)
         print(f"figure written to {args.out}")
     if args.error_out:
-        report.plot_error_overlay(
+        plot_error_overlay(
             [Path(d) for d in args.run_dirs],
             labels,
             Path(args.error_out),
@@ -100,11 +114,12 @@ def _compare(args: argparse.Namespace) -> int:
 
 
 def _list(args: argparse.Namespace) -> int:
-    from servo_axis.bringup import load_scenario, shared
+    from servo_axis.params.scenario import load_scenario, scenario_dir, shared
 
-    for path in sorted(Path(args.config_dir).glob("*.yaml")):
+    folder = Path(args.config_dir) if args.config_dir else scenario_dir()
+    for path in sorted(folder.glob("*.yaml")):
         about = shared(load_scenario(path)).get("scenario", {})
-        print(f"{path.name:<28} {about.get('description', '')}")
+        print(f"{path.stem:<24} {about.get('description', '')}")
     return 0
 
 
@@ -114,7 +129,9 @@ def main(argv: list[str] | None = None) -> int:
     sub = parser.add_subparsers(dest="command")
     run = sub.add_parser("run", help="run a scenario end to end and record it")
     run.add_argument(
-        "scenario", help="scenario file (ROS parameter YAML), e.g. config/ptc_nominal.yaml"
+        "scenario",
+        help="name of a shipped scenario (see `list`), e.g. rptc_detailed, "
+        "or a scenario file (ROS parameter YAML)",
     )
     run.add_argument("--out", help="run directory to create (default runs/<name>-<time>)")
     run.add_argument("--composed", action="store_true", help="all nodes in one process")
@@ -133,8 +150,8 @@ def main(argv: list[str] | None = None) -> int:
     sm = sub.add_parser("summary", help="print the summary of a run directory")
     sm.add_argument("run_dir")
     sm.set_defaults(func=_summary)
-    ls = sub.add_parser("list", help="the scenarios in config/ and what each runs")
-    ls.add_argument("--config-dir", default=str(CONFIG_DIR))
+    ls = sub.add_parser("list", help="the shipped scenarios and what each runs")
+    ls.add_argument("--config-dir", default=None, help="list this folder's scenarios instead")
     ls.set_defaults(func=_list)
     cmp = sub.add_parser(
         "compare", help="max/RMS error per cycle of several runs (e.g. Q vs Q~n, 000 Fig. 15)"
@@ -148,7 +165,7 @@ def main(argv: list[str] | None = None) -> int:
     cmp.set_defaults(func=_compare)
     args = parser.parse_args(argv)
     if args.command is None:
-        args = parser.parse_args(["run", str(DEFAULT_SCENARIO)])
+        args = parser.parse_args(["run", DEFAULT_SCENARIO])
     try:
         return int(args.func(args))
     except (ServoAxisError, OSError) as err:

@@ -16,8 +16,11 @@ from pathlib import Path
 
 import numpy as np
 
-from servo_axis.core.friction_table import FrictionTable, build_friction_table
-from servo_axis.report import load_signals
+from servo_axis.analysis.signals import load_signals
+from servo_axis.analysis.summary import SUMMARY_FILE, RunSummary
+from servo_axis.core.feedforward.friction_table import FrictionTable, build_friction_table
+from servo_axis.params.factories import node_values
+from servo_axis.params.scenario import load_scenario
 
 
 def estimate_friction_torque(
@@ -38,28 +41,27 @@ def estimate_friction_torque(
 def table_from_run(
     run_dir: Path, *, bin_width_m: float = 0.5e-6, max_displacement_m: float = 40e-6
 ) -> FrictionTable:
-    """Build the friction table from a recorded ``friction_id`` run directory."""
-    import json
+    """Build the friction table from a recorded ``friction_id`` run directory.
 
-    from servo_axis.bringup import load_scenario, shared
-
-    summary = json.loads((run_dir / "summary.json").read_text())
-    scenario = load_scenario(Path(summary["scenario_file"]))
-    common = shared(scenario)
-    nominal = common.get("nominal", {})
-    period = float(common.get("control_period_s", 1e-3))
-    lead = float(common.get("lead_m_per_rad", 1.91e-3))
-    sig = load_signals(run_dir / "bag", period)
+    The control period, the lead and the nominal model are the checked
+    feedforward parameters of the run's scenario (their defaults where it
+    does not set them).
+    """
+    summary = RunSummary.from_json(Path(run_dir) / SUMMARY_FILE)
+    scenario = load_scenario(Path(summary.scenario_file))
+    values = node_values(scenario, "feedforward")
+    period = values["control_period_s"]
+    sig = load_signals(Path(run_dir) / "bag", period)
     torque = estimate_friction_torque(
-        reference_rad=sig["reference_rad"],
-        current_A=sig["command_A"],
+        reference_rad=sig.reference_rad,
+        current_A=sig.command_A,
         period_s=period,
-        torque_constant_Nm_per_A=float(nominal.get("torque_constant_Nm_per_A", 0.715)),
-        inertia_kgm2=float(nominal.get("inertia_kgm2", 0.01)),
-        damping_Nms_per_rad=float(nominal.get("damping_Nms_per_rad", 0.1)),
+        torque_constant_Nm_per_A=values["nominal.torque_constant_Nm_per_A"],
+        inertia_kgm2=values["nominal.inertia_kgm2"],
+        damping_Nms_per_rad=values["nominal.damping_Nms_per_rad"],
     )
     return build_friction_table(
-        position_m=sig["reference_rad"] * lead,
+        position_m=sig.reference_rad * values["lead_m_per_rad"],
         torque_Nm=torque,
         bin_width_m=bin_width_m,
         max_displacement_m=max_displacement_m,

@@ -1,22 +1,23 @@
 """The closed loop of a scenario without ROS: plain function calls.
 
-Builds the same core objects the nodes build from the same parameter file and
-steps them in the order the lockstep protocol guarantees (state[k] ->
+Builds the same core objects the nodes build, from the same checked
+parameter values and the same factories (:mod:`servo_axis.params.factories`),
+and steps them in the order the lockstep protocol guarantees (state[k] ->
 command[k] -> plant step). It is the reference that the node graph must
-reproduce bit for bit, and the "core only" line of the benchmark.
+reproduce bit for bit, and the "core only" line of the benchmark. It runs
+any registered plant model. Nothing here imports rclpy.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
-from servo_axis.bringup import load_scenario, node_params, resolve_table
-from servo_axis.nodes import feedback, feedforward, plant
-from servo_axis.params import values_from_mapping
+from servo_axis.core.feedback.output import controlled_output
+from servo_axis.params import factories
+from servo_axis.params.scenario import load_scenario
 
 
 @dataclass(frozen=True)
@@ -30,40 +31,26 @@ class Trajectory:
     command_A: np.ndarray
 
 
-def scenario_values(
-    scenario: dict[str, Any], role: str, schema: dict[str, object]
-) -> dict[str, Any]:
-    """Checked parameter values of one node of a scenario (no ROS)."""
-    return values_from_mapping(schema, node_params(scenario, role), role)
-
-
-def feedforward_values(scenario: dict[str, Any], scenario_path: Path) -> dict[str, Any]:
-    """Checked feedforward parameters, the friction-table path made absolute."""
-    values = scenario_values(scenario, "feedforward", feedforward.SCHEMA)
-    values["friction_table.file"] = resolve_table(
-        values["friction_table.file"], scenario_path.resolve().parent
-    )
-    return values
-
-
 def simulate(scenario_path: Path, *, steps: int | None = None) -> Trajectory:
     """Run the scenario's loop (plant, feedback, feedforward) as plain calls."""
     scenario = load_scenario(scenario_path)
-    pv = scenario_values(scenario, "plant", plant.SCHEMA)
-    fbv = scenario_values(scenario, "feedback", feedback.SCHEMA)
-    ffv = feedforward_values(scenario, scenario_path)
-    n = plant.run_steps(pv) if steps is None else steps
-    sim = plant.BallScrewPlant(plant.plant_params(pv), rng=np.random.default_rng(pv["noise_seed"]))
-    loop = feedback.build_loop(fbv)
-    gen = feedforward.build_generator(ffv)
+    pv = factories.node_values(scenario, "plant")
+    fbv = factories.node_values(scenario, "feedback")
+    ffv = factories.feedforward_values(scenario, scenario_path)
+    n = factories.run_steps(pv) if steps is None else steps
+    sim = factories.build_plant(pv)
+    loop = factories.build_loop(fbv)
+    gen = factories.build_generator(ffv)
     refs = gen.samples(0, n)
     lead = pv["lead_m_per_rad"]
-    use_scale = fbv["sensor"] == "scale"
+    sensor = fbv["sensor"]
     out = np.empty((n, 5))
     y = sim.output()
     for k in range(n):
         r, _, u_ff = refs[k]
-        angle = y.scale_m / lead if use_scale else y.encoder_rad
+        angle = controlled_output(
+            sensor, encoder_rad=y.encoder_rad, scale_m=y.scale_m, lead_m_per_rad=lead
+        )
         u = loop.update(angle_rad=angle, reference_rad=r, feedforward_A=u_ff).current_A
         out[k] = (y.encoder_rad, y.scale_m, r, u_ff, u)
         y = sim.step(u)

@@ -9,16 +9,17 @@ from typing import Any
 
 import pytest
 
-from servo_axis.bringup import run_scenario
+from servo_axis.analysis.summary import RunSummary
+from servo_axis.run.runner import run_scenario
 
 pytestmark = pytest.mark.integration
 
 CONFIG = Path(__file__).resolve().parents[2] / "config"
 
 
-def cycle_rms(summary: dict, cycle: int) -> float:
-    (row,) = [c for c in summary["tracking_error"]["cycles"] if c["cycle"] == cycle]
-    return float(row["rms_m"])
+def cycle_rms(summary: RunSummary, cycle: int) -> float:
+    (row,) = [c for c in summary.tracking_error.cycles if c.cycle == cycle]
+    return float(row.rms_m)
 
 
 def test_n_times_filter_learns_n_times_faster_through_the_node_graph(
@@ -31,10 +32,10 @@ def test_n_times_filter_learns_n_times_faster_through_the_node_graph(
         CONFIG / "rptc_ideal_q.yaml", out_dir=tmp_path / "q1", domain_id=ros_env, progress=None
     )
     for run in (q3, q1):
-        counts = run.summary["message_counts"]
+        counts = run.summary.message_counts
         assert counts["/learning/correction"] == 6 * 250  # one correction per cycle boundary
         assert counts["/learning/cycle_stats"] == 6  # not for the cycle that ends the run
-        assert not run.summary["faults"]
+        assert not run.summary.faults
         # Every boundary got its correction in time, the run's end included
         # (nothing is awaited for the cycle after it).
         assert (
@@ -53,8 +54,8 @@ def test_n_times_filter_learns_n_times_faster_through_the_node_graph(
     assert (q3.run_dir / "learning_memory.json").is_file()
 
 
-def max_per_cycle(summary: dict) -> list[float]:
-    return [float(c["max_m"]) for c in summary["tracking_error"]["cycles"]]
+def max_per_cycle(summary: RunSummary) -> list[float]:
+    return [float(c.max_m) for c in summary.tracking_error.cycles]
 
 
 def test_detailed_axis_learns_and_is_deterministic(
@@ -79,7 +80,7 @@ def test_detailed_axis_learns_and_is_deterministic(
         peaks = max_per_cycle(run.summary)
         assert len(peaks) == 6
         assert all(b < a for a, b in itertools.pairwise(peaks)), peaks
-        assert not run.summary["faults"]
+        assert not run.summary.faults
     assert max_per_cycle(q5.summary)[2] < 0.75 * max_per_cycle(q1.summary)[2]
     # Determinism across cycle boundaries: separate processes vs composed,
     # learning messages included.
@@ -118,18 +119,13 @@ def test_killed_learning_unit_resumes_from_its_memory(ros_env: int, tmp_path: Pa
     import yaml
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
+    from servo_axis.nodes.common import STREAM_QOS
     from std_msgs.msg import Float64MultiArray
 
-    from servo_axis.bringup import (
-        ProgressWatcher,
-        handshake_overrides,
-        load_scenario,
-        ros_environment,
-        start_nodes,
-        stop_nodes,
-        write_run_params,
-    )
-    from servo_axis.nodes.common import STREAM_QOS
+    from servo_axis.params.scenario import load_scenario
+    from servo_axis.run.plan import handshake_overrides, write_run_params
+    from servo_axis.run.processes import ros_environment, start_nodes, stop_nodes
+    from servo_axis.run.progress import ProgressWatcher
 
     data = load_scenario(CONFIG / "rptc_detailed.yaml")
     data["/**"]["ros__parameters"]["duration_s"] = 60.0

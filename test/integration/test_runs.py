@@ -20,19 +20,12 @@ import pytest
 import yaml
 from mcap.reader import make_reader
 
-from servo_axis.bringup import (
-    ProgressWatcher,
-    RunError,
-    clean_stale_shm,
-    handshake_overrides,
-    load_scenario,
-    ros_environment,
-    run_scenario,
-    start_nodes,
-    stop_nodes,
-    write_run_params,
-)
 from servo_axis.friction_id import table_from_run
+from servo_axis.params.scenario import load_scenario
+from servo_axis.run.plan import handshake_overrides, write_run_params
+from servo_axis.run.processes import clean_stale_shm, ros_environment, start_nodes, stop_nodes
+from servo_axis.run.progress import ProgressWatcher
+from servo_axis.run.runner import RunError, run_scenario
 
 pytestmark = pytest.mark.integration
 
@@ -77,7 +70,7 @@ def test_ptc_tracks_the_nominal_plant_and_pid_alone_does_not(ros_env: int, tmp_p
     )
     steps = 2000
     for result in (ptc, pid):
-        s = result.summary
+        s = result.summary.to_dict()
         assert s["steps"] == steps
         for topic in ("/state", "/command", "/reference"):
             assert s["message_counts"][topic] == steps  # the recorder lost nothing
@@ -86,14 +79,14 @@ def test_ptc_tracks_the_nominal_plant_and_pid_alone_does_not(ros_env: int, tmp_p
         assert (result.run_dir / "summary.json").is_file()
         assert (result.run_dir / "error.png").stat().st_size > 10_000
     # The reference starts at rest with the axis, so PTC tracks from sample 0.
-    ptc_ss = ptc.summary["tracking_error"]["reference_instants"]["max_m"]
-    pid_ss = pid.summary["tracking_error"]["reference_instants"]["max_m"]
+    ptc_ss = ptc.summary.tracking_error.reference_instants.max_m
+    pid_ss = pid.summary.tracking_error.reference_instants.max_m
     assert ptc_ss < 1e-9  # below 1 nm at the T_r instants
     assert pid_ss > 1e-6
     assert pid_ss / max(ptc_ss, 1e-300) > 1e3
     # Every cycle is perfect, not only on average.
-    for cycle in ptc.summary["tracking_error"]["cycles"]:
-        assert cycle["reference_instants"]["max_m"] < 1e-9
+    for cycle in ptc.summary.tracking_error.cycles:
+        assert cycle.reference_instants.max_m < 1e-9
 
 
 def test_bag_reads_back_with_independent_readers(ros_env: int, tmp_path: Path) -> None:
@@ -187,8 +180,8 @@ def test_friction_table_halves_the_quadrant_glitches(ros_env: int, tmp_path: Pat
     b = run_scenario(
         wt_path, out_dir=tmp_path / "table", domain_id=ros_env, progress=None, plots=False
     )
-    peak_plain = a.summary["tracking_error"]["after_first_cycle"]["all_samples"]["max_m"]
-    peak_table = b.summary["tracking_error"]["after_first_cycle"]["all_samples"]["max_m"]
+    peak_plain = a.summary.tracking_error.after_first_cycle.all_samples.max_m
+    peak_table = b.summary.tracking_error.after_first_cycle.all_samples.max_m
     assert peak_plain > 1e-6  # the glitches are there
     assert peak_table <= 0.5 * peak_plain
 
@@ -200,9 +193,8 @@ def test_killed_feedforward_trips_the_feedback_and_the_bag_survives(
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
     from rosbags.highlevel import AnyReader
-    from std_msgs.msg import Float64MultiArray
-
     from servo_axis.nodes.common import LATCHED_QOS
+    from std_msgs.msg import Float64MultiArray
 
     shm_before = {p.name for p in Path("/dev/shm").glob("fastrtps_*")}
     scenario_path = scenario_copy(CONFIG / "ptc_nominal.yaml", tmp_path, duration_s=600.0)
@@ -314,10 +306,10 @@ def test_realtime_mode_keeps_wall_time_and_counts_misses(ros_env: int, tmp_path:
     result = run_scenario(
         scenario, out_dir=tmp_path / "rt", domain_id=ros_env, progress=None, plots=False
     )
-    s = result.summary
+    s = result.summary.to_dict()
     assert s["message_counts"]["/state"] == 1000
     assert 0.5 < s["realtime_factor"] < 1.1
-    from servo_axis.recording.bag import read_messages
+    from servo_axis.recording.deserialize import read_messages
 
     status = [
         m.message.data for m in read_messages(result.run_dir / "bag", topics=["/plant/status"])
@@ -338,7 +330,7 @@ def test_namespaced_composed_run_leaves_nothing_behind(ros_env: int, tmp_path: P
         progress=None,
         plots=False,
     )
-    counts = result.summary["message_counts"]
+    counts = result.summary.message_counts
     assert counts["/x/state"] == counts["/x/command"] == counts["/x/reference"] == 300
     assert counts["/clock"] == 30  # the clock stays global
     assert result.exit_codes == {"composed": 0}
@@ -414,7 +406,6 @@ def predicted_dob_ratio(frequency_hz: float, scenario: Path) -> float:
     model N(z) on the differenced angle and low-pass filter L(z) on the
     previous current, so ``u = -C y - N (1 - z^-1)/T y + L z^-1 u``."""
     from scipy import signal
-
     from servo_axis.core.controllers import design_pid_pole_placement
 
     data = load_scenario(scenario)
@@ -463,7 +454,7 @@ def test_disturbance_observer_leaves_what_the_loop_transfer_functions_predict(
             progress=None,
             plots=False,
         )
-        assert not run.summary["faults"]
+        assert not run.summary.faults
         with AnyReader([run.run_dir / "bag"]) as reader:
             (conn,) = [c for c in reader.connections if c.topic == "/state"]
             angle = np.array(

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from servo_axis.bringup import run_scenario
+from servo_axis.run.runner import run_scenario
 
 pytestmark = pytest.mark.integration
 
@@ -23,7 +23,7 @@ def test_xy_circle_runs_two_namespaced_axes_and_circularity_falls(
     result = run_scenario(
         CONFIG / "xy_circle.yaml", out_dir=tmp_path / "xy", domain_id=ros_env, progress=None
     )
-    s = result.summary
+    s = result.summary.to_dict()
     assert sorted(s["axes"]) == ["x", "y"]
     angles = {}
     for axis in ("x", "y"):

@@ -19,24 +19,24 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
-from servo_axis import msgs
-from servo_axis.bringup import (
+from servo_axis.core.errors import ParameterFileError
+from servo_axis.nodes.feedback import FeedbackNode
+from servo_axis.nodes.feedforward import FeedforwardNode
+from servo_axis.nodes.plant import PlantNode
+from servo_axis.nodes.recorder import RecorderNode
+from servo_axis.nodes.runtime import LATCHED_QOS, STREAM_QOS
+from servo_axis.params.scenario import (
     axes_of,
     axis_view,
-    handshake_overrides,
     load_scenario,
     node_params,
     roles_of,
     shared,
 )
-from servo_axis.core.errors import ParameterFileError
-from servo_axis.nodes.common import LATCHED_QOS, STREAM_QOS
-from servo_axis.nodes.feedback import FeedbackNode
-from servo_axis.nodes.feedforward import FeedforwardNode
-from servo_axis.nodes.plant import PlantNode
-from servo_axis.nodes.recorder import RecorderNode
-from servo_axis.recording.bag import read_messages
+from servo_axis.recording.deserialize import read_messages
+from servo_axis.run.plan import handshake_overrides
 from servo_axis.simulate import simulate
+from servo_axis.wire import messages as msgs
 
 pytestmark = pytest.mark.ros
 
@@ -72,40 +72,38 @@ def spin_until(
         ex.shutdown()
 
 
+NODE_CLASSES: dict[str, Callable[..., Node]] = {
+    "plant": PlantNode,
+    "feedback": FeedbackNode,
+    "feedforward": FeedforwardNode,
+    "recorder": RecorderNode,
+}
+
+
+def graph_nodes(context: Context, data: dict[str, Any], bag: Path, scenario_dir: Path) -> list[Node]:
+    """The nodes of a scenario in this process, with the run plan's parameters (recorder first)."""
+    roles = [r for r in roles_of(data) if r in NODE_CLASSES]
+    extra = handshake_overrides(data, roles, bag, scenario_dir)
+    return [
+        NODE_CLASSES[role](
+            context=context,
+            parameter_overrides=[
+                Parameter(k, value=v)
+                for k, v in {**node_params(data, role), **extra.get(role, {})}.items()
+            ],
+        )
+        for role in roles
+    ]
+
+
 def test_composed_lockstep_equals_core_only_loop(context: Context, tmp_path: Path) -> None:
     """The node graph in one process computes exactly what plain calls compute."""
     scenario = CONFIG / "ptc_friction.yaml"
-    duration = 0.3
     steps = 300
     bag = tmp_path / "bag"
-    common = {"duration_s": duration}
-    nodes: list[Node] = [
-        RecorderNode(
-            context=context,
-            parameter_overrides=overrides(scenario, "recorder", output_dir=str(bag), **common),
-        ),
-        FeedforwardNode(
-            context=context,
-            parameter_overrides=overrides(
-                scenario, "feedforward", wait_for_reference_subscribers=2, **common
-            ),
-        ),
-        FeedbackNode(
-            context=context, parameter_overrides=overrides(scenario, "feedback", **common)
-        ),
-        PlantNode(
-            context=context,
-            parameter_overrides=overrides(
-                scenario,
-                "plant",
-                flow_control=True,
-                wait_for_state_subscribers=2,
-                wait_for_status_subscribers=2,
-                wait_for_clock_subscribers=3,
-                **common,
-            ),
-        ),
-    ]
+    data = load_scenario(scenario)
+    data["/**"]["ros__parameters"]["duration_s"] = 0.3
+    nodes = graph_nodes(context, data, bag, scenario.parent)
     plant = nodes[-1]
     try:
         spin_until(context, nodes, lambda: plant.done)
@@ -301,7 +299,7 @@ def test_plant_rejects_bad_commands_and_waits_for_a_valid_one(context: Context) 
     wrong_name.name = ["y_motor"]
     for bad in (nan_cmd, wrong_name, command(1, 1.0)):  # NaN, wrong axis, future stamp
         cmd_pub.publish(bad)
-    spin_until(context, nodes, lambda: plant._rejected >= 3)
+    spin_until(context, nodes, lambda: plant.rejected >= 3)
     assert len(states) == 1 and plant.plant.step_index == 0  # nothing moved
     cmd_pub.publish(command(0, 2.0))
     spin_until(context, nodes, lambda: len(states) == 2)
@@ -309,7 +307,7 @@ def test_plant_rejects_bad_commands_and_waits_for_a_valid_one(context: Context) 
         2.0 * 0.715, rel=1e-12
     )
     cmd_pub.publish(command(0, 2.0))  # stale: step 0 is done
-    spin_until(context, nodes, lambda: plant._rejected >= 4)
+    spin_until(context, nodes, lambda: plant.rejected >= 4)
     assert plant.plant.step_index == 1
     plant.destroy_node()
     probe.destroy_node()
@@ -358,7 +356,7 @@ def test_realtime_plant_holds_the_newest_command_and_counts_misses(context: Cont
         [0.0, 2.0 * torque_per_A, 3.0 * torque_per_A, 3.0 * torque_per_A],
         rtol=1e-12,
     )
-    assert plant._deadline_misses == 3 and plant._rejected == 1
+    assert plant._deadline_misses == 3 and plant.rejected == 1
     plant.destroy_node()
     probe.destroy_node()
 
@@ -399,8 +397,9 @@ def test_feedforward_rejects_a_bad_status_and_publishes_ahead(context: Context) 
 def test_learning_node_bad_memory_file_fails_or_starts_clean(
     context: Context, tmp_path: Path
 ) -> None:
-    from servo_axis.core.rptc import LearningParams, PeriodicSignalGenerator, save_memory
+    from servo_axis.core.learning.rptc import LearningParams, PeriodicSignalGenerator
     from servo_axis.nodes.learning import LearningNode
+    from servo_axis.storage import save_memory
 
     memory = tmp_path / "memory.json"
     memory.write_text('{"format": "servo_axis rptc memory v1", "correction": [0.1, ')  # truncated

@@ -7,16 +7,16 @@ import math
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
-
 from servo_axis.core.controllers import DiscretePid, design_pid_pole_placement
-from servo_axis.core.errors import ConfigError
-from servo_axis.core.feedforward import BLOCK_STEPS, FeedforwardGenerator
 from servo_axis.core.friction_table import FrictionTable
 from servo_axis.core.plant import BallScrewParams, BallScrewPlant
 from servo_axis.core.ptc import MultiratePtc
-from servo_axis.core.reference import SineReference
 from servo_axis.core.servo import Fault, FeedbackLoop, SafetyLimits
 from servo_axis.report import compare_table, cycle_errors, error_statistics
+
+from servo_axis.core.errors import ConfigError
+from servo_axis.core.feedforward import BLOCK_STEPS, FeedforwardGenerator
+from servo_axis.core.reference import SineReference
 
 NOMINAL = {"inertia_kgm2": 0.01, "damping_Nms_per_rad": 0.1, "torque_constant_Nm_per_A": 0.715}
 R = 1.91e-3

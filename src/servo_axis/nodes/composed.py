@@ -2,7 +2,8 @@
 
 ``python -m servo_axis.nodes.composed plant feedback feedforward recorder --ros-args --params-file <scenario>.yaml``
 
-The node classes are the same as in separate processes, so the recorded
+The container is the one module that imports the node modules. The node
+classes are the same as in separate processes, so the recorded
 payloads are identical. The process ends when the plant has finished the run
 (and, with flow control, the recorder has everything).
 """
@@ -14,19 +15,18 @@ from collections.abc import Callable
 
 from rclpy.node import Node
 
-from servo_axis.nodes.common import run_main
+from servo_axis.nodes.feedback import FeedbackNode
+from servo_axis.nodes.feedforward import FeedforwardNode
+from servo_axis.nodes.learning import LearningNode
+from servo_axis.nodes.plant import PlantNode
+from servo_axis.nodes.recorder import RecorderNode
+from servo_axis.nodes.runtime import run_main
 
 ROLES = ("plant", "feedback", "feedforward", "learning", "recorder")
 
 
 def factories(roles: list[str]) -> list[Callable[[], Node]]:
     """Node constructors for ``roles``, in a fixed order (recorder first, plant last)."""
-    from servo_axis.nodes.feedback import FeedbackNode
-    from servo_axis.nodes.feedforward import FeedforwardNode
-    from servo_axis.nodes.learning import LearningNode
-    from servo_axis.nodes.plant import PlantNode
-    from servo_axis.nodes.recorder import RecorderNode
-
     table: dict[str, Callable[[], Node]] = {
         "recorder": RecorderNode,
         "learning": LearningNode,

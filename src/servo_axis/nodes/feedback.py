@@ -9,7 +9,9 @@ Topics (relative to the namespace):
 
 For ``state[k]`` the node answers ``command[k]`` as soon as
 ``reference[k]`` is here. If it does not come within ``input_timeout_s`` of
-wall time, the loop trips: zero current from then on, fault published.
+wall time, the loop trips: zero current from then on, fault published. The
+controlled output is :func:`servo_axis.core.feedback.output.controlled_output`
+of the ``sensor`` parameter.
 
 Run: ``python -m servo_axis.nodes.feedback --ros-args --params-file config/<scenario>.yaml``
 """
@@ -19,107 +21,22 @@ from __future__ import annotations
 import time
 from typing import Any
 
-from rclpy.node import Node
-from rclpy.parameter import Parameter
-from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray
-
-from servo_axis import msgs
-from servo_axis.core.controllers import (
-    DiscretePid,
-    DisturbanceObserver,
-    design_pid_pole_placement,
-)
-from servo_axis.core.errors import ParameterFileError, SignalError
-from servo_axis.core.servo import Fault, FeedbackLoop, LoopOutput, SafetyLimits
-from servo_axis.nodes.common import LATCHED_QOS, STREAM_QOS, Throttle, run_main, steady_clock
-from servo_axis.params import build, read_parameters
-
-SCHEMA: dict[str, object] = {
-    "bandwidth_hz": 40.0,
-    "dob.enabled": False,
-    "dob.cutoff_hz": 80.0,
-    "use_feedforward": True,
-    "sensor": "encoder",
-    "limits.following_error_m": 2e-3,
-    "limits.travel_m": 0.2,
-    "limits.current_A": 50.0,
-    "input_timeout_s": 0.5,
-    "max_preview_steps": 20000,
-}
-
-FAULT_LABELS = (
-    "step",
-    "code(1=following_error;2=travel;3=current;4=input_timeout)",
-    "value(m_or_A_or_s)",
-)
-SENSORS = ("encoder", "scale")
+from servo_axis.core.errors import SignalError
+from servo_axis.core.feedback.loop import Fault, LoopOutput
+from servo_axis.core.feedback.output import controlled_output
+from servo_axis.nodes.base import ServoNode
+from servo_axis.nodes.lockstep import SampleBuffer, StampGate
+from servo_axis.nodes.runtime import run_main, steady_clock
+from servo_axis.params.factories import build_loop
+from servo_axis.wire import messages as msgs
 
 
-def nominal(values: dict[str, Any]) -> dict[str, float]:
-    """Nominal model keyword arguments shared by PID, DOB and PTC design."""
-    return {
-        "inertia_kgm2": values["nominal.inertia_kgm2"],
-        "damping_Nms_per_rad": values["nominal.damping_Nms_per_rad"],
-        "torque_constant_Nm_per_A": values["nominal.torque_constant_Nm_per_A"],
-    }
-
-
-def use_sim_time_by_default(node: Node) -> None:
-    """Every node but the plant runs on the plant's clock unless told otherwise."""
-    if "use_sim_time" not in node._parameter_overrides:
-        node.set_parameters([Parameter("use_sim_time", Parameter.Type.BOOL, True)])
-
-
-def build_loop(values: dict[str, Any]) -> FeedbackLoop:
-    """The core feedback loop from the node's parameter values."""
-    period = values["control_period_s"]
-    gains = build(
-        "", design_pid_pole_placement, bandwidth_hz=values["bandwidth_hz"], **nominal(values)
-    )
-    pid = build("", DiscretePid, gains=gains, period_s=period)
-    dob = (
-        build(
-            "dob.",
-            DisturbanceObserver,
-            cutoff_hz=values["dob.cutoff_hz"],
-            period_s=period,
-            **nominal(values),
-        )
-        if values["dob.enabled"]
-        else None
-    )
-    limits = build(
-        "limits.",
-        SafetyLimits,
-        following_error_m=values["limits.following_error_m"],
-        travel_m=values["limits.travel_m"],
-        current_A=values["limits.current_A"],
-    )
-    return FeedbackLoop(
-        pid=pid,
-        dob=dob,
-        lead_m_per_rad=values["lead_m_per_rad"],
-        limits=limits,
-        use_feedforward=values["use_feedforward"],
-    )
-
-
-class FeedbackNode(Node):
+class FeedbackNode(ServoNode):
     """Feedback loop; see the module docstring for its protocol."""
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("feedback", **kwargs)
-        values = read_parameters(self, SCHEMA)
-        use_sim_time_by_default(self)
-        if values["sensor"] not in SENSORS:
-            raise ParameterFileError(
-                f"parameter 'sensor': expected one of {SENSORS}, got {values['sensor']!r}"
-            )
-        if values["input_timeout_s"] <= 0.0:
-            raise ParameterFileError(
-                f"parameter 'input_timeout_s': expected > 0, got {values['input_timeout_s']!r}"
-            )
+        values = self.values
         self.loop = build_loop(values)
         self._v = values
         self._axis = values["axis"]
@@ -128,61 +45,56 @@ class FeedbackNode(Node):
         self._lockstep = values["mode"] == "lockstep"
 
         self._command_msg = msgs.joint_state_template(msgs.motor_names(self._axis), ("effort",))
-        self._command_pub = self.create_publisher(JointState, "command", STREAM_QOS)
-        self._fault_pub = self.create_publisher(Float64MultiArray, "fault", LATCHED_QOS)
-        self.create_subscription(JointState, "state", self._on_state, STREAM_QOS)
-        self.create_subscription(JointState, "reference", self._on_reference, STREAM_QOS)
+        self._command_pub = self.publisher("command")
+        self._fault_pub = self.publisher("fault")
+        period_ns, axis = self._period_ns, self._axis
+        self.subscribe(
+            "state",
+            lambda m: self._state_gate(msgs.state_from_msg(m, axis=axis, period_ns_=period_ns)),
+            self._on_state,
+        )
+        self.subscribe(
+            "reference",
+            lambda m: self._reference_gate(
+                msgs.reference_from_msg(m, axis=axis, period_ns_=period_ns)
+            ),
+            self._on_reference,
+        )
         self.create_timer(values["input_timeout_s"] / 10.0, self._watchdog, clock=steady_clock())
 
-        self._references: dict[int, msgs.ReferenceSample] = {}
-        self._last_reference_step = -1
-        self._last_state_step = -1
+        self._references: SampleBuffer[msgs.ReferenceSample] = SampleBuffer()
+        self._states = StampGate()
+        self._refs = StampGate()
         self._held: msgs.ReferenceSample | None = None
         self._pending: msgs.StateSample | None = None
         self._pending_since = 0.0
-        self.rejected = 0
         self.missed_references = 0
-        self._complain = Throttle()
 
-    def _on_state(self, msg: JointState) -> None:
-        try:
-            state = msgs.state_from_msg(msg, axis=self._axis, period_ns_=self._period_ns)
-        except SignalError as err:
-            self._reject(f"state rejected: {err}")
-            return
-        if state.step <= self._last_state_step:
-            self._reject(
-                f"state rejected: stale stamp (step {state.step} after {self._last_state_step})"
-            )
-            return
-        self._last_state_step = state.step
+    def _state_gate(self, state: msgs.StateSample) -> msgs.StateSample:
+        self._states.accept(state.step)
+        return state
+
+    def _reference_gate(self, ref: msgs.ReferenceSample) -> msgs.ReferenceSample:
+        self._refs.check(ref.step)
+        if ref.step > max(self._states.last, 0) + self._v["max_preview_steps"]:
+            raise SignalError(f"step {ref.step} is too far in the future")
+        self._refs.accept(ref.step)
+        return ref
+
+    def _on_state(self, state: msgs.StateSample) -> None:
         self._pending = state
         self._pending_since = time.monotonic()
         self._try_answer()
 
-    def _on_reference(self, msg: JointState) -> None:
-        try:
-            ref = msgs.reference_from_msg(msg, axis=self._axis, period_ns_=self._period_ns)
-        except SignalError as err:
-            self._reject(f"reference rejected: {err}")
-            return
-        if ref.step <= self._last_reference_step:
-            self._reject(
-                f"reference rejected: stale stamp (step {ref.step} after {self._last_reference_step})"
-            )
-            return
-        if ref.step > max(self._last_state_step, 0) + self._v["max_preview_steps"]:
-            self._reject(f"reference rejected: step {ref.step} is too far in the future")
-            return
-        self._last_reference_step = ref.step
-        self._references[ref.step] = ref
+    def _on_reference(self, ref: msgs.ReferenceSample) -> None:
+        self._references.put(ref.step, ref)
         self._try_answer()
 
     def _try_answer(self) -> None:
         state = self._pending
         if state is None:
             return
-        ref = self._references.pop(state.step, None)
+        ref = self._references.take(state.step)
         if ref is None:
             if self._lockstep and not self.loop.tripped:
                 return  # the reference is guaranteed to come, or the watchdog trips
@@ -192,9 +104,13 @@ class FeedbackNode(Node):
             self._held = ref
         self._pending = None
         if state.step % 1000 == 0:  # drop references of samples that never came
-            for old in [s for s in self._references if s < state.step]:
-                del self._references[old]
-        angle = state.encoder_rad if self._v["sensor"] == "encoder" else state.scale_m / self._lead
+            self._references.drop_before(state.step)
+        angle = controlled_output(
+            self._v["sensor"],
+            encoder_rad=state.encoder_rad,
+            scale_m=state.scale_m,
+            lead_m_per_rad=self._lead,
+        )
         if ref is None:
             out = LoopOutput(0.0, 0.0, 0.0, 0.0)
         else:
@@ -224,12 +140,7 @@ class FeedbackNode(Node):
         self.get_logger().error(
             f"TRIP at step {step}: {fault.name.lower()} ({value:.6g}); current set to zero"
         )
-        self._fault_pub.publish(msgs.labelled_array(FAULT_LABELS, [step, int(fault), value]))
-
-    def _reject(self, text: str) -> None:
-        self.rejected += 1
-        if self._complain.ready():
-            self.get_logger().warning(f"{text} ({self.rejected} rejected so far)")
+        self._fault_pub.publish(msgs.labelled_array(msgs.FAULT_LABELS, [step, int(fault), value]))
 
 
 def main(args: list[str] | None = None) -> int:

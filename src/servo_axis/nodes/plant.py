@@ -11,6 +11,9 @@ Topics (relative to the node's namespace):
 * subscribes ``command`` (JointState) and ``recorder/progress``
   (Float64MultiArray, for flow control).
 
+The model is chosen by ``model`` from the registry of
+:mod:`servo_axis.params.factories` (``ball_screw``).
+
 Lockstep: the plant publishes ``state[k]`` and waits for ``command[k]``,
 then integrates one control period. Before publishing ``state[k]`` it waits
 until the recorder has acknowledged step ``k - max_recorder_lag_steps``;
@@ -29,121 +32,19 @@ from __future__ import annotations
 import time
 from typing import Any
 
-import numpy as np
-from rclpy.node import Node
-from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray
-
-from servo_axis import msgs
-from servo_axis.core.errors import ParameterFileError, SignalError
-from servo_axis.core.friction import FrictionParams
-from servo_axis.core.plant import (
-    BallScrewParams,
-    BallScrewPlant,
-    DisturbanceParams,
-    PlantOutput,
-)
-from servo_axis.core.sensors import SensorParams
-from servo_axis.nodes.common import (
-    LATCHED_QOS,
-    STREAM_QOS,
-    Throttle,
-    run_main,
-    steady_clock,
-)
-from servo_axis.params import build, read_parameters, section
-
-SCHEMA: dict[str, object] = {
-    "torque_constant_Nm_per_A": 0.715,
-    "inertia_kgm2": 0.01,
-    "damping_Nms_per_rad": 0.1,
-    "modes.frequency_hz": [0.0],
-    "modes.zeta": [0.0],
-    "modes.a": [0.0],
-    "dead_time_s": 0.0,
-    "sim_step_s": 50e-6,
-    "current_limit_A": 30.0,
-    "initial_angle_rad": 0.0,
-    "initial_velocity_rad_s": 0.0,
-    "friction.rolling_coulomb_Nm": 0.0,
-    "friction.presliding_width_m": 10e-6,
-    "friction.elements": 8,
-    "friction.coulomb_Nm": 0.0,
-    "friction.coulomb_smoothing_rad_s": 1e-3,
-    "friction.viscous_Nms_per_rad": 0.0,
-    "disturbance.amplitude_Nm": 0.0,
-    "disturbance.frequency_hz": 4.0,
-    "disturbance.phase_rad": 0.0,
-    "encoder.resolution": 2.0 * np.pi / 2**20,
-    "encoder.noise_std": 0.0,
-    "scale.resolution": 100e-9,
-    "scale.noise_std": 0.0,
-    "noise_seed": 0,
-    "publish_clock": True,
-    "clock_every_steps": 10,
-    "wait_for_state_subscribers": 0,
-    "wait_for_clock_subscribers": 0,
-    "wait_for_status_subscribers": 0,
-    "flow_control": False,
-    "max_recorder_lag_steps": 200,
-    "command_timeout_s": 2.0,
-    "status_every_steps": 50,
-}
-
-# The modes lists default to [0.0] only so that their type is known; an
-# all-zero frequency list means "no modes".
-_NO_MODES = [0.0]
+from servo_axis.core.errors import ParameterFileError
+from servo_axis.core.models.base import PlantOutput
+from servo_axis.nodes.base import ServoNode
+from servo_axis.nodes.lockstep import FlowControl
+from servo_axis.nodes.runtime import run_main, steady_clock
+from servo_axis.params.factories import build_plant, run_steps
+from servo_axis.wire import messages as msgs
 
 #: Wall time the plant waits at the end for the recorder to acknowledge everything.
 FINISH_TIMEOUT_S = 10.0
 
-STATUS_LABELS = ("step", "deadline_misses", "rejected_commands", "command_timeouts")
-PROGRESS_LABELS = ("steps_recorded",)
 
-
-def plant_params(values: dict[str, Any]) -> BallScrewParams:
-    """Build :class:`BallScrewParams` from the node's parameter values."""
-    freqs, zetas, gains = (values[f"modes.{k}"] for k in ("frequency_hz", "zeta", "a"))
-    if freqs == _NO_MODES and zetas == _NO_MODES and gains == _NO_MODES:
-        freqs, zetas, gains = [], [], []
-    if not len(freqs) == len(zetas) == len(gains):
-        raise ParameterFileError(
-            "parameter 'modes': modes.frequency_hz, modes.zeta and modes.a must have the "
-            f"same length, got {len(freqs)}, {len(zetas)}, {len(gains)}"
-        )
-    return build(
-        "",
-        BallScrewParams,
-        torque_constant_Nm_per_A=values["torque_constant_Nm_per_A"],
-        inertia_kgm2=values["inertia_kgm2"],
-        damping_Nms_per_rad=values["damping_Nms_per_rad"],
-        lead_m_per_rad=values["lead_m_per_rad"],
-        modes=tuple(zip(freqs, zetas, gains, strict=True)),
-        dead_time_s=values["dead_time_s"],
-        control_period_s=values["control_period_s"],
-        sim_step_s=values["sim_step_s"],
-        current_limit_A=values["current_limit_A"],
-        initial_angle_rad=values["initial_angle_rad"],
-        initial_velocity_rad_s=values["initial_velocity_rad_s"],
-        friction=build("friction.", FrictionParams, **section(values, "friction")),
-        disturbance=build("disturbance.", DisturbanceParams, **section(values, "disturbance")),
-        encoder=build("encoder.", SensorParams, **section(values, "encoder")),
-        scale=build("scale.", SensorParams, **section(values, "scale")),
-    )
-
-
-def run_steps(values: dict[str, Any]) -> int:
-    """Number of control samples of the run (``duration_s / control_period_s``)."""
-    steps = round(values["duration_s"] / values["control_period_s"])
-    if steps < 1:
-        raise ParameterFileError(
-            f"parameter 'duration_s': expected at least one control period, got {values['duration_s']!r}"
-        )
-    return int(steps)
-
-
-def state_sample(out: PlantOutput, lead_m_per_rad: float) -> msgs.StateSample:
+def state_sample(out: PlantOutput) -> msgs.StateSample:
     """The wire sample of a plant output."""
     return msgs.StateSample(
         step=out.step,
@@ -152,44 +53,50 @@ def state_sample(out: PlantOutput, lead_m_per_rad: float) -> msgs.StateSample:
         velocity_rad_s=out.velocity_rad_s,
         velocity_m_s=out.velocity_m_s,
         motor_torque_Nm=out.motor_torque_Nm,
-        friction_force_N=out.friction_torque_Nm / lead_m_per_rad,
+        friction_force_N=out.friction_force_N,
     )
 
 
-class PlantNode(Node):
+class PlantNode(ServoNode):
     """Plant simulator; see the module docstring for its protocol."""
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("plant", **kwargs)
-        values = read_parameters(self, SCHEMA)
+        values = self.values
         if self.get_parameter("use_sim_time").value:
             raise ParameterFileError(
                 "parameter 'use_sim_time': the plant owns the clock; set it false"
             )
-        self._params = plant_params(values)
+        self.plant = build_plant(values)
         self._axis = values["axis"]
         self._period_ns = msgs.period_ns(values["control_period_s"])
         self._steps = run_steps(values)
         self._lockstep = values["mode"] == "lockstep"
-        for key in ("clock_every_steps", "status_every_steps", "max_recorder_lag_steps"):
-            if values[key] < 1:
-                raise ParameterFileError(f"parameter '{key}': expected >= 1, got {values[key]!r}")
         self._v = values
-        self.plant = BallScrewPlant(self._params, rng=np.random.default_rng(values["noise_seed"]))
+        self._flow = FlowControl(
+            enabled=values["flow_control"],
+            max_lag_steps=values["max_recorder_lag_steps"],
+            steps=self._steps,
+        )
 
         # One message per publisher, refilled each sample: publish() serialises
         # at once, and building a fresh JointState costs more than the physics.
         self._state_msg = msgs.joint_state_template(
             msgs.state_names(self._axis), ("position", "velocity", "effort")
         )
-        self._state_pub = self.create_publisher(JointState, "state", STREAM_QOS)
-        self._clock_pub = (
-            self.create_publisher(Clock, "/clock", STREAM_QOS) if values["publish_clock"] else None
+        self._state_pub = self.publisher("state")
+        self._clock_pub = self.publisher("/clock") if values["publish_clock"] else None
+        self._status_pub = self.publisher("plant/status")
+        period_ns, axis = self._period_ns, self._axis
+        self.subscribe(
+            "command",
+            lambda m: msgs.command_from_msg(m, axis=axis, period_ns_=period_ns),
+            self._on_command,
         )
-        self._status_pub = self.create_publisher(Float64MultiArray, "plant/status", STREAM_QOS)
-        self.create_subscription(JointState, "command", self._on_command, STREAM_QOS)
-        self.create_subscription(
-            Float64MultiArray, "recorder/progress", self._on_progress, LATCHED_QOS
+        self.subscribe(
+            "recorder/progress",
+            lambda m: int(msgs.labelled_array_values(m, msgs.PROGRESS_LABELS)[0]),
+            self._on_progress,
         )
 
         self.done = False
@@ -198,13 +105,10 @@ class PlantNode(Node):
         self._command: float | None = None
         self._last_current = 0.0
         self._held_step = -1  # step of the command whose current is held
-        self._recorded = -1
         self._finishing = False
         self._deadline_misses = 0
-        self._rejected = 0
         self._timeouts = 0
         self._waiting_since = time.monotonic()
-        self._complain = Throttle()
         self._start_timer = self.create_timer(0.01, self._try_start, clock=steady_clock())
         self._rt_timer: Any = None
         self._finish_started = 0.0
@@ -220,7 +124,7 @@ class PlantNode(Node):
         if self._clock_pub is not None:
             if self._clock_pub.get_subscription_count() < v["wait_for_clock_subscribers"]:
                 return False
-        return not (v["flow_control"] and self._recorded < 0)
+        return self._flow.ready
 
     def _try_start(self) -> None:
         if self.started or not self._connected():
@@ -238,31 +142,21 @@ class PlantNode(Node):
             )
 
     # -- callbacks -------------------------------------------------------------
-    def _on_command(self, msg: JointState) -> None:
-        try:
-            cmd = msgs.command_from_msg(msg, axis=self._axis, period_ns_=self._period_ns)
-        except SignalError as err:
-            self._reject(f"command rejected: {err}")
-            return
+    def _on_command(self, cmd: msgs.CommandSample) -> None:
         expected = self.plant.step_index
         if not self._lockstep and self._held_step < cmd.step < expected:
             self._last_current, self._held_step = cmd.current_A, cmd.step
             return
         if cmd.step != expected:
             when = "stale" if cmd.step < expected else "future"
-            self._reject(f"command rejected: {when} stamp (step {cmd.step}, expected {expected})")
+            self.reject(f"command rejected: {when} stamp (step {cmd.step}, expected {expected})")
             return
         self._command = cmd.current_A
         if self._lockstep:
             self._advance()
 
-    def _on_progress(self, msg: Float64MultiArray) -> None:
-        try:
-            (recorded,) = msgs.labelled_array_values(msg, PROGRESS_LABELS)
-        except SignalError as err:
-            self._reject(f"recorder/progress rejected: {err}")
-            return
-        self._recorded = max(self._recorded, int(recorded))
+    def _on_progress(self, recorded: int) -> None:
+        self._flow.acknowledge(recorded)
         if self.started:
             self._advance()
 
@@ -270,7 +164,7 @@ class PlantNode(Node):
         if self._finishing and not self.done:
             if time.monotonic() - self._finish_started > FINISH_TIMEOUT_S:
                 self.get_logger().error(
-                    f"recorder acknowledged {self._recorded} of {self._steps} steps within "
+                    f"recorder acknowledged {self._flow.recorded} of {self._steps} steps within "
                     f"{FINISH_TIMEOUT_S} s; stopping anyway"
                 )
                 self.done = True
@@ -290,15 +184,13 @@ class PlantNode(Node):
     def _advance(self) -> None:
         """Lockstep: integrate once the command is here and the recorder keeps up."""
         if self._finishing:
-            if not self._v["flow_control"] or self._recorded >= self._steps:
+            if self._flow.complete:
                 self.done = True
             return
         if self._command is None or self._awaiting is None:
             return
-        next_step = self.plant.step_index + 1
-        if next_step < self._steps and self._v["flow_control"]:
-            if self._recorded < next_step - self._v["max_recorder_lag_steps"]:
-                return  # the progress callback resumes us
+        if not self._flow.may_step_to(self.plant.step_index + 1):
+            return  # the progress callback resumes us
         current, self._command = self._command, None
         out = self.plant.step(current)
         if out.step >= self._steps:
@@ -345,11 +237,7 @@ class PlantNode(Node):
         if self._clock_pub is not None and out.step % self._v["clock_every_steps"] == 0:
             self._clock_pub.publish(msgs.clock_message(out.step, self._period_ns))
         self._state_pub.publish(
-            msgs.write_state(
-                self._state_msg,
-                state_sample(out, self._params.lead_m_per_rad),
-                period_ns_=self._period_ns,
-            )
+            msgs.write_state(self._state_msg, state_sample(out), period_ns_=self._period_ns)
         )
         if out.step % self._v["status_every_steps"] == 0:
             self._publish_status()
@@ -357,15 +245,10 @@ class PlantNode(Node):
     def _publish_status(self) -> None:
         self._status_pub.publish(
             msgs.labelled_array(
-                STATUS_LABELS,
-                [self.plant.step_index, self._deadline_misses, self._rejected, self._timeouts],
+                msgs.STATUS_LABELS,
+                [self.plant.step_index, self._deadline_misses, self.rejected, self._timeouts],
             )
         )
-
-    def _reject(self, text: str) -> None:
-        self._rejected += 1
-        if self._complain.ready():
-            self.get_logger().warning(f"{text} ({self._rejected} rejected so far)")
 
 
 def main(args: list[str] | None = None) -> int:

@@ -22,37 +22,13 @@ import time
 from pathlib import Path
 from typing import Any
 
-from rclpy.node import Node
-from std_msgs.msg import Float64MultiArray
-
-from servo_axis import msgs
 from servo_axis.core.errors import ConfigError, ParameterFileError
-from servo_axis.nodes.common import LATCHED_QOS, STREAM_QOS, run_main, steady_clock
-from servo_axis.nodes.plant import PROGRESS_LABELS, run_steps
-from servo_axis.params import read_parameters
-from servo_axis.recording.bag import BagWriter
-from servo_axis.recording.bag import message_class as bag_message_class
-
-SCHEMA: dict[str, object] = {
-    "output_dir": "",
-    "topics": ["state", "command", "reference", "/clock", "fault", "plant/status"],
-    "types": [
-        "sensor_msgs/msg/JointState",
-        "sensor_msgs/msg/JointState",
-        "sensor_msgs/msg/JointState",
-        "rosgraph_msgs/msg/Clock",
-        "std_msgs/msg/Float64MultiArray",
-        "std_msgs/msg/Float64MultiArray",
-    ],
-    "latched_topics": ["fault"],
-    # The per-sample topics of the loop itself. Not the reference: it runs
-    # ahead of the loop, and a dead feedforward generator must not stall the
-    # axis that its feedback loop has just tripped to a safe state.
-    "counted_topics": ["state", "command"],
-    "compression": "zstd",
-    "ack_every_steps": 50,
-    "wait_for_publishers": True,
-}
+from servo_axis.nodes.base import ServoNode
+from servo_axis.nodes.runtime import LATCHED_QOS, STREAM_QOS, run_main, steady_clock
+from servo_axis.params.factories import run_steps
+from servo_axis.recording.definitions import message_class as bag_message_class
+from servo_axis.recording.writer import BagWriter
+from servo_axis.wire import messages as msgs
 
 
 def message_class(type_name: str) -> Any:
@@ -63,12 +39,12 @@ def message_class(type_name: str) -> Any:
         raise ParameterFileError(f"parameter 'types': {err}") from err
 
 
-class RecorderNode(Node):
+class RecorderNode(ServoNode):
     """Recorder; see the module docstring."""
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("recorder", **kwargs)
-        values = read_parameters(self, SCHEMA)
+        values = self.values
         topics, types = values["topics"], values["types"]
         if len(topics) != len(types) or not topics:
             raise ParameterFileError(
@@ -82,10 +58,6 @@ class RecorderNode(Node):
             raise ParameterFileError(
                 "parameter 'output_dir': required (the bag directory to create)"
             )
-        if values["ack_every_steps"] < 1:
-            raise ParameterFileError(
-                f"parameter 'ack_every_steps': expected >= 1, got {values['ack_every_steps']!r}"
-            )
         classes = [message_class(t) for t in types]
         self._v = values
         self._steps = run_steps(values)
@@ -94,9 +66,7 @@ class RecorderNode(Node):
         except (OSError, ValueError) as err:
             raise ParameterFileError(f"parameter 'output_dir': {err}") from err
 
-        self._progress_pub = self.create_publisher(
-            Float64MultiArray, "recorder/progress", LATCHED_QOS
-        )
+        self._progress_pub = self.publisher("recorder/progress")
         self._counts: dict[str, int] = {}
         self._counted: list[str] = []
         self._subs = []
@@ -141,7 +111,7 @@ class RecorderNode(Node):
             return
         self.recorded = done
         if force or done % self._v["ack_every_steps"] == 0 or done >= self._steps:
-            self._progress_pub.publish(msgs.labelled_array(PROGRESS_LABELS, [done]))
+            self._progress_pub.publish(msgs.labelled_array(msgs.PROGRESS_LABELS, [done]))
 
     @property
     def message_counts(self) -> dict[str, int]:

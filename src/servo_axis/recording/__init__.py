@@ -1,28 +1,19 @@
 """Recording: rosbag2-layout MCAP bags (writer, reader, message definitions).
 
-See :mod:`servo_axis.recording.bag`.
+Modules
+-------
+definitions
+    ``ros2msg`` definition text, RIHS01 type hash and class of a message type.
+writer
+    :class:`BagWriter`, which writes a bag from CDR payloads.
+reader
+    :func:`read_raw` and :func:`read_metadata`; never imports ROS.
+deserialize
+    :func:`read_messages`, which deserialises with rclpy (imported when called).
+errors
+    :class:`BagError` and :class:`BagWriteError`.
+
+The package imports none of them: code that must not load ROS (the
+analysis, ``reader``) imports its module directly, and only ``deserialize``
+and ``definitions`` reach rclpy or the ament index (when called).
 """
-
-from __future__ import annotations
-
-from servo_axis.recording.bag import (
-    DEFAULT_QOS,
-    BagMessage,
-    BagWriter,
-    message_class,
-    message_definition,
-    read_messages,
-    read_metadata,
-    type_hash,
-)
-
-__all__ = [
-    "DEFAULT_QOS",
-    "BagMessage",
-    "BagWriter",
-    "message_class",
-    "message_definition",
-    "read_messages",
-    "read_metadata",
-    "type_hash",
-]

@@ -1,0 +1,596 @@
+"""The summary of a run (``summary.json``), typed.
+
+:func:`summarise` computes a single-axis run's :class:`RunSummary` from its
+bag and scenario and writes ``summary.json``; :func:`summarise_axes` does the
+same for a multi-axis run (:class:`AxesSummary`: each axis and, for two axes,
+the contour). ``to_json()`` writes the text layout the runs have always had
+(``json.dumps(..., indent=2, allow_nan=True)``, same keys in the same order)
+and ``from_json()`` / :func:`load_summary` read it back.
+
+Every parameter (control period, lead, flags, names) is the checked value of
+the scenario (:func:`servo_axis.params.factories.node_values`), its default
+where the scenario does not set it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from servo_axis.analysis.metrics import (
+    ContourCycle,
+    ContourResult,
+    contour_error,
+    error_statistics,
+)
+from servo_axis.analysis.signals import (
+    FaultRecord,
+    Signals,
+    learning_enabled,
+    load_signals,
+    tracking,
+)
+from servo_axis.core.errors import ConfigError
+from servo_axis.params.factories import build_reference, feedforward_values, node_values
+from servo_axis.params.scenario import load_scenario
+
+SUMMARY_FILE = "summary.json"
+
+
+def _dumps(data: dict[str, Any]) -> str:
+    return json.dumps(data, indent=2, allow_nan=True)
+
+
+def _read(source: str | Path) -> dict[str, Any]:
+    """The mapping of a summary given as JSON text or as a file path."""
+    if isinstance(source, str) and source.lstrip().startswith("{"):
+        text = source
+    else:
+        text = Path(source).read_text()
+    data = json.loads(text)
+    if not isinstance(data, dict):
+        raise ConfigError(f"summary: expected a JSON object, got {type(data).__name__}")
+    return data
+
+
+@dataclass(frozen=True)
+class ErrorStats:
+    """RMS and largest magnitude of an error, m (NaN over no samples)."""
+
+    rms_m: float
+    max_m: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """As in ``summary.json``."""
+        return {"rms_m": self.rms_m, "max_m": self.max_m}
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> ErrorStats:
+        """Inverse of :meth:`to_dict`."""
+        return cls(rms_m=data["rms_m"], max_m=data["max_m"])
+
+
+@dataclass(frozen=True)
+class SampleStats:
+    """Error statistics over every sample and over the reference instants."""
+
+    all_samples: ErrorStats
+    reference_instants: ErrorStats
+
+    def to_dict(self) -> dict[str, Any]:
+        """As in ``summary.json``."""
+        return {
+            "all_samples": self.all_samples.to_dict(),
+            "reference_instants": self.reference_instants.to_dict(),
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> SampleStats:
+        """Inverse of :meth:`to_dict`."""
+        return cls(
+            all_samples=ErrorStats.from_dict(data["all_samples"]),
+            reference_instants=ErrorStats.from_dict(data["reference_instants"]),
+        )
+
+
+@dataclass(frozen=True)
+class CycleStats:
+    """Tracking error of one complete cycle of the reference.
+
+    Attributes
+    ----------
+    cycle : int
+        Cycle number, from 1.
+    rms_m, max_m : float
+        Over every sample of the cycle, m.
+    reference_instants : ErrorStats
+        Over the reference instants of the cycle.
+    """
+
+    cycle: int
+    rms_m: float
+    max_m: float
+    reference_instants: ErrorStats
+
+    def to_dict(self) -> dict[str, Any]:
+        """As in ``summary.json``."""
+        return {
+            "cycle": self.cycle,
+            "rms_m": self.rms_m,
+            "max_m": self.max_m,
+            "reference_instants": self.reference_instants.to_dict(),
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> CycleStats:
+        """Inverse of :meth:`to_dict`."""
+        return cls(
+            cycle=data["cycle"],
+            rms_m=data["rms_m"],
+            max_m=data["max_m"],
+            reference_instants=ErrorStats.from_dict(data["reference_instants"]),
+        )
+
+
+@dataclass(frozen=True)
+class TrackingError:
+    """Statistics of the tracking error ``R (r - y)`` of a run.
+
+    Attributes
+    ----------
+    all_samples, reference_instants : ErrorStats
+        Whole run, every sample and the reference instants.
+    cycles : tuple of CycleStats
+        Per complete cycle of a periodic reference (else empty).
+    after_first_cycle : SampleStats or None
+        From cycle 2 on; None when the reference is not periodic.
+    """
+
+    all_samples: ErrorStats
+    reference_instants: ErrorStats
+    cycles: tuple[CycleStats, ...] = ()
+    after_first_cycle: SampleStats | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """As in ``summary.json`` (the output of :func:`~servo_axis.analysis.metrics.error_statistics`)."""
+        out: dict[str, Any] = {
+            "all_samples": self.all_samples.to_dict(),
+            "reference_instants": self.reference_instants.to_dict(),
+            "cycles": [c.to_dict() for c in self.cycles],
+        }
+        if self.after_first_cycle is not None:
+            out["after_first_cycle"] = self.after_first_cycle.to_dict()
+        return out
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> TrackingError:
+        """Inverse of :meth:`to_dict`; reads the output of ``error_statistics``."""
+        after = data.get("after_first_cycle")
+        return cls(
+            all_samples=ErrorStats.from_dict(data["all_samples"]),
+            reference_instants=ErrorStats.from_dict(data["reference_instants"]),
+            cycles=tuple(CycleStats.from_dict(c) for c in data["cycles"]),
+            after_first_cycle=None if after is None else SampleStats.from_dict(after),
+        )
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    """Summary of a single-axis run (``summary.json``).
+
+    Attributes
+    ----------
+    scenario, description : str
+        The scenario's name (the file stem if it has none) and description.
+    scenario_file : str
+        Path of the scenario file the run used.
+    processes : str
+        How the nodes ran (``processes``, ``composed``, ...).
+    time_mode : str
+        ``lockstep`` or ``realtime``.
+    control_period_s : float
+        ``T_u``, s.
+    steps : int
+        Recorded control steps (with both state and reference).
+    sim_time_s, wall_time_s : float
+        Simulated and wall time of the run, s.
+    steps_per_s, realtime_factor : float
+        Throughput (NaN when the wall time is not > 0).
+    message_counts : dict
+        Messages per recorded topic.
+    faults : tuple of FaultRecord
+        Trips of the feedback loop.
+    ptc, friction_table : bool
+        Whether the feedforward used PTC and the friction table.
+    reference_period_s : float or None
+        The learning cycle or the reference's period; None if not periodic.
+    tracking_error : TrackingError
+        Statistics of the tracking error.
+    """
+
+    scenario: str
+    description: str
+    scenario_file: str
+    processes: str
+    time_mode: str
+    control_period_s: float
+    steps: int
+    sim_time_s: float
+    wall_time_s: float
+    steps_per_s: float
+    realtime_factor: float
+    message_counts: dict[str, int]
+    faults: tuple[FaultRecord, ...]
+    ptc: bool
+    friction_table: bool
+    reference_period_s: float | None
+    tracking_error: TrackingError
+
+    def to_dict(self) -> dict[str, Any]:
+        """The mapping of ``summary.json``, keys in file order."""
+        return {
+            "scenario": self.scenario,
+            "description": self.description,
+            "scenario_file": self.scenario_file,
+            "processes": self.processes,
+            "time_mode": self.time_mode,
+            "control_period_s": self.control_period_s,
+            "steps": self.steps,
+            "sim_time_s": self.sim_time_s,
+            "wall_time_s": self.wall_time_s,
+            "steps_per_s": self.steps_per_s,
+            "realtime_factor": self.realtime_factor,
+            "message_counts": dict(self.message_counts),
+            "faults": [f.to_dict() for f in self.faults],
+            "ptc": self.ptc,
+            "friction_table": self.friction_table,
+            "reference_period_s": self.reference_period_s,
+            "tracking_error": self.tracking_error.to_dict(),
+        }
+
+    def to_json(self) -> str:
+        """The text of ``summary.json``."""
+        return _dumps(self.to_dict())
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> RunSummary:
+        """Inverse of :meth:`to_dict`."""
+        return cls(
+            scenario=data["scenario"],
+            description=data["description"],
+            scenario_file=data["scenario_file"],
+            processes=data["processes"],
+            time_mode=data["time_mode"],
+            control_period_s=data["control_period_s"],
+            steps=data["steps"],
+            sim_time_s=data["sim_time_s"],
+            wall_time_s=data["wall_time_s"],
+            steps_per_s=data["steps_per_s"],
+            realtime_factor=data["realtime_factor"],
+            message_counts=dict(data["message_counts"]),
+            faults=tuple(FaultRecord.from_dict(f) for f in data["faults"]),
+            ptc=data["ptc"],
+            friction_table=data["friction_table"],
+            reference_period_s=data["reference_period_s"],
+            tracking_error=TrackingError.from_dict(data["tracking_error"]),
+        )
+
+    @classmethod
+    def from_json(cls, source: str | Path) -> RunSummary:
+        """Read a summary from JSON text or from a ``summary.json`` path."""
+        return cls.from_dict(_read(source))
+
+
+@dataclass(frozen=True)
+class ContourSummary:
+    """Contour error of a two-axis run as in ``summary.json`` (no series).
+
+    Attributes
+    ----------
+    axes : tuple of str
+        The two axes, in the order of the coordinates.
+    centre_m, radius_m, target_radial_deviation_m, circular_deviation_m, max_radial_m, cycles
+        As in :class:`~servo_axis.analysis.metrics.ContourResult`.
+    """
+
+    axes: tuple[str, ...]
+    centre_m: tuple[float, ...]
+    radius_m: float
+    target_radial_deviation_m: float
+    circular_deviation_m: float
+    max_radial_m: float
+    cycles: tuple[ContourCycle, ...]
+
+    def to_dict(self) -> dict[str, Any]:
+        """As in ``summary.json``."""
+        return {
+            "axes": list(self.axes),
+            "centre_m": list(self.centre_m),
+            "radius_m": self.radius_m,
+            "target_radial_deviation_m": self.target_radial_deviation_m,
+            "circular_deviation_m": self.circular_deviation_m,
+            "max_radial_m": self.max_radial_m,
+            "cycles": [c.to_dict() for c in self.cycles],
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> ContourSummary:
+        """Inverse of :meth:`to_dict`."""
+        return cls(
+            axes=tuple(data["axes"]),
+            centre_m=tuple(data["centre_m"]),
+            radius_m=data["radius_m"],
+            target_radial_deviation_m=data["target_radial_deviation_m"],
+            circular_deviation_m=data["circular_deviation_m"],
+            max_radial_m=data["max_radial_m"],
+            cycles=tuple(ContourCycle.from_dict(c) for c in data["cycles"]),
+        )
+
+    @classmethod
+    def from_result(
+        cls, axes: list[str] | tuple[str, ...], result: ContourResult
+    ) -> ContourSummary:
+        """The summary of a computed contour of ``axes``."""
+        return cls.from_dict({"axes": list(axes), **result.to_summary()})
+
+
+@dataclass(frozen=True)
+class AxesSummary:
+    """Summary of a multi-axis run (``summary.json`` of the run directory).
+
+    Attributes
+    ----------
+    scenario, description : str
+        The scenario's name and description.
+    wall_time_s : float
+        Wall time of the run, s.
+    axes : dict
+        Axis name -> :class:`RunSummary` of that axis.
+    contour : ContourSummary or None
+        For two axes, their contour error.
+    """
+
+    scenario: str
+    description: str
+    wall_time_s: float
+    axes: dict[str, RunSummary]
+    contour: ContourSummary | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """The mapping of ``summary.json``, keys in file order."""
+        out: dict[str, Any] = {
+            "scenario": self.scenario,
+            "description": self.description,
+            "wall_time_s": self.wall_time_s,
+            "axes": {name: s.to_dict() for name, s in self.axes.items()},
+        }
+        if self.contour is not None:
+            out["contour"] = self.contour.to_dict()
+        return out
+
+    def to_json(self) -> str:
+        """The text of ``summary.json``."""
+        return _dumps(self.to_dict())
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> AxesSummary:
+        """Inverse of :meth:`to_dict`."""
+        contour = data.get("contour")
+        return cls(
+            scenario=data["scenario"],
+            description=data["description"],
+            wall_time_s=data["wall_time_s"],
+            axes={name: RunSummary.from_dict(s) for name, s in data["axes"].items()},
+            contour=None if contour is None else ContourSummary.from_dict(contour),
+        )
+
+    @classmethod
+    def from_json(cls, source: str | Path) -> AxesSummary:
+        """Read a summary from JSON text or from a ``summary.json`` path."""
+        return cls.from_dict(_read(source))
+
+
+def summary_from_dict(data: dict[str, Any]) -> RunSummary | AxesSummary:
+    """:class:`AxesSummary` for a mapping with ``axes``, else :class:`RunSummary`."""
+    return AxesSummary.from_dict(data) if "axes" in data else RunSummary.from_dict(data)
+
+
+def load_summary(run_dir: Path) -> RunSummary | AxesSummary:
+    """The ``summary.json`` of a run directory, single- or multi-axis."""
+    return summary_from_dict(_read(Path(run_dir) / SUMMARY_FILE))
+
+
+def cycle_errors(summary: RunSummary) -> dict[str, NDArray[Any]]:
+    """Per-cycle tracking error of a run summary, as arrays (cycle number, m).
+
+    Returns ``{"cycle", "max_m", "rms_m", "max_at_tr_m"}``; empty arrays when
+    the reference is not periodic.
+    """
+    cycles = summary.tracking_error.cycles
+    return {
+        "cycle": np.array([c.cycle for c in cycles], dtype=int),
+        "max_m": np.array([c.max_m for c in cycles], dtype=float),
+        "rms_m": np.array([c.rms_m for c in cycles], dtype=float),
+        "max_at_tr_m": np.array([c.reference_instants.max_m for c in cycles], dtype=float),
+    }
+
+
+def _axis_values(scenario: dict[str, Any]) -> dict[str, Any]:
+    """Checked shared values of an axis (period, lead, mode, names), as its plant has them."""
+    return node_values(scenario, "plant")
+
+
+def summarise(
+    run_dir: Path,
+    *,
+    scenario: dict[str, Any],
+    scenario_path: Path,
+    wall_time_s: float,
+    mode: str,
+) -> RunSummary:
+    """Compute the summary of a run, write ``summary.json`` and return it.
+
+    Parameters
+    ----------
+    run_dir : Path
+        The run directory (its bag is ``run_dir / "bag"``).
+    scenario : dict
+        The (single-axis) scenario the run used.
+    scenario_path : Path
+        Its file (relative friction-table paths are relative to its directory).
+    wall_time_s : float
+        Wall time of the run, s.
+    mode : str
+        How the nodes ran (``processes``, ``composed``).
+    """
+    run_dir = Path(run_dir)
+    common = _axis_values(scenario)
+    period = common["control_period_s"]
+    lead = common["lead_m_per_rad"]
+    ff = node_values(scenario, "feedforward")
+    sig = load_signals(run_dir / "bag", period)
+    target, y = tracking(scenario, scenario_path, sig)
+    error = lead * (target - y)
+    cycle: float | None
+    if learning_enabled(scenario):
+        cycle = ff["learning.cycle_s"]
+    elif "feedforward" in scenario:
+        cycle = build_reference(feedforward_values(scenario, scenario_path)).period_s
+    else:
+        cycle = None
+    steps = int(sig.step.size)
+    sim_time = steps * period
+    summary = RunSummary(
+        scenario=common["scenario.name"] or scenario_path.stem,
+        description=common["scenario.description"],
+        scenario_file=str(scenario_path),
+        processes=mode,
+        time_mode=common["mode"],
+        control_period_s=period,
+        steps=steps,
+        sim_time_s=sim_time,
+        wall_time_s=wall_time_s,
+        steps_per_s=steps / wall_time_s if wall_time_s > 0 else math.nan,
+        realtime_factor=sim_time / wall_time_s if wall_time_s > 0 else math.nan,
+        message_counts=sig.counts,
+        faults=tuple(sig.faults),
+        ptc=bool(ff["ptc.enabled"]),
+        friction_table=bool(ff["friction_table.enabled"]),
+        reference_period_s=cycle,
+        tracking_error=TrackingError.from_dict(
+            error_statistics(error, sig.step, period_s=period, cycle_s=cycle)
+        ),
+    )
+    (run_dir / SUMMARY_FILE).write_text(summary.to_json())
+    return summary
+
+
+@dataclass(frozen=True, eq=False)
+class RunSeries:
+    """A recorded run's summary, signals, target and controlled output.
+
+    Attributes
+    ----------
+    summary : RunSummary
+        Its ``summary.json``.
+    signals : Signals
+        Its bag's signals.
+    target_rad, y_rad : ndarray
+        Target and controlled output per recorded step (rad), from
+        :func:`~servo_axis.analysis.signals.tracking`.
+    lead_m_per_rad : float
+        ``R`` of the axis.
+    """
+
+    summary: RunSummary
+    signals: Signals
+    target_rad: NDArray[np.float64]
+    y_rad: NDArray[np.float64]
+    lead_m_per_rad: float
+
+    @property
+    def time_s(self) -> NDArray[np.float64]:
+        """Simulation time of each recorded step, s."""
+        t: NDArray[np.float64] = self.signals.step * self.summary.control_period_s
+        return t
+
+    @property
+    def error_m(self) -> NDArray[np.float64]:
+        """Tracking error ``R (r - y)`` per recorded step, m."""
+        e: NDArray[np.float64] = self.lead_m_per_rad * (self.target_rad - self.y_rad)
+        return e
+
+
+def run_series(run_dir: Path) -> RunSeries:
+    """Summary, recorded signals, target and controlled output of a run directory."""
+    run_dir = Path(run_dir)
+    summary = RunSummary.from_json(run_dir / SUMMARY_FILE)
+    scenario_path = Path(summary.scenario_file)
+    scenario = load_scenario(scenario_path)
+    lead = _axis_values(scenario)["lead_m_per_rad"]
+    sig = load_signals(run_dir / "bag", summary.control_period_s)
+    target, y = tracking(scenario, scenario_path, sig)
+    return RunSeries(summary, sig, target, y, lead)
+
+
+def contour(run_dir: Path, axes: list[str] | tuple[str, ...]) -> ContourResult:
+    """Contour error of the two axes (sub-directories of ``run_dir``) of a circle run.
+
+    Positions are ``R`` times the target and the controlled output of each
+    axis at the steps both recorded; the cycle is the first axis's reference
+    period (see :func:`~servo_axis.analysis.metrics.contour_error`).
+
+    Raises
+    ------
+    ConfigError
+        Unless there are exactly two axes.
+    """
+    if len(axes) != 2:
+        raise ConfigError(f"axes: expected two, got {axes!r}")
+    series = [run_series(Path(run_dir) / a) for a in axes]
+    steps = np.intersect1d(series[0].signals.step, series[1].signals.step)
+    target = np.empty((steps.size, 2))
+    measured = np.empty((steps.size, 2))
+    for col, s in enumerate(series):
+        idx = np.searchsorted(s.signals.step, steps)
+        target[:, col] = s.lead_m_per_rad * s.target_rad[idx]
+        measured[:, col] = s.lead_m_per_rad * s.y_rad[idx]
+    first = series[0].summary
+    period = float(first.control_period_s)
+    cycle_s = first.reference_period_s
+    per_cycle = round(cycle_s / period) if cycle_s else None
+    return contour_error(target, measured, steps, per_cycle)
+
+
+def summarise_axes(
+    run_dir: Path,
+    *,
+    scenario: dict[str, Any],
+    axes: dict[str, RunSummary],
+    wall_time_s: float,
+) -> AxesSummary:
+    """Summary of a multi-axis run: the axes' summaries and, for two, the contour.
+
+    Writes ``run_dir / "summary.json"`` and returns it.
+    """
+    run_dir = Path(run_dir)
+    common = _axis_values(scenario)
+    contour_summary = None
+    if len(axes) == 2:
+        names = sorted(axes)
+        contour_summary = ContourSummary.from_result(names, contour(run_dir, names))
+    summary = AxesSummary(
+        scenario=common["scenario.name"],
+        description=common["scenario.description"],
+        wall_time_s=wall_time_s,
+        axes=dict(axes),
+        contour=contour_summary,
+    )
+    (run_dir / SUMMARY_FILE).write_text(summary.to_json())
+    return summary

@@ -1,0 +1,246 @@
+"""Feedforward generator: reference trajectory + multirate PTC + a sum of terms.
+
+Per control sample ``k`` it gives the feedback reference ``r[k]`` (motor
+angle, rad), its velocity and the feedforward current ``u_ff[k]`` (A):
+
+* with PTC (paper 000 Sect. III-A, Fig. 5): the target state
+  ``x_d[i] = [x(i T_r), v(i T_r)] / R`` at the reference instants (plus a
+  learned target-side correction), the multirate feedforward
+  ``[u[2i], u[2i+1]] = B^-1 (x_d[i+1] - A x_d[i])`` and the nominal output
+  trajectory at every ``T_u`` as ``r``;
+* without PTC: ``r[k] = x(k T_u) / R`` and no model-based current;
+* then every feedforward term (:mod:`.terms`: the friction table of paper
+  000 Fig. 17, later compensators) adds its current, in order, and a learned
+  input-side correction (ILC, paper 001 eq. (3)) adds its own.
+
+Samples must be asked for in order (terms may track reversals); they are
+computed in blocks, cut the same way every run, so the numbers never depend
+on how many samples a caller asks for at once.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from servo_axis.core.errors import ConfigError, SignalError, require_positive
+from servo_axis.core.feedforward.ptc import MultiratePtc
+from servo_axis.core.feedforward.terms import FeedforwardTerm, ReferenceBlock
+from servo_axis.core.models.base import NominalModel
+from servo_axis.core.reference import Reference
+from servo_axis.core.timing import SampleGrid
+
+#: Control samples computed at a time (a multiple of the PTC ratio).
+BLOCK_STEPS = 256
+
+
+SIDES = ("target", "input")
+
+
+class FeedforwardGenerator:
+    """Streams ``(r, r', u_ff)`` per control sample.
+
+    Parameters
+    ----------
+    reference : Reference
+        Table-side trajectory (m, m/s, m/s^2).
+    grid : SampleGrid
+        ``T_u`` and ``T_r = ratio T_u``.
+    lead_m_per_rad : float
+        ``R``, m/rad, > 0.
+    nominal : NominalModel
+        ``P_n`` of eq. (1) for the PTC (replaceable later through :attr:`ptc`).
+    ptc_enabled : bool
+        Multirate PTC on (True) or reference only (False).
+    terms : sequence of FeedforwardTerm
+        Currents added to ``u_ff``, in this order.
+    learning_period_steps : int or None
+        Control samples per learning period (cycle or trial), or None when
+        nothing is learned; corrections of period ``j >= 1`` apply from
+        sample ``j * learning_period_steps``.
+    learning_side : str
+        ``"target"`` (added to ``x_d`` before PTC, per reference instant) or
+        ``"input"`` (added to ``u_ff``, per control sample).
+    """
+
+    def __init__(
+        self,
+        *,
+        reference: Reference,
+        grid: SampleGrid,
+        lead_m_per_rad: float,
+        nominal: NominalModel,
+        ptc_enabled: bool = True,
+        terms: Sequence[FeedforwardTerm] = (),
+        learning_period_steps: int | None = None,
+        learning_side: str = "target",
+    ) -> None:
+        self._reference = reference
+        self._grid = grid
+        self._tu = grid.control_period_s
+        self._lead = require_positive("lead_m_per_rad", lead_m_per_rad)
+        self.ptc = (
+            MultiratePtc(**nominal.as_kwargs(), control_period_s=self._tu, ratio=grid.ratio)
+            if ptc_enabled
+            else None
+        )
+        self._terms = list(terms)
+        if learning_side not in SIDES:
+            raise ConfigError(f"learning_side: expected one of {SIDES}, got {learning_side!r}")
+        ratio = grid.ratio
+        if learning_period_steps is not None:
+            if learning_side == "target" and self.ptc is None:
+                raise ConfigError(
+                    "learning_period_steps: target-side learning needs PTC (ptc_enabled)"
+                )
+            if learning_period_steps < 4 * ratio or learning_period_steps % ratio:
+                raise ConfigError(
+                    f"learning_period_steps: expected a multiple of {ratio} >= {4 * ratio}, "
+                    f"got {learning_period_steps!r}"
+                )
+        self._cycle_steps = learning_period_steps
+        self._side = learning_side
+        self._corrections: dict[int, np.ndarray] = {}
+        self._next = 0
+        self._block_start = 0
+        self._block: np.ndarray = np.zeros((0, 3))
+
+    @property
+    def learning_side(self) -> str:
+        """``"target"`` or ``"input"``."""
+        return self._side
+
+    def _correction_shape(self) -> tuple[int, int]:
+        if self._cycle_steps is None:
+            raise ConfigError("cycle: this generator was built without learning_period_steps")
+        if self._side == "target":
+            return self._cycle_steps // self._grid.ratio, 2
+        return self._cycle_steps, 1
+
+    def set_correction(self, cycle: int, *values: np.ndarray) -> None:
+        """The learned correction for learning period ``cycle`` (>= 1).
+
+        Target side: ``(position_rad, velocity_rad_s)`` per reference instant
+        of the period, added to ``x_d`` before PTC, so it shifts both the
+        feedforward and the feedback reference (000 Fig. 5, 9). Input side:
+        ``(current_A,)`` per control sample, added to ``u_ff``.
+        """
+        n, columns = self._correction_shape()
+        arrays = [np.asarray(v, dtype=float) for v in values]
+        shapes = [a.shape for a in arrays]
+        if cycle < 1 or len(arrays) != columns or any(shape != (n,) for shape in shapes):
+            raise SignalError(
+                f"correction: expected cycle >= 1 and {columns} x {n} samples, got {cycle}, {shapes}"
+            )
+        if not all(np.all(np.isfinite(a)) for a in arrays):
+            raise SignalError("correction: expected finite values")
+        self._corrections[cycle] = np.column_stack(arrays)
+        for old in [c for c in self._corrections if c < cycle - 2]:
+            del self._corrections[old]
+
+    def repeat_correction(self, cycle: int) -> None:
+        """Use the correction of period ``cycle - 1`` (zero for period 1) for ``cycle`` as well."""
+        n, columns = self._correction_shape()
+        previous = self._corrections.get(cycle - 1, np.zeros((n, columns)))
+        self.set_correction(cycle, *(previous[:, c] for c in range(columns)))
+
+    def ready_until(self) -> int | None:
+        """First control sample that waits for a learning correction not yet set (None: none waits).
+
+        Target side: the samples of the last reference interval of period
+        ``j-1`` need ``x_d`` at the first instant of period ``j``, so they
+        wait for ``c_j``. Input side: period ``j`` starts with its own.
+        """
+        if self._cycle_steps is None:
+            return None
+        cycle = max(1, self._next // self._cycle_steps)
+        while cycle in self._corrections:
+            cycle += 1
+        lead = self._grid.ratio if self._side == "target" else 0
+        return cycle * self._cycle_steps - lead
+
+    def _block_end(self, k0: int) -> int:
+        end = k0 - (k0 % BLOCK_STEPS) + BLOCK_STEPS
+        if self._cycle_steps is not None:
+            # Blocks are cut where a new correction is first needed, the same
+            # way every run (the numbers must not depend on request sizes).
+            cs = self._cycle_steps
+            boundary = (k0 // cs + 1) * cs
+            for cut in (boundary - self._grid.ratio, boundary):
+                if k0 < cut < end:
+                    end = cut
+        return end
+
+    def _targets(self, ti: np.ndarray, first_instant: int) -> np.ndarray:
+        p_r, v_r, _ = self._reference.sample(ti)
+        x_d = np.column_stack((p_r, v_r)) / self._lead
+        if self._cycle_steps is not None and self._side == "target":
+            nd = self._cycle_steps // self._grid.ratio
+            for row in range(len(x_d)):
+                cycle, idx = divmod(first_instant + row, nd)
+                if cycle >= 1:
+                    x_d[row] += self._corrections[cycle][idx]
+        return x_d
+
+    def _compute_block(self, k0: int, k1: int) -> np.ndarray:
+        n = k1 - k0
+        k = np.arange(k0, k1)
+        t = k * self._tu
+        pos_m, vel_m, acc_m = self._reference.sample(t)
+        out = np.empty((n, 3))
+        if self.ptc is not None:
+            ratio = self._grid.ratio
+            ti = np.arange(k0, k1 + 1, ratio) * self._tu
+            first = self._grid.instant_of(k0)
+            x_d = self._targets(ti, first)
+            ptc = self.ptc.feedforward(x_d, first)
+            out[:, 0] = ptc.position_rad
+            out[:, 1] = ptc.velocity_rad_s
+            out[:, 2] = ptc.current_A
+        else:
+            out[:, 0] = pos_m / self._lead
+            out[:, 1] = vel_m / self._lead
+            out[:, 2] = 0.0
+        block = ReferenceBlock(
+            step=k, position_m=pos_m, velocity_m_s=vel_m, acceleration_m_s2=acc_m
+        )
+        for term in self._terms:
+            out[:, 2] += term.currents(block)
+        if self._cycle_steps is not None and self._side == "input":
+            cs = self._cycle_steps
+            for row, step in enumerate(range(k0, k1)):
+                cycle, idx = divmod(step, cs)
+                if cycle >= 1:
+                    out[row, 2] += self._corrections[cycle][idx, 0]
+        return out
+
+    def samples(self, start: int, stop: int) -> list[tuple[float, float, float]]:
+        """``(r_rad, r_rad_s, u_ff_A)`` for control samples ``start .. stop-1``.
+
+        Raises
+        ------
+        ConfigError
+            If ``start`` is not the next sample not yet given, or a sample
+            from ``stop`` on waits for a learning correction not yet set.
+        """
+        if start != self._next:
+            raise ConfigError(f"start: expected the next sample {self._next}, got {start}")
+        result: list[tuple[float, float, float]] = []
+        limit = self.ready_until()
+        if limit is not None and stop > limit:
+            raise ConfigError(
+                f"stop: samples from {limit} on wait for a learning correction, asked up to {stop}"
+            )
+        k = start
+        while k < stop:
+            if not self._block_start <= k < self._block_start + len(self._block):
+                self._block_start = k if self._cycle_steps is not None else k - (k % BLOCK_STEPS)
+                self._block = self._compute_block(
+                    self._block_start, self._block_end(self._block_start)
+                )
+            row = self._block[k - self._block_start]
+            result.append((float(row[0]), float(row[1]), float(row[2])))
+            k += 1
+        self._next = stop
+        return result

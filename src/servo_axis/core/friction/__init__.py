@@ -1,0 +1,1 @@
+"""Friction laws used inside plant models: Maxwell-slip rolling friction, Coulomb, viscous."""

@@ -1,0 +1,10 @@
+"""Online parameter identification (the seam for paper 003's DLPID).
+
+An identifier consumes the state stream at its own period (``T_RLS``) and
+publishes estimates that take effect in the feedforward from a step fixed by
+configuration (DESIGN 4): the PTC's model is replaced from that step on
+(:meth:`servo_axis.core.feedforward.ptc.MultiratePtc.replace_model`). An
+identifier is a module here (numerics: regression, RLS, PE index) plus its
+registration in :mod:`servo_axis.params.factories`, and its node under
+:mod:`servo_axis.nodes`. None is built yet.
+"""

@@ -1,0 +1,141 @@
+"""What every plant model offers: the Plant protocol, its outputs and the nominal model.
+
+A plant model is advanced one control period at a time with the current
+held over it (``step(current_A)``) and shows at each control sample what the
+sensors read and what the true motion is (:class:`PlantOutput`). The
+nominal model of paper 000 eq. (1), ``P_n = K_T / (J s^2 + D s)``, is what
+the controllers are designed on (PID, DOB, PTC); it is not the plant.
+
+A new model is a module in this folder with a class that satisfies
+:class:`Plant`, plus its registration in
+:mod:`servo_axis.params.factories` (its parameter schema and a builder).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+import scipy.linalg
+from numpy.typing import ArrayLike, NDArray
+
+from servo_axis.core.errors import ConfigError, require_nonnegative, require_positive
+
+
+@dataclass(frozen=True)
+class PlantOutput:
+    """What the plant shows at a control sample.
+
+    Attributes
+    ----------
+    step : int
+        Control sample index ``k`` (time ``k T_u``).
+    encoder_rad : float
+        Rotary encoder reading: motor angle, rad.
+    scale_m : float
+        Linear scale reading: table position, m.
+    angle_rad, velocity_rad_s : float
+        True motor angle (rad) and velocity (rad/s).
+    position_m, velocity_m_s : float
+        True table position (m) and velocity (m/s): ``R`` times the motor's
+        on a rigid screw, a state of its own on an elastic one.
+    motor_torque_Nm : float
+        Motor torque applied over the last period (``K_T`` times the current
+        after the dead time and saturation), N m.
+    friction_force_N : float
+        Friction at the table, N (a motor-side friction torque divided by
+        the lead ``R``).
+    """
+
+    step: int
+    encoder_rad: float
+    scale_m: float
+    angle_rad: float
+    velocity_rad_s: float
+    position_m: float
+    velocity_m_s: float
+    motor_torque_Nm: float
+    friction_force_N: float
+
+
+class Plant(Protocol):
+    """A plant model advanced one control period per call."""
+
+    @property
+    def step_index(self) -> int:
+        """Index of the current control sample."""
+        ...
+
+    def reset(self) -> None:
+        """Return to the initial state at step 0."""
+        ...
+
+    def output(self) -> PlantOutput:
+        """Readings and true state at the current control sample."""
+        ...
+
+    def step(self, current_A: float) -> PlantOutput:
+        """Hold ``current_A`` (A) over one control period; the output at the next sample."""
+        ...
+
+
+@dataclass(frozen=True, kw_only=True)
+class NominalModel:
+    """The nominal rigid-body model of paper 000 eq. (1): ``P_n = K_T / (J s^2 + D s)``.
+
+    Parameters
+    ----------
+    inertia_kgm2 : float
+        ``J_n``, kg m^2, > 0.
+    damping_Nms_per_rad : float
+        ``D_n``, N m s/rad, >= 0.
+    torque_constant_Nm_per_A : float
+        ``K_T``, N m/A, > 0.
+    """
+
+    inertia_kgm2: float
+    damping_Nms_per_rad: float
+    torque_constant_Nm_per_A: float
+
+    def __post_init__(self) -> None:
+        require_positive("inertia_kgm2", self.inertia_kgm2)
+        require_nonnegative("damping_Nms_per_rad", self.damping_Nms_per_rad)
+        require_positive("torque_constant_Nm_per_A", self.torque_constant_Nm_per_A)
+
+    def as_kwargs(self) -> dict[str, float]:
+        """``inertia_kgm2``, ``damping_Nms_per_rad``, ``torque_constant_Nm_per_A``."""
+        return {
+            "inertia_kgm2": self.inertia_kgm2,
+            "damping_Nms_per_rad": self.damping_Nms_per_rad,
+            "torque_constant_Nm_per_A": self.torque_constant_Nm_per_A,
+        }
+
+    def response(self, freq_hz: ArrayLike) -> NDArray[np.complex128]:
+        """``P_n(j 2 pi f)``, rad/A."""
+        s = 2j * np.pi * np.asarray(freq_hz, dtype=float)
+        result: NDArray[np.complex128] = self.torque_constant_Nm_per_A / (
+            self.inertia_kgm2 * s**2 + self.damping_Nms_per_rad * s
+        )
+        return result
+
+
+def whole_ratio(name: str, value: float, unit: float, unit_name: str) -> int:
+    """``value / unit`` as an int, or :class:`ConfigError` naming ``name`` if not whole."""
+    ratio = value / unit
+    n = round(ratio)
+    if abs(ratio - n) > 1e-6 * max(1.0, abs(ratio)):
+        raise ConfigError(
+            f"{name}: expected a whole multiple of {unit_name} = {unit!r} s, got {value!r} s"
+        )
+    return int(n)
+
+
+def zoh(a: np.ndarray, b: np.ndarray, step_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Exact zero-order-hold discretisation ``(e^{A h}, int_0^h e^{A t} dt B)``."""
+    n = a.shape[0]
+    m = np.zeros((n + 1, n + 1))
+    m[:n, :n] = a * step_s
+    m[:n, n] = b * step_s
+    e = scipy.linalg.expm(m)
+    return e[:n, :n], e[:n, n].copy()

@@ -1,0 +1,133 @@
+"""What every node process shares: QoS profiles, the executor, the main() wrapper."""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from collections.abc import Callable, Sequence
+
+import rclpy
+from rclpy.clock import Clock, ClockType
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+
+from servo_axis.core.errors import ServoAxisError
+from servo_axis.stop_signals import catch_stop_signals, restore_handlers
+
+#: Per-sample streams: reliable, deep enough for the preview window and the
+#: recorder's flow-control lag.
+STREAM_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=2000,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+
+#: Latched state (faults, recorder progress): a late subscriber gets the last one.
+LATCHED_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+
+#: Exit code of a node that refused its configuration.
+EXIT_BAD_CONFIG = 2
+
+
+def steady_clock() -> Clock:
+    """Wall (steady) clock for watchdogs, whatever ``use_sim_time`` says."""
+    return Clock(clock_type=ClockType.STEADY_TIME)
+
+
+def make_executor() -> rclpy.executors.Executor:
+    """EventsExecutor (fast), or SingleThreadedExecutor if ``SERVO_AXIS_EXECUTOR=single``."""
+    if os.environ.get("SERVO_AXIS_EXECUTOR", "events") == "single":
+        return SingleThreadedExecutor()
+    from rclpy.experimental import EventsExecutor
+
+    return EventsExecutor()
+
+
+class Throttle:
+    """At most one log line per ``period_s`` of wall time for a repeated complaint."""
+
+    def __init__(self, period_s: float = 1.0) -> None:
+        self._period = period_s
+        self._last = -1e18
+
+    def ready(self) -> bool:
+        now = time.monotonic()
+        if now - self._last >= self._period:
+            self._last = now
+            return True
+        return False
+
+
+def spin_nodes(nodes: Sequence[Node], done: Callable[[], bool]) -> None:
+    """Spin ``nodes`` on one executor until ``done()`` or shutdown.
+
+    ``spin_once`` in a loop rather than ``spin``: EventsExecutor.spin() was
+    seen to ignore SIGTERM in a standalone process (ROS_NOTES).
+    """
+    executor = make_executor()
+    for node in nodes:
+        executor.add_node(node)
+    try:
+        while rclpy.ok() and not done():
+            try:
+                executor.spin_once(timeout_sec=0.1)
+            except RuntimeError:
+                # A signal shut the context down while the EventsExecutor was
+                # handing a message to Python; that is a normal stop.
+                if rclpy.ok():
+                    raise
+    finally:
+        executor.shutdown()
+
+
+def run_main(
+    name: str,
+    factories: Sequence[Callable[[], Node]],
+    args: list[str] | None = None,
+    done: Callable[[Sequence[Node]], bool] | None = None,
+) -> int:
+    """Standard main of a node process: init, build, spin, shut down.
+
+    A node whose parameters are bad raises a :class:`ServoAxisError` in its
+    constructor, before it creates any publisher; that is reported on stderr
+    and the process exits with :data:`EXIT_BAD_CONFIG`.
+
+    SIGINT and SIGTERM end the spin loop between callbacks, and the context
+    is shut down only after it: rclpy's own handler shuts the context down at
+    once, so a callback under way (a stop in the middle of a run) would fail
+    to publish and log a traceback.
+    """
+    stop_requested: list[int] = []
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    previous = catch_stop_signals(stop_requested)
+    nodes: list[Node] = []
+    code = 0
+    try:
+        for factory in factories:
+            nodes.append(factory())
+            if stop_requested:
+                return code
+        spin_nodes(nodes, lambda: bool(stop_requested) or (done is not None and done(nodes)))
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except ServoAxisError as err:
+        print(f"{name}: {err}", file=sys.stderr, flush=True)
+        code = EXIT_BAD_CONFIG
+    finally:
+        for node in reversed(nodes):
+            close = getattr(node, "close", None)
+            if close is not None:
+                close()
+            node.destroy_node()
+        rclpy.try_shutdown()
+        restore_handlers(previous)
+    return code

@@ -1,0 +1,383 @@
+"""Factories: parameter values -> core objects, with the registries of the extension points.
+
+The nodes, the headless simulation (:mod:`servo_axis.simulate`) and the
+reports build the same objects from the same checked values through these
+functions. Extension points, as in ros2_control, are chosen by a parameter
+from a registry; adding an implementation is one module plus one
+``register_*`` call:
+
+* plant models (``plant.model``): :func:`register_plant_model`;
+* feedforward terms (``feedforward`` keys of their own, e.g.
+  ``friction_table.*``): :func:`register_feedforward_term`;
+* learning laws (``learning.law``): :func:`register_learning_law`.
+
+Nothing here imports rclpy.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from servo_axis.core.errors import ParameterFileError, ServoAxisError
+from servo_axis.core.feedback.dob import DisturbanceObserver
+from servo_axis.core.feedback.loop import FeedbackLoop, SafetyLimits
+from servo_axis.core.feedback.pid import DiscretePid, design_pid_pole_placement
+from servo_axis.core.feedforward.generator import FeedforwardGenerator
+from servo_axis.core.feedforward.terms import FeedforwardTerm, FrictionTableTerm
+from servo_axis.core.friction.model import FrictionParams
+from servo_axis.core.learning.base import LearningLaw
+from servo_axis.core.learning.rptc import LearningParams, PeriodicSignalGenerator
+from servo_axis.core.models.ball_screw import BallScrewParams, BallScrewPlant, DisturbanceParams
+from servo_axis.core.models.base import NominalModel, Plant
+from servo_axis.core.reference import Reference, make_reference
+from servo_axis.core.sensors import SensorParams
+from servo_axis.core.timing import SampleGrid
+from servo_axis.params import schemas
+from servo_axis.params.scenario import node_params, resolve_table
+from servo_axis.params.schema import Param, build, check_values, section
+from servo_axis.storage import load_friction_table
+
+Values = Mapping[str, Any]
+
+# --------------------------------------------------------------------------- common
+
+
+def grid(values: Values) -> SampleGrid:
+    """The sample grid (``T_u``, ``T_r = 2 T_u``) of a node's values."""
+    return build("", SampleGrid, control_period_s=values["control_period_s"])
+
+
+def run_steps(values: Values) -> int:
+    """Control samples of the run (``duration_s / control_period_s``, at least 1)."""
+    return build("", grid(values).steps, duration_s=values["duration_s"])
+
+
+def nominal_model(values: Values) -> NominalModel:
+    """The nominal model ``P_n`` of eq. (1) (the shared ``nominal.*`` keys)."""
+    return build("nominal.", NominalModel, **section(values, "nominal"))
+
+
+#: Which reference.* keys each kind takes.
+REFERENCE_KEYS = {
+    "sine": ("amplitude_m", "frequency_hz", "offset_m", "phase_rad", "ramp_s"),
+    "one_minus_cos": ("amplitude_m", "frequency_hz"),
+    "point_to_point": ("distance_m", "move_time_s", "dwell_s"),
+}
+
+
+def build_reference(values: Values) -> Reference:
+    """The table-side reference of the ``reference.*`` keys."""
+    ref = section(values, "reference")
+    kind = ref.pop("kind")
+    if kind not in REFERENCE_KEYS:
+        raise ParameterFileError(
+            f"parameter 'reference.kind': expected one of {sorted(REFERENCE_KEYS)}, got {kind!r}"
+        )
+    return build(
+        "reference.", make_reference, kind=kind, **{k: ref[k] for k in REFERENCE_KEYS[kind]}
+    )
+
+
+# --------------------------------------------------------------------------- plant models
+
+
+@dataclass(frozen=True)
+class PlantModelEntry:
+    """A registered plant model: its parameter keys and how to build it.
+
+    Attributes
+    ----------
+    schema : mapping of str to Param
+        The model's keys in the ``plant`` section (beside :data:`schemas.PLANT`).
+    build : callable
+        ``build(values, rng) -> Plant`` from the checked plant values.
+    """
+
+    schema: Mapping[str, Param]
+    build: Callable[[Values, np.random.Generator], Plant]
+
+
+PLANT_MODELS: dict[str, PlantModelEntry] = {}
+
+
+def register_plant_model(
+    name: str,
+    *,
+    schema: Mapping[str, Param],
+    build: Callable[[Values, np.random.Generator], Plant],
+) -> None:
+    """Make a plant model selectable as ``plant.model: <name>``."""
+    clash = set(schema) & (set(schemas.PLANT) | set(schemas.SHARED))
+    if clash:
+        raise ValueError(f"schema: keys {sorted(clash)} are the plant node's own")
+    PLANT_MODELS[name] = PlantModelEntry(schema=schema, build=build)
+
+
+def plant_model(name: object) -> PlantModelEntry:
+    """The registered model ``name`` (ParameterFileError naming ``model`` otherwise)."""
+    if not isinstance(name, str) or name not in PLANT_MODELS:
+        raise ParameterFileError(
+            f"parameter 'model': expected one of {sorted(PLANT_MODELS)}, got {name!r}"
+        )
+    return PLANT_MODELS[name]
+
+
+def build_plant(values: Values) -> Plant:
+    """The plant model of checked plant values, its sensor noise seeded by ``noise_seed``."""
+    entry = plant_model(values["model"])
+    return entry.build(values, np.random.default_rng(values["noise_seed"]))
+
+
+# The modes lists default to [0.0] only so that their type is known; an
+# all-zero frequency list means "no modes".
+_NO_MODES = [0.0]
+
+
+def ball_screw_params(values: Values) -> BallScrewParams:
+    """:class:`BallScrewParams` from checked plant values."""
+    freqs, zetas, gains = (values[f"modes.{k}"] for k in ("frequency_hz", "zeta", "a"))
+    if freqs == _NO_MODES and zetas == _NO_MODES and gains == _NO_MODES:
+        freqs, zetas, gains = [], [], []
+    if not len(freqs) == len(zetas) == len(gains):
+        raise ParameterFileError(
+            "parameter 'modes': modes.frequency_hz, modes.zeta and modes.a must have the "
+            f"same length, got {len(freqs)}, {len(zetas)}, {len(gains)}"
+        )
+    return build(
+        "",
+        BallScrewParams,
+        torque_constant_Nm_per_A=values["torque_constant_Nm_per_A"],
+        inertia_kgm2=values["inertia_kgm2"],
+        damping_Nms_per_rad=values["damping_Nms_per_rad"],
+        lead_m_per_rad=values["lead_m_per_rad"],
+        modes=tuple(zip(freqs, zetas, gains, strict=True)),
+        dead_time_s=values["dead_time_s"],
+        control_period_s=values["control_period_s"],
+        sim_step_s=values["sim_step_s"],
+        current_limit_A=values["current_limit_A"],
+        initial_angle_rad=values["initial_angle_rad"],
+        initial_velocity_rad_s=values["initial_velocity_rad_s"],
+        friction=build("friction.", FrictionParams, **section(values, "friction")),
+        disturbance=build("disturbance.", DisturbanceParams, **section(values, "disturbance")),
+        encoder=build("encoder.", SensorParams, **section(values, "encoder")),
+        scale=build("scale.", SensorParams, **section(values, "scale")),
+    )
+
+
+register_plant_model(
+    "ball_screw",
+    schema=schemas.BALL_SCREW,
+    build=lambda values, rng: BallScrewPlant(ball_screw_params(values), rng=rng),
+)
+
+# --------------------------------------------------------------------------- feedback
+
+
+def build_loop(values: Values) -> FeedbackLoop:
+    """The feedback loop (PID, optional DOB, trips) of checked feedback values."""
+    period = values["control_period_s"]
+    nominal = nominal_model(values).as_kwargs()
+    gains = build("", design_pid_pole_placement, bandwidth_hz=values["bandwidth_hz"], **nominal)
+    pid = build("", DiscretePid, gains=gains, period_s=period)
+    dob = (
+        build(
+            "dob.",
+            DisturbanceObserver,
+            cutoff_hz=values["dob.cutoff_hz"],
+            period_s=period,
+            **nominal,
+        )
+        if values["dob.enabled"]
+        else None
+    )
+    limits = build("limits.", SafetyLimits, **section(values, "limits"))
+    return FeedbackLoop(
+        pid=pid,
+        dob=dob,
+        lead_m_per_rad=values["lead_m_per_rad"],
+        limits=limits,
+        use_feedforward=values["use_feedforward"],
+    )
+
+
+# --------------------------------------------------------------------------- feedforward
+
+TermBuilder = Callable[[Values], FeedforwardTerm | None]
+
+#: Feedforward terms, in the order they are summed; each builder returns None
+#: when its keys leave it off.
+FEEDFORWARD_TERMS: dict[str, TermBuilder] = {}
+
+
+def register_feedforward_term(name: str, build: TermBuilder) -> None:
+    """Add a feedforward term (summed after those registered before it)."""
+    FEEDFORWARD_TERMS[name] = build
+
+
+def _friction_table_term(values: Values) -> FeedforwardTerm | None:
+    if not values["friction_table.enabled"]:
+        return None
+    path = values["friction_table.file"]
+    if not path:
+        raise ParameterFileError(
+            "parameter 'friction_table.file': required when friction_table.enabled is true"
+        )
+    try:
+        table = load_friction_table(path)
+    except (OSError, ServoAxisError) as err:
+        raise ParameterFileError(f"parameter 'friction_table.file': {err}") from err
+    return FrictionTableTerm(
+        table, torque_constant_Nm_per_A=values["nominal.torque_constant_Nm_per_A"]
+    )
+
+
+register_feedforward_term("friction_table", _friction_table_term)
+
+
+def build_terms(values: Values) -> list[FeedforwardTerm]:
+    """The feedforward terms the values switch on, in registration order."""
+    return [t for b in FEEDFORWARD_TERMS.values() if (t := b(values)) is not None]
+
+
+def learning_period_steps(values: Values) -> int | None:
+    """Control samples per learning period of checked feedforward values (None: no learning)."""
+    if not values["learning.enabled"]:
+        return None
+    return build(
+        "learning.", grid(values).steps_per, period_s=values["learning.cycle_s"], name="cycle_s"
+    )
+
+
+def build_generator(values: Values) -> FeedforwardGenerator:
+    """The feedforward generator of checked feedforward values."""
+    period_steps = learning_period_steps(values)
+    side = learning_law(values["learning.law"]).side if period_steps is not None else "target"
+    return build(
+        "",
+        FeedforwardGenerator,
+        reference=build_reference(values),
+        grid=grid(values),
+        lead_m_per_rad=values["lead_m_per_rad"],
+        nominal=nominal_model(values),
+        ptc_enabled=values["ptc.enabled"],
+        terms=build_terms(values),
+        learning_period_steps=period_steps,
+        learning_side=side,
+    )
+
+
+# --------------------------------------------------------------------------- learning laws
+
+
+@dataclass(frozen=True)
+class LearningLawEntry:
+    """A registered learning law.
+
+    Attributes
+    ----------
+    schema : mapping of str to Param
+        The law's own keys in the ``learning`` section.
+    period, side : str
+        ``cycle``/``trial`` and ``target``/``input`` (:mod:`servo_axis.core.learning.base`).
+    build : callable
+        ``build(values) -> LearningLaw`` from checked learning values.
+    """
+
+    schema: Mapping[str, Param]
+    period: str
+    side: str
+    build: Callable[[Values], LearningLaw]
+
+
+LEARNING_LAWS: dict[str, LearningLawEntry] = {}
+
+
+def register_learning_law(
+    name: str,
+    *,
+    schema: Mapping[str, Param],
+    period: str,
+    side: str,
+    build: Callable[[Values], LearningLaw],
+) -> None:
+    """Make a learning law selectable as ``learning.law: <name>``."""
+    LEARNING_LAWS[name] = LearningLawEntry(schema=schema, period=period, side=side, build=build)
+
+
+def learning_law(name: object) -> LearningLawEntry:
+    """The registered law ``name`` (ParameterFileError naming ``law`` otherwise)."""
+    if not isinstance(name, str) or name not in LEARNING_LAWS:
+        raise ParameterFileError(
+            f"parameter 'law': expected one of {sorted(LEARNING_LAWS)}, got {name!r}"
+        )
+    return LEARNING_LAWS[name]
+
+
+def _rptc(values: Values) -> LearningLaw:
+    g = grid(values)
+    nd = build("", g.instants_per, period_s=values["cycle_s"], name="cycle_s", minimum=4)
+    params = build(
+        "",
+        LearningParams,
+        samples_per_cycle=nd,
+        nq=values["nq"],
+        n=values["n"],
+        period_s=g.reference_period_s,
+    )
+    return PeriodicSignalGenerator(params)
+
+
+register_learning_law("rptc", schema={}, period="cycle", side="target", build=_rptc)
+
+
+def build_learning_law(values: Values) -> LearningLaw:
+    """The learning law of checked learning values."""
+    return learning_law(values["law"]).build(values)
+
+
+# --------------------------------------------------------------------------- schemas and values
+
+#: Schema of each node (shared keys included); the plant's adds its model's keys.
+NODE_SCHEMAS: dict[str, Mapping[str, Param]] = {
+    "plant": {**schemas.SHARED, **schemas.PLANT},
+    "feedback": {**schemas.SHARED, **schemas.FEEDBACK},
+    "feedforward": {**schemas.SHARED, **schemas.FEEDFORWARD},
+    "learning": {**schemas.SHARED, **schemas.LEARNING},
+    "recorder": {**schemas.SHARED, **schemas.RECORDER},
+}
+
+
+def node_schema(role: str, given: Values) -> dict[str, Param]:
+    """The full schema of node ``role`` for the keys ``given`` (the model/law chosen there)."""
+    schema = dict(NODE_SCHEMAS[role])
+    if role == "plant":
+        model = given.get("model", schema["model"].default)
+        schema.update(plant_model(model).schema)
+    elif role == "learning":
+        law = given.get("law", schema["law"].default)
+        schema.update(learning_law(law).schema)
+    return schema
+
+
+def checked_values(role: str, given: Values) -> dict[str, Any]:
+    """Checked values of node ``role``: ``given`` where set, defaults elsewhere."""
+    return check_values(node_schema(role, given), given, role)
+
+
+def node_values(scenario: dict[str, Any], role: str) -> dict[str, Any]:
+    """Checked parameter values of one node of a scenario (no ROS)."""
+    return checked_values(role, node_params(scenario, role))
+
+
+def feedforward_values(scenario: dict[str, Any], scenario_path: Path) -> dict[str, Any]:
+    """Checked feedforward values, the friction-table path made absolute."""
+    values = node_values(scenario, "feedforward")
+    values["friction_table.file"] = resolve_table(
+        values["friction_table.file"], Path(scenario_path).resolve().parent
+    )
+    return values

@@ -1,0 +1,177 @@
+"""Scenario files: loading, finding by name, per-node and per-axis views.
+
+A scenario is a ROS parameter file: a ``/**`` block of shared keys and one
+section per node (``plant``, ``feedback``, ``feedforward``, ``learning``,
+``recorder``), or ``/<axis>/<node>`` sections for a multi-axis scenario.
+The scenarios of the project ship with the package (``servo_axis/scenarios``;
+``config/`` of a source checkout is the same folder), so that
+``python -m servo_axis run rptc_detailed`` works from an installed package.
+Nothing here imports rclpy.
+"""
+
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from servo_axis.core.errors import ConfigError
+
+#: Node roles, in the order of the sections of a scenario file.
+ROLES = ("plant", "feedback", "feedforward", "learning", "recorder")
+#: The order in which the runner starts them (recorder first, plant last).
+START_ORDER = ("recorder", "learning", "feedforward", "feedback", "plant")
+SHARED_SECTION = "/**"
+
+
+def scenario_dir() -> Path:
+    """The folder of the scenarios shipped with the package."""
+    return Path(str(resources.files("servo_axis") / "scenarios"))
+
+
+def scenario_names() -> list[str]:
+    """Names of the shipped scenarios (file stems), sorted."""
+    return sorted(p.stem for p in scenario_dir().glob("*.yaml"))
+
+
+def find_scenario(name_or_path: str | Path) -> Path:
+    """A scenario file from a path, or from the name of a shipped scenario.
+
+    Raises
+    ------
+    ConfigError
+        If ``name_or_path`` is neither an existing file nor a shipped
+        scenario's name (the message lists the names).
+    """
+    path = Path(name_or_path)
+    if path.is_file():
+        return path
+    shipped = scenario_dir() / f"{path.stem if path.suffix == '.yaml' else path.name}.yaml"
+    if path.parent == Path(".") and shipped.is_file():
+        return shipped
+    raise ConfigError(
+        f"scenario: {str(name_or_path)!r} is neither a file nor a shipped scenario "
+        f"({', '.join(scenario_names())})"
+    )
+
+
+def load_scenario(path: Path) -> dict[str, Any]:
+    """Read a scenario (a ROS parameter file) and check its top-level layout."""
+    try:
+        data = yaml.safe_load(Path(path).read_text())
+    except (OSError, yaml.YAMLError) as err:
+        raise ConfigError(f"scenario {path}: cannot read it: {err}") from err
+    if not isinstance(data, dict):
+        raise ConfigError(f"scenario {path}: expected a mapping of node sections")
+    for key, value in data.items():
+        if key != SHARED_SECTION and key not in ROLES and axis_section(key) is None:
+            raise ConfigError(
+                f"scenario {path}: unknown section '{key}'; expected '/**', one of {list(ROLES)} "
+                "or '/<axis>/<node>'"
+            )
+        if not isinstance(value, dict) or set(value) != {"ros__parameters"}:
+            raise ConfigError(f"scenario {path}: section '{key}' must hold only 'ros__parameters'")
+    if "plant" not in data:
+        raise ConfigError(f"scenario {path}: a 'plant' section is required")
+    return data
+
+
+def axis_section(key: str) -> tuple[str, str] | None:
+    """``(axis, role)`` of a per-axis section key ``/<axis>/<role>``, else None."""
+    parts = key.split("/")
+    if len(parts) == 3 and parts[0] == "" and parts[1].isidentifier() and parts[2] in ROLES:
+        return parts[1], parts[2]
+    return None
+
+
+def axes_of(scenario: dict[str, Any]) -> list[str]:
+    """Axes of a multi-axis scenario (from its ``/<axis>/<node>`` sections), sorted; [] if none."""
+    return sorted({a[0] for key in scenario if (a := axis_section(key)) is not None})
+
+
+def merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
+    """Nested mappings merged; ``over`` wins."""
+    out = dict(base)
+    for k, v in over.items():
+        out[k] = merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
+    return out
+
+
+def axis_view(scenario: dict[str, Any], axis: str, scenario_dir: Path) -> dict[str, Any]:
+    """The single-axis scenario of one axis of a multi-axis scenario.
+
+    Each ``/<axis>/<node>`` section is merged into the node's common section
+    (nested keys merge, the axis wins), ``axis`` is set to the axis name and
+    a relative friction-table path is made absolute, so that the result runs
+    and is reported like any single-axis scenario.
+    """
+    view: dict[str, Any] = {}
+    common = shared(scenario)
+    common["axis"] = axis
+    about = dict(common.get("scenario", {}))
+    about["name"] = f"{about.get('name', 'scenario')}/{axis}"
+    common["scenario"] = about
+    view[SHARED_SECTION] = {"ros__parameters": common}
+    for role in ROLES:
+        own = scenario.get(f"/{axis}/{role}", {}).get("ros__parameters", {})
+        if role in scenario or own:
+            base = scenario.get(role, {}).get("ros__parameters", {})
+            view[role] = {"ros__parameters": merge(base, own)}
+    ff = view.get("feedforward", {}).get("ros__parameters", {})
+    if ff.get("friction_table", {}).get("file"):
+        table = resolve_table(ff["friction_table"]["file"], scenario_dir)
+        ff["friction_table"] = {**ff["friction_table"], "file": table}
+    return view
+
+
+def resolve_table(path_text: str, scenario_dir: Path) -> str:
+    """A table path of a scenario: relative ones are relative to the scenario's directory."""
+    if path_text and not Path(path_text).is_absolute():
+        return str(scenario_dir / path_text)
+    return path_text
+
+
+def shared(scenario: dict[str, Any]) -> dict[str, Any]:
+    """The ``/**`` parameters of a scenario."""
+    return dict(scenario.get(SHARED_SECTION, {}).get("ros__parameters", {}))
+
+
+def flatten(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    """Nested YAML mappings as dotted keys (``{a: {b: 1}}`` is ``{"a.b": 1}``)."""
+    out: dict[str, Any] = {}
+    for k, v in d.items():
+        if isinstance(v, dict):
+            out.update(flatten(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
+
+
+def node_params(scenario: dict[str, Any], role: str) -> dict[str, Any]:
+    """The section of one node, flattened to dotted keys, on top of the shared ones."""
+    return {
+        **flatten(shared(scenario)),
+        **flatten(scenario.get(role, {}).get("ros__parameters", {})),
+    }
+
+
+def roles_of(scenario: dict[str, Any]) -> list[str]:
+    """Nodes a scenario starts: those with a section, in start order."""
+    return [r for r in START_ORDER if r in scenario]
+
+
+class _QuotingDumper(yaml.SafeDumper):
+    """Quotes every string: rcl's parameter parser reads a bare ``y``, ``on``
+    or ``1e3`` as a bool or a number, PyYAML writes them bare."""
+
+
+_QuotingDumper.add_representer(
+    str, lambda dumper, value: dumper.represent_scalar("tag:yaml.org,2002:str", value, style='"')
+)
+
+
+def dump_params(data: dict[str, Any]) -> str:
+    """A ROS parameter file's text, every string quoted."""
+    return str(yaml.dump(data, Dumper=_QuotingDumper, sort_keys=False))

@@ -1,0 +1,554 @@
+"""Every node parameter, once: default, SI unit, allowed range and meaning.
+
+One :class:`~servo_axis.params.schema.Param` per (dotted) key, per section of
+a scenario file: :data:`SHARED` (``/**``), :data:`PLANT` and the keys of its
+model (:data:`BALL_SCREW` for ``model: ball_screw``), :data:`FEEDBACK`,
+:data:`FEEDFORWARD`, :data:`LEARNING` and :data:`RECORDER`. The ranges are
+what each value means physically (a period is > 0, a gain >= 0); what
+depends on several keys at once (``sim_step_s`` divides
+``control_period_s``, ``n Nq + 2 < Nd``, ...) is checked by the objects the
+values build. :data:`SECTIONS` lists them for the parameter reference
+(``scripts/parameter_docs.py`` -> ``docs/parameters.md``).
+
+Paper numbers refer to ``shared/papers`` (000: Fujimoto & Takemura, RPTC
+with the n-times learning filter; 001: Hayashi & Fujimoto; 004: Zhu &
+Fujimoto), "DESIGN 7" to the axis presets of the design notes.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+from servo_axis.params.schema import Param
+from servo_axis.wire import topics
+
+#: Keys every node accepts (the ``/**`` block of a scenario file).
+SHARED: dict[str, Param] = {
+    "mode": Param(
+        "lockstep",
+        choices=("lockstep", "realtime"),
+        meaning="time mode: lockstep = the plant owns /clock and waits for every input "
+        "(deterministic); realtime = wall-clock steps, late inputs are deadline misses",
+    ),
+    "control_period_s": Param(
+        1e-3,
+        unit="s",
+        above=0.0,
+        meaning="control period T_u (command hold, sampling of the loop); "
+        "the reference period is T_r = 2 T_u (000 Sect. III)",
+    ),
+    "duration_s": Param(
+        2.0,
+        unit="s",
+        above=0.0,
+        meaning="length of the run: round(duration_s / control_period_s) >= 1 control samples",
+    ),
+    "axis": Param(
+        "x",
+        meaning="axis name: the JointState names are `<axis>_motor` and `<axis>_table`",
+    ),
+    "lead_m_per_rad": Param(
+        1.91e-3,
+        unit="m/rad",
+        above=0.0,
+        meaning="ball-screw lead R: table position x = R theta (DESIGN 7: 1.91 mm/rad)",
+    ),
+    "nominal.torque_constant_Nm_per_A": Param(
+        0.715,
+        unit="N m/A",
+        above=0.0,
+        meaning="K_T of the nominal plant P_n = K_T / (J s^2 + D s), eq. (1) of 000, "
+        "used to design PID, DOB and PTC",
+    ),
+    "nominal.inertia_kgm2": Param(
+        0.01,
+        unit="kg m^2",
+        above=0.0,
+        meaning="J of the nominal plant P_n, eq. (1) of 000",
+    ),
+    "nominal.damping_Nms_per_rad": Param(
+        0.1,
+        unit="N m s/rad",
+        minimum=0.0,
+        meaning="D of the nominal plant P_n, eq. (1) of 000",
+    ),
+    "scenario.name": Param(
+        "",
+        meaning="scenario name (summary, plots; a learning memory file must carry the same)",
+    ),
+    "scenario.description": Param("", meaning="one-line description of the scenario"),
+}
+
+#: The plant node's own keys; its model's keys are in the model's schema.
+PLANT: dict[str, Param] = {
+    "model": Param(
+        "ball_screw",
+        meaning="plant model (registered name): ball_screw = rigid ball-screw axis with "
+        "resonance modes, dead time and friction, eq. (30) of 000",
+    ),
+    "noise_seed": Param(
+        0,
+        minimum=0,
+        meaning="seed of the random generator of the sensor noise (same seed, same run)",
+    ),
+    "publish_clock": Param(
+        True,
+        meaning="publish /clock (the simulation time) for the nodes that use sim time",
+    ),
+    "clock_every_steps": Param(
+        10,
+        unit="steps",
+        minimum=1,
+        meaning="publish /clock every this many control samples (logs and timers only)",
+    ),
+    "wait_for_state_subscribers": Param(
+        0,
+        minimum=0,
+        meaning="start only once this many subscribers of `state` have matched",
+    ),
+    "wait_for_clock_subscribers": Param(
+        0,
+        minimum=0,
+        meaning="start only once this many subscribers of /clock have matched",
+    ),
+    "wait_for_status_subscribers": Param(
+        0,
+        minimum=0,
+        meaning="start only once this many subscribers of `plant/status` have matched",
+    ),
+    "flow_control": Param(
+        False,
+        meaning="lockstep: wait for the recorder's acknowledgements (recorder/progress) "
+        "so that it never loses a message",
+    ),
+    "max_recorder_lag_steps": Param(
+        200,
+        unit="steps",
+        minimum=1,
+        meaning="with flow_control: publish state[k] only once the recorder has step "
+        "k - max_recorder_lag_steps",
+    ),
+    "command_timeout_s": Param(
+        2.0,
+        unit="s",
+        above=0.0,
+        meaning="lockstep: wall time to wait for a command before applying zero current "
+        "(counted as a command timeout)",
+    ),
+    "status_every_steps": Param(
+        50,
+        unit="steps",
+        minimum=1,
+        meaning="publish plant/status (the feedforward's progress signal) every this many samples",
+    ),
+}
+
+#: Keys of the plant with ``model: ball_screw``: eq. (30) of 000 with DESIGN 7 defaults.
+BALL_SCREW: dict[str, Param] = {
+    "torque_constant_Nm_per_A": Param(
+        0.715,
+        unit="N m/A",
+        above=0.0,
+        meaning="K_T of eq. (30) of 000: motor torque per ampere of current (0.715)",
+    ),
+    "inertia_kgm2": Param(
+        0.01,
+        unit="kg m^2",
+        above=0.0,
+        meaning="J of eq. (30): rigid-body inertia at the motor (0.01)",
+    ),
+    "damping_Nms_per_rad": Param(
+        0.1,
+        unit="N m s/rad",
+        minimum=0.0,
+        meaning="D of eq. (30): viscous damping at the motor (0.1)",
+    ),
+    "modes.frequency_hz": Param(
+        [0.0],
+        unit="Hz",
+        minimum=0.0,
+        meaning="resonance frequencies f_i of eq. (30), one per mode (> 0); "
+        "all three modes.* lists [0.0] = no mode",
+    ),
+    "modes.zeta": Param(
+        [0.0],
+        minimum=0.0,
+        meaning="damping ratios zeta_i of the modes of eq. (30) (> 0 for a mode)",
+    ),
+    "modes.a": Param(
+        [0.0],
+        meaning="relative gains a_i of the modes of eq. (30): K_i = a_i K_T / J (DESIGN 7)",
+    ),
+    "dead_time_s": Param(
+        0.0,
+        unit="s",
+        minimum=0.0,
+        meaning="dead time T_d of eq. (30) (000: 70 us), a whole number of sim_step_s",
+    ),
+    "sim_step_s": Param(
+        50e-6,
+        unit="s",
+        above=0.0,
+        meaning="integration step h of the plant (exact ZOH); divides control_period_s",
+    ),
+    "current_limit_A": Param(
+        30.0,
+        unit="A",
+        above=0.0,
+        meaning="amplifier saturation: the current command is clipped to +-current_limit_A",
+    ),
+    "initial_angle_rad": Param(0.0, unit="rad", meaning="motor angle at step 0"),
+    "initial_velocity_rad_s": Param(0.0, unit="rad/s", meaning="motor velocity at step 0"),
+    "friction.rolling_coulomb_Nm": Param(
+        0.0,
+        unit="N m",
+        minimum=0.0,
+        meaning="rolling (Maxwell-slip) friction level T_c at the motor once the balls roll "
+        "(region B, 000 Fig. 4; 001: 3.2 N m); 0 = off",
+    ),
+    "friction.presliding_width_m": Param(
+        10e-6,
+        unit="m",
+        above=0.0,
+        meaning="pre-sliding width at the table: displacement from a reversal at which rolling "
+        "friction reaches T_c (region A; about 10 um)",
+    ),
+    "friction.elements": Param(
+        8,
+        minimum=1,
+        maximum=200,
+        meaning="number of Maxwell-slip elements (knots of the piecewise-linear virgin curve)",
+    ),
+    "friction.coulomb_Nm": Param(
+        0.0,
+        unit="N m",
+        minimum=0.0,
+        meaning="plain Coulomb friction level at the motor, T_c tanh(w / w_s); 0 = off",
+    ),
+    "friction.coulomb_smoothing_rad_s": Param(
+        1e-3,
+        unit="rad/s",
+        above=0.0,
+        meaning="velocity w_s of the tanh regularisation of the Coulomb term",
+    ),
+    "friction.viscous_Nms_per_rad": Param(
+        0.0,
+        unit="N m s/rad",
+        minimum=0.0,
+        meaning="viscous friction at the motor, in addition to the damping D",
+    ),
+    "disturbance.amplitude_Nm": Param(
+        0.0,
+        unit="N m",
+        minimum=0.0,
+        meaning="amplitude A of the input disturbance torque A sin(2 pi f t + phi) at the motor "
+        "(000 Fig. 13); 0 = none",
+    ),
+    "disturbance.frequency_hz": Param(
+        4.0,
+        unit="Hz",
+        above=0.0,
+        meaning="frequency f of the input disturbance torque",
+    ),
+    "disturbance.phase_rad": Param(
+        0.0,
+        unit="rad",
+        meaning="phase phi of the input disturbance torque at t = 0",
+    ),
+    "encoder.resolution": Param(
+        2.0 * math.pi / 2**20,
+        unit="rad",
+        minimum=0.0,
+        meaning="rotary-encoder count on the motor angle (2 pi / 2^20 rad, DESIGN 7); 0 = ideal",
+    ),
+    "encoder.noise_std": Param(
+        0.0,
+        unit="rad",
+        minimum=0.0,
+        meaning="standard deviation of Gaussian encoder noise before quantisation",
+    ),
+    "scale.resolution": Param(
+        100e-9,
+        unit="m",
+        minimum=0.0,
+        meaning="linear-scale count on the table position (100 nm, DESIGN 7); 0 = ideal",
+    ),
+    "scale.noise_std": Param(
+        0.0,
+        unit="m",
+        minimum=0.0,
+        meaning="standard deviation of Gaussian scale noise before quantisation",
+    ),
+}
+
+#: The controlled output, shared by the feedback loop and the learning unit.
+SENSOR = Param(
+    "encoder",
+    choices=("encoder", "scale"),
+    meaning="which sensor is the controlled output: rotary encoder (semi-closed loop) "
+    "or linear scale / R (full-closed)",
+)
+
+FEEDBACK: dict[str, Param] = {
+    "bandwidth_hz": Param(
+        40.0,
+        unit="Hz",
+        above=0.0,
+        meaning="position-loop bandwidth of the PID: all four closed-loop poles at -2 pi f on P_n "
+        "(pole placement, Tustin; 000: 40/45 Hz)",
+    ),
+    "dob.enabled": Param(
+        False,
+        meaning="disturbance observer on the motor angle: inverse nominal model + low-pass "
+        "(004 Sect. II)",
+    ),
+    "dob.cutoff_hz": Param(
+        80.0,
+        unit="Hz",
+        above=0.0,
+        meaning="cut-off of the DOB low-pass filter (004: 80 Hz), below the Nyquist frequency",
+    ),
+    "use_feedforward": Param(
+        True,
+        meaning="add the feedforward current of `reference` to the PID output (false: PID alone)",
+    ),
+    "sensor": SENSOR,
+    "limits.following_error_m": Param(
+        2e-3,
+        unit="m",
+        above=0.0,
+        meaning="trip when the following error |r - y| at the table exceeds this",
+    ),
+    "limits.travel_m": Param(
+        0.2,
+        unit="m",
+        above=0.0,
+        meaning="trip when the table position |y| exceeds this",
+    ),
+    "limits.current_A": Param(
+        50.0,
+        unit="A",
+        above=0.0,
+        meaning="trip when the current demand |u| exceeds this",
+    ),
+    "input_timeout_s": Param(
+        0.5,
+        unit="s",
+        above=0.0,
+        meaning="wall time to wait for the reference of a sample before tripping to zero current",
+    ),
+    "max_preview_steps": Param(
+        20000,
+        unit="steps",
+        minimum=1,
+        meaning="reject a reference more than this many samples ahead of the last state",
+    ),
+}
+
+#: The reference trajectory (at the table), read by the feedforward and the learning unit.
+REFERENCE: dict[str, Param] = {
+    "reference.kind": Param(
+        "sine",
+        choices=("sine", "one_minus_cos", "point_to_point"),
+        meaning="trajectory: offset + A sin(2 pi f t + phase); A (1 - cos 2 pi f t); "
+        "minimum-jerk moves back and forth",
+    ),
+    "reference.amplitude_m": Param(
+        0.01,
+        unit="m",
+        minimum=0.0,
+        meaning="amplitude A (sine, one_minus_cos); 000 Fig. 18: 10 mm",
+    ),
+    "reference.frequency_hz": Param(
+        2.0,
+        unit="Hz",
+        above=0.0,
+        meaning="frequency f (sine, one_minus_cos)",
+    ),
+    "reference.offset_m": Param(0.0, unit="m", meaning="offset of the sine"),
+    "reference.phase_rad": Param(0.0, unit="rad", meaning="phase of the sine at t = 0"),
+    "reference.ramp_s": Param(
+        0.0,
+        unit="s",
+        minimum=0.0,
+        meaning="sine: time over which the phase speeds up smoothly from rest; 0 = none",
+    ),
+    "reference.distance_m": Param(
+        0.01,
+        unit="m",
+        meaning="point_to_point: move length d (either sign, non-zero)",
+    ),
+    "reference.move_time_s": Param(
+        0.2,
+        unit="s",
+        above=0.0,
+        meaning="point_to_point: duration T of one minimum-jerk move",
+    ),
+    "reference.dwell_s": Param(
+        0.1,
+        unit="s",
+        minimum=0.0,
+        meaning="point_to_point: standstill after each move",
+    ),
+}
+
+FEEDFORWARD: dict[str, Param] = {
+    **REFERENCE,
+    "ptc.enabled": Param(
+        True,
+        meaning="multirate PTC feedforward on P_n, u = B^-1 (x_d[i+1] - A x_d[i]) at T_r = 2 T_u "
+        "(000 Sect. III-A); false: reference only",
+    ),
+    "friction_table.enabled": Param(
+        False,
+        meaning="data-based friction table feedforward f(|y_d - y_rev|) / K_T with the sign "
+        "of the motion (000 Fig. 17)",
+    ),
+    "friction_table.file": Param(
+        "",
+        meaning="friction table CSV (`servo_axis friction-table`); a relative path is relative "
+        "to the scenario file",
+    ),
+    "preview_steps": Param(
+        200,
+        unit="steps",
+        minimum=2,
+        meaning="publish references up to this many samples ahead of the plant",
+    ),
+    "wait_for_reference_subscribers": Param(
+        0,
+        minimum=0,
+        meaning="start publishing only once this many subscribers of `reference` have matched",
+    ),
+    "learning.enabled": Param(
+        False,
+        meaning="add the learning unit's correction (RPTC) to the target of each cycle; "
+        "a cycle waits for its correction",
+    ),
+    "learning.cycle_s": Param(
+        0.5,
+        unit="s",
+        above=0.0,
+        meaning="learning cycle T_d = N_d T_r (000 Sect. III-B), a whole number of control periods",
+    ),
+    "learning.law": Param(
+        "rptc",
+        meaning="the learning unit's law (the bringup copies the learning section's `law`): "
+        "it decides target- or input-side corrections",
+    ),
+    "learning.timeout_s": Param(
+        0.5,
+        unit="s",
+        above=0.0,
+        meaning="wall time to wait for a cycle's correction before repeating the last one; "
+        "keep below the feedback's input_timeout_s",
+    ),
+}
+
+LEARNING: dict[str, Param] = {
+    **REFERENCE,
+    "law": Param(
+        "rptc",
+        meaning="learning law (registered name): rptc = repetitive PTC with the n-times "
+        "filter (000)",
+    ),
+    "cycle_s": Param(
+        0.5,
+        unit="s",
+        above=0.0,
+        meaning="learning cycle T_d = N_d T_r: a whole number N_d >= 4 of reference periods "
+        "T_r = 2 T_u (000 Sect. III-B)",
+    ),
+    "nq": Param(
+        20,
+        minimum=0,
+        meaning="N_q of the zero-phase learning filter Q = ((z + 2 + z^-1) / 4)^N_q, "
+        "eq. (2) of 000",
+    ),
+    "n": Param(
+        1,
+        minimum=1,
+        meaning="n of the n-times learning filter Q~n = I - (I - Q)^n, eq. (19) (1 = Q); "
+        "n N_q + 2 < N_d, eq. (29)",
+    ),
+    "start_cycle": Param(
+        2,
+        minimum=2,
+        meaning="first cycle (1-based) run with a learned correction: the error of cycle "
+        "start_cycle - 1 is the first learned (000 Fig. 17 switch)",
+    ),
+    "memory.file": Param(
+        "",
+        meaning="JSON file the correction is saved to after every cycle and resumed from; "
+        "'' = not persisted",
+    ),
+    "memory.resume": Param(
+        True,
+        meaning="start from the correction in memory.file when the file exists",
+    ),
+    "memory.on_bad_file": Param(
+        "fail",
+        choices=("fail", "clear"),
+        meaning="memory.file unreadable, corrupt or of another scenario / N_d / N_q / n / T_r: "
+        "fail = stop the node, clear = start from zero",
+    ),
+    "sensor": SENSOR,
+}
+
+#: What the recorder records by default: the topics of the loop's three nodes.
+_DEFAULT_RECORDED = topics.recorded_topics(("plant", "feedback", "feedforward"))
+
+RECORDER: dict[str, Param] = {
+    "output_dir": Param(
+        "",
+        meaning="bag directory to create (required)",
+    ),
+    "topics": Param(
+        [t.name for t in _DEFAULT_RECORDED],
+        meaning="topics to record (relative to the node's namespace); the bringup adds "
+        "those of the learning unit when it runs",
+    ),
+    "types": Param(
+        [t.type_name for t in _DEFAULT_RECORDED],
+        meaning="message type (pkg/msg/Type) of each of `topics`, in the same order",
+    ),
+    "latched_topics": Param(
+        [t.name for t in _DEFAULT_RECORDED if t.qos == "latched"],
+        meaning="those of `topics` subscribed with the latched (transient-local) QoS",
+    ),
+    # The per-sample topics of the loop itself (the topic table's `counted`).
+    # Not the reference: it runs ahead of the loop, and a dead feedforward
+    # generator must not stall the axis its feedback loop has just tripped.
+    "counted_topics": Param(
+        [t.name for t in _DEFAULT_RECORDED if t.counted],
+        meaning="those of `topics` whose smallest message count is the steps acknowledged "
+        "on recorder/progress",
+    ),
+    "compression": Param(
+        "zstd",
+        choices=("zstd", "lz4", "none"),
+        meaning="MCAP chunk compression",
+    ),
+    "ack_every_steps": Param(
+        50,
+        unit="steps",
+        minimum=1,
+        meaning="publish recorder/progress every this many recorded steps (and at the end)",
+    ),
+    "wait_for_publishers": Param(
+        True,
+        meaning="report ready (a first recorder/progress) only once every topic has a publisher",
+    ),
+}
+
+#: Every schema by section title, for the parameter reference.
+SECTIONS: dict[str, Mapping[str, Param]] = {
+    "/**": SHARED,
+    "plant": PLANT,
+    "plant (model ball_screw)": BALL_SCREW,
+    "feedback": FEEDBACK,
+    "feedforward": FEEDFORWARD,
+    "learning": LEARNING,
+    "recorder": RECORDER,
+}

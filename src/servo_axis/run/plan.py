@@ -1,0 +1,154 @@
+"""From a scenario to the parameter file of a run.
+
+The runner adds to the scenario what only it knows: whom each publisher
+waits for before its first message (the subscriber counts, derived from the
+table of topics in :mod:`servo_axis.wire.topics`), what the recorder
+records and where, the target and the cycle the learning unit must learn
+against, and simulated time for the nodes that follow the plant's clock.
+Nothing here imports rclpy.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from servo_axis.params.scenario import (
+    ROLES,
+    SHARED_SECTION,
+    dump_params,
+    flatten,
+    node_params,
+    resolve_table,
+    shared,
+)
+from servo_axis.wire.topics import recorded_topics, subscriber_count, topic
+
+#: Default of the learning unit's cycle when the feedforward section sets none.
+DEFAULT_CYCLE_S = 0.5
+
+
+def sim_time_roles() -> tuple[str, ...]:
+    """The nodes that run on the plant's simulated time: the consumers of ``/clock``.
+
+    The recorder records ``/clock`` but keeps wall time (it stamps the bag
+    with it), so that its subscriptions are exactly the ones counted in the
+    plant's ``wait_for_clock_subscribers``.
+    """
+    return topic("/clock").consumers
+
+
+def recorder_topics(scenario: dict[str, Any], roles: list[str]) -> tuple[list[str], list[str]]:
+    """The topics (and their types) the recorder of a run of ``roles`` subscribes to.
+
+    The recorder section's own ``topics`` (and ``types``) if it sets them,
+    else every topic recorded by default whose producer runs, in the order
+    of the table of topics.
+    """
+    rec = node_params(scenario, "recorder")
+    if "topics" in rec:
+        return list(rec["topics"]), list(rec.get("types", []))
+    default = recorded_topics(roles)
+    return [t.name for t in default], [t.type_name for t in default]
+
+
+def handshake_overrides(
+    scenario: dict[str, Any], roles: list[str], bag_dir: Path, scenario_dir: Path
+) -> dict[str, dict[str, Any]]:
+    """Per-node parameters the runner adds to a scenario (flat, dotted keys).
+
+    Parameters
+    ----------
+    scenario : dict
+        A single-axis scenario (a multi-axis one through
+        :func:`servo_axis.params.scenario.axis_view` first).
+    roles : list of str
+        The nodes that run (:func:`servo_axis.params.scenario.roles_of`).
+    bag_dir : Path
+        The bag directory the recorder creates; the learning unit's memory
+        file goes next to it (``<run>/learning_memory.json``) unless the
+        scenario names one.
+    scenario_dir : Path
+        The scenario file's folder: relative friction-table paths are
+        relative to it.
+
+    Returns
+    -------
+    dict
+        ``{role: {key: value}}``: the plant waits for the subscribers of
+        ``state``, ``/clock`` and ``plant/status`` (and, with a recorder, for
+        its acknowledgements: ``flow_control``); the feedforward generator
+        for those of ``reference``; the recorder gets ``output_dir`` and,
+        unless its section lists them, the topics recorded by default; the
+        learning unit gets ``reference.*`` and ``cycle_s`` of the
+        feedforward section and ``sensor`` of the feedback section;
+        feedback, feedforward and learning get ``use_sim_time: true``.
+    """
+    recorded: list[str] = []
+    out: dict[str, dict[str, Any]] = {"plant": {}}
+    if "learning" in roles:
+        out["learning"] = learning_overrides(scenario, bag_dir)
+    if "recorder" in roles:
+        recorded, types = recorder_topics(scenario, roles)
+        rec: dict[str, Any] = {}
+        if "topics" not in node_params(scenario, "recorder"):
+            rec.update(topics=recorded, types=types)
+        rec["output_dir"] = str(bag_dir)
+        out["recorder"] = rec
+        out["plant"]["flow_control"] = True
+    out["plant"].update(
+        wait_for_state_subscribers=subscriber_count("state", roles, recorded),
+        wait_for_clock_subscribers=subscriber_count("/clock", roles, recorded),
+        wait_for_status_subscribers=subscriber_count("plant/status", roles, recorded),
+    )
+    if "feedforward" in roles:
+        ff: dict[str, Any] = {
+            "wait_for_reference_subscribers": subscriber_count("reference", roles, recorded)
+        }
+        table = node_params(scenario, "feedforward").get("friction_table.file", "")
+        if table:
+            ff["friction_table.file"] = resolve_table(table, scenario_dir)
+        out["feedforward"] = ff
+    for role in sim_time_roles():
+        if role in roles:
+            out.setdefault(role, {})["use_sim_time"] = True
+    return out
+
+
+def learning_overrides(scenario: dict[str, Any], bag_dir: Path) -> dict[str, Any]:
+    """What the learning unit copies from the other sections: one source for each value.
+
+    It learns against the feedforward generator's original target
+    (``reference.*``) over its cycle (``learning.cycle_s``), and against
+    the controlled output of the feedback loop (``sensor``, when the
+    feedback section sets it).
+    """
+    ff = node_params(scenario, "feedforward")
+    out = {k: v for k, v in ff.items() if k.startswith("reference.")}
+    out["cycle_s"] = ff.get("learning.cycle_s", DEFAULT_CYCLE_S)
+    feedback = flatten(scenario.get("feedback", {}).get("ros__parameters", {}))
+    if "sensor" in feedback:
+        out["sensor"] = feedback["sensor"]
+    if "memory.file" not in node_params(scenario, "learning"):
+        out["memory.file"] = str(bag_dir.parent / "learning_memory.json")
+    return out
+
+
+def write_run_params(
+    scenario: dict[str, Any], overrides: dict[str, dict[str, Any]], path: Path
+) -> Path:
+    """The parameter file the nodes of a run get: the scenario plus the overrides.
+
+    Node sections are keyed ``/**/<node>`` so that they apply under any
+    namespace; the file is kept in the run directory as the exact record of
+    what ran.
+    """
+    out: dict[str, Any] = {SHARED_SECTION: {"ros__parameters": shared(scenario)}}
+    for role in ROLES:
+        if role not in scenario and role not in overrides:
+            continue
+        params = dict(scenario.get(role, {}).get("ros__parameters", {}))
+        params.update(overrides.get(role, {}))
+        out[f"/**/{role}"] = {"ros__parameters": params}
+    path.write_text(dump_params(out))
+    return path

@@ -1,0 +1,196 @@
+"""The node processes of a run: their environment, start, stop and clean-up.
+
+Each node is its own process started with this interpreter (the venv's),
+in its own process group, with a private ROS domain, localhost discovery,
+UDP transport (no ``/dev/shm`` files left behind even on SIGKILL) and a fast
+discovery profile. On a machine with two or more cores the plant and the
+feedback share one core (in lockstep they take turns) and the other nodes
+get the rest (``SERVO_AXIS_PIN=0`` turns this off).
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+#: Seconds between SIGINT and SIGKILL when the nodes are stopped.
+STOP_TIMEOUT_S = 5.0
+#: The roles that take turns on the per-sample path in lockstep.
+LOCKSTEP_PAIR = ("plant", "feedback")
+
+
+def ros_environment(domain_id: int, log_dir: Path) -> dict[str, str]:
+    """Environment of the node processes: ``os.environ`` plus the run's ROS settings."""
+    env = dict(os.environ)
+    env.update(discovery_settings(log_dir))
+    env.update(ROS_DOMAIN_ID=str(domain_id), PYTHONUNBUFFERED="1")
+    return env
+
+
+def discovery_settings(log_dir: Path) -> dict[str, str]:
+    """The variables rcl and Fast DDS read when a context and its participant are made.
+
+    Localhost discovery, UDP transport, the 100 ms discovery announcement
+    profile shipped with the package, and the ROS log directory.
+    """
+    profile = resources.files("servo_axis") / "data" / "fastdds_localhost.xml"
+    return {
+        "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+        "ROS_LOG_DIR": str(log_dir),
+        "FASTDDS_BUILTIN_TRANSPORTS": "UDPv4",
+        "FASTRTPS_DEFAULT_PROFILES_FILE": str(profile),
+    }
+
+
+def default_domain_id() -> int:
+    """ROS_DOMAIN_ID from the environment, else one derived from the pid (1..100)."""
+    if "ROS_DOMAIN_ID" in os.environ:
+        return int(os.environ["ROS_DOMAIN_ID"])
+    return os.getpid() % 100 + 1
+
+
+@dataclass
+class Proc:
+    """A node process and its log."""
+
+    role: str
+    popen: subprocess.Popen[bytes]
+    log_path: Path
+    log: Any = field(repr=False)
+    started_at: float = field(default_factory=time.time)
+
+    def tail(self, lines: int = 15) -> str:
+        """The last ``lines`` lines of the process's output."""
+        self.log.flush()
+        text = self.log_path.read_text(errors="replace").splitlines()
+        return "\n".join(text[-lines:])
+
+
+def start_nodes(
+    params_path: Path,
+    roles: list[str],
+    extra_args: list[str],
+    env: dict[str, str],
+    log_dir: Path,
+    composed: bool,
+) -> list[Proc]:
+    """Start the node processes (or one composed process), each logging to ``log_dir/<role>.log``."""
+    base = ["--ros-args", "--params-file", str(params_path), *extra_args]
+    jobs = (
+        [("composed", ["-m", "servo_axis.nodes.composed", *roles])]
+        if composed
+        else [(r, ["-m", f"servo_axis.nodes.{r}"]) for r in roles]
+    )
+    pin = os.environ.get("SERVO_AXIS_PIN", "1") == "1"
+    procs: list[Proc] = []
+    for role, cmd in jobs:
+        log_path = log_dir / f"{role}.log"
+        log = log_path.open("wb")
+        cpus = cpu_set(role) if pin else None
+        popen = subprocess.Popen(
+            [sys.executable, *cmd, *base],
+            preexec_fn=(lambda c=cpus: os.sched_setaffinity(0, c)) if cpus else None,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            env=env,
+            start_new_session=True,
+        )
+        procs.append(Proc(role, popen, log_path, log))
+    return procs
+
+
+def cpu_set(role: str) -> set[int] | None:
+    """The cores a node is pinned to; None (no pinning) on a single core.
+
+    The plant and the feedback take turns in lockstep: one core is enough
+    for both; the recorder and the feedforward generator get the rest.
+    """
+    cpus = sorted(os.sched_getaffinity(0))
+    if len(cpus) < 2:
+        return None
+    return {cpus[0]} if role in LOCKSTEP_PAIR else set(cpus[1:])
+
+
+def stop_nodes(procs: list[Proc], timeout_s: float = STOP_TIMEOUT_S) -> dict[str, int]:
+    """SIGINT every live process group, SIGKILL what is left after ``timeout_s``; reap all.
+
+    Returns the exit code of each role (negative: killed by that signal).
+    After a SIGKILL the shared-memory files of the killed participants are
+    removed (:func:`clean_stale_shm`).
+    """
+    for p in procs:
+        if p.popen.poll() is None:
+            _signal_group(p.popen, signal.SIGINT)
+    deadline = time.monotonic() + timeout_s
+    for p in procs:
+        try:
+            p.popen.wait(timeout=max(0.0, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            _signal_group(p.popen, signal.SIGKILL)
+            p.popen.wait()
+    for p in procs:
+        _signal_group(p.popen, signal.SIGKILL)  # stray children of the group, if any
+        p.log.close()
+    if procs and any(p.popen.returncode == -signal.SIGKILL for p in procs):
+        clean_stale_shm(since=min(p.started_at for p in procs))
+    return {p.role: p.popen.returncode for p in procs}
+
+
+def _signal_group(popen: subprocess.Popen[bytes], sig: int) -> None:
+    try:
+        os.killpg(popen.pid, sig)
+    except (ProcessLookupError, PermissionError):
+        pass
+
+
+def _lock_held(path: Path) -> bool:
+    """Whether a live process holds the ``flock`` on ``path``."""
+    try:
+        fd = os.open(path, os.O_RDWR)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        return True
+    finally:
+        os.close(fd)  # closing releases a lock we took
+    return False
+
+
+def clean_stale_shm(*, since: float, shm_dir: Path = Path("/dev/shm")) -> list[str]:
+    """Remove Fast DDS shared-memory files a SIGKILLed node left behind.
+
+    With localhost discovery rmw_fastrtps uses shared memory; a clean exit
+    removes its files, SIGKILL does not. A segment is stale when nobody holds
+    the lock on its ``_el`` file (live owners hold it; the kernel releases it
+    when the owner dies) or, for a port segment, when it has no ``_el`` at
+    all. Only files touched since ``since`` (epoch seconds: the start of the
+    run) are considered, so other users' files are left alone.
+    """
+    removed = []
+    # A lock file whose segment is gone counts too: Fast DDS may remove a
+    # dead owner's port segment when another participant reopens the port,
+    # and leave the lock file behind.
+    names = {p.name.removesuffix("_el") for p in shm_dir.glob("fastrtps_*")}
+    for name in sorted(names):
+        seg, lock = shm_dir / name, shm_dir / f"{name}_el"
+        try:
+            touched = max(p.stat().st_mtime for p in (seg, lock) if p.exists())
+        except (OSError, ValueError):
+            continue
+        if touched < since or (lock.exists() and _lock_held(lock)):
+            continue
+        for path in (seg, lock, shm_dir / f"sem.{name}_mutex"):
+            path.unlink(missing_ok=True)
+        removed.append(name)
+    return removed

@@ -1,0 +1,140 @@
+"""Progress of a run: the runner's own rclpy node on ``recorder/progress`` and a progress line.
+
+The watcher joins the run's ROS domain with its discovery settings without
+changing the caller's environment for good: the domain goes to
+``rclpy.init(domain_id=...)``, and the variables rcl and Fast DDS read when a
+context and its participant are made are set only while the watcher's
+context and node are created (:func:`temporary_environ`), then put back.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
+from typing import Any, TextIO
+
+
+@contextmanager
+def temporary_environ(values: Mapping[str, str]) -> Iterator[None]:
+    """Set ``values`` in ``os.environ`` for the ``with`` block only.
+
+    Afterwards every variable has its previous value again, and those that
+    were unset are removed.
+    """
+    previous = {k: os.environ.get(k) for k in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for key, value in previous.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+
+
+class ProgressWatcher:
+    """Follows ``recorder/progress`` from the runner (an rclpy node of its own).
+
+    Parameters
+    ----------
+    namespace : str
+        The axis namespace (``"/"`` for none).
+    domain_id : int or None
+        The run's ROS domain; None: ``ROS_DOMAIN_ID`` of the environment.
+    environ : mapping or None
+        Discovery settings (``ROS_AUTOMATIC_DISCOVERY_RANGE``,
+        ``FASTDDS_BUILTIN_TRANSPORTS``, ``FASTRTPS_DEFAULT_PROFILES_FILE``,
+        ``ROS_LOG_DIR``) in force while the context and the node are created;
+        ``os.environ`` is as before once the watcher exists. ``ROS_LOG_DIR``
+        is only used when the caller has none (rclpy's logging is set up
+        once per process).
+    """
+
+    def __init__(
+        self,
+        namespace: str,
+        *,
+        domain_id: int | None = None,
+        environ: Mapping[str, str] | None = None,
+    ) -> None:
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.signals import SignalHandlerOptions
+        from std_msgs.msg import Float64MultiArray
+
+        from servo_axis.nodes.base import topic_qos
+
+        settings = dict(environ or {})
+        if "ROS_LOG_DIR" in os.environ:
+            settings.pop("ROS_LOG_DIR", None)
+        self._rclpy = rclpy
+        self._context = rclpy.context.Context()
+        with temporary_environ(settings):
+            # The runner handles SIGINT/SIGTERM itself (it must stop the nodes).
+            rclpy.init(
+                args=[],
+                context=self._context,
+                domain_id=domain_id,
+                signal_handler_options=SignalHandlerOptions.NO,
+            )
+            try:
+                # The participant is made with the context's first node.
+                self.node = rclpy.create_node(
+                    "servo_axis_run",
+                    namespace=namespace,
+                    context=self._context,
+                    enable_rosout=False,
+                    start_parameter_services=False,
+                )
+            except BaseException:
+                rclpy.try_shutdown(context=self._context)
+                raise
+        self.steps = -1
+        self.node.create_subscription(
+            Float64MultiArray, "recorder/progress", self._on, topic_qos("recorder/progress")
+        )
+        self._executor = SingleThreadedExecutor(context=self._context)
+        self._executor.add_node(self.node)
+
+    def _on(self, msg: Any) -> None:
+        if msg.data:
+            self.steps = max(self.steps, int(msg.data[0]))
+
+    def spin(self, seconds: float) -> None:
+        """Handle what has arrived, waiting at most ``seconds``."""
+        self._executor.spin_once(timeout_sec=seconds)
+
+    def close(self) -> None:
+        """Destroy the node and shut the context down."""
+        self._executor.shutdown()
+        self.node.destroy_node()
+        self._rclpy.try_shutdown(context=self._context)
+
+
+class ProgressLine:
+    """One progress line, rewritten in place on a terminal (every 5 s otherwise)."""
+
+    def __init__(self, total: int, out: TextIO) -> None:
+        self.total = total
+        self.out = out
+        self.tty = out.isatty()
+        self._last = 0.0
+
+    def show(self, steps: int, elapsed_s: float, final: bool = False) -> None:
+        """Show ``steps`` of ``total`` and the rate since the first step."""
+        now = time.monotonic()
+        if not final and now - self._last < (0.25 if self.tty else 5.0):
+            return
+        self._last = now
+        frac = max(steps, 0) / self.total
+        bar = "#" * int(30 * frac)
+        rate = max(steps, 0) / elapsed_s if elapsed_s > 0 else 0.0
+        text = f"[{bar:<30}] {max(steps, 0)}/{self.total} steps  {rate:,.0f} steps/s"
+        if self.tty:
+            self.out.write("\r" + text + ("\n" if final else ""))
+        else:
+            self.out.write(text + "\n")
+        self.out.flush()

@@ -1,0 +1,1 @@
+"""The wire: topic table, message conversions, CDR decoding."""

@@ -1,0 +1,331 @@
+"""Conversions between wire messages and plain samples: pure functions.
+
+Only ``sensor_msgs/JointState``, ``std_msgs/Float64MultiArray`` and
+``rosgraph_msgs/Clock`` cross the wire (DESIGN 3). Every per-sample signal
+is a JointState whose ``header.stamp`` is the sample's simulation time
+``k * T_u``; the step ``k`` is recovered from the stamp exactly (integer
+nanoseconds). Vectors are Float64MultiArray with one labelled dimension
+whose label lists the fields, comma-separated, with units; a vector that
+belongs to a step carries that step as its first element, labelled ``step``.
+
+Decoders validate: names, lengths, finiteness and the stamp grid. They raise
+:class:`servo_axis.core.errors.SignalError` naming what is wrong.
+"""
+
+from __future__ import annotations
+
+import array
+import math
+import struct
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from builtin_interfaces.msg import Time
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+
+from servo_axis.core.errors import SignalError
+
+NS_PER_S = 1_000_000_000
+
+#: Field labels of the Float64MultiArray topics (one labelled dimension each).
+STATUS_LABELS = ("step", "deadline_misses", "rejected_commands", "command_timeouts")
+PROGRESS_LABELS = ("steps_recorded",)
+FAULT_LABELS = (
+    "step",
+    "code(1=following_error;2=travel;3=current;4=input_timeout)",
+    "value(m_or_A_or_s)",
+)
+STATS_LABELS = ("cycle", "rms_m", "max_m", "cycles_learned")
+
+
+def period_ns(period_s: float) -> int:
+    """Control period in whole nanoseconds (raises if it is not whole)."""
+    ns = round(period_s * NS_PER_S)
+    if ns <= 0 or abs(ns - period_s * NS_PER_S) > 1e-3:
+        raise SignalError(f"period_s: expected a whole number of nanoseconds > 0, got {period_s!r}")
+    return ns
+
+
+def stamp_from_step(step: int, period_ns_: int) -> Time:
+    """``builtin_interfaces/Time`` of control sample ``step``."""
+    ns = step * period_ns_
+    return Time(sec=ns // NS_PER_S, nanosec=ns % NS_PER_S)
+
+
+def step_from_stamp(stamp: Time, period_ns_: int) -> int:
+    """Control sample index of ``stamp``; raises if it is off the grid."""
+    ns = stamp.sec * NS_PER_S + stamp.nanosec
+    step, rem = divmod(ns, period_ns_)
+    if rem != 0 or ns < 0:
+        raise SignalError(f"header.stamp: {ns} ns is not on the control grid of {period_ns_} ns")
+    return int(step)
+
+
+def stamp_ns_from_cdr(data: bytes) -> int:
+    """``header.stamp`` (ns) of a CDR-serialised message that starts with a ``std_msgs/Header``.
+
+    Reads the two stamp fields right after the 4-byte encapsulation header
+    (CDR, either byte order) without deserialising the message: a node that
+    needs only some samples of a stream can skip the others cheaply.
+    """
+    if len(data) < 12 or data[0] != 0 or data[1] not in (0, 1):
+        raise SignalError("data: expected a CDR-encapsulated message with a header")
+    sec, nanosec = struct.unpack_from("<iI" if data[1] == 1 else ">iI", data, 4)
+    if not 0 <= nanosec < NS_PER_S:
+        raise SignalError(f"header.stamp.nanosec: expected 0..999999999, got {nanosec}")
+    return sec * NS_PER_S + nanosec
+
+
+def clock_message(step: int, period_ns_: int) -> Clock:
+    """``/clock`` message for control sample ``step``."""
+    return Clock(clock=stamp_from_step(step, period_ns_))
+
+
+def _finite(name: str, values: Sequence[float]) -> Sequence[float]:
+    # Fast path: the sum of finite values is finite (sums beyond 1e308 are
+    # no physical signal either and are rejected too).
+    total = sum(values)
+    if total - total == 0.0:
+        return values
+    for i, v in enumerate(values):
+        if not math.isfinite(v):
+            raise SignalError(f"{name}[{i}]: expected a finite number, got {v!r}")
+    raise SignalError(f"{name}: values too large to be a physical signal, got {list(values)}")
+
+
+def _check_joint_state(
+    msg: JointState, names: Sequence[str], fields: Sequence[str], period_ns_: int
+) -> int:
+    if list(msg.name) != list(names):
+        raise SignalError(f"name: expected {list(names)}, got {list(msg.name)}")
+    for field in fields:
+        got = len(getattr(msg, field))
+        if got != len(names):
+            raise SignalError(f"{field}: expected {len(names)} values, got {got}")
+        _finite(field, getattr(msg, field))
+    return step_from_stamp(msg.header.stamp, period_ns_)
+
+
+def joint_state_template(names: Sequence[str], fields: Sequence[str]) -> JointState:
+    """A JointState with ``names`` and zeroed ``fields`` of matching length, to be filled."""
+    msg = JointState()
+    msg.name = list(names)
+    for field in fields:
+        setattr(msg, field, array.array("d", [0.0] * len(names)))
+    return msg
+
+
+def _fill(msg: JointState, step: int, period_ns_: int, **fields: Sequence[float]) -> JointState:
+    """Write stamp and values into a template in place (no message construction)."""
+    ns = step * period_ns_
+    stamp = msg.header.stamp
+    stamp.sec = ns // NS_PER_S
+    stamp.nanosec = ns % NS_PER_S
+    for field, values in fields.items():
+        getattr(msg, field)[:] = array.array("d", _finite(field, values))
+    return msg
+
+
+@dataclass(frozen=True)
+class StateSample:
+    """Plant state at control sample ``step`` (topic ``state``).
+
+    JointState names ``[<axis>_motor, <axis>_table]``: ``position`` = sensor
+    readings (encoder rad, scale m); ``velocity`` = true velocities (rad/s,
+    m/s); ``effort`` = [motor torque applied (N m), friction force at the
+    table (N) = friction torque / R].
+    """
+
+    step: int
+    encoder_rad: float
+    scale_m: float
+    velocity_rad_s: float
+    velocity_m_s: float
+    motor_torque_Nm: float
+    friction_force_N: float
+
+
+def state_names(axis: str) -> list[str]:
+    """Joint names of the ``state`` topic."""
+    return [f"{axis}_motor", f"{axis}_table"]
+
+
+def motor_names(axis: str) -> list[str]:
+    """Joint names of the ``command`` and ``reference`` topics."""
+    return [f"{axis}_motor"]
+
+
+def state_to_msg(sample: StateSample, *, axis: str, period_ns_: int) -> JointState:
+    """Encode a :class:`StateSample`."""
+    template = joint_state_template(state_names(axis), ("position", "velocity", "effort"))
+    return write_state(template, sample, period_ns_=period_ns_)
+
+
+def write_state(msg: JointState, sample: StateSample, *, period_ns_: int) -> JointState:
+    """Fill a template from :func:`state_to_msg` with ``sample`` (publisher reuse)."""
+    return _fill(
+        msg,
+        sample.step,
+        period_ns_,
+        position=(sample.encoder_rad, sample.scale_m),
+        velocity=(sample.velocity_rad_s, sample.velocity_m_s),
+        effort=(sample.motor_torque_Nm, sample.friction_force_N),
+    )
+
+
+def state_from_msg(msg: JointState, *, axis: str, period_ns_: int) -> StateSample:
+    """Decode and validate a ``state`` message."""
+    step = _check_joint_state(
+        msg, state_names(axis), ("position", "velocity", "effort"), period_ns_
+    )
+    return StateSample(
+        step=step,
+        encoder_rad=msg.position[0],
+        scale_m=msg.position[1],
+        velocity_rad_s=msg.velocity[0],
+        velocity_m_s=msg.velocity[1],
+        motor_torque_Nm=msg.effort[0],
+        friction_force_N=msg.effort[1],
+    )
+
+
+@dataclass(frozen=True)
+class CommandSample:
+    """Current command for control sample ``step`` (topic ``command``).
+
+    JointState name ``[<axis>_motor]``, ``effort`` = [current reference (A)].
+    """
+
+    step: int
+    current_A: float
+
+
+def command_to_msg(sample: CommandSample, *, axis: str, period_ns_: int) -> JointState:
+    """Encode a :class:`CommandSample`."""
+    template = joint_state_template(motor_names(axis), ("effort",))
+    return write_command(template, sample, period_ns_=period_ns_)
+
+
+def write_command(msg: JointState, sample: CommandSample, *, period_ns_: int) -> JointState:
+    """Fill a template from :func:`command_to_msg` with ``sample`` (publisher reuse)."""
+    return _fill(msg, sample.step, period_ns_, effort=(sample.current_A,))
+
+
+def command_from_msg(msg: JointState, *, axis: str, period_ns_: int) -> CommandSample:
+    """Decode and validate a ``command`` message."""
+    step = _check_joint_state(msg, motor_names(axis), ("effort",), period_ns_)
+    return CommandSample(step=step, current_A=msg.effort[0])
+
+
+@dataclass(frozen=True)
+class ReferenceSample:
+    """Feedforward for control sample ``step`` (topic ``reference``).
+
+    JointState name ``[<axis>_motor]``: ``position`` = motor-angle reference
+    for the feedback (rad; with PTC the nominal output trajectory),
+    ``velocity`` = its velocity (rad/s), ``effort`` = feedforward current (A).
+    """
+
+    step: int
+    position_rad: float
+    velocity_rad_s: float
+    current_A: float
+
+
+def reference_to_msg(sample: ReferenceSample, *, axis: str, period_ns_: int) -> JointState:
+    """Encode a :class:`ReferenceSample`."""
+    template = joint_state_template(motor_names(axis), ("position", "velocity", "effort"))
+    return write_reference(template, sample, period_ns_=period_ns_)
+
+
+def write_reference(msg: JointState, sample: ReferenceSample, *, period_ns_: int) -> JointState:
+    """Fill a template from :func:`reference_to_msg` with ``sample`` (publisher reuse)."""
+    return _fill(
+        msg,
+        sample.step,
+        period_ns_,
+        position=(sample.position_rad,),
+        velocity=(sample.velocity_rad_s,),
+        effort=(sample.current_A,),
+    )
+
+
+def reference_from_msg(msg: JointState, *, axis: str, period_ns_: int) -> ReferenceSample:
+    """Decode and validate a ``reference`` message."""
+    step = _check_joint_state(
+        msg, motor_names(axis), ("position", "velocity", "effort"), period_ns_
+    )
+    return ReferenceSample(
+        step=step,
+        position_rad=msg.position[0],
+        velocity_rad_s=msg.velocity[0],
+        current_A=msg.effort[0],
+    )
+
+
+def labelled_array(labels: Sequence[str], values: Sequence[float]) -> Float64MultiArray:
+    """Float64MultiArray whose single dimension's label names every element."""
+    if len(labels) != len(values):
+        raise SignalError(
+            f"values: expected {len(labels)} values for {list(labels)}, got {len(values)}"
+        )
+    for label in labels:
+        if not label or "," in label:
+            raise SignalError(f"labels: expected non-empty labels without commas, got {label!r}")
+    msg = Float64MultiArray()
+    msg.layout.dim = [
+        MultiArrayDimension(label=",".join(labels), size=len(labels), stride=len(labels))
+    ]
+    msg.data = [float(v) for v in _finite("data", values)]
+    return msg
+
+
+def labelled_array_values(msg: Float64MultiArray, labels: Sequence[str]) -> list[float]:
+    """Values of a :func:`labelled_array` message after checking its labels."""
+    dims = list(msg.layout.dim)
+    expected = ",".join(labels)
+    if len(dims) != 1 or dims[0].label != expected:
+        got = [d.label for d in dims]
+        raise SignalError(f"layout.dim: expected one dimension labelled {expected!r}, got {got}")
+    if len(msg.data) != len(labels) or dims[0].size != len(labels):
+        raise SignalError(f"data: expected {len(labels)} values, got {len(msg.data)}")
+    return [float(v) for v in _finite("data", msg.data)]
+
+
+@dataclass(frozen=True)
+class CorrectionSample:
+    """Learning correction of the target at a reference instant (topic ``learning/correction``).
+
+    JointState name ``[<axis>_motor]``, stamped with the instant it applies
+    to: ``position`` = correction of the target angle (rad), ``velocity`` =
+    its velocity (rad/s).
+    """
+
+    step: int
+    position_rad: float
+    velocity_rad_s: float
+
+
+def write_correction(msg: JointState, sample: CorrectionSample, *, period_ns_: int) -> JointState:
+    """Fill a template from :func:`correction_to_msg` with ``sample`` (publisher reuse)."""
+    return _fill(
+        msg,
+        sample.step,
+        period_ns_,
+        position=(sample.position_rad,),
+        velocity=(sample.velocity_rad_s,),
+    )
+
+
+def correction_to_msg(sample: CorrectionSample, *, axis: str, period_ns_: int) -> JointState:
+    """Encode a :class:`CorrectionSample`."""
+    template = joint_state_template(motor_names(axis), ("position", "velocity"))
+    return write_correction(template, sample, period_ns_=period_ns_)
+
+
+def correction_from_msg(msg: JointState, *, axis: str, period_ns_: int) -> CorrectionSample:
+    """Decode and validate a ``learning/correction`` message."""
+    step = _check_joint_state(msg, motor_names(axis), ("position", "velocity"), period_ns_)
+    return CorrectionSample(step=step, position_rad=msg.position[0], velocity_rad_s=msg.velocity[0])

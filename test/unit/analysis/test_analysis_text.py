@@ -1,0 +1,165 @@
+"""Text tables of summaries and of several runs' per-cycle errors."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from numpy.testing import assert_allclose
+
+from servo_axis.analysis.metrics import error_statistics
+from servo_axis.analysis.summary import AxesSummary, RunSummary, cycle_errors
+from servo_axis.analysis.text import (
+    compare_table,
+    format_any_summary,
+    format_axes_summary,
+    format_summary,
+)
+
+
+def summary_dict(tracking_error: dict[str, Any], **over: Any) -> dict[str, Any]:
+    """A single-axis ``summary.json`` mapping around ``tracking_error``."""
+    out = {
+        "scenario": "demo",
+        "description": "a demo",
+        "scenario_file": "/s/demo.yaml",
+        "processes": "processes",
+        "time_mode": "lockstep",
+        "control_period_s": 0.001,
+        "steps": 1000,
+        "sim_time_s": 1.0,
+        "wall_time_s": 0.5,
+        "steps_per_s": 2000.0,
+        "realtime_factor": 2.0,
+        "message_counts": {"state": 1000, "/clock": 100, "reference": 1000},
+        "faults": [{"step": 900, "code": 3, "name": "current", "value": 60.0}],
+        "ptc": True,
+        "friction_table": False,
+        "reference_period_s": 0.25,
+        "tracking_error": tracking_error,
+    }
+    out.update(over)
+    return out
+
+
+def demo_summary() -> RunSummary:
+    step = np.arange(1000)
+    e = 1e-6 * np.where(step < 500, 2.0, 1.0) * np.sin(2 * np.pi * step / 250 + 0.3)
+    return RunSummary.from_dict(
+        summary_dict(error_statistics(e, step, period_s=1e-3, cycle_s=0.25))
+    )
+
+
+# The text of the report module before the split, for the same summary.
+DEMO_TEXT = """\
+scenario          demo  (processes, lockstep)
+steps             1000  (1.000 s simulated)
+wall time         0.50 s  ->  2,000 steps/s, 2.00x real time
+messages          /clock: 100, reference: 1000, state: 1000
+faults            current at step 900
+
+tracking error (um)          RMS            max
+  all samples               1.11803        1.99988
+  at T_r instants           1.11803        1.99988
+  after cycle 1                   1        1.99988
+  ... at T_r instants             1        1.99988
+
+cycle   RMS (um)       max (um)       max at T_r (um)
+    1      1.41421        1.99988            1.99988
+    2      1.41421        1.99988            1.99988
+    3     0.707107        0.99994            0.99994
+    4     0.707107        0.99994            0.99994"""
+
+CONTOUR_TEXT = """\
+== contour: circle of radius 10.000 mm (target off the circle by 1.25e-06 um)
+circular deviation 2.5 um, max radial error 1.5 um
+cycle   circular deviation (um)   max radial error (um)
+    1                       2.5                     1.5
+    2                       0.5                       -"""
+
+
+def test_format_summary_text_is_unchanged() -> None:
+    assert format_summary(demo_summary()) == DEMO_TEXT
+    assert format_any_summary(demo_summary()) == DEMO_TEXT
+
+
+def test_format_summary_without_cycles_or_faults() -> None:
+    step = np.arange(10)
+    s = RunSummary.from_dict(
+        summary_dict(
+            error_statistics(np.zeros(10), step, period_s=1e-3, cycle_s=None),
+            faults=[],
+            reference_period_s=None,
+            steps_per_s=math.nan,
+        )
+    )
+    lines = format_summary(s).splitlines()
+    assert lines[4] == "faults            none"
+    assert lines[-1] == "  at T_r instants                 0              0"
+    assert "nan steps/s" in lines[2]
+
+
+def test_format_axes_summary_text_is_unchanged() -> None:
+    axes = AxesSummary.from_dict(
+        {
+            "scenario": "xy",
+            "description": "",
+            "wall_time_s": 3.0,
+            "axes": {"x": demo_summary().to_dict()},
+            "contour": {
+                "axes": ["x", "y"],
+                "centre_m": [0.01, 0.0],
+                "radius_m": 0.01,
+                "target_radial_deviation_m": 1.25e-12,
+                "circular_deviation_m": 2.5e-6,
+                "max_radial_m": 1.5e-6,
+                "cycles": [
+                    {"cycle": 1, "circular_deviation_m": 2.5e-6, "max_radial_m": 1.5e-6},
+                    {"cycle": 2, "circular_deviation_m": 0.5e-6, "max_radial_m": math.nan},
+                ],
+            },
+        }
+    )
+    expected = "\n".join(
+        ["scenario          xy  (axes x)", "", "== axis x", DEMO_TEXT, "", CONTOUR_TEXT]
+    )
+    assert format_axes_summary(axes) == expected
+    assert format_any_summary(axes) == expected
+
+
+def test_compare_table_lines_up_the_cycles_of_each_run() -> None:
+    step = np.arange(1000)
+    runs = []
+    for decay in (0.5, 0.2):  # per cycle: the second run's error falls faster
+        e = decay ** (step // 250) * np.sin(2 * np.pi * step / 250 + 0.3)
+        stats = error_statistics(e, step, period_s=1e-3, cycle_s=0.25)
+        runs.append(RunSummary.from_dict(summary_dict(stats)))
+    per_cycle = cycle_errors(runs[1])
+    assert_allclose(
+        per_cycle["max_m"], [0.2**k * np.max(np.abs(e[:250])) for k in range(4)], rtol=1e-12
+    )
+    max_block, rms_block = compare_table(runs, ["Q", "Q~5"]).split("\n\n")
+    for block, key in ((max_block, "max_m"), (rms_block, "rms_m")):
+        rows = block.splitlines()
+        assert rows[1].split() == ["cycle", "Q", "Q~5"]
+        table = np.array([[float(x) for x in row.split()] for row in rows[2:]])
+        assert_allclose(table[:, 0], [1, 2, 3, 4], rtol=0)
+        assert_allclose(table[:, 2], 1e6 * cycle_errors(runs[1])[key], rtol=1e-5)
+        assert_allclose(table[:, 1] / table[:, 2], [2.5**k for k in range(4)], rtol=1e-5)
+    assert_allclose(float(rms_block.splitlines()[2].split()[1]), 1e6 / np.sqrt(2), rtol=1e-5)
+
+
+def test_cycle_errors_of_a_run_without_cycles_are_empty() -> None:
+    step = np.arange(10)
+    s = RunSummary.from_dict(
+        summary_dict(error_statistics(np.ones(10), step, period_s=1e-3, cycle_s=None))
+    )
+    c = cycle_errors(s)
+    assert {k: v.size for k, v in c.items()} == {
+        "cycle": 0,
+        "max_m": 0,
+        "rms_m": 0,
+        "max_at_tr_m": 0,
+    }
+    assert compare_table([s], ["a"]).splitlines()[1].split() == ["cycle", "a"]

@@ -1,0 +1,169 @@
+"""Scenario files: layout checks, the per-axis view, finding shipped scenarios by name."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+from servo_axis.core.errors import ConfigError
+from servo_axis.params.scenario import (
+    axes_of,
+    axis_view,
+    find_scenario,
+    load_scenario,
+    scenario_dir,
+    scenario_names,
+    shared,
+)
+
+CONFIG = Path(__file__).resolve().parents[3] / "config"
+
+
+def write(tmp_path: Path, data: dict) -> Path:
+    path = tmp_path / "scenario.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+def test_axis_sections_merge_into_the_common_ones_for_their_axis(tmp_path: Path) -> None:
+    data = {
+        "/**": {"ros__parameters": {"axis": "x", "scenario": {"name": "xy"}}},
+        "plant": {"ros__parameters": {"sim_step_s": 1e-5}},
+        "feedforward": {
+            "ros__parameters": {
+                "reference": {"kind": "sine", "amplitude_m": 0.01, "phase_rad": 0.0},
+                "friction_table": {"enabled": True, "file": "table.csv"},
+            }
+        },
+        "/y/feedforward": {"ros__parameters": {"reference": {"phase_rad": 1.5}}},
+        "/y/feedback": {"ros__parameters": {"bandwidth_hz": 30.0}},
+        "/x/plant": {"ros__parameters": {"sim_step_s": 2e-5}},
+    }
+    scenario = load_scenario(write(tmp_path, data))
+    assert axes_of(scenario) == ["x", "y"]
+    y = axis_view(scenario, "y", tmp_path)
+    assert y["/**"]["ros__parameters"]["axis"] == "y"
+    assert y["/**"]["ros__parameters"]["scenario"]["name"] == "xy/y"
+    # Nested keys merge; the axis's value wins; the rest is the common one.
+    assert y["feedforward"]["ros__parameters"]["reference"] == {
+        "kind": "sine",
+        "amplitude_m": 0.01,
+        "phase_rad": 1.5,
+    }
+    assert y["feedforward"]["ros__parameters"]["friction_table"]["file"] == str(
+        tmp_path / "table.csv"
+    )
+    assert y["feedback"]["ros__parameters"] == {"bandwidth_hz": 30.0}  # axis-only section
+    assert y["plant"]["ros__parameters"]["sim_step_s"] == 1e-5
+    x = axis_view(scenario, "x", tmp_path)
+    assert x["plant"]["ros__parameters"]["sim_step_s"] == 2e-5
+    assert "feedback" not in x
+    assert not [k for k in x if k.startswith("/") and k != "/**"]
+    # The common sections themselves are left as they were.
+    assert scenario["feedforward"]["ros__parameters"]["reference"]["phase_rad"] == 0.0
+
+
+@pytest.mark.parametrize("key", ["/x/controller", "x/plant", "/x/y/plant", "/**/plant"])
+def test_a_section_that_is_no_node_or_axis_is_refused_by_name(tmp_path: Path, key: str) -> None:
+    data = {"plant": {"ros__parameters": {}}, key: {"ros__parameters": {}}}
+    with pytest.raises(ConfigError, match=re.escape(f"unknown section '{key}'")):
+        load_scenario(write(tmp_path, data))
+
+
+def test_a_multi_axis_scenario_refuses_composed_and_namespace_before_starting(
+    tmp_path: Path,
+) -> None:
+    from servo_axis.run.runner import run_scenario
+
+    for options in ({"composed": True}, {"namespace": "/a"}):
+        out = tmp_path / "run"
+        with pytest.raises(ConfigError, match="multi-axis scenario runs as separate processes"):
+            run_scenario(CONFIG / "xy_circle.yaml", out_dir=out, progress=None, **options)
+        assert not out.exists()  # nothing was started or written
+    # The same by name.
+    with pytest.raises(ConfigError, match="multi-axis scenario runs as separate processes"):
+        run_scenario("xy_circle", out_dir=tmp_path / "by_name", progress=None, composed=True)
+    assert not (tmp_path / "by_name").exists()
+
+
+def test_compare_refuses_a_multi_axis_run_and_a_wrong_label_count(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from servo_axis.__main__ import main
+    from servo_axis.analysis.summary import AxesSummary, ErrorStats, RunSummary, TrackingError
+
+    none = ErrorStats(rms_m=0.0, max_m=0.0)
+    axis = RunSummary(
+        scenario="s",
+        description="",
+        scenario_file="s.yaml",
+        processes="separate processes",
+        time_mode="lockstep",
+        control_period_s=1e-3,
+        steps=0,
+        sim_time_s=0.0,
+        wall_time_s=1.0,
+        steps_per_s=0.0,
+        realtime_factor=0.0,
+        message_counts={},
+        faults=(),
+        ptc=True,
+        friction_table=False,
+        reference_period_s=None,
+        tracking_error=TrackingError(all_samples=none, reference_instants=none),
+    )
+    xy = tmp_path / "xy"
+    xy.mkdir()
+    both = AxesSummary(scenario="xy", description="", wall_time_s=1.0, axes={"x": axis, "y": axis})
+    (xy / "summary.json").write_text(both.to_json())
+    assert main(["compare", str(xy)]) == 2
+    assert f"compare its axes: {xy / 'x'}, {xy / 'y'}" in capsys.readouterr().err
+    one = tmp_path / "one"
+    one.mkdir()
+    (one / "summary.json").write_text(axis.to_json())
+    assert main(["compare", str(one), "--labels", "Q,Q~5"]) == 2
+    assert "--labels: expected 1 comma-separated labels, got 2" in capsys.readouterr().err
+
+
+def test_shipped_scenarios_are_found_by_name_or_path(tmp_path: Path) -> None:
+    shipped = scenario_dir() / "rptc_detailed.yaml"
+    assert find_scenario("rptc_detailed") == shipped
+    assert find_scenario("rptc_detailed.yaml") == shipped
+    # A path is taken as it is, also one outside the shipped folder.
+    assert find_scenario(CONFIG / "ptc_nominal.yaml") == CONFIG / "ptc_nominal.yaml"
+    own = tmp_path / "rptc_detailed.yaml"
+    own.write_text(shipped.read_text())
+    assert find_scenario(str(own)) == own
+    # config/ of the source tree is the shipped folder.
+    assert sorted(p.stem for p in CONFIG.glob("*.yaml")) == scenario_names()
+    assert {"ptc_nominal", "rptc_friction_table", "xy_circle"} <= set(scenario_names())
+
+
+@pytest.mark.parametrize("name", ["no_such_scenario", "elsewhere/rptc_detailed.yaml"])
+def test_a_bad_scenario_name_is_refused_with_the_names(name: str) -> None:
+    with pytest.raises(ConfigError) as err:
+        find_scenario(name)
+    assert repr(name) in str(err.value)
+    for shipped in scenario_names():
+        assert shipped in str(err.value)
+
+
+def test_cli_list_shows_every_shipped_scenario() -> None:
+    done = subprocess.run(
+        [sys.executable, "-m", "servo_axis", "list"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    listed = {line.split()[0] for line in done.stdout.splitlines() if line.strip()}
+    assert listed == set(scenario_names())
+    for name in scenario_names():
+        description = shared(load_scenario(find_scenario(name)))["scenario"]["description"]
+        assert f"{name}" in done.stdout and description.split()[0] in done.stdout

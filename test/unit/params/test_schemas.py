@@ -1,0 +1,190 @@
+"""The parameter schemas: meanings, defaults, the scenario files and the range checks."""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+from servo_axis.core.errors import ParameterFileError
+from servo_axis.params.schema import Param
+from servo_axis.params.schemas import (
+    BALL_SCREW,
+    FEEDBACK,
+    FEEDFORWARD,
+    LEARNING,
+    PLANT,
+    RECORDER,
+    REFERENCE,
+    SECTIONS,
+    SENSOR,
+    SHARED,
+)
+
+REPO = Path(__file__).resolve().parents[3]
+CONFIGS = sorted((REPO / "config").glob("*.yaml"))
+
+#: The schema of each section of a scenario file (by its last path component).
+NODE_SCHEMAS: dict[str, Mapping[str, Param]] = {
+    "**": SHARED,
+    "plant": {**PLANT, **BALL_SCREW},
+    "feedback": FEEDBACK,
+    "feedforward": FEEDFORWARD,
+    "learning": LEARNING,
+    "recorder": RECORDER,
+}
+
+ALL = [
+    pytest.param(title, name, param, id=f"{title}:{name}")
+    for title, schema in SECTIONS.items()
+    for name, param in schema.items()
+]
+
+
+def is_number(value: object) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def is_numeric(param: Param) -> bool:
+    d = param.default
+    return is_number(d) or (isinstance(d, list) and bool(d) and is_number(d[0]))
+
+
+def is_float(param: Param) -> bool:
+    d = param.default
+    return isinstance(d, float) or (isinstance(d, list) and bool(d) and isinstance(d[0], float))
+
+
+def names(key: str) -> str:
+    """Pattern of an error message naming the full dotted ``key``."""
+    return re.escape(f"parameter '{key}'")
+
+
+def flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """Nested YAML maps as dotted keys, as rclpy reads them."""
+    out: dict[str, Any] = {}
+    for key, value in tree.items():
+        if isinstance(value, Mapping):
+            out.update(flatten(value, f"{prefix}{key}."))
+        else:
+            out[f"{prefix}{key}"] = value
+    return out
+
+
+def config_values() -> Iterator[Any]:
+    for path in CONFIGS:
+        for section, body in yaml.safe_load(path.read_text()).items():
+            node = section.rsplit("/", 1)[-1]
+            for key, value in flatten(body["ros__parameters"]).items():
+                yield pytest.param(node, key, value, id=f"{path.stem}:{section}:{key}")
+
+
+def just_outside(param: Param) -> list[tuple[str, object]]:
+    """(bound, value) pairs just outside each bound of a numeric parameter."""
+    integer = not is_float(param)
+    cases: list[tuple[str, object]] = []
+    if param.minimum is not None:
+        b = param.minimum
+        cases.append((f">= {b}", int(b) - 1 if integer else math.nextafter(b, -math.inf)))
+    if param.above is not None:
+        cases.append((f"> {param.above}", int(param.above) if integer else float(param.above)))
+    if param.maximum is not None:
+        b = param.maximum
+        cases.append((f"<= {b}", int(b) + 1 if integer else math.nextafter(b, math.inf)))
+    if param.below is not None:
+        cases.append((f"< {param.below}", int(param.below) if integer else float(param.below)))
+    return cases
+
+
+BOUND_CASES = [
+    pytest.param(name, param, value, id=f"{title}:{name}:{bound}")
+    for title, schema in SECTIONS.items()
+    for name, param in schema.items()
+    if is_numeric(param)
+    for bound, value in just_outside(param)
+]
+
+FLOAT_PARAMS = [
+    pytest.param(name, param, id=f"{title}:{name}")
+    for title, schema in SECTIONS.items()
+    for name, param in schema.items()
+    if is_float(param)
+]
+
+
+def test_the_configs_are_found() -> None:
+    assert len(CONFIGS) >= 10
+
+
+def test_sections_cover_every_schema() -> None:
+    expected = [SHARED, PLANT, BALL_SCREW, FEEDBACK, FEEDFORWARD, LEARNING, RECORDER]
+    assert list(SECTIONS.values()) == expected
+    assert not set(PLANT) & set(BALL_SCREW)
+    assert not set(SHARED) & {k for s in NODE_SCHEMAS.values() if s is not SHARED for k in s}
+
+
+def test_sensor_and_reference_are_shared() -> None:
+    assert FEEDBACK["sensor"] is SENSOR and LEARNING["sensor"] is SENSOR
+    for schema in (FEEDFORWARD, LEARNING):
+        assert list(schema)[: len(REFERENCE)] == list(REFERENCE)
+        assert all(schema[k] is p for k, p in REFERENCE.items())
+    assert list(LEARNING)[len(REFERENCE)] == "law"
+    assert next(iter(PLANT)) == "model"
+
+
+@pytest.mark.parametrize(("title", "name", "param"), ALL)
+def test_every_parameter_has_a_meaning(title: str, name: str, param: Param) -> None:
+    assert isinstance(param, Param)
+    assert param.meaning.strip(), f"{title}: '{name}' has no meaning"
+    assert "\n" not in param.meaning
+
+
+@pytest.mark.parametrize(("title", "name", "param"), ALL)
+def test_every_default_passes_its_own_check(title: str, name: str, param: Param) -> None:
+    checked = param.check(name, param.default)
+    assert checked == param.default and type(checked) is type(param.default)
+
+
+def test_defaults_that_must_not_drift() -> None:
+    assert BALL_SCREW["encoder.resolution"].default == 2.0 * math.pi / 2**20
+    for key in ("modes.frequency_hz", "modes.zeta", "modes.a"):
+        assert BALL_SCREW[key].default == [0.0]
+    assert SHARED["control_period_s"].default == 1e-3
+    assert SENSOR.default == "encoder"
+
+
+@pytest.mark.parametrize(("node", "key", "value"), list(config_values()))
+def test_every_config_value_passes_its_schema(node: str, key: str, value: object) -> None:
+    schema = NODE_SCHEMAS[node]
+    assert key in schema, f"unknown key '{key}' in section '{node}'"
+    schema[key].check(key, value)
+
+
+@pytest.mark.parametrize(("name", "param", "value"), BOUND_CASES)
+def test_a_value_just_outside_a_bound_is_rejected(name: str, param: Param, value: object) -> None:
+    given: object = [value] if isinstance(param.default, list) else value
+    with pytest.raises(ParameterFileError, match=names(name)):
+        param.check(name, given)
+
+
+@pytest.mark.parametrize(("name", "param"), FLOAT_PARAMS)
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
+def test_nan_and_inf_are_rejected(name: str, param: Param, bad: float) -> None:
+    given: object = [bad] if isinstance(param.default, list) else bad
+    with pytest.raises(ParameterFileError, match=names(name)):
+        param.check(name, given)
+
+
+def test_choices_are_enforced() -> None:
+    for title, schema in SECTIONS.items():
+        for name, param in schema.items():
+            if param.choices is None:
+                continue
+            assert param.default in param.choices, f"{title}: {name}"
+            with pytest.raises(ParameterFileError, match=names(name)):
+                param.check(name, "no-such-choice")

@@ -1,0 +1,164 @@
+"""The run's parameter file: handshake counts, recorder topics, what the learning unit copies."""
+
+from __future__ import annotations
+
+import copy
+import os
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+from servo_axis.params.scenario import axis_view, load_scenario, roles_of
+from servo_axis.run.plan import handshake_overrides, recorder_topics, write_run_params
+from servo_axis.run.processes import discovery_settings, ros_environment
+from servo_axis.run.progress import temporary_environ
+from servo_axis.wire.topics import TOPICS
+
+CONFIG = Path(__file__).resolve().parents[3] / "config"
+BAG = Path("/tmp/run/bag")
+
+
+def scenario(name: str, axis: str = "") -> dict[str, Any]:
+    data = load_scenario(CONFIG / f"{name}.yaml")
+    return axis_view(data, axis, CONFIG) if axis else data
+
+
+def counts(overrides: dict[str, dict[str, Any]]) -> tuple[int, int, int, int]:
+    """(state, /clock, plant/status, reference) subscribers the publishers wait for."""
+    plant = overrides["plant"]
+    return (
+        plant["wait_for_state_subscribers"],
+        plant["wait_for_clock_subscribers"],
+        plant["wait_for_status_subscribers"],
+        overrides["feedforward"]["wait_for_reference_subscribers"],
+    )
+
+
+# Counted by hand from the node graph (README, "Topics"):
+#   state:        feedback, learning, recorder
+#   /clock:       feedback, feedforward, learning (use_sim_time), recorder
+#   plant/status: feedforward, recorder
+#   reference:    feedback, recorder
+@pytest.mark.parametrize(
+    ("name", "axis", "expected"),
+    [
+        ("ptc_nominal", "", (2, 3, 2, 2)),  # feedback + recorder; + feedforward on /clock
+        ("rptc_detailed", "", (3, 4, 2, 2)),  # + the learning unit on state and /clock
+        ("xy_circle", "y", (3, 4, 2, 2)),  # one axis of the circle: the same graph
+    ],
+)
+def test_subscriber_counts_of_shipped_scenarios(
+    name: str, axis: str, expected: tuple[int, int, int, int]
+) -> None:
+    data = scenario(name, axis)
+    overrides = handshake_overrides(data, roles_of(data), BAG, CONFIG)
+    assert counts(overrides) == expected
+    assert overrides["plant"]["flow_control"] is True
+    assert overrides["recorder"]["output_dir"] == str(BAG)
+
+
+def test_subscriber_counts_follow_what_runs_and_what_is_recorded() -> None:
+    data = scenario("ptc_nominal")
+    # No recorder: only the control nodes, and no flow control.
+    roles = ["feedforward", "feedback", "plant"]
+    overrides = handshake_overrides(data, roles, BAG, CONFIG)
+    assert counts(overrides) == (1, 2, 1, 1)
+    assert "flow_control" not in overrides["plant"]
+    # A recorder that records only state and command waits on neither
+    # /clock, plant/status nor reference, and its list is left alone.
+    data["recorder"]["ros__parameters"]["topics"] = ["state", "command"]
+    data["recorder"]["ros__parameters"]["types"] = ["sensor_msgs/msg/JointState"] * 2
+    overrides = handshake_overrides(data, roles_of(data), BAG, CONFIG)
+    assert counts(overrides) == (2, 2, 1, 1)
+    assert "topics" not in overrides["recorder"] and "types" not in overrides["recorder"]
+
+
+def test_recorder_records_the_table_topics_of_the_nodes_that_run_in_table_order() -> None:
+    core = [
+        ("state", "sensor_msgs/msg/JointState"),
+        ("command", "sensor_msgs/msg/JointState"),
+        ("reference", "sensor_msgs/msg/JointState"),
+        ("/clock", "rosgraph_msgs/msg/Clock"),
+        ("fault", "std_msgs/msg/Float64MultiArray"),
+        ("plant/status", "std_msgs/msg/Float64MultiArray"),
+    ]
+    learning = [
+        ("learning/correction", "sensor_msgs/msg/JointState"),
+        ("learning/cycle_stats", "std_msgs/msg/Float64MultiArray"),
+    ]
+    for name, expected in (("ptc_nominal", core), ("rptc_detailed", core + learning)):
+        data = scenario(name)
+        topics, types = recorder_topics(data, roles_of(data))
+        assert list(zip(topics, types, strict=True)) == expected
+        rec = handshake_overrides(data, roles_of(data), BAG, CONFIG)["recorder"]
+        assert (rec["topics"], rec["types"]) == (topics, types)
+    # The runner's own flow-control topic is not recorded.
+    assert "recorder/progress" in {t.name for t in TOPICS}
+    assert "recorder/progress" not in recorder_topics(data, roles_of(data))[0]
+
+
+def test_learning_unit_copies_target_cycle_and_sensor() -> None:
+    data = scenario("rptc_detailed")
+    ff = data["feedforward"]["ros__parameters"]
+    learning = handshake_overrides(data, roles_of(data), BAG, CONFIG)["learning"]
+    assert learning["cycle_s"] == ff["learning"]["cycle_s"]
+    assert {k.removeprefix("reference."): v for k, v in learning.items() if "reference." in k} == (
+        ff["reference"]
+    )
+    assert learning["memory.file"] == str(BAG.parent / "learning_memory.json")
+    assert "sensor" not in learning  # the feedback section does not set it
+    full_closed = copy.deepcopy(data)
+    full_closed["feedback"]["ros__parameters"]["sensor"] = "scale"
+    learning = handshake_overrides(full_closed, roles_of(full_closed), BAG, CONFIG)["learning"]
+    assert learning["sensor"] == "scale"
+
+
+def test_nodes_on_the_plant_clock_get_sim_time_and_the_plant_does_not() -> None:
+    data = scenario("rptc_detailed")
+    overrides = handshake_overrides(data, roles_of(data), BAG, CONFIG)
+    for role in ("feedback", "feedforward", "learning"):
+        assert overrides[role]["use_sim_time"] is True
+    assert "use_sim_time" not in overrides["plant"]
+    # The recorder stamps the bag with wall time; its /clock subscription is
+    # the one counted in wait_for_clock_subscribers.
+    assert "use_sim_time" not in overrides["recorder"]
+
+
+def test_run_params_file_holds_the_scenario_and_the_overrides(tmp_path: Path) -> None:
+    data = scenario("ptc_friction_table")
+    overrides = handshake_overrides(data, roles_of(data), tmp_path / "bag", CONFIG)
+    path = write_run_params(data, overrides, tmp_path / "params.yaml")
+    written = yaml.safe_load(path.read_text())
+    assert list(written) == [
+        "/**",
+        "/**/plant",
+        "/**/feedback",
+        "/**/feedforward",
+        "/**/recorder",
+    ]
+    assert written["/**"] == data["/**"]
+    ff = written["/**/feedforward"]["ros__parameters"]
+    assert ff["friction_table.file"] == str(CONFIG / "friction_table_ball_screw_x.csv")
+    assert ff["use_sim_time"] is True
+    assert written["/**/plant"]["ros__parameters"]["wait_for_state_subscribers"] == 2
+    assert written["/**/recorder"]["ros__parameters"]["output_dir"] == str(tmp_path / "bag")
+
+
+def test_environment_helpers_leave_os_environ_alone(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("FASTDDS_BUILTIN_TRANSPORTS", "DEFAULT")
+    monkeypatch.delenv("ROS_AUTOMATIC_DISCOVERY_RANGE", raising=False)
+    before = dict(os.environ)
+    env = ros_environment(42, Path("/tmp/logs"))
+    assert env["ROS_DOMAIN_ID"] == "42" and env["FASTDDS_BUILTIN_TRANSPORTS"] == "UDPv4"
+    assert Path(env["FASTRTPS_DEFAULT_PROFILES_FILE"]).is_file()
+    assert dict(os.environ) == before
+    settings = discovery_settings(Path("/tmp/logs"))
+    with temporary_environ(settings):
+        assert os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
+        assert os.environ["FASTDDS_BUILTIN_TRANSPORTS"] == "UDPv4"
+    assert dict(os.environ) == before  # the unset one removed, the set one back
+    with pytest.raises(RuntimeError), temporary_environ(settings):
+        raise RuntimeError
+    assert dict(os.environ) == before
