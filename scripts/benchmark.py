@@ -46,7 +46,8 @@ def pong() -> None:
     """Child process: echo every ``ping`` on ``pong``."""
     import rclpy
     from sensor_msgs.msg import JointState
-    from servo_axis.nodes.common import STREAM_QOS, make_executor
+
+    from servo_axis.nodes.runtime import STREAM_QOS, make_executor
 
     rclpy.init()
     node = rclpy.create_node("pong")
@@ -70,9 +71,9 @@ def ping_pong(env: dict[str, str]) -> float:
     os.environ.update(env)
     import rclpy
     from sensor_msgs.msg import JointState
-    from servo_axis.nodes.common import STREAM_QOS, make_executor
 
-    from servo_axis import msgs
+    from servo_axis.nodes.runtime import STREAM_QOS, make_executor
+    from servo_axis.wire import messages as msgs
 
     child = subprocess.Popen(
         [sys.executable, __file__, "--pong"],

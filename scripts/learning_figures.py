@@ -13,14 +13,10 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-from servo_axis.core.controllers import design_pid_pole_placement
-from servo_axis.core.plant import BALL_SCREW_MODES
-from servo_axis.core.rptc import (
-    ball_screw_response,
-    modelling_error_and_sensitivity,
-    n_times_gain,
-    q_gain,
-)
+
+from servo_axis.core.feedback.pid import design_pid_pole_placement
+from servo_axis.core.learning.filters import modelling_error_and_sensitivity, n_times_gain, q_gain
+from servo_axis.core.models.ball_screw import BALL_SCREW_MODES, ball_screw_response
 
 REPO = Path(__file__).resolve().parents[1]
 TR = 2e-3

@@ -119,7 +119,7 @@ def test_killed_learning_unit_resumes_from_its_memory(ros_env: int, tmp_path: Pa
     import yaml
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
-    from servo_axis.nodes.common import STREAM_QOS
+    from servo_axis.nodes.runtime import STREAM_QOS
     from std_msgs.msg import Float64MultiArray
 
     from servo_axis.params.scenario import load_scenario

@@ -193,7 +193,7 @@ def test_killed_feedforward_trips_the_feedback_and_the_bag_survives(
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
     from rosbags.highlevel import AnyReader
-    from servo_axis.nodes.common import LATCHED_QOS
+    from servo_axis.nodes.runtime import LATCHED_QOS
     from std_msgs.msg import Float64MultiArray
 
     shm_before = {p.name for p in Path("/dev/shm").glob("fastrtps_*")}
@@ -406,7 +406,7 @@ def predicted_dob_ratio(frequency_hz: float, scenario: Path) -> float:
     model N(z) on the differenced angle and low-pass filter L(z) on the
     previous current, so ``u = -C y - N (1 - z^-1)/T y + L z^-1 u``."""
     from scipy import signal
-    from servo_axis.core.controllers import design_pid_pole_placement
+    from servo_axis.core.feedback.pid import design_pid_pole_placement
 
     data = load_scenario(scenario)
     common = data["/**"]["ros__parameters"]

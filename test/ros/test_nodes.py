@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 import rclpy
+import yaml
 from numpy.testing import assert_allclose, assert_array_equal
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
@@ -22,6 +23,7 @@ from std_msgs.msg import Float64MultiArray
 from servo_axis.core.errors import ParameterFileError
 from servo_axis.nodes.feedback import FeedbackNode
 from servo_axis.nodes.feedforward import FeedforwardNode
+from servo_axis.nodes.learning import LearningNode
 from servo_axis.nodes.plant import PlantNode
 from servo_axis.nodes.recorder import RecorderNode
 from servo_axis.nodes.runtime import LATCHED_QOS, STREAM_QOS
@@ -77,10 +79,13 @@ NODE_CLASSES: dict[str, Callable[..., Node]] = {
     "feedback": FeedbackNode,
     "feedforward": FeedforwardNode,
     "recorder": RecorderNode,
+    "learning": LearningNode,
 }
 
 
-def graph_nodes(context: Context, data: dict[str, Any], bag: Path, scenario_dir: Path) -> list[Node]:
+def graph_nodes(
+    context: Context, data: dict[str, Any], bag: Path, scenario_dir: Path
+) -> list[Node]:
     """The nodes of a scenario in this process, with the run plan's parameters (recorder first)."""
     roles = [r for r in roles_of(data) if r in NODE_CLASSES]
     extra = handshake_overrides(data, roles, bag, scenario_dir)
@@ -572,3 +577,103 @@ def test_every_scenario_is_accepted_by_each_of_its_nodes(
             if close is not None:
                 close()
             node.destroy_node()
+
+
+def toy_scenario(tmp_path: Path) -> tuple[dict[str, Any], Path]:
+    """ptc_nominal on the test-only toy model, its nominal model equal to the toy (D = 0)."""
+    data = load_scenario(CONFIG / "ptc_nominal.yaml")
+    data["/**"]["ros__parameters"]["duration_s"] = 0.5
+    data["/**"]["ros__parameters"]["nominal"]["damping_Nms_per_rad"] = 0.0
+    data["plant"] = {
+        "ros__parameters": {
+            "model": "toy_rigid_body",
+            "inertia_kgm2": 0.01,
+            "torque_constant_Nm_per_A": 0.715,
+        }
+    }
+    path = tmp_path / "toy.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return data, path
+
+
+def test_a_new_plant_model_runs_headless_and_in_the_node_graph(
+    context: Context, tmp_path: Path
+) -> None:
+    """A model added as one module + its registration (toy_plant_model) runs through
+    simulate (no ROS) and through the node graph, with identical numbers."""
+    import toy_plant_model  # noqa: F401  (registers the model)
+
+    data, path = toy_scenario(tmp_path)
+    steps = 500
+    core = simulate(path)
+    # PTC on a nominal model equal to the plant tracks exactly at the T_r
+    # instants (000 Sect. III-A): the toy is really the plant that ran.
+    even = np.arange(0, steps, 2)
+    stroke = 0.02 / 1.91e-3
+    assert np.max(np.abs(core.reference_rad[even] - core.encoder_rad[even])) < 1e-12 * stroke
+    assert np.max(np.abs(core.command_A)) > 1.0
+    bag = tmp_path / "bag"
+    nodes = graph_nodes(context, data, bag, path.parent)
+    plant = nodes[-1]
+    try:
+        spin_until(context, nodes, lambda: plant.done)
+    finally:
+        nodes[0].close()
+        for n in nodes:
+            n.destroy_node()
+    recorded: dict[str, dict[int, Any]] = {"/state": {}, "/command": {}}
+    for m in read_messages(bag):
+        if m.topic in recorded:
+            recorded[m.topic][msgs.step_from_stamp(m.message.header.stamp, PERIOD_NS)] = m.message
+    assert_array_equal([recorded["/state"][k].position[0] for k in range(steps)], core.encoder_rad)
+    assert_array_equal([recorded["/command"][k].effort[0] for k in range(steps)], core.command_A)
+    # An unknown model name stops the plant naming the key and the registered ones.
+    with pytest.raises(ParameterFileError, match=r"parameter 'model': expected one of \["):
+        PlantNode(context=context, parameter_overrides=[Parameter("model", value="no_such")])
+
+
+def test_the_learning_unit_learns_against_the_controlled_output(
+    context: Context, tmp_path: Path
+) -> None:
+    """With ``feedback.sensor: scale`` the learning unit's error is target - scale / R.
+
+    On the detailed axis the 100 nm scale differs from R x the 2^20 encoder
+    (11 nm), so the per-cycle statistics tell which sensor was learned from;
+    they are recomputed here from the bag's own state stream and the
+    reference the scenario states (plain numpy, not the suite's code).
+    """
+    data = load_scenario(CONFIG / "rptc_detailed.yaml")
+    data["/**"]["ros__parameters"]["duration_s"] = 1.5  # three cycles: stats of two
+    data["feedback"]["ros__parameters"]["sensor"] = "scale"
+    bag = tmp_path / "bag"
+    nodes = graph_nodes(context, data, bag, CONFIG)
+    plant = nodes[-1]
+    try:
+        spin_until(context, nodes, lambda: plant.done, timeout_s=120)
+    finally:
+        nodes[0].close()
+        for n in nodes:
+            n.destroy_node()
+    scale: dict[int, float] = {}
+    encoder: dict[int, float] = {}
+    stats = []
+    for m in read_messages(bag):
+        if m.topic == "/state":
+            k = msgs.step_from_stamp(m.message.header.stamp, PERIOD_NS)
+            encoder[k], scale[k] = m.message.position[0], m.message.position[1]
+        elif m.topic == "/learning/cycle_stats":
+            stats.append(list(m.message.data))
+    assert [s[0] for s in stats] == [1.0, 2.0]
+    ref = data["feedforward"]["ros__parameters"]["reference"]
+    lead = 1.91e-3
+    for cycle, rms, peak, _ in stats:
+        k = np.arange(int(cycle - 1) * 500, int(cycle) * 500, 2)  # the T_r instants
+        target = ref["offset_m"] + ref["amplitude_m"] * np.sin(
+            2 * np.pi * ref["frequency_hz"] * k * 1e-3 + ref["phase_rad"]
+        )
+        by_scale = target - np.array([scale[i] for i in k])
+        by_encoder = target - lead * np.array([encoder[i] for i in k])
+        assert_allclose(rms, np.sqrt(np.mean(by_scale**2)), rtol=1e-9)
+        assert_allclose(peak, np.max(np.abs(by_scale)), rtol=1e-9)
+        # Not the encoder: the two sensors differ by more than the tolerance.
+        assert abs(rms - np.sqrt(np.mean(by_encoder**2))) > 1e-6 * rms

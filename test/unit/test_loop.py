@@ -12,7 +12,6 @@ from servo_axis.core.friction_table import FrictionTable
 from servo_axis.core.plant import BallScrewParams, BallScrewPlant
 from servo_axis.core.ptc import MultiratePtc
 from servo_axis.core.servo import Fault, FeedbackLoop, SafetyLimits
-from servo_axis.report import compare_table, cycle_errors, error_statistics
 
 from servo_axis.core.errors import ConfigError
 from servo_axis.core.feedforward import BLOCK_STEPS, FeedforwardGenerator
@@ -118,39 +117,3 @@ def test_generator_without_ptc_adds_the_friction_table() -> None:
     assert out[k, 2] == pytest.approx(
         -np.interp(d, table.displacement_m, table.torque_Nm) / 0.715, rel=1e-9
     )
-
-
-def test_error_statistics_per_cycle() -> None:
-    step = np.arange(1000)
-    e = np.where(step < 500, 2.0, 1.0) * np.sin(2 * np.pi * step / 250)
-    stats = error_statistics(e, step, period_s=1e-3, cycle_s=0.25)
-    assert [c["cycle"] for c in stats["cycles"]] == [1, 2, 3, 4]
-    assert_allclose(
-        [c["rms_m"] for c in stats["cycles"]],
-        [2 / math.sqrt(2)] * 2 + [1 / math.sqrt(2)] * 2,
-        rtol=1e-9,
-    )
-    assert_allclose(stats["reference_instants"]["max_m"], np.max(np.abs(e[::2])), rtol=0)
-    assert_allclose(
-        stats["after_first_cycle"]["all_samples"]["max_m"], np.max(np.abs(e[250:])), rtol=0
-    )
-
-
-def test_compare_table_lines_up_the_cycles_of_each_run() -> None:
-    step = np.arange(1000)
-    runs = []
-    for decay in (0.5, 0.2):  # per cycle: the second run's error falls faster
-        e = decay ** (step // 250) * np.sin(2 * np.pi * step / 250 + 0.3)
-        stats = error_statistics(e, step, period_s=1e-3, cycle_s=0.25)
-        runs.append({"tracking_error": stats})
-    per_cycle = cycle_errors(runs[1])
-    assert_allclose(per_cycle["max_m"], [0.2**k * np.max(np.abs(e[:250])) for k in range(4)])
-    max_block, rms_block = compare_table(runs, ["Q", "Q~5"]).split("\n\n")
-    for block, key in ((max_block, "max_m"), (rms_block, "rms_m")):
-        rows = block.splitlines()
-        assert rows[1].split() == ["cycle", "Q", "Q~5"]
-        table = np.array([[float(x) for x in row.split()] for row in rows[2:]])
-        assert_allclose(table[:, 0], [1, 2, 3, 4])
-        assert_allclose(table[:, 2], 1e6 * cycle_errors(runs[1])[key], rtol=1e-5)
-        assert_allclose(table[:, 1] / table[:, 2], [2.5**k for k in range(4)], rtol=1e-5)
-    assert_allclose(float(rms_block.splitlines()[2].split()[1]), 1e6 / np.sqrt(2), rtol=1e-5)

@@ -110,7 +110,7 @@ def plot(run_dir: Path) -> list[Path]:
     t = series.time_s
     err = series.error_m * 1e6
     even = SampleGrid(control_period_s=summary.control_period_s).reference_instants(sig.step)
-    figures = [
+    figures: list[tuple[str, str, str, list[tuple[Any, Any, str, str]]]] = [
         (
             "reference_position.png",
             "table position (mm)",

@@ -515,15 +515,15 @@ class RunSeries:
     lead_m_per_rad: float
 
     @property
-    def time_s(self) -> NDArray[np.float64]:
+    def time_s(self) -> NDArray[np.floating[Any]]:
         """Simulation time of each recorded step, s."""
-        t: NDArray[np.float64] = self.signals.step * self.summary.control_period_s
+        t: NDArray[np.floating[Any]] = self.signals.step * self.summary.control_period_s
         return t
 
     @property
-    def error_m(self) -> NDArray[np.float64]:
+    def error_m(self) -> NDArray[np.floating[Any]]:
         """Tracking error ``R (r - y)`` per recorded step, m."""
-        e: NDArray[np.float64] = self.lead_m_per_rad * (self.target_rad - self.y_rad)
+        e: NDArray[np.floating[Any]] = self.lead_m_per_rad * (self.target_rad - self.y_rad)
         return e
 
 

@@ -162,7 +162,7 @@ def roles_of(scenario: dict[str, Any]) -> list[str]:
     return [r for r in START_ORDER if r in scenario]
 
 
-class _QuotingDumper(yaml.SafeDumper):
+class _QuotingDumper(yaml.SafeDumper):  # type: ignore[misc]
     """Quotes every string: rcl's parameter parser reads a bare ``y``, ``on``
     or ``1e3`` as a bool or a number, PyYAML writes them bare."""
 

@@ -94,12 +94,13 @@ class Param:
         if not math.isfinite(x):
             raise ParameterFileError(f"parameter '{name}': expected a finite number, got {value!r}")
         bounds = (
-            (self.minimum, lambda b: x >= b, ">="),
-            (self.above, lambda b: x > b, ">"),
-            (self.maximum, lambda b: x <= b, "<="),
-            (self.below, lambda b: x < b, "<"),
+            (self.minimum, ">=", lambda b: x >= b),
+            (self.above, ">", lambda b: x > b),
+            (self.maximum, "<=", lambda b: x <= b),
+            (self.below, "<", lambda b: x < b),
         )
-        for bound, ok, text in bounds:
+        ok: Callable[[float], bool]
+        for bound, text, ok in bounds:
             if bound is not None and not ok(bound):
                 raise ParameterFileError(
                     f"parameter '{name}': expected a value {text} {bound:g}, got {value!r}"

@@ -21,6 +21,7 @@ from servo_axis.analysis.signals import FaultRecord, load_signals, tracking
 from servo_axis.analysis.summary import RunSummary, load_summary, summarise
 from servo_axis.params.factories import build_generator, feedforward_values
 from servo_axis.params.scenario import load_scenario
+from servo_axis.params.schemas import SHARED
 from servo_axis.recording.writer import BagWriter
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
@@ -411,7 +412,9 @@ def test_summarise_axes_gives_the_contour_and_the_plots_draw(tmp_path: Path) -> 
     written = [plot_contour(run), *plot(run / "x")]
     written.append(plot_cycles(list(axes.values()), ["y", "x"], tmp_path / "c.png", title="t"))
     written.append(
-        plot_error_overlay([run / "x", run / "y"], ["x", "y"], tmp_path / "e.png", zoom_cycle=2, title="t")
+        plot_error_overlay(
+            [run / "x", run / "y"], ["x", "y"], tmp_path / "e.png", zoom_cycle=2, title="t"
+        )
     )
     names = [p.name for p in written]
     assert names == [
@@ -423,3 +426,58 @@ def test_summarise_axes_gives_the_contour_and_the_plots_draw(tmp_path: Path) -> 
         "e.png",
     ]
     assert all(p.stat().st_size > 1000 for p in written)
+
+
+def test_friction_table_from_run_uses_the_scenario_nominal_model(tmp_path: Path) -> None:
+    from servo_axis.core.feedforward.friction_table import build_friction_table
+    from servo_axis.friction_id import estimate_friction_torque, table_from_run
+
+    cdr = Cdr()
+    n = 1000  # 2 s at 2 ms: two reversals of a 1 Hz, 20 um sine
+    k = np.arange(n)
+    ref = 20e-6 / LEAD * np.sin(2 * np.pi * 1.0 * k * PERIOD_S)
+    current = 0.3 * np.sign(np.cos(2 * np.pi * k * PERIOD_S)) + 0.01 * np.sin(0.7 * k)
+    run = tmp_path / "fid"
+    with BagWriter(run / "bag") as bag:
+        for topic in ("state", "reference", "command"):
+            bag.add_topic(topic, JOINT_STATE)
+        for i in k.tolist():
+            t = 3 * i
+            bag.write(
+                "reference",
+                cdr.joint_state(i, ["m"], position=[ref[i]], effort=[0.0]),
+                log_time_ns=t,
+            )
+            bag.write(
+                "state",
+                cdr.joint_state(i, ["m", "t"], position=[ref[i], ref[i] * LEAD]),
+                log_time_ns=t + 1,
+            )
+            bag.write("command", cdr.joint_state(i, ["m"], effort=[current[i]]), log_time_ns=t + 2)
+    path = write_scenario(tmp_path / "fid.yaml")
+    scenario = load_scenario(path)
+    nominal = {"torque_constant_Nm_per_A": 0.8, "inertia_kgm2": 0.02, "damping_Nms_per_rad": 0.05}
+    scenario["/**"]["ros__parameters"]["nominal"] = nominal
+    path.write_text(yaml.safe_dump(scenario))
+    summarise(run, scenario=scenario, scenario_path=path, wall_time_s=1.0, mode="processes")
+
+    table = table_from_run(run, bin_width_m=1e-6, max_displacement_m=10e-6)
+    torque = estimate_friction_torque(
+        reference_rad=ref, current_A=current, period_s=PERIOD_S, **nominal
+    )
+    expected = build_friction_table(
+        position_m=ref * LEAD, torque_Nm=torque, bin_width_m=1e-6, max_displacement_m=10e-6
+    )
+    assert_allclose(table.displacement_m, expected.displacement_m, rtol=0, atol=0)
+    assert_allclose(table.torque_Nm, expected.torque_Nm, rtol=1e-12, atol=1e-15)
+    # With the default nominal model the table differs: the scenario's values are used.
+    default = estimate_friction_torque(
+        reference_rad=ref,
+        current_A=current,
+        period_s=PERIOD_S,
+        **{k: SHARED[f"nominal.{k}"].default for k in nominal},  # type: ignore[arg-type]
+    )
+    other = build_friction_table(
+        position_m=ref * LEAD, torque_Nm=default, bin_width_m=1e-6, max_displacement_m=10e-6
+    )
+    assert np.max(np.abs(other.torque_Nm - table.torque_Nm)) > 1e-3
