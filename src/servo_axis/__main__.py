@@ -60,11 +60,12 @@ def _run(args: argparse.Namespace) -> int:
 
 def _friction_table(args: argparse.Namespace) -> int:
     from servo_axis.friction_id import table_from_run
+    from servo_axis.storage import save_friction_table
 
     table = table_from_run(
         Path(args.run_dir), bin_width_m=args.bin_width_m, max_displacement_m=args.max_displacement_m
     )
-    table.save(Path(args.out))
+    save_friction_table(Path(args.out), table)
     print(f"friction table with {len(table.displacement_m)} points written to {args.out}")
     return 0
 

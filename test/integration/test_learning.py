@@ -119,9 +119,9 @@ def test_killed_learning_unit_resumes_from_its_memory(ros_env: int, tmp_path: Pa
     import yaml
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
-    from servo_axis.nodes.runtime import STREAM_QOS
     from std_msgs.msg import Float64MultiArray
 
+    from servo_axis.nodes.runtime import STREAM_QOS
     from servo_axis.params.scenario import load_scenario
     from servo_axis.run.plan import handshake_overrides, write_run_params
     from servo_axis.run.processes import ros_environment, start_nodes, stop_nodes

@@ -20,12 +20,14 @@ import pytest
 import yaml
 from mcap.reader import make_reader
 
+from servo_axis.__main__ import main as cli
 from servo_axis.friction_id import table_from_run
 from servo_axis.params.scenario import load_scenario
 from servo_axis.run.plan import handshake_overrides, write_run_params
 from servo_axis.run.processes import clean_stale_shm, ros_environment, start_nodes, stop_nodes
 from servo_axis.run.progress import ProgressWatcher
 from servo_axis.run.runner import RunError, run_scenario
+from servo_axis.storage import load_friction_table
 
 pytestmark = pytest.mark.integration
 
@@ -162,12 +164,14 @@ def test_friction_table_halves_the_quadrant_glitches(ros_env: int, tmp_path: Pat
         progress=None,
         plots=False,
     )
-    table = table_from_run(ident.run_dir)
+    table_path = tmp_path / "table.csv"
+    # Through the command a user runs; it writes what table_from_run builds.
+    assert cli(["friction-table", str(ident.run_dir), "--out", str(table_path)]) == 0
+    table = load_friction_table(table_path)
+    np.testing.assert_array_equal(table.torque_Nm, table_from_run(ident.run_dir).torque_Nm)
     # The identified table spans the Coulomb level of the plant (3.2 N m).
     assert table.torque_Nm[0] == pytest.approx(-3.2, rel=0.15)
     assert table.torque_Nm[-1] == pytest.approx(3.2, rel=0.1)
-    table_path = tmp_path / "table.csv"
-    table.save(table_path)
     plain = scenario_copy(CONFIG / "ptc_friction.yaml", tmp_path)
     with_table = load_scenario(CONFIG / "ptc_friction_table.yaml")
     with_table["feedforward"]["ros__parameters"]["friction_table"]["file"] = str(table_path)
@@ -193,8 +197,9 @@ def test_killed_feedforward_trips_the_feedback_and_the_bag_survives(
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
     from rosbags.highlevel import AnyReader
-    from servo_axis.nodes.runtime import LATCHED_QOS
     from std_msgs.msg import Float64MultiArray
+
+    from servo_axis.nodes.runtime import LATCHED_QOS
 
     shm_before = {p.name for p in Path("/dev/shm").glob("fastrtps_*")}
     scenario_path = scenario_copy(CONFIG / "ptc_nominal.yaml", tmp_path, duration_s=600.0)
@@ -406,6 +411,7 @@ def predicted_dob_ratio(frequency_hz: float, scenario: Path) -> float:
     model N(z) on the differenced angle and low-pass filter L(z) on the
     previous current, so ``u = -C y - N (1 - z^-1)/T y + L z^-1 u``."""
     from scipy import signal
+
     from servo_axis.core.feedback.pid import design_pid_pole_placement
 
     data = load_scenario(scenario)

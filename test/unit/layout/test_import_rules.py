@@ -82,7 +82,7 @@ def test_no_import_circle() -> None:
         stack.append(name)
         for nxt in sorted(edges(name)):
             if state.get(nxt) == 1:
-                cycle = stack[stack.index(nxt) :] + [nxt]
+                cycle = [*stack[stack.index(nxt) :], nxt]
                 pytest.fail("import circle: " + " -> ".join(cycle))
             if nxt not in state:
                 visit(nxt)
