@@ -16,6 +16,7 @@ table from cycle 1 and repetitive PTC learning from cycle 2.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -169,6 +170,10 @@ def main(argv: list[str] | None = None) -> int:
         args = parser.parse_args(["run", DEFAULT_SCENARIO])
     try:
         return int(args.func(args))
+    except BrokenPipeError:
+        # The reader of our output went away (`list | head`): not an error of ours.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except (ServoAxisError, OSError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
