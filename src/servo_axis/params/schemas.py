@@ -17,11 +17,28 @@ Fujimoto), "DESIGN 7" to the axis presets of the design notes.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping
 
+from servo_axis.core.feedback.loop import SafetyLimits
+from servo_axis.core.friction.model import FrictionParams
+from servo_axis.core.models.ball_screw import BallScrewParams, DisturbanceParams
 from servo_axis.params.schema import Param
 from servo_axis.wire import topics
+
+
+def _dataclass_defaults(cls: type) -> dict[str, object]:
+    """Field defaults of a core parameter dataclass (the axis preset is stated there once)."""
+    return {
+        f.name: f.default for f in dataclasses.fields(cls) if f.default is not dataclasses.MISSING
+    }
+
+
+_BALL_SCREW = _dataclass_defaults(BallScrewParams)
+_FRICTION = _dataclass_defaults(FrictionParams)
+_DISTURBANCE = _dataclass_defaults(DisturbanceParams)
+_LIMITS = _dataclass_defaults(SafetyLimits)
 
 #: Keys every node accepts (the ``/**`` block of a scenario file).
 SHARED: dict[str, Param] = {
@@ -32,7 +49,7 @@ SHARED: dict[str, Param] = {
         "(deterministic); realtime = wall-clock steps, late inputs are deadline misses",
     ),
     "control_period_s": Param(
-        1e-3,
+        _BALL_SCREW["control_period_s"],
         unit="s",
         above=0.0,
         meaning="control period T_u (command hold, sampling of the loop); "
@@ -49,7 +66,7 @@ SHARED: dict[str, Param] = {
         meaning="axis name: the JointState names are `<axis>_motor` and `<axis>_table`",
     ),
     "lead_m_per_rad": Param(
-        1.91e-3,
+        _BALL_SCREW["lead_m_per_rad"],
         unit="m/rad",
         above=0.0,
         meaning="ball-screw lead R: table position x = R theta (DESIGN 7: 1.91 mm/rad)",
@@ -147,19 +164,19 @@ PLANT: dict[str, Param] = {
 #: Keys of the plant with ``model: ball_screw``: eq. (30) of 000 with DESIGN 7 defaults.
 BALL_SCREW: dict[str, Param] = {
     "torque_constant_Nm_per_A": Param(
-        0.715,
+        _BALL_SCREW["torque_constant_Nm_per_A"],
         unit="N m/A",
         above=0.0,
         meaning="K_T of eq. (30) of 000: motor torque per ampere of current (0.715)",
     ),
     "inertia_kgm2": Param(
-        0.01,
+        _BALL_SCREW["inertia_kgm2"],
         unit="kg m^2",
         above=0.0,
         meaning="J of eq. (30): rigid-body inertia at the motor (0.01)",
     ),
     "damping_Nms_per_rad": Param(
-        0.1,
+        _BALL_SCREW["damping_Nms_per_rad"],
         unit="N m s/rad",
         minimum=0.0,
         meaning="D of eq. (30): viscous damping at the motor (0.1)",
@@ -181,19 +198,19 @@ BALL_SCREW: dict[str, Param] = {
         meaning="relative gains a_i of the modes of eq. (30): K_i = a_i K_T / J (DESIGN 7)",
     ),
     "dead_time_s": Param(
-        0.0,
+        _BALL_SCREW["dead_time_s"],
         unit="s",
         minimum=0.0,
         meaning="dead time T_d of eq. (30) (000: 70 us), a whole number of sim_step_s",
     ),
     "sim_step_s": Param(
-        50e-6,
+        _BALL_SCREW["sim_step_s"],
         unit="s",
         above=0.0,
         meaning="integration step h of the plant (exact ZOH); divides control_period_s",
     ),
     "current_limit_A": Param(
-        30.0,
+        _BALL_SCREW["current_limit_A"],
         unit="A",
         above=0.0,
         meaning="amplifier saturation: the current command is clipped to +-current_limit_A",
@@ -201,58 +218,58 @@ BALL_SCREW: dict[str, Param] = {
     "initial_angle_rad": Param(0.0, unit="rad", meaning="motor angle at step 0"),
     "initial_velocity_rad_s": Param(0.0, unit="rad/s", meaning="motor velocity at step 0"),
     "friction.rolling_coulomb_Nm": Param(
-        0.0,
+        _FRICTION["rolling_coulomb_Nm"],
         unit="N m",
         minimum=0.0,
         meaning="rolling (Maxwell-slip) friction level T_c at the motor once the balls roll "
         "(region B, 000 Fig. 4; 001: 3.2 N m); 0 = off",
     ),
     "friction.presliding_width_m": Param(
-        10e-6,
+        _FRICTION["presliding_width_m"],
         unit="m",
         above=0.0,
         meaning="pre-sliding width at the table: displacement from a reversal at which rolling "
         "friction reaches T_c (region A; about 10 um)",
     ),
     "friction.elements": Param(
-        8,
+        _FRICTION["elements"],
         minimum=1,
         maximum=200,
         meaning="number of Maxwell-slip elements (knots of the piecewise-linear virgin curve)",
     ),
     "friction.coulomb_Nm": Param(
-        0.0,
+        _FRICTION["coulomb_Nm"],
         unit="N m",
         minimum=0.0,
         meaning="plain Coulomb friction level at the motor, T_c tanh(w / w_s); 0 = off",
     ),
     "friction.coulomb_smoothing_rad_s": Param(
-        1e-3,
+        _FRICTION["coulomb_smoothing_rad_s"],
         unit="rad/s",
         above=0.0,
         meaning="velocity w_s of the tanh regularisation of the Coulomb term",
     ),
     "friction.viscous_Nms_per_rad": Param(
-        0.0,
+        _FRICTION["viscous_Nms_per_rad"],
         unit="N m s/rad",
         minimum=0.0,
         meaning="viscous friction at the motor, in addition to the damping D",
     ),
     "disturbance.amplitude_Nm": Param(
-        0.0,
+        _DISTURBANCE["amplitude_Nm"],
         unit="N m",
         minimum=0.0,
         meaning="amplitude A of the input disturbance torque A sin(2 pi f t + phi) at the motor "
         "(000 Fig. 13); 0 = none",
     ),
     "disturbance.frequency_hz": Param(
-        4.0,
+        _DISTURBANCE["frequency_hz"],
         unit="Hz",
         above=0.0,
         meaning="frequency f of the input disturbance torque",
     ),
     "disturbance.phase_rad": Param(
-        0.0,
+        _DISTURBANCE["phase_rad"],
         unit="rad",
         meaning="phase phi of the input disturbance torque at t = 0",
     ),
@@ -315,19 +332,19 @@ FEEDBACK: dict[str, Param] = {
     ),
     "sensor": SENSOR,
     "limits.following_error_m": Param(
-        2e-3,
+        _LIMITS["following_error_m"],
         unit="m",
         above=0.0,
         meaning="trip when the following error |r - y| at the table exceeds this",
     ),
     "limits.travel_m": Param(
-        0.2,
+        _LIMITS["travel_m"],
         unit="m",
         above=0.0,
         meaning="trip when the table position |y| exceeds this",
     ),
     "limits.current_A": Param(
-        50.0,
+        _LIMITS["current_A"],
         unit="A",
         above=0.0,
         meaning="trip when the current demand |u| exceeds this",

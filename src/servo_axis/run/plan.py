@@ -13,6 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from servo_axis.params import schemas
 from servo_axis.params.scenario import (
     ROLES,
     SHARED_SECTION,
@@ -23,9 +24,6 @@ from servo_axis.params.scenario import (
     shared,
 )
 from servo_axis.wire.topics import recorded_topics, subscriber_count, topic
-
-#: Default of the learning unit's cycle when the feedforward section sets none.
-DEFAULT_CYCLE_S = 0.5
 
 
 def sim_time_roles() -> tuple[str, ...]:
@@ -125,7 +123,7 @@ def learning_overrides(scenario: dict[str, Any], bag_dir: Path) -> dict[str, Any
     """
     ff = node_params(scenario, "feedforward")
     out = {k: v for k, v in ff.items() if k.startswith("reference.")}
-    out["cycle_s"] = ff.get("learning.cycle_s", DEFAULT_CYCLE_S)
+    out["cycle_s"] = ff.get("learning.cycle_s", schemas.FEEDFORWARD["learning.cycle_s"].default)
     feedback = flatten(scenario.get("feedback", {}).get("ros__parameters", {}))
     if "sensor" in feedback:
         out["sensor"] = feedback["sensor"]

@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
 from servo_axis.core.errors import ConfigError
+from servo_axis.params.factories import node_values, run_steps
 from servo_axis.params.scenario import (
     axes_of,
     axis_view,
@@ -173,9 +174,7 @@ def run_scenario(
     scenario_path = find_scenario(scenario).resolve()
     data = load_scenario(scenario_path)
     common = shared(data)
-    steps = round(
-        float(common.get("duration_s", 2.0)) / float(common.get("control_period_s", 1e-3))
-    )
+    steps = run_steps(node_values(data, "plant"))
     run_dir = _new_run_dir(out_dir, common.get("scenario", {}).get("name") or scenario_path.stem)
     runs = prepare_axis_runs(
         data, scenario_path, run_dir, composed=composed, namespace=namespace, extra_args=extra_args
