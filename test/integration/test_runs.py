@@ -26,7 +26,7 @@ from servo_axis.params.scenario import load_scenario
 from servo_axis.run.plan import handshake_overrides, write_run_params
 from servo_axis.run.processes import clean_stale_shm, ros_environment, start_nodes, stop_nodes
 from servo_axis.run.progress import ProgressWatcher
-from servo_axis.run.runner import RunError, run_scenario
+from servo_axis.run.runner import run_scenario
 from servo_axis.storage import load_friction_table
 
 pytestmark = pytest.mark.integration
@@ -302,8 +302,19 @@ def test_bad_parameter_file_stops_the_node_with_its_name(ros_env: int, tmp_path:
     )
     assert done.returncode == 2
     assert "unknown parameter 'damping_Nms_per_radd'" in done.stderr
-    with pytest.raises(RunError, match="damping_Nms_per_radd"):
-        run_scenario(bad, out_dir=tmp_path / "run", domain_id=ros_env, progress=None)
+    # The runner refuses it before it starts any process: exit 2 naming the key.
+    run = subprocess.run(
+        [sys.executable, "-m", "servo_axis", "run", str(bad), "--out", str(tmp_path / "run")],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert run.returncode == 2
+    assert "unknown parameter 'damping_Nms_per_radd'" in run.stderr
+    assert not (tmp_path / "run" / "logs").exists() or not any(
+        (tmp_path / "run" / "logs").iterdir()
+    )
 
 
 def test_realtime_mode_keeps_wall_time_and_counts_misses(ros_env: int, tmp_path: Path) -> None:
