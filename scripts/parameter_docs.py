@@ -37,18 +37,18 @@ TITLES = {"/**": "Shared (`/**`)"}
 NOTES = {
     "/**": "Read by every node.",
     "plant": "The plant node itself; the keys of its model follow. `wait_for_*` and "
-    "`flow_control` are set by the bringup.",
+    "`flow_control` are set by the runner.",
     "plant (model ball_screw)": "Keys of the `plant` section with `model: ball_screw` "
     "(default). Defaults are the ball-screw X axis of DESIGN 7 (000/001) without "
     "resonance modes, dead time, friction or disturbance; `modes.*` = `[0.0]` means no "
     "resonance mode.",
     "feedback": "`sensor` is also a key of the learning unit, which must learn from the same "
-    "output (the bringup copies it).",
-    "feedforward": "`wait_for_reference_subscribers` is set by the bringup.",
-    "learning": "The bringup copies `reference.*` and `cycle_s` (`learning.cycle_s`) from "
+    "output (the runner copies it).",
+    "feedforward": "`wait_for_reference_subscribers` is set by the runner.",
+    "learning": "The runner copies `reference.*` and `cycle_s` (`learning.cycle_s`) from "
     "the feedforward section and `sensor` from the feedback section, and sets `memory.file` "
     "to `<run>/learning_memory.json` unless given.",
-    "recorder": "`output_dir` is set by the bringup (`<run>/bag`).",
+    "recorder": "`output_dir` is set by the runner (`<run>/bag`).",
 }
 
 

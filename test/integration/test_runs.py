@@ -312,9 +312,29 @@ def test_bad_parameter_file_stops_the_node_with_its_name(ros_env: int, tmp_path:
     )
     assert run.returncode == 2
     assert "unknown parameter 'damping_Nms_per_radd'" in run.stderr
-    assert not (tmp_path / "run" / "logs").exists() or not any(
-        (tmp_path / "run" / "logs").iterdir()
-    )
+    assert not (tmp_path / "run").exists()
+    # Every section is checked first, not only the plant's: out of range, NaN.
+    for key, value, text in (
+        ("preview_steps", 1, "parameter 'preview_steps': expected a value >= 2"),
+        (
+            "learning",
+            {"timeout_s": float("nan")},
+            "parameter 'learning.timeout_s': expected a finite",
+        ),
+    ):
+        data = load_scenario(CONFIG / "ptc_nominal.yaml")
+        data["feedforward"]["ros__parameters"][key] = value
+        bad.write_text(yaml.safe_dump(data))
+        run = subprocess.run(
+            [sys.executable, "-m", "servo_axis", "run", str(bad), "--out", str(tmp_path / "run")],
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+        assert run.returncode == 2, run.stderr
+        assert text in run.stderr
+        assert not (tmp_path / "run").exists()
 
 
 def test_realtime_mode_keeps_wall_time_and_counts_misses(ros_env: int, tmp_path: Path) -> None:

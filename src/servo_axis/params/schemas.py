@@ -451,7 +451,7 @@ FEEDFORWARD: dict[str, Param] = {
     ),
     "learning.law": Param(
         "rptc",
-        meaning="the learning unit's law (the bringup copies the learning section's `law`): "
+        meaning="the learning unit's law (the runner copies the learning section's `law`): "
         "it decides target- or input-side corrections",
     ),
     "learning.timeout_s": Param(
@@ -523,7 +523,7 @@ RECORDER: dict[str, Param] = {
     ),
     "topics": Param(
         [t.name for t in _DEFAULT_RECORDED],
-        meaning="topics to record (relative to the node's namespace); the bringup adds "
+        meaning="topics to record (relative to the node's namespace); the runner adds "
         "those of the learning unit when it runs",
     ),
     "types": Param(

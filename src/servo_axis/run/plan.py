@@ -79,7 +79,8 @@ def handshake_overrides(
         for those of ``reference``; the recorder gets ``output_dir`` and,
         unless its section lists them, the topics recorded by default; the
         learning unit gets ``reference.*`` and ``cycle_s`` of the
-        feedforward section and ``sensor`` of the feedback section;
+        feedforward section and ``sensor`` of the feedback section, the
+        feedforward generator the learning section's ``law``;
         feedback, feedforward and learning get ``use_sim_time: true``.
     """
     recorded: list[str] = []
@@ -106,6 +107,9 @@ def handshake_overrides(
         table = node_params(scenario, "feedforward").get("friction_table.file", "")
         if table:
             ff["friction_table.file"] = resolve_table(table, scenario_dir)
+        law = node_params(scenario, "learning").get("law")
+        if "learning" in roles and law is not None:
+            ff["learning.law"] = law  # one source: the learning section
         out["feedforward"] = ff
     for role in sim_time_roles():
         if role in roles:

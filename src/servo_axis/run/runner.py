@@ -22,13 +22,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
 from servo_axis.core.errors import ConfigError
-from servo_axis.params.factories import node_values, run_steps
+from servo_axis.params.factories import checked_values, node_values, run_steps
 from servo_axis.params.scenario import (
     axes_of,
     axis_view,
     dump_params,
     find_scenario,
     load_scenario,
+    node_params,
     roles_of,
     shared,
 )
@@ -229,10 +230,22 @@ def prepare_axis_runs(
             f"scenario {scenario_path}: a multi-axis scenario runs as separate processes, "
             "each axis in its own namespace (no --composed, no --namespace)"
         )
+    for axis in axes:  # every section of every axis, before anything is written or started
+        _check_sections(axis_view(scenario, axis, scenario_path.parent), run_dir / axis)
+    if not axes:
+        _check_sections(scenario, run_dir)
     return [
         _prepare_axis(scenario, scenario_path, run_dir, axis, namespace, extra_args or [])
         for axis in axes or [""]
     ]
+
+
+def _check_sections(scenario: dict[str, Any], axis_dir: Path) -> None:
+    """Check each node's section as the node will (ParameterFileError naming the key)."""
+    roles = roles_of(scenario)
+    overrides = handshake_overrides(scenario, roles, axis_dir / "bag", axis_dir)
+    for role in roles:
+        checked_values(role, {**node_params(scenario, role), **overrides.get(role, {})})
 
 
 def _prepare_axis(
