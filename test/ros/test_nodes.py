@@ -419,7 +419,7 @@ def test_learning_node_bad_memory_file_fails_or_starts_clean(
     with pytest.raises(ParameterFileError, match=r"memory\.file.*corrupt or truncated"):
         node()
     clean = node(**{"memory.on_bad_file": "clear"})
-    assert clean.psg.cycles_learned == 0 and not clean.psg.correction.any()
+    assert clean.law.cycles_learned == 0 and not clean.law.correction.any()
     clean.destroy_node()
     # A sound file of another scenario is not silently used either.
     other = PeriodicSignalGenerator(
@@ -431,8 +431,8 @@ def test_learning_node_bad_memory_file_fails_or_starts_clean(
         node()
     save_memory(memory, other, scenario="rptc_ideal")
     resumed = node()
-    assert resumed.psg.cycles_learned == 1
-    np.testing.assert_array_equal(resumed.psg.correction, other.correction)
+    assert resumed.law.cycles_learned == 1
+    np.testing.assert_array_equal(resumed.law.correction, other.correction)
     resumed.destroy_node()
 
 

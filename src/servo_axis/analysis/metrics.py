@@ -14,14 +14,39 @@ The results are in the layout of ``summary.json``
 
 from __future__ import annotations
 
+import dataclasses
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from servo_axis.core.timing import SampleGrid
+
+
+def to_plain(obj: Any) -> Any:
+    """A result dataclass as JSON-ready values: mappings in field order, lists for tuples.
+
+    A field with ``metadata={"summary": False}`` is left out (series that are
+    not part of ``summary.json``); one with ``metadata={"omit_none": True}``
+    is left out while it is None.
+    """
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        out = {}
+        for f in dataclasses.fields(obj):
+            value = getattr(obj, f.name)
+            if not f.metadata.get("summary", True):
+                continue
+            if value is None and f.metadata.get("omit_none", False):
+                continue
+            out[f.name] = to_plain(value)
+        return out
+    if isinstance(obj, tuple | list):
+        return [to_plain(v) for v in obj]
+    if isinstance(obj, dict):
+        return {k: to_plain(v) for k, v in obj.items()}
+    return obj
 
 
 def _stats(e: NDArray[np.float64]) -> dict[str, float]:
@@ -110,12 +135,8 @@ class ContourCycle:
     max_radial_m: float
 
     def to_dict(self) -> dict[str, Any]:
-        """The row as in ``summary.json``."""
-        return {
-            "cycle": self.cycle,
-            "circular_deviation_m": self.circular_deviation_m,
-            "max_radial_m": self.max_radial_m,
-        }
+        """As in ``summary.json``, keys in field order."""
+        return to_plain(self)
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> ContourCycle:
@@ -160,21 +181,15 @@ class ContourResult:
     circular_deviation_m: float
     max_radial_m: float
     cycles: tuple[ContourCycle, ...]
-    steps: NDArray[np.int_]
-    target: NDArray[np.float64]
-    measured: NDArray[np.float64]
-    radial: NDArray[np.float64]
+    steps: NDArray[np.int_] = field(metadata={"summary": False})
+    target: NDArray[np.float64] = field(metadata={"summary": False})
+    measured: NDArray[np.float64] = field(metadata={"summary": False})
+    radial: NDArray[np.float64] = field(metadata={"summary": False})
 
     def to_summary(self) -> dict[str, Any]:
         """The scalar results as in ``summary.json`` (no series)."""
-        return {
-            "centre_m": list(self.centre_m),
-            "radius_m": self.radius_m,
-            "target_radial_deviation_m": self.target_radial_deviation_m,
-            "circular_deviation_m": self.circular_deviation_m,
-            "max_radial_m": self.max_radial_m,
-            "cycles": [c.to_dict() for c in self.cycles],
-        }
+        plain: dict[str, Any] = to_plain(self)
+        return plain
 
 
 def contour_error(

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from servo_axis.analysis.metrics import to_plain
 from servo_axis.core.feedback.loop import Fault
 from servo_axis.core.feedback.output import controlled_output
 from servo_axis.params.factories import build_generator, feedforward_values, node_values
@@ -58,7 +59,8 @@ class FaultRecord:
 
     def to_dict(self) -> dict[str, Any]:
         """The record as in ``summary.json`` (keys step, code, name, value)."""
-        return {"step": self.step, "code": self.code, "name": self.name, "value": self.value}
+        plain: dict[str, Any] = to_plain(self)
+        return plain
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> FaultRecord:

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +28,7 @@ from servo_axis.analysis.metrics import (
     ContourResult,
     contour_error,
     error_statistics,
+    to_plain,
 )
 from servo_axis.analysis.signals import (
     FaultRecord,
@@ -67,8 +68,9 @@ class ErrorStats:
     max_m: float
 
     def to_dict(self) -> dict[str, Any]:
-        """As in ``summary.json``."""
-        return {"rms_m": self.rms_m, "max_m": self.max_m}
+        """As in ``summary.json``, keys in field order."""
+        plain: dict[str, Any] = to_plain(self)
+        return plain
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> ErrorStats:
@@ -84,11 +86,9 @@ class SampleStats:
     reference_instants: ErrorStats
 
     def to_dict(self) -> dict[str, Any]:
-        """As in ``summary.json``."""
-        return {
-            "all_samples": self.all_samples.to_dict(),
-            "reference_instants": self.reference_instants.to_dict(),
-        }
+        """As in ``summary.json``, keys in field order."""
+        plain: dict[str, Any] = to_plain(self)
+        return plain
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> SampleStats:
@@ -119,13 +119,9 @@ class CycleStats:
     reference_instants: ErrorStats
 
     def to_dict(self) -> dict[str, Any]:
-        """As in ``summary.json``."""
-        return {
-            "cycle": self.cycle,
-            "rms_m": self.rms_m,
-            "max_m": self.max_m,
-            "reference_instants": self.reference_instants.to_dict(),
-        }
+        """As in ``summary.json``, keys in field order."""
+        plain: dict[str, Any] = to_plain(self)
+        return plain
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> CycleStats:
@@ -155,18 +151,12 @@ class TrackingError:
     all_samples: ErrorStats
     reference_instants: ErrorStats
     cycles: tuple[CycleStats, ...] = ()
-    after_first_cycle: SampleStats | None = None
+    after_first_cycle: SampleStats | None = field(default=None, metadata={"omit_none": True})
 
     def to_dict(self) -> dict[str, Any]:
-        """As in ``summary.json`` (the output of :func:`~servo_axis.analysis.metrics.error_statistics`)."""
-        out: dict[str, Any] = {
-            "all_samples": self.all_samples.to_dict(),
-            "reference_instants": self.reference_instants.to_dict(),
-            "cycles": [c.to_dict() for c in self.cycles],
-        }
-        if self.after_first_cycle is not None:
-            out["after_first_cycle"] = self.after_first_cycle.to_dict()
-        return out
+        """As in ``summary.json``, keys in field order."""
+        plain: dict[str, Any] = to_plain(self)
+        return plain
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> TrackingError:
@@ -234,25 +224,8 @@ class RunSummary:
 
     def to_dict(self) -> dict[str, Any]:
         """The mapping of ``summary.json``, keys in file order."""
-        return {
-            "scenario": self.scenario,
-            "description": self.description,
-            "scenario_file": self.scenario_file,
-            "processes": self.processes,
-            "time_mode": self.time_mode,
-            "control_period_s": self.control_period_s,
-            "steps": self.steps,
-            "sim_time_s": self.sim_time_s,
-            "wall_time_s": self.wall_time_s,
-            "steps_per_s": self.steps_per_s,
-            "realtime_factor": self.realtime_factor,
-            "message_counts": dict(self.message_counts),
-            "faults": [f.to_dict() for f in self.faults],
-            "ptc": self.ptc,
-            "friction_table": self.friction_table,
-            "reference_period_s": self.reference_period_s,
-            "tracking_error": self.tracking_error.to_dict(),
-        }
+        plain: dict[str, Any] = to_plain(self)
+        return plain
 
     def to_json(self) -> str:
         """The text of ``summary.json``."""
@@ -308,16 +281,9 @@ class ContourSummary:
     cycles: tuple[ContourCycle, ...]
 
     def to_dict(self) -> dict[str, Any]:
-        """As in ``summary.json``."""
-        return {
-            "axes": list(self.axes),
-            "centre_m": list(self.centre_m),
-            "radius_m": self.radius_m,
-            "target_radial_deviation_m": self.target_radial_deviation_m,
-            "circular_deviation_m": self.circular_deviation_m,
-            "max_radial_m": self.max_radial_m,
-            "cycles": [c.to_dict() for c in self.cycles],
-        }
+        """As in ``summary.json``, keys in field order."""
+        plain: dict[str, Any] = to_plain(self)
+        return plain
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> ContourSummary:
@@ -360,19 +326,12 @@ class AxesSummary:
     description: str
     wall_time_s: float
     axes: dict[str, RunSummary]
-    contour: ContourSummary | None = None
+    contour: ContourSummary | None = field(default=None, metadata={"omit_none": True})
 
     def to_dict(self) -> dict[str, Any]:
         """The mapping of ``summary.json``, keys in file order."""
-        out: dict[str, Any] = {
-            "scenario": self.scenario,
-            "description": self.description,
-            "wall_time_s": self.wall_time_s,
-            "axes": {name: s.to_dict() for name, s in self.axes.items()},
-        }
-        if self.contour is not None:
-            out["contour"] = self.contour.to_dict()
-        return out
+        plain: dict[str, Any] = to_plain(self)
+        return plain
 
     def to_json(self) -> str:
         """The text of ``summary.json``."""

@@ -92,11 +92,6 @@ class LearningNode(ServoNode):
         self._target = np.zeros(nd)
         self._target_cycle = -1
 
-    @property
-    def psg(self) -> Any:
-        """The learning law (the periodic signal generator for ``rptc``)."""
-        return self.law
-
     def _resume_memory(self) -> None:
         if self._memory is None or not self._v["memory.resume"] or not self._memory.exists():
             return

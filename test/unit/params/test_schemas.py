@@ -12,6 +12,7 @@ import pytest
 import yaml
 
 from servo_axis.core.errors import ParameterFileError
+from servo_axis.params.scenario import flatten
 from servo_axis.params.schema import Param
 from servo_axis.params.schemas import (
     BALL_SCREW,
@@ -63,17 +64,6 @@ def is_float(param: Param) -> bool:
 def names(key: str) -> str:
     """Pattern of an error message naming the full dotted ``key``."""
     return re.escape(f"parameter '{key}'")
-
-
-def flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
-    """Nested YAML maps as dotted keys, as rclpy reads them."""
-    out: dict[str, Any] = {}
-    for key, value in tree.items():
-        if isinstance(value, Mapping):
-            out.update(flatten(value, f"{prefix}{key}."))
-        else:
-            out[f"{prefix}{key}"] = value
-    return out
 
 
 def config_values() -> Iterator[Any]:
