@@ -677,3 +677,28 @@ def test_the_learning_unit_learns_against_the_controlled_output(
         assert_allclose(peak, np.max(np.abs(by_scale)), rtol=1e-9)
         # Not the encoder: the two sensors differ by more than the tolerance.
         assert abs(rms - np.sqrt(np.mean(by_encoder**2))) > 1e-6 * rms
+
+
+def test_the_learning_unit_listens_only_once_its_outputs_are_heard(context: Context) -> None:
+    """It subscribes to `state` (which the plant waits for before step 0) only after its
+    correction publisher has the subscribers the run expects, so its first
+    correction cannot be lost to a reader still being discovered."""
+    learning = LearningNode(
+        context=context,
+        parameter_overrides=[
+            Parameter("cycle_s", value=0.02),
+            Parameter("nq", value=2),
+            Parameter("wait_for_correction_subscribers", value=1),
+        ],
+    )
+    probe = Node("heard_probe", context=context)
+    nodes = [learning, probe]
+    deadline = time.monotonic() + 0.5
+    spin_until(context, nodes, lambda: time.monotonic() > deadline)
+    assert probe.count_subscribers("state") == 0 and not learning.state_subscribed
+    probe.create_subscription(JointState, "learning/correction", lambda m: None, STREAM_QOS)
+    spin_until(context, nodes, lambda: learning.state_subscribed)
+    assert learning._correction_pub.get_subscription_count() >= 1
+    spin_until(context, nodes, lambda: probe.count_subscribers("state") == 1)
+    learning.destroy_node()
+    probe.destroy_node()

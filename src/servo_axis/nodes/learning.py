@@ -34,7 +34,7 @@ from servo_axis.core.errors import ParameterFileError, ServoAxisError, SignalErr
 from servo_axis.core.feedback.output import controlled_output
 from servo_axis.nodes.base import ServoNode
 from servo_axis.nodes.lockstep import PeriodCollector, StampGate
-from servo_axis.nodes.runtime import STREAM_QOS, run_main
+from servo_axis.nodes.runtime import STREAM_QOS, run_main, steady_clock
 from servo_axis.params.factories import (
     build_learning_law,
     build_reference,
@@ -84,13 +84,29 @@ class LearningNode(ServoNode):
         )
         self._correction_pub = self.publisher("learning/correction")
         self._stats_pub = self.publisher("learning/cycle_stats")
-        # raw: only the reference instants are decoded.
-        self.subscribe("state", self._decode_state, self._on_state, raw=True)
-
         self._gate = StampGate(limit=self._steps)
         self._error = PeriodCollector(nd)
         self._target = np.zeros(nd)
         self._target_cycle = -1
+        # The plant starts only once this node subscribes to `state`; doing so
+        # only after its own outputs are matched means that nothing it
+        # publishes is lost to a reader still being discovered.
+        self.state_subscribed = False
+        self._outputs_timer = self.create_timer(
+            0.01, self._subscribe_when_heard, clock=steady_clock()
+        )
+
+    def _subscribe_when_heard(self) -> None:
+        v = self._v
+        if (
+            self._correction_pub.get_subscription_count() < v["wait_for_correction_subscribers"]
+            or self._stats_pub.get_subscription_count() < v["wait_for_stats_subscribers"]
+        ):
+            return
+        self._outputs_timer.cancel()
+        # raw: only the reference instants are decoded.
+        self.subscribe("state", self._decode_state, self._on_state, raw=True)
+        self.state_subscribed = True
 
     def _resume_memory(self) -> None:
         if self._memory is None or not self._v["memory.resume"] or not self._memory.exists():

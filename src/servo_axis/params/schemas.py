@@ -504,6 +504,17 @@ LEARNING: dict[str, Param] = {
         True,
         meaning="start from the correction in memory.file when the file exists",
     ),
+    "wait_for_correction_subscribers": Param(
+        0,
+        minimum=0,
+        meaning="subscribe to `state` (which the plant waits for) only once this many "
+        "subscribers of learning/correction have matched: no correction is published unheard",
+    ),
+    "wait_for_stats_subscribers": Param(
+        0,
+        minimum=0,
+        meaning="likewise for learning/cycle_stats",
+    ),
     "memory.on_bad_file": Param(
         "fail",
         choices=("fail", "clear"),

@@ -95,6 +95,13 @@ def handshake_overrides(
         rec["output_dir"] = str(bag_dir)
         out["recorder"] = rec
         out["plant"]["flow_control"] = True
+    if "learning" in roles:
+        out["learning"].update(
+            wait_for_correction_subscribers=subscriber_count(
+                "learning/correction", roles, recorded
+            ),
+            wait_for_stats_subscribers=subscriber_count("learning/cycle_stats", roles, recorded),
+        )
     out["plant"].update(
         wait_for_state_subscribers=subscriber_count("state", roles, recorded),
         wait_for_clock_subscribers=subscriber_count("/clock", roles, recorded),
