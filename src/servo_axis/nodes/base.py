@@ -13,14 +13,36 @@
   node's handler sees it; a message that fails is dropped, counted
   (``rejected``) and logged (throttled): nothing derived from it is
   published.
+* Streams: a per-sample subscription may take a
+  :class:`~servo_axis.wire.streams.StreamGate`; its stamp is checked after
+  the payload is validated and before the handler sees it, so a message
+  ahead of or behind the stream never displaces it.
+* Peers: every subscription follows its publishers' liveliness
+  (:data:`~servo_axis.nodes.runtime.LIVELINESS_LEASE_S`);
+  :meth:`ServoNode.peer_alive` is what a lockstep node asks before it falls
+  back (it never does on a wall-clock timeout while its peer lives), and
+  :meth:`ServoNode.fallback` records that it did.
+* Strangers: twice a second each subscribed topic's publishers are compared,
+  through the ROS graph, with the one the run started (the table's
+  producer, in this node's namespace); any other is logged and reported.
+* Handshake: :meth:`ServoNode.consumers_matched` tells whether a
+  publisher's expected consumers (the table's consumers and the recorder)
+  are matched, not only how many subscribers there are, so that a stranger
+  subscribed to the topic does not stand in for a peer that is still being
+  discovered.
+* Report: :mod:`servo_axis.wire.health`, written to ``report_dir`` on each
+  fallback, on each new stranger and when the node closes.
 * QoS and message types come from the topic table (:mod:`servo_axis.wire.topics`).
 """
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
-from typing import Any, TypeVar
+from pathlib import Path
+from typing import Any, Protocol, TypeVar
 
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import QoSProfile
@@ -30,12 +52,26 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 from servo_axis.core.errors import SignalError
-from servo_axis.nodes.runtime import LATCHED_QOS, STREAM_QOS, Throttle
+from servo_axis.nodes.runtime import LATCHED_QOS, STREAM_QOS, Throttle, steady_clock
 from servo_axis.params.factories import checked_values
 from servo_axis.params.schema import BUILTIN
 from servo_axis.wire import topics
+from servo_axis.wire.health import Fallback, NodeHealth, write_health
+from servo_axis.wire.streams import StreamGate
+
+
+class Stamped(Protocol):
+    step: int
+
 
 T = TypeVar("T")
+
+#: Seconds between two looks at the graph for strangers.
+STRANGER_CHECK_S = 0.5
+#: Seconds the expected consumers of a topic must have been matched when a
+#: stranger subscriber makes the matched count ambiguous (see
+#: :meth:`ServoNode.consumers_matched`).
+MATCH_SETTLE_S = 0.5
 
 QOS: dict[str, QoSProfile] = {"stream": STREAM_QOS, "latched": LATCHED_QOS}
 MESSAGE_CLASSES: dict[str, Any] = {
@@ -78,7 +114,14 @@ class ServoNode(Node):
             if name not in given and not (isinstance(value, list) and not value):
                 self.declare_parameter(name, value)
         self.rejected = 0
+        self.health = NodeHealth(role)
+        self._report_dir = Path(self.values["report_dir"]) if self.values["report_dir"] else None
         self._complain = Throttle()
+        self._alive: dict[str, int] = {}
+        self._watched: list[str] = []
+        self._stranger_gids: set[str] = set()
+        self._matched_since: dict[str, float] = {}
+        self.create_timer(STRANGER_CHECK_S, self._check_strangers, clock=steady_clock())
 
     def publisher(self, name: str) -> Publisher:
         """A publisher of table topic ``name`` with its type and QoS."""
@@ -92,31 +135,131 @@ class ServoNode(Node):
         handle: Callable[[T], None],
         *,
         raw: bool = False,
+        gate: StreamGate | None = None,
     ) -> Subscription:
         """Subscribe to table topic ``name``: ``handle(decode(msg))`` for the valid ones.
 
         ``decode`` raises :class:`SignalError` for a message that must not be
         used (wrong length, names, NaN/inf, stamp); it is then rejected here.
+        With a ``gate``, the decoded sample's ``step`` must be one the gate
+        takes (it is checked after decoding, so a junk message never moves
+        the gate); a ``decode`` that returns None for a message it skips
+        leaves the gate alone.
         """
         entry = topics.topic(name)
 
         def on_message(msg: Any) -> None:
             try:
                 sample = decode(msg)
+                if gate is not None and sample is not None:
+                    gate.accept(sample.step)  # type: ignore[attr-defined]
             except SignalError as err:
-                self.reject(f"{name} rejected: {err}")
+                self.reject(name, f"{name} rejected: {err}")
                 return
             handle(sample)
 
+        def on_liveliness(info: Any) -> None:
+            self._alive[name] = info.alive_count
+
+        self._alive.setdefault(name, 0)
+        if name not in self._watched:
+            self._watched.append(name)
         return self.create_subscription(
-            MESSAGE_CLASSES[entry.type_name], name, on_message, QOS[entry.qos], raw=raw
+            MESSAGE_CLASSES[entry.type_name],
+            name,
+            on_message,
+            QOS[entry.qos],
+            raw=raw,
+            event_callbacks=SubscriptionEventCallbacks(liveliness=on_liveliness),
         )
 
-    def reject(self, text: str) -> None:
-        """Count a dropped message and log it (at most once a second)."""
+    def reject(self, topic_name: str, text: str) -> None:
+        """Count a dropped message of ``topic_name`` and log it (at most once a second)."""
         self.rejected += 1
+        self.health.rejected[topic_name] = self.health.rejected.get(topic_name, 0) + 1
         if self._complain.ready():
             self.get_logger().warning(f"{text} ({self.rejected} rejected so far)")
+
+    # -- peers -------------------------------------------------------------------
+    def peer_alive(self, name: str) -> bool:
+        """Whether a publisher of subscribed topic ``name`` is alive (liveliness)."""
+        return self._alive.get(name, 0) > 0
+
+    def fallback(self, kind: str, step: int, detail: str) -> None:
+        """Record (log, report) that the node went on other than by the protocol."""
+        self.health.fallbacks.append(Fallback(kind, step, detail))
+        self.get_logger().error(
+            f"FALLBACK ({kind}) at step {step}: {detail}; "
+            "this run is not the deterministic result of its scenario"
+        )
+        self.write_report()
+
+    def consumers_matched(self, publisher: Publisher, name: str, count: int) -> bool:
+        """Whether the ``count`` subscribers ``publisher`` waits for are matched.
+
+        The graph must show ``count`` subscriptions on the topic from the
+        table's consumers or the recorder (in this namespace), and the
+        publisher must be matched with at least ``count``. With a stranger
+        subscribed as well, the matched count alone cannot tell who is
+        matched: then the expected ones must have been in the graph, and the
+        count reached, for :data:`MATCH_SETTLE_S` (discovery puts an
+        endpoint in the graph and matches it from the same announcement).
+        """
+        if count <= 0:
+            return True
+        resolved = self.resolve_topic_name(name)
+        entry = topics.topic(name)
+        expected = set(entry.consumers) | {"recorder"}
+        ns = self.get_namespace()
+        infos = self.get_subscriptions_info_by_topic(resolved)
+        ours = [i for i in infos if i.node_name in expected and i.node_namespace == ns]
+        matched = publisher.get_subscription_count()
+        if len(ours) < count or matched < count:
+            self._matched_since.pop(name, None)
+            return False
+        if matched >= len(infos):
+            return True
+        since = self._matched_since.setdefault(name, time.monotonic())
+        return time.monotonic() - since >= MATCH_SETTLE_S
+
+    def _check_strangers(self) -> None:
+        ns = self.get_namespace()
+        new = False
+        for name in self._watched:
+            entry = topics.topic(name)
+            infos = self.get_publishers_info_by_topic(self.resolve_topic_name(name))
+            is_ours = [i.node_name == entry.producer and i.node_namespace == ns for i in infos]
+            ours = [i for i, mine in zip(infos, is_ours, strict=True) if mine]
+            others = [i for i, mine in zip(infos, is_ours, strict=True) if not mine]
+            strangers = others + ours[1:]
+            for info in strangers:
+                gid = bytes(info.endpoint_gid).hex()
+                if gid in self._stranger_gids:
+                    continue
+                self._stranger_gids.add(gid)
+                who = f"{info.node_namespace.rstrip('/')}/{info.node_name} {gid[:16]}"
+                self.health.strangers.setdefault(name, []).append(who)
+                self.get_logger().warning(
+                    f"stranger publishing on {name}: {who} (the run started only "
+                    f"{ns.rstrip('/')}/{entry.producer}); its messages are validated like any other"
+                )
+                new = True
+        if new:
+            self.write_report()
+
+    # -- report -------------------------------------------------------------------
+    def write_report(self) -> None:
+        """Write :attr:`health` to ``report_dir`` (if set)."""
+        if self._report_dir is None:
+            return
+        try:
+            write_health(self._report_dir, self.health)
+        except OSError as err:
+            self.get_logger().error(f"cannot write the health report: {err}")
+
+    def close(self) -> None:
+        """Called once when the node's process ends: write the report."""
+        self.write_report()
 
 
 def _plain(value: Any) -> Any:

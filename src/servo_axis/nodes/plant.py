@@ -149,7 +149,9 @@ class PlantNode(ServoNode):
             return
         if cmd.step != expected:
             when = "stale" if cmd.step < expected else "future"
-            self.reject(f"command rejected: {when} stamp (step {cmd.step}, expected {expected})")
+            self.reject(
+                "command", f"command rejected: {when} stamp (step {cmd.step}, expected {expected})"
+            )
             return
         self._command = cmd.current_A
         if self._lockstep:
@@ -246,7 +248,12 @@ class PlantNode(ServoNode):
         self._status_pub.publish(
             msgs.labelled_array(
                 msgs.STATUS_LABELS,
-                [self.plant.step_index, self._deadline_misses, self.rejected, self._timeouts],
+                [
+                    self.plant.step_index,
+                    self._deadline_misses,
+                    self.health.rejected.get("command", 0),
+                    self._timeouts,
+                ],
             )
         )
 

@@ -123,6 +123,7 @@ class RecorderNode(ServoNode):
         if not self._closed:
             self._closed = True
             self.writer.close()
+        super().close()
 
 
 def main(args: list[str] | None = None) -> int:

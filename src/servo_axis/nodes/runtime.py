@@ -9,13 +9,27 @@ from collections.abc import Callable, Sequence
 
 import rclpy
 from rclpy.clock import Clock, ClockType
+from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    LivelinessPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+)
 from rclpy.signals import SignalHandlerOptions
 
 from servo_axis.core.errors import ServoAxisError
 from servo_axis.stop_signals import catch_stop_signals, restore_handlers
+
+#: Seconds after which a publisher whose process stopped asserting its
+#: liveliness (it died, or hangs) counts as gone for its subscribers: the
+#: only way a lockstep node gives up waiting for it (Fast DDS asserts
+#: AUTOMATIC liveliness from its own thread, so a busy Python callback does
+#: not lapse it; measured: a SIGKILLed publisher is seen gone after 0.3-1 s).
+LIVELINESS_LEASE_S = 1.0
 
 #: Per-sample streams: reliable, deep enough for the preview window and the
 #: recorder's flow-control lag.
@@ -24,6 +38,8 @@ STREAM_QOS = QoSProfile(
     depth=2000,
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
+    liveliness=LivelinessPolicy.AUTOMATIC,
+    liveliness_lease_duration=Duration(seconds=LIVELINESS_LEASE_S),
 )
 
 #: Latched state (faults, recorder progress): a late subscriber gets the last one.
@@ -32,6 +48,8 @@ LATCHED_QOS = QoSProfile(
     depth=1,
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    liveliness=LivelinessPolicy.AUTOMATIC,
+    liveliness_lease_duration=Duration(seconds=LIVELINESS_LEASE_S),
 )
 
 #: Exit code of a node that refused its configuration.

@@ -95,6 +95,12 @@ SHARED: dict[str, Param] = {
         meaning="scenario name (summary, plots; a learning memory file must carry the same)",
     ),
     "scenario.description": Param("", meaning="one-line description of the scenario"),
+    "report_dir": Param(
+        "",
+        meaning="folder where each node writes `<node>.health.json` (rejected messages, "
+        "strangers on its topics, fallbacks) for the run's summary; empty: none (the runner "
+        "sets it to the run's logs/)",
+    ),
 }
 
 #: The plant node's own keys; its model's keys are in the model's schema.

@@ -1,0 +1,102 @@
+"""Which stamps of a per-sample stream are taken, for the nodes and for the bag's readers.
+
+A per-sample stream (``state``, ``command``, ``reference``) carries one
+message per control step, in order. :class:`StreamGate` takes exactly the
+next step in lockstep (``window=1``), or a step at most ``window`` ahead of
+the last one in realtime (where a lost sample is a deadline miss, not an
+error). A message ahead of that (a stranger's ``step + 1000`` or ``1e9 s``)
+or behind it (a replay) is refused and leaves the gate as it was, so it
+never displaces the real stream. The nodes apply it after a message's
+payload is validated (:mod:`servo_axis.wire.messages`), and the analysis
+applies the same gate to the bag in arrival order, so that junk a recorder
+wrote changes no figure.
+
+Nothing here imports rclpy.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator
+from typing import TypeVar
+
+from servo_axis.core.errors import SignalError
+
+T = TypeVar("T")
+
+
+class StreamGate:
+    """Accepts the next step of a stream (or one within ``window`` of it).
+
+    Parameters
+    ----------
+    window : int
+        How far past the last accepted step a step may be, >= 1: 1 = exactly
+        the next (lockstep); larger = that many steps may be skipped
+        (realtime).
+    first : int or None
+        The step the stream starts at (its first accepted step must be
+        within ``window`` of ``first - 1``); None: a node that joins a
+        running stream takes the first step it gets.
+    limit : int or None
+        The first step beyond the stream (the run's length).
+    stride : int
+        Steps between two samples of the stream (a stream of reference
+        instants has stride ``T_r / T_u``), >= 1.
+    """
+
+    def __init__(
+        self,
+        *,
+        window: int = 1,
+        first: int | None = 0,
+        limit: int | None = None,
+        stride: int = 1,
+    ) -> None:
+        if window < 1:
+            raise ValueError(f"window: expected >= 1, got {window!r}")
+        if stride < 1:
+            raise ValueError(f"stride: expected >= 1, got {stride!r}")
+        self.window = window
+        self.stride = stride
+        self.limit = limit
+        self.last: int | None = None if first is None else first - stride
+
+    def check(self, step: int) -> None:
+        """Raise :class:`SignalError` unless ``step`` is one the gate takes now (nothing changes)."""
+        if self.limit is not None and step >= self.limit:
+            raise SignalError(f"stamp beyond the run's last step {self.limit - 1} (step {step})")
+        if step < 0:
+            raise SignalError(f"negative step {step}")
+        if step % self.stride:
+            raise SignalError(f"step {step} is not on the stream's grid of {self.stride} steps")
+        if self.last is None:
+            return
+        if step <= self.last:
+            raise SignalError(f"stale stamp (step {step}, last taken {self.last})")
+        if step > self.last + self.window * self.stride:
+            expected = (
+                f"{self.last + self.stride}"
+                if self.window == 1
+                else f"at most {self.last + self.window * self.stride}"
+            )
+            raise SignalError(f"stamp ahead of the stream (step {step}, expected {expected})")
+
+    def accept(self, step: int) -> None:
+        """:meth:`check`, then take ``step`` as the last one."""
+        self.check(step)
+        self.last = step
+
+    @property
+    def expected(self) -> int | None:
+        """The next step in lockstep (None before the first of a joining node)."""
+        return None if self.last is None else self.last + self.stride
+
+
+def gated(items: Iterable[tuple[int, T]], gate: StreamGate) -> Iterator[tuple[int, T]]:
+    """The ``(step, item)`` pairs of ``items`` (in arrival order) that ``gate`` takes."""
+    for step, item in items:
+        try:
+            gate.accept(step)
+        except SignalError:
+            continue
+        yield step, item
