@@ -27,6 +27,7 @@ DEFAULT_SCENARIO = "rptc_friction_table"
 
 
 def _run(args: argparse.Namespace) -> int:
+    from servo_axis.analysis.health import EXIT_FAILED, EXIT_FAULT, EXIT_OK
     from servo_axis.analysis.summary import AxesSummary
     from servo_axis.analysis.text import format_any_summary
     from servo_axis.run.runner import RunError, RunInterruptedError, run_scenario
@@ -39,13 +40,14 @@ def _run(args: argparse.Namespace) -> int:
             domain_id=args.domain_id,
             namespace=args.namespace,
             plots=not args.no_plots,
+            **({} if args.respawn_limit is None else {"respawn_limit": args.respawn_limit}),
         )
     except RunInterruptedError as err:
         print(f"\nrun {err}", file=sys.stderr)
         return 128 + err.signum
     except RunError as err:
         print(f"run failed: {err}", file=sys.stderr)
-        return 1
+        return EXIT_FAILED
     print()
     print(format_any_summary(result.summary))
     print()
@@ -56,7 +58,17 @@ def _run(args: argparse.Namespace) -> int:
         else "bag/, summary.json, *.png, logs/"
     )
     print(f"run directory: {result.run_dir}  ({contents})")
-    return 0
+    health = result.health
+    if health.exit_code != EXIT_OK:
+        verdict = (
+            "the feedback loop tripped"
+            if health.exit_code == EXIT_FAULT
+            else "this result is NOT the deterministic one of the scenario"
+        )
+        print(f"\nrun complete, but {verdict} (exit {health.exit_code}):", file=sys.stderr)
+        for reason in health.reasons:
+            print(f"  - {reason}", file=sys.stderr)
+    return health.exit_code
 
 
 def _friction_table(args: argparse.Namespace) -> int:
@@ -142,6 +154,12 @@ def main(argv: list[str] | None = None) -> int:
     )
     run.add_argument("--namespace", default="", help="namespace of the axis, e.g. /x")
     run.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    run.add_argument(
+        "--respawn-limit",
+        type=int,
+        default=None,
+        help="restarts of a dead learning unit per axis (default 3; 0: no restart)",
+    )
     run.set_defaults(func=_run)
     ft = sub.add_parser("friction-table", help="build a friction table from a friction_id run")
     ft.add_argument("run_dir")

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from servo_axis.analysis.health import RunHealth
 from servo_axis.analysis.metrics import (
     ContourCycle,
     ContourResult,
@@ -202,6 +203,9 @@ class RunSummary:
         The learning cycle or the reference's period; None if not periodic.
     tracking_error : TrackingError
         Statistics of the tracking error.
+    health : RunHealth or None
+        Deaths, restarts, fallbacks, strangers and the exit code (the runner's
+        view; None for a summary made from a bag alone).
     """
 
     scenario: str
@@ -221,6 +225,7 @@ class RunSummary:
     friction_table: bool
     reference_period_s: float | None
     tracking_error: TrackingError
+    health: RunHealth | None = field(default=None, metadata={"omit_none": True})
 
     def to_dict(self) -> dict[str, Any]:
         """The mapping of ``summary.json``, keys in file order."""
@@ -252,6 +257,7 @@ class RunSummary:
             friction_table=data["friction_table"],
             reference_period_s=data["reference_period_s"],
             tracking_error=TrackingError.from_dict(data["tracking_error"]),
+            health=RunHealth.from_dict(data["health"]) if "health" in data else None,
         )
 
     @classmethod
@@ -320,6 +326,8 @@ class AxesSummary:
         Axis name -> :class:`RunSummary` of that axis.
     contour : ContourSummary or None
         For two axes, their contour error.
+    health : RunHealth or None
+        The whole run's health (each axis's summary has its own as well).
     """
 
     scenario: str
@@ -327,6 +335,7 @@ class AxesSummary:
     wall_time_s: float
     axes: dict[str, RunSummary]
     contour: ContourSummary | None = field(default=None, metadata={"omit_none": True})
+    health: RunHealth | None = field(default=None, metadata={"omit_none": True})
 
     def to_dict(self) -> dict[str, Any]:
         """The mapping of ``summary.json``, keys in file order."""
@@ -347,6 +356,7 @@ class AxesSummary:
             wall_time_s=data["wall_time_s"],
             axes={name: RunSummary.from_dict(s) for name, s in data["axes"].items()},
             contour=None if contour is None else ContourSummary.from_dict(contour),
+            health=RunHealth.from_dict(data["health"]) if "health" in data else None,
         )
 
     @classmethod
@@ -392,6 +402,7 @@ def summarise(
     scenario_path: Path,
     wall_time_s: float,
     mode: str,
+    health: RunHealth | None = None,
 ) -> RunSummary:
     """Compute the summary of a run, write ``summary.json`` and return it.
 
@@ -407,6 +418,8 @@ def summarise(
         Wall time of the run, s.
     mode : str
         How the nodes ran (``processes``, ``composed``).
+    health : RunHealth or None
+        What the runner saw (deaths, fallbacks, strangers, exit code).
     """
     run_dir = Path(run_dir)
     common = _axis_values(scenario)
@@ -445,6 +458,7 @@ def summarise(
         tracking_error=TrackingError.from_dict(
             error_statistics(error, sig.step, period_s=period, cycle_s=cycle)
         ),
+        health=health,
     )
     (run_dir / SUMMARY_FILE).write_text(summary.to_json())
     return summary
@@ -533,6 +547,7 @@ def summarise_axes(
     scenario: dict[str, Any],
     axes: dict[str, RunSummary],
     wall_time_s: float,
+    health: RunHealth | None = None,
 ) -> AxesSummary:
     """Summary of a multi-axis run: the axes' summaries and, for two, the contour.
 
@@ -550,6 +565,7 @@ def summarise_axes(
         wall_time_s=wall_time_s,
         axes=dict(axes),
         contour=contour_summary,
+        health=health,
     )
     (run_dir / SUMMARY_FILE).write_text(summary.to_json())
     return summary

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
+from servo_axis.analysis.health import RunHealth
 from servo_axis.analysis.summary import AxesSummary, ErrorStats, RunSummary, cycle_errors
 
 
@@ -14,6 +15,24 @@ def _um(x: float) -> str:
 
 def _row(label: str, stats: ErrorStats) -> str:
     return f"  {label:<21}{_um(stats.rms_m):>12} {_um(stats.max_m):>14}"
+
+
+def _health_lines(health: RunHealth | None) -> list[str]:
+    """The run's health: outcome, determinism, rejected messages, strangers, deaths."""
+    if health is None:
+        return []
+    verdict = "deterministic" if health.deterministic else "NOT the deterministic result"
+    rejected: dict[str, int] = {}
+    for report in health.nodes.values():
+        for name, n in report.get("rejected", {}).items():
+            rejected[name] = rejected.get(name, 0) + n
+    lines = [f"health            {health.outcome}, {verdict} (exit {health.exit_code})"]
+    if rejected:
+        lines.append(
+            "rejected messages " + ", ".join(f"{k}: {v}" for k, v in sorted(rejected.items()))
+        )
+    lines += [f"                  - {reason}" for reason in health.reasons]
+    return lines
 
 
 def format_summary(summary: RunSummary) -> str:
@@ -28,6 +47,7 @@ def format_summary(summary: RunSummary) -> str:
         "messages          " + ", ".join(f"{k}: {v}" for k, v in sorted(s.message_counts.items())),
         "faults            "
         + (", ".join(f"{f.name} at step {f.step}" for f in s.faults) or "none"),
+        *_health_lines(s.health),
         "",
         "tracking error (um)          RMS            max",
         _row("all samples", te.all_samples),
@@ -51,7 +71,10 @@ def format_summary(summary: RunSummary) -> str:
 
 def format_axes_summary(summary: AxesSummary) -> str:
     """A multi-axis summary as text: each axis, then the contour per cycle (um)."""
-    lines = [f"scenario          {summary.scenario}  (axes {', '.join(summary.axes)})"]
+    lines = [
+        f"scenario          {summary.scenario}  (axes {', '.join(summary.axes)})",
+        *_health_lines(summary.health),
+    ]
     for axis, s in summary.axes.items():
         lines += ["", f"== axis {axis}", format_summary(s)]
     c = summary.contour

@@ -81,7 +81,9 @@ def handshake_overrides(
         learning unit gets ``reference.*`` and ``cycle_s`` of the
         feedforward section and ``sensor`` of the feedback section, the
         feedforward generator the learning section's ``law``;
-        feedback, feedforward and learning get ``use_sim_time: true``.
+        feedback, feedforward and learning get ``use_sim_time: true``;
+        every node gets ``report_dir`` (``<run>/logs``, where it writes its
+        health report).
     """
     recorded: list[str] = []
     out: dict[str, dict[str, Any]] = {"plant": {}}
@@ -121,6 +123,8 @@ def handshake_overrides(
     for role in sim_time_roles():
         if role in roles:
             out.setdefault(role, {})["use_sim_time"] = True
+    for role in roles:
+        out.setdefault(role, {})["report_dir"] = str(bag_dir.parent / "logs")
     return out
 
 

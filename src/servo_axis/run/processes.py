@@ -83,29 +83,43 @@ def start_nodes(
     composed: bool,
 ) -> list[Proc]:
     """Start the node processes (or one composed process), each logging to ``log_dir/<role>.log``."""
-    base = ["--ros-args", "--params-file", str(params_path), *extra_args]
-    jobs = (
-        [("composed", ["-m", "servo_axis.nodes.composed", *roles])]
-        if composed
-        else [(r, ["-m", f"servo_axis.nodes.{r}"]) for r in roles]
+    if composed:
+        return [start_node(params_path, "composed", extra_args, env, log_dir, roles=roles)]
+    return [start_node(params_path, role, extra_args, env, log_dir) for role in roles]
+
+
+def start_node(
+    params_path: Path,
+    role: str,
+    extra_args: list[str],
+    env: dict[str, str],
+    log_dir: Path,
+    *,
+    roles: list[str] | None = None,
+    log_name: str | None = None,
+) -> Proc:
+    """Start one node process (``role`` = ``composed``: the nodes of ``roles`` in one).
+
+    Its output goes to ``log_dir/<log_name or role>.log``.
+    """
+    cmd = (
+        ["-m", "servo_axis.nodes.composed", *(roles or [])]
+        if role == "composed"
+        else ["-m", f"servo_axis.nodes.{role}"]
     )
-    pin = os.environ.get("SERVO_AXIS_PIN", "1") == "1"
-    procs: list[Proc] = []
-    for role, cmd in jobs:
-        log_path = log_dir / f"{role}.log"
-        log = log_path.open("wb")
-        cpus = cpu_set(role) if pin else None
-        popen = subprocess.Popen(
-            [sys.executable, *cmd, *base],
-            preexec_fn=(lambda c=cpus: os.sched_setaffinity(0, c)) if cpus else None,
-            stdout=log,
-            stderr=subprocess.STDOUT,
-            stdin=subprocess.DEVNULL,
-            env=env,
-            start_new_session=True,
-        )
-        procs.append(Proc(role, popen, log_path, log))
-    return procs
+    log_path = log_dir / f"{log_name or role}.log"
+    log = log_path.open("wb")
+    cpus = cpu_set(role) if os.environ.get("SERVO_AXIS_PIN", "1") == "1" else None
+    popen = subprocess.Popen(
+        [sys.executable, *cmd, "--ros-args", "--params-file", str(params_path), *extra_args],
+        preexec_fn=(lambda c=cpus: os.sched_setaffinity(0, c)) if cpus else None,
+        stdout=log,
+        stderr=subprocess.STDOUT,
+        stdin=subprocess.DEVNULL,
+        env=env,
+        start_new_session=True,
+    )
+    return Proc(role, popen, log_path, log)
 
 
 def cpu_set(role: str) -> set[int] | None:

@@ -9,10 +9,26 @@ connect through their own handshakes (no fixed sleeps), follows
 when the plant has finished it stops the rest with SIGINT, then SIGKILL
 after a timeout. It then writes ``summary.json`` and the plots
 (:mod:`servo_axis.analysis`).
+
+A node that dies during the run (node-death policy, README):
+
+* learning unit: the axis runs on (the feedforward generator keeps the last
+  correction once the unit's liveliness has lapsed) and the runner starts
+  it again (``late_join``), up to ``respawn_limit`` times; it resumes from
+  its memory file;
+* feedforward generator: the feedback loop trips to zero current (its
+  reference's publisher is gone), the plant runs to the end, the bag closes;
+* plant, feedback or recorder: the run stops, every process is reaped, the
+  bag closes (a dead recorder's bag is recovered, :mod:`servo_axis.recording.recover`).
+
+In every case ``summary.json``'s ``health``
+(:class:`servo_axis.analysis.health.RunHealth`) says what happened, and
+:attr:`RunResult.exit_code` is not 0.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import signal
 import sys
 import time
@@ -21,6 +37,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
+from servo_axis.analysis.health import NodeDeath, RunHealth, assess
 from servo_axis.core.errors import ConfigError
 from servo_axis.params.factories import checked_values, node_values, run_steps
 from servo_axis.params.scenario import (
@@ -39,23 +56,40 @@ from servo_axis.run.processes import (
     default_domain_id,
     discovery_settings,
     ros_environment,
+    start_node,
     start_nodes,
     stop_nodes,
 )
 from servo_axis.run.progress import ProgressLine, ProgressWatcher
 from servo_axis.stop_signals import catch_stop_signals, restore_handlers
+from servo_axis.wire.health import read_health
 
 if TYPE_CHECKING:
     from servo_axis.analysis.summary import AxesSummary, RunSummary
 
 #: The roles whose clean exit means "the run is complete".
 PLANT_ROLES = ("plant", "composed")
+#: Roles the runner starts again when they die (the axis runs on meanwhile).
+RESTARTED_ROLES = ("learning",)
+#: Roles whose death the axis survives without a restart (the feedback trips).
+RUN_ON_ROLES = ("feedforward",)
+#: Restarts per role and axis by default.
+RESPAWN_LIMIT = 3
+#: Exit code of a node that refused its configuration (never restarted).
+NODE_BAD_CONFIG = 2
 #: Seconds the watch loop waits per pass (shared by the axes).
 POLL_S = 0.05
 
 
 class RunError(RuntimeError):
-    """The run could not complete (a node failed, stalled or refused its configuration)."""
+    """The run could not complete (a node failed, stalled or refused its configuration).
+
+    ``summary`` is what could be made of the bag recorded so far (None if nothing).
+    """
+
+    def __init__(self, text: str, summary: RunSummary | AxesSummary | None = None) -> None:
+        super().__init__(text)
+        self.summary = summary
 
 
 class RunInterruptedError(RunError):
@@ -93,6 +127,17 @@ class RunResult:
     exit_codes: dict[str, int]
     summary: RunSummary | AxesSummary
 
+    @property
+    def health(self) -> RunHealth:
+        """Deaths, restarts, fallbacks, strangers (``summary.json``'s ``health``)."""
+        assert self.summary.health is not None
+        return self.summary.health
+
+    @property
+    def exit_code(self) -> int:
+        """0 deterministic and complete, 3 not deterministic, 4 fault (:mod:`~servo_axis.analysis.health`)."""
+        return self.health.exit_code
+
 
 @dataclass
 class _AxisRun:
@@ -108,6 +153,10 @@ class _AxisRun:
     args: list[str]
     procs: list[Proc] = field(default_factory=list)
     watcher: ProgressWatcher | None = None
+    env: dict[str, str] = field(default_factory=dict)
+    deaths: list[NodeDeath] = field(default_factory=list)
+    restarts: dict[str, int] = field(default_factory=dict)
+    seen_dead: set[int] = field(default_factory=set)  # pids already handled
 
     @property
     def log_dir(self) -> Path:
@@ -117,6 +166,14 @@ class _AxisRun:
     def plant_done(self) -> bool:
         plant = next((p for p in self.procs if p.role in PLANT_ROLES), None)
         return plant is not None and plant.popen.poll() == 0
+
+    @property
+    def recorder_died(self) -> bool:
+        rec = [p for p in self.procs if p.role == "recorder"]
+        return bool(rec) and rec[-1].popen.returncode not in (0, None)
+
+    def where(self, role: str) -> str:
+        return f"{self.axis}/{role}" if self.axis else role
 
 
 @dataclass
@@ -148,6 +205,7 @@ def run_scenario(
     plots: bool = True,
     extra_args: list[str] | None = None,
     on_started: Callable[[list[Proc]], object] | None = None,
+    respawn_limit: int = RESPAWN_LIMIT,
 ) -> RunResult:
     """Run one scenario end to end and return where it was written.
 
@@ -165,8 +223,10 @@ def run_scenario(
         For a scenario that is neither a file nor a shipped scenario, or
         not a valid scenario; for an ``out_dir`` that is not empty.
     RunError
-        If a node exits with an error, the run stalls, or a node refuses its
-        parameters (its message is in the error).
+        If the plant, the feedback or the recorder dies, a learning unit
+        dies more than ``respawn_limit`` times, the run stalls, or a node
+        refuses its parameters (its message is in the error; the summary of
+        what was recorded, if any, in ``RunError.summary``).
     RunInterruptedError
         If SIGINT or SIGTERM reached the runner (called from the main
         thread): the nodes are stopped, the bag written so far is closed and
@@ -182,7 +242,9 @@ def run_scenario(
     )
     domain = default_domain_id() if domain_id is None else domain_id
     line = ProgressLine(steps, progress) if progress is not None else None
-    watch = _run_nodes(runs, domain, composed, line, stall_timeout_s, on_started, run_dir)
+    watch = _run_nodes(
+        runs, domain, composed, line, stall_timeout_s, on_started, run_dir, respawn_limit
+    )
     if watch.signals:
         signame = signal.Signals(watch.signals[0]).name
         bags = ", ".join(str(run.out_dir / "bag") for run in runs)
@@ -191,14 +253,36 @@ def run_scenario(
             f"the nodes were stopped, the bag written so far is in {bags}",
             watch.signals[0],
         )
+    recovered = _recover_bags(runs)
     if watch.failure is not None:
-        raise RunError(watch.failure)
+        summary = None
+        try:
+            summary = summarise_run(
+                runs, data, run_dir, watch, composed=composed, plots=False, recovered=recovered
+            )
+        except Exception as err:  # the bag may be too short to summarise
+            print(f"no summary of the recorded part: {err}", file=sys.stderr)
+        note = f"\nsummary of what was recorded: {run_dir / 'summary.json'}" if summary else ""
+        raise RunError(watch.failure + note, summary)
     if line is not None:
         line.show(steps, watch.wall_time_s, final=True)
     summary = summarise_run(
-        runs, data, run_dir, wall_time_s=watch.wall_time_s, composed=composed, plots=plots
+        runs, data, run_dir, watch, composed=composed, plots=plots, recovered=recovered
     )
     return RunResult(run_dir, steps, watch.wall_time_s, watch.exit_codes, summary)
+
+
+def _recover_bags(runs: list[_AxisRun]) -> set[str]:
+    """Recover the bag of each axis whose recorder died; the axes recovered."""
+    recovered = set()
+    for run in runs:
+        if run.recorder_died and (run.out_dir / "bag").is_dir():
+            from servo_axis.recording.recover import recover_bag
+
+            report = recover_bag(run.out_dir / "bag")
+            if report.recovered:
+                recovered.add(run.axis)
+    return recovered
 
 
 def _new_run_dir(out_dir: Path | None, name: str) -> Path:
@@ -282,6 +366,7 @@ def _run_nodes(
     stall_timeout_s: float,
     on_started: Callable[[list[Proc]], object] | None,
     run_dir: Path,
+    respawn_limit: int,
 ) -> _Watch:
     """Start every axis's nodes, watch them until the plants are done, stop them all."""
     env = ros_environment(domain_id, runs[0].log_dir)
@@ -297,20 +382,18 @@ def _run_nodes(
         previous_handlers = catch_stop_signals(watch.signals)
         try:
             for run in runs:
-                run_env = {**env, "ROS_LOG_DIR": str(run.log_dir)}
+                run.env = {**env, "ROS_LOG_DIR": str(run.log_dir)}
                 run.procs = start_nodes(
-                    run.params_path, run.roles, run.args, run_env, run.log_dir, composed
+                    run.params_path, run.roles, run.args, run.env, run.log_dir, composed
                 )
             if on_started is not None:
                 on_started([p for run in runs for p in run.procs])
-            _watch(runs, watch, composed, line, stall_timeout_s, run_dir)
+            _watch(runs, watch, line, stall_timeout_s, run_dir, respawn_limit)
         finally:
             watch.t_end = time.monotonic()
             stop_nodes([p for run in runs for p in run.procs])
             watch.exit_codes = {
-                f"{run.axis}/{p.role}" if run.axis else p.role: p.popen.returncode
-                for run in runs
-                for p in run.procs
+                run.where(p.role): p.popen.returncode for run in runs for p in run.procs
             }
             restore_handlers(previous_handlers)
     finally:
@@ -323,10 +406,10 @@ def _run_nodes(
 def _watch(
     runs: list[_AxisRun],
     watch: _Watch,
-    composed: bool,
     line: ProgressLine | None,
     stall_timeout_s: float,
     run_dir: Path,
+    respawn_limit: int,
 ) -> None:
     """Follow the progress until the plants are done, a node fails, the run stalls or a signal."""
     last_change = time.monotonic()
@@ -344,7 +427,7 @@ def _watch(
                 watch.t_first = time.monotonic()
         if line is not None and watch.t_first is not None:
             line.show(watch.steps, time.monotonic() - watch.t_first)
-        watch.failure = _check_processes(runs)
+        watch.failure = _check_processes(runs, watch, respawn_limit)
         if watch.failure is not None or all(run.plant_done for run in runs):
             return
         if time.monotonic() - last_change > stall_timeout_s:
@@ -352,18 +435,42 @@ def _watch(
             return
 
 
-def _check_processes(runs: list[_AxisRun]) -> str | None:
-    """Why the run must stop now (a node failed or quit early), or None."""
+def _check_processes(runs: list[_AxisRun], watch: _Watch, respawn_limit: int) -> str | None:
+    """Apply the node-death policy; why the run must stop now, or None."""
     for run in runs:
-        where = f"{run.axis}/" if run.axis else ""
-        for p in run.procs:
+        for p in list(run.procs):
             code = p.popen.poll()
-            if code is None or (code == 0 and p.role in PLANT_ROLES):
+            if code is None or p.popen.pid in run.seen_dead:
                 continue
-            if p.role in PLANT_ROLES:
-                return f"{where}{p.role} exited with code {code}:\n{p.tail()}"
-            if not run.plant_done:
-                return f"{where}{p.role} exited early with code {code}:\n{p.tail()}"
+            if p.role in PLANT_ROLES and code == 0:
+                continue
+            if run.plant_done:
+                continue  # the run is over; the rest are being stopped
+            run.seen_dead.add(p.popen.pid)
+            after = time.monotonic() - watch.t_start
+            restarts = run.restarts.get(p.role, 0)
+            if p.role in RESTARTED_ROLES and code != NODE_BAD_CONFIG and restarts < respawn_limit:
+                run.restarts[p.role] = restarts + 1
+                new = start_node(
+                    run.params_path,
+                    p.role,
+                    [*run.args, "-p", "late_join:=true"],
+                    run.env,
+                    run.log_dir,
+                    log_name=f"{p.role}.restart{restarts + 1}",
+                )
+                run.procs.append(new)
+                action, again = "restarted", time.monotonic() - watch.t_start - after
+            elif p.role in RUN_ON_ROLES and code != NODE_BAD_CONFIG:
+                action, again = "ran on", None
+            else:
+                action, again = "stopped the run", None
+            run.deaths.append(
+                NodeDeath(run.where(p.role), code, round(after, 3), watch.steps, action, again)
+            )
+            if action == "stopped the run":
+                what = "exited with code" if p.role in PLANT_ROLES else "exited early with code"
+                return f"{run.where(p.role)} {what} {code}:\n{p.tail()}"
     return None
 
 
@@ -371,31 +478,55 @@ def summarise_run(
     runs: list[_AxisRun],
     scenario: dict[str, Any],
     run_dir: Path,
+    watch: _Watch,
     *,
-    wall_time_s: float,
     composed: bool,
     plots: bool,
+    recovered: set[str] | None = None,
 ) -> RunSummary | AxesSummary:
-    """Write each axis's ``summary.json`` and plots (and the contour of a multi-axis run)."""
+    """Write each axis's ``summary.json`` (with its health) and plots, and the contour of a multi-axis run."""
     from servo_axis.analysis import plots as figures
     from servo_axis.analysis import summary as summaries
 
+    recovered = recovered or set()
     per_axis: dict[str, RunSummary] = {}
+    all_deaths: list[NodeDeath] = []
+    all_reports = {}
     for run in runs:
-        per_axis[run.axis] = summaries.summarise(
+        summary = summaries.summarise(
             run.out_dir,
             scenario=run.scenario,
             scenario_path=run.scenario_path,
-            wall_time_s=wall_time_s,
+            wall_time_s=watch.wall_time_s,
             mode="composed" if composed else "separate processes",
         )
+        reports = read_health(run.log_dir)
+        health = assess(
+            failure=watch.failure,
+            deaths=run.deaths,
+            reports=reports,
+            faults=len(summary.faults),
+            bag_recovered=run.axis in recovered,
+        )
+        summary = dataclasses.replace(summary, health=health)
+        (run.out_dir / summaries.SUMMARY_FILE).write_text(summary.to_json())
+        per_axis[run.axis] = summary
+        all_deaths += run.deaths
+        all_reports.update({run.where(role): h for role, h in reports.items()})
         if plots:
             figures.plot(run.out_dir)
     if not axes_of(scenario):
         return per_axis[""]
-    summary = summaries.summarise_axes(
-        run_dir, scenario=scenario, axes=per_axis, wall_time_s=wall_time_s
+    health = assess(
+        failure=watch.failure,
+        deaths=all_deaths,
+        reports=all_reports,
+        faults=sum(len(s.faults) for s in per_axis.values()),
+        bag_recovered=bool(recovered),
+    )
+    axes_summary = summaries.summarise_axes(
+        run_dir, scenario=scenario, axes=per_axis, wall_time_s=watch.wall_time_s, health=health
     )
     if plots:
         figures.plot_contour(run_dir)
-    return summary
+    return axes_summary

@@ -1,0 +1,170 @@
+"""What happened to a run besides its numbers: node deaths, restarts, fallbacks, strangers.
+
+The runner gathers it (process exit codes, restarts, the nodes' own reports
+of :mod:`servo_axis.wire.health`) into a :class:`RunHealth`, which goes into
+``summary.json`` (``health``) and decides the exit code of ``python -m
+servo_axis run``:
+
+====  ==========================================================================
+code  meaning
+====  ==========================================================================
+0     complete, and the deterministic result of the scenario
+1     failed: a node the run cannot do without died or stalled (the summary
+      of what was recorded is written if the bag allows it)
+2     bad configuration (nothing started)
+3     complete, but not the deterministic result: a node fell back (a peer was
+      gone), a node died and was restarted, or a stranger published on the
+      run's topics
+4     complete with a fault: the feedback loop tripped
+====  ==========================================================================
+
+Nothing here imports rclpy.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from servo_axis.analysis.metrics import to_plain
+from servo_axis.wire.health import NodeHealth
+
+EXIT_OK = 0
+EXIT_FAILED = 1
+EXIT_BAD_CONFIG = 2
+EXIT_NOT_DETERMINISTIC = 3
+EXIT_FAULT = 4
+
+
+@dataclass(frozen=True)
+class NodeDeath:
+    """A node process that ended before the run did.
+
+    Attributes
+    ----------
+    role : str
+        ``plant``, ``feedback``, ... (``<axis>/<role>`` in a multi-axis run).
+    exit_code : int
+        Its exit code (negative: the signal that killed it).
+    after_s : float
+        Wall time from the start of the nodes to when the runner saw it, s.
+    step : int
+        The steps recorded when the runner saw it (-1: none yet).
+    action : str
+        What the runner did: ``restarted``, ``ran on``, ``stopped the run``.
+    restarted_after_s : float or None
+        Wall time from the death to the new process, s (``restarted`` only).
+    """
+
+    role: str
+    exit_code: int
+    after_s: float
+    step: int
+    action: str
+    restarted_after_s: float | None = None
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> NodeDeath:
+        return cls(**data)
+
+
+@dataclass(frozen=True)
+class RunHealth:
+    """How the run went, as ``summary.json``'s ``health``.
+
+    Attributes
+    ----------
+    outcome : str
+        ``complete`` or ``stopped: <why>``.
+    deterministic : bool
+        No fallback, no death, no stranger: the result is the scenario's.
+    exit_code : int
+        See the module's table.
+    reasons : tuple of str
+        Why the run is not ``0`` (one line each).
+    deaths : tuple of NodeDeath
+    nodes : dict
+        Each node's own report (:class:`servo_axis.wire.health.NodeHealth` as a mapping).
+    bag_recovered : bool
+        The recorder died and its bag was recovered (``bag recover``).
+    """
+
+    outcome: str
+    deterministic: bool
+    exit_code: int
+    reasons: tuple[str, ...]
+    deaths: tuple[NodeDeath, ...]
+    nodes: dict[str, dict[str, Any]] = field(default_factory=dict)
+    bag_recovered: bool = False
+
+    def to_dict(self) -> dict[str, Any]:
+        plain: dict[str, Any] = to_plain(self)
+        return plain
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> RunHealth:
+        return cls(
+            outcome=data["outcome"],
+            deterministic=data["deterministic"],
+            exit_code=data["exit_code"],
+            reasons=tuple(data["reasons"]),
+            deaths=tuple(NodeDeath.from_dict(d) for d in data["deaths"]),
+            nodes=dict(data.get("nodes", {})),
+            bag_recovered=bool(data.get("bag_recovered", False)),
+        )
+
+
+def assess(
+    *,
+    failure: str | None,
+    deaths: list[NodeDeath],
+    reports: dict[str, NodeHealth],
+    faults: int,
+    bag_recovered: bool = False,
+) -> RunHealth:
+    """The run's health from what the runner saw and the nodes reported.
+
+    Parameters
+    ----------
+    failure : str or None
+        Why the runner stopped the run early (None: it completed).
+    deaths : list of NodeDeath
+        Nodes that ended before the run did.
+    reports : dict
+        The nodes' reports by role (``<axis>/<role>`` in a multi-axis run).
+    faults : int
+        Trips of the feedback loop recorded in the bag.
+    bag_recovered : bool
+        Whether the bag had to be recovered.
+    """
+    reasons: list[str] = []
+    for death in deaths:
+        reasons.append(
+            f"{death.role} ended with code {death.exit_code} at step {death.step} ({death.action})"
+        )
+    for role, report in sorted(reports.items()):
+        for fb in report.fallbacks:
+            reasons.append(f"{role} fell back ({fb.kind}) at step {fb.step}: {fb.detail}")
+        for name, who in sorted(report.strangers.items()):
+            reasons.append(f"{role}: {len(who)} stranger publisher(s) on {name}: {', '.join(who)}")
+    if bag_recovered:
+        reasons.append("the recorder died: the bag was recovered up to its last flushed chunk")
+    deterministic = not reasons and failure is None
+    if failure is not None:
+        code, outcome = EXIT_FAILED, f"stopped: {failure.splitlines()[0]}"
+    elif faults:
+        code, outcome = EXIT_FAULT, "complete"
+        reasons.append(f"the feedback loop tripped ({faults} fault(s))")
+    elif not deterministic:
+        code, outcome = EXIT_NOT_DETERMINISTIC, "complete"
+    else:
+        code, outcome = EXIT_OK, "complete"
+    return RunHealth(
+        outcome=outcome,
+        deterministic=deterministic,
+        exit_code=code,
+        reasons=tuple(reasons),
+        deaths=tuple(deaths),
+        nodes={role: report.to_dict() for role, report in sorted(reports.items())},
+        bag_recovered=bag_recovered,
+    )

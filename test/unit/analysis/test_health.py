@@ -1,0 +1,86 @@
+"""The run's health: exit codes from deaths, fallbacks, strangers and faults; report files."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from servo_axis.analysis.health import (
+    EXIT_FAILED,
+    EXIT_FAULT,
+    EXIT_NOT_DETERMINISTIC,
+    EXIT_OK,
+    NodeDeath,
+    RunHealth,
+    assess,
+)
+from servo_axis.wire.health import Fallback, NodeHealth, read_health, write_health
+
+
+def _clean() -> dict[str, NodeHealth]:
+    return {role: NodeHealth(role, rejected={"state": 2}) for role in ("plant", "feedback")}
+
+
+def test_a_clean_run_is_deterministic_and_exits_0_even_with_rejected_messages() -> None:
+    health = assess(failure=None, deaths=[], reports=_clean(), faults=0)
+    assert health.exit_code == EXIT_OK and health.deterministic and health.reasons == ()
+
+
+@pytest.mark.parametrize(
+    ("change", "fragment"),
+    [
+        ("fallback", "fell back (learning_timeout) at step 900"),
+        ("stranger", "1 stranger publisher(s) on state"),
+        ("death", "learning ended with code -9 at step 500 (restarted)"),
+        ("recovered", "bag was recovered"),
+    ],
+)
+def test_anything_but_the_protocol_makes_the_run_not_deterministic(
+    change: str, fragment: str
+) -> None:
+    reports = _clean()
+    deaths = []
+    if change == "fallback":
+        reports["feedforward"] = NodeHealth(
+            "feedforward", fallbacks=[Fallback("learning_timeout", 900, "unit gone")]
+        )
+    if change == "stranger":
+        reports["feedback"].strangers["state"] = ["/junk 0123"]
+    if change == "death":
+        deaths.append(NodeDeath("learning", -9, 1.2, 500, "restarted", 0.01))
+    health = assess(
+        failure=None,
+        deaths=deaths,
+        reports=reports,
+        faults=0,
+        bag_recovered=change == "recovered",
+    )
+    assert health.exit_code == EXIT_NOT_DETERMINISTIC and not health.deterministic
+    assert any(fragment in r for r in health.reasons), health.reasons
+
+
+def test_a_fault_outranks_a_fallback_and_a_failure_outranks_both() -> None:
+    reports = {"plant": NodeHealth("plant", fallbacks=[Fallback("command_timeout", 3, "x")])}
+    fault = assess(failure=None, deaths=[], reports=reports, faults=1)
+    assert fault.exit_code == EXIT_FAULT and fault.outcome == "complete"
+    failed = assess(failure="plant exited with code -9:\nlog", deaths=[], reports={}, faults=1)
+    assert failed.exit_code == EXIT_FAILED
+    assert failed.outcome == "stopped: plant exited with code -9:" and not failed.deterministic
+
+
+def test_health_round_trips_through_json_and_report_files(tmp_path) -> None:
+    reports = _clean()
+    reports["feedback"].fallbacks.append(Fallback("input_timeout", 7, "reference gone"))
+    for report in reports.values():
+        write_health(tmp_path, report)
+    assert read_health(tmp_path) == reports
+    assert read_health(tmp_path / "missing") == {}
+    health = assess(
+        failure=None,
+        deaths=[NodeDeath("feedforward", -9, 2.0, 10, "ran on")],
+        reports=reports,
+        faults=1,
+    )
+    again = RunHealth.from_dict(json.loads(json.dumps(health.to_dict())))
+    assert again == health
