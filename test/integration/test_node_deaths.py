@@ -1,0 +1,194 @@
+"""The node-death policy of the README, under ``python -m servo_axis run``.
+
+Each test starts the default learning scenario through the user's entry
+point, SIGKILLs one node once the plant is running, and checks what the
+README's table promises: the learning unit is restarted and the axis runs
+on; a dead feedforward generator trips the feedback to zero current and the
+run ends safely with the exit code of a fault; a dead plant, feedback or
+recorder stops the run, every process is reaped and the bag reads back. In
+every case ``summary.json`` says what happened. The measured times are
+printed (``pytest -s``) for docs/reliability.md.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from servo_axis.analysis.health import EXIT_FAILED, EXIT_FAULT, EXIT_NOT_DETERMINISTIC
+
+pytestmark = pytest.mark.integration
+
+SCENARIO = "rptc_friction_table"  # 3 s, 6 learning cycles of 0.5 s
+STEPS = 3000
+#: Wall time after the plant's "connected" line at which the node is killed.
+KILL_AFTER_S = 0.4
+
+
+@dataclass
+class Killed:
+    code: int
+    run_dir: Path
+    stderr: str
+    killed_at: float
+    ended_at: float
+    trip_seen_at: float | None
+    restart_seen_at: float | None
+
+    @property
+    def summary(self) -> dict:
+        return json.loads((self.run_dir / "summary.json").read_text())
+
+
+def _pids_of(run_dir: Path, role: str) -> list[int]:
+    """Processes of ``role`` started for this run (their command line names its params file)."""
+    out = subprocess.run(
+        ["pgrep", "-f", f"servo_axis.nodes.{role} .*{run_dir}/params.yaml"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    return [int(p) for p in out.stdout.split()]
+
+
+def run_and_kill(role: str, tmp_path: Path, domain: int) -> Killed:
+    """Run the scenario, SIGKILL ``role`` once the plant runs, follow what happens."""
+    run_dir = tmp_path / "run"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "servo_axis", "run", SCENARIO, "--out", str(run_dir),
+         "--domain-id", str(domain), "--no-plots"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "ROS_DOMAIN_ID": str(domain)},
+    )  # fmt: skip
+    try:
+        plant_log = run_dir / "logs" / "plant.log"
+        deadline = time.monotonic() + 60
+        while not (plant_log.exists() and "connected" in plant_log.read_text(errors="replace")):
+            assert proc.poll() is None, proc.stderr.read() if proc.stderr else ""
+            assert time.monotonic() < deadline, "the plant never started"
+            time.sleep(0.02)
+        time.sleep(KILL_AFTER_S)
+        (pid,) = _pids_of(run_dir, role)
+        os.kill(pid, signal.SIGKILL)
+        killed_at = time.monotonic()
+        trip_seen = restart_seen = None
+        fb_report = run_dir / "logs" / "feedback.health.json"
+        restart_log = run_dir / "logs" / f"{role}.restart1.log"
+        while proc.poll() is None:
+            now = time.monotonic()
+            if trip_seen is None and fb_report.exists():
+                try:
+                    if json.loads(fb_report.read_text())["fallbacks"]:
+                        trip_seen = now
+                except (json.JSONDecodeError, KeyError):
+                    pass
+            if restart_seen is None and restart_log.exists():
+                restart_seen = now
+            assert now - killed_at < 120, "the run did not end"
+            time.sleep(0.01)
+        ended_at = time.monotonic()
+        stderr = proc.stderr.read() if proc.stderr else ""
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        proc.wait()
+        if proc.stderr:
+            proc.stderr.close()
+    return Killed(proc.returncode, run_dir, stderr, killed_at, ended_at, trip_seen, restart_seen)
+
+
+def _assert_reaped_and_readable(k: Killed) -> None:
+    for role in ("plant", "feedback", "feedforward", "learning", "recorder"):
+        assert _pids_of(k.run_dir, role) == [], f"{role} left running"
+    from rosbags.rosbag2 import Reader
+
+    with Reader(k.run_dir / "bag") as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+        assert counts["/state"] > 0
+        n = sum(1 for _ in reader.messages())
+    assert n == sum(counts.values())
+
+
+def _report(role: str, k: Killed, what: str) -> None:
+    print(
+        f"\n[death table] {role}: exit {k.code}; killed -> run ended {k.ended_at - k.killed_at:.2f} s; "
+        + what
+    )
+
+
+def test_killed_learning_unit_is_restarted_and_the_axis_runs_on(
+    ros_env: int, tmp_path: Path
+) -> None:
+    k = run_and_kill("learning", tmp_path, ros_env)
+    assert k.code == EXIT_NOT_DETERMINISTIC, k.stderr
+    assert "NOT the deterministic one" in k.stderr
+    health = k.summary["health"]
+    assert health["outcome"] == "complete" and not health["deterministic"]
+    (death,) = health["deaths"]
+    assert death["role"] == "learning" and death["action"] == "restarted"
+    assert death["exit_code"] == -signal.SIGKILL
+    assert k.summary["steps"] == STEPS  # the axis ran to the end
+    restart_log = (k.run_dir / "logs" / "learning.restart1.log").read_text()
+    assert "resumed" in restart_log  # from its memory file
+    # The restarted unit learned on: the last cycle's error is below the first's.
+    cycles = k.summary["tracking_error"]["cycles"]
+    assert cycles[-1]["max_m"] < 0.5 * cycles[0]["max_m"]
+    _assert_reaped_and_readable(k)
+    assert k.restart_seen_at is not None
+    _report("learning", k, f"killed -> restarted {k.restart_seen_at - k.killed_at:.2f} s")
+
+
+def test_killed_feedforward_trips_the_feedback_and_the_run_ends_safely(
+    ros_env: int, tmp_path: Path
+) -> None:
+    from rosbags.highlevel import AnyReader
+
+    k = run_and_kill("feedforward", tmp_path, ros_env)
+    assert k.code == EXIT_FAULT, k.stderr
+    s = k.summary
+    assert s["steps"] == STEPS  # the plant ran to the end, on zero current
+    (fault,) = s["faults"]
+    assert fault["name"] == "input_timeout"
+    health = s["health"]
+    assert health["deaths"][0]["role"] == "feedforward"
+    assert health["deaths"][0]["action"] == "ran on"
+    with AnyReader([k.run_dir / "bag"]) as reader:
+        conns = [c for c in reader.connections if c.topic == "/command"]
+        current = np.array(
+            [reader.deserialize(raw, c.msgtype).effort[0] for c, _, raw in reader.messages(conns)]
+        )
+    assert current.size == STEPS
+    np.testing.assert_array_equal(current[fault["step"] + 1 :], 0.0)
+    _assert_reaped_and_readable(k)
+    assert k.trip_seen_at is not None
+    trip_s = k.trip_seen_at - k.killed_at
+    # LIVELINESS_LEASE_S (1 s) + input_timeout_s (0.5 s) + watchdog period + report write.
+    assert trip_s < 2.5
+    _report("feedforward", k, f"killed -> trip {trip_s:.2f} s (bound 1.55 s + polling)")
+
+
+@pytest.mark.parametrize("role", ["plant", "feedback", "recorder"])
+def test_killed_plant_feedback_or_recorder_stops_the_run_and_keeps_the_bag(
+    role: str, ros_env: int, tmp_path: Path
+) -> None:
+    k = run_and_kill(role, tmp_path, ros_env)
+    assert k.code == EXIT_FAILED, k.stderr
+    assert f"{role} exited" in k.stderr
+    health = k.summary["health"]
+    assert health["outcome"].startswith(f"stopped: {role} exited")
+    assert health["deaths"][0]["role"] == role
+    assert health["bag_recovered"] == (role == "recorder")
+    assert 0 < k.summary["steps"] < STEPS
+    _assert_reaped_and_readable(k)
+    _report(role, k, f"bag holds {k.summary['steps']} of {STEPS} steps")
