@@ -6,7 +6,9 @@
 ``python -m servo_axis list``
     the shipped scenarios and what each runs;
 ``python -m servo_axis summary RUN_DIR`` / ``compare RUN_DIR...`` / ``friction-table RUN_DIR``
-    a run's summary again, runs side by side, a friction table from a run.
+    a run's summary again, runs side by side, a friction table from a run;
+``python -m servo_axis bag recover BAG_DIR``
+    make a bag whose recorder died readable again (a complete bag is left as it is).
 
 With no arguments it runs the shipped scenario ``rptc_friction_table``: the
 detailed axis (resonances, dead time, rolling friction) with the friction
@@ -127,6 +129,13 @@ def _compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def _bag_recover(args: argparse.Namespace) -> int:
+    from servo_axis.recording.recover import recover_bag
+
+    print(recover_bag(Path(args.bag_dir)).line())
+    return 0
+
+
 def _list(args: argparse.Namespace) -> int:
     from servo_axis.params.scenario import load_scenario, scenario_dir, shared
 
@@ -183,6 +192,15 @@ def main(argv: list[str] | None = None) -> int:
     cmp.add_argument("--zoom-cycle", type=int, default=3, help="the cycle enlarged (default 3)")
     cmp.add_argument("--title", default="tracking error per cycle")
     cmp.set_defaults(func=_compare)
+    bag = sub.add_parser("bag", help="bag tools: recover")
+    bag_sub = bag.add_subparsers(dest="bag_command", required=True)
+    rec = bag_sub.add_parser(
+        "recover",
+        help="make a bag whose recorder died (no metadata.yaml, no MCAP summary) readable "
+        "again; the original file is kept as <file>.unfinished",
+    )
+    rec.add_argument("bag_dir", help="the bag directory, e.g. <run>/bag")
+    rec.set_defaults(func=_bag_recover)
     args = parser.parse_args(argv)
     if args.command is None:
         args = parser.parse_args(["run", DEFAULT_SCENARIO])

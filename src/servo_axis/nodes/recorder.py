@@ -8,7 +8,18 @@ are fully on disk. The plant uses it for flow control in lockstep, so the
 recorder never loses a message. A first ``[0]`` means "all subscriptions
 matched, ready".
 
-The bag is closed (metadata.yaml written) on shutdown, SIGINT or SIGTERM.
+Log times are simulation times (:class:`~servo_axis.recording.timeline.SimTimeline`):
+a ``JointState`` is logged at its header stamp, a ``Clock`` at its clock, an
+unstamped message at the simulation time seen so far on ``/clock`` and the
+counted topics (junk stamps are bounded; see the timeline's docstring). The
+bag's timeline and ``metadata.yaml``'s duration are then the simulated ones,
+the same run after run.
+
+Every :data:`FLUSH_PERIOD_S` of wall time (a steady-clock timer) the chunk in
+progress is closed and written to the file, so that a recorder that dies,
+even by SIGKILL, loses at most the last 0.5 s of messages; ``python -m
+servo_axis bag recover <bag>`` makes such a bag readable again. The bag is
+closed (metadata.yaml written) on shutdown, SIGINT or SIGTERM.
 
 Run::
 
@@ -18,17 +29,49 @@ Run::
 
 from __future__ import annotations
 
-import time
+import re
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from servo_axis.core.errors import ConfigError, ParameterFileError
+from servo_axis.core.errors import ConfigError, ParameterFileError, SignalError
 from servo_axis.nodes.base import ServoNode
 from servo_axis.nodes.runtime import LATCHED_QOS, STREAM_QOS, run_main, steady_clock
 from servo_axis.params.factories import run_steps
 from servo_axis.recording.definitions import message_class as bag_message_class
+from servo_axis.recording.definitions import message_definition
+from servo_axis.recording.timeline import SimTimeline
 from servo_axis.recording.writer import BagWriter
 from servo_axis.wire import messages as msgs
+from servo_axis.wire.cdr import clock_ns_from_cdr
+
+#: Wall-time period (s) of the flush of the bag: half the 0.5 s a killed
+#: recorder may lose, so that a tick delayed by a long callback still keeps
+#: the bound.
+FLUSH_PERIOD_S = 0.25
+
+# The first field of a definition that starts with a std_msgs/Header.
+_HEADER_FIRST = re.compile(r"^\s*(?:std_msgs/)?Header\s+header\b")
+
+
+def stamp_reader(type_name: str) -> Callable[[bytes], int] | None:
+    """The stamp (ns) reader of a message type's CDR payloads; None if unstamped.
+
+    ``rosgraph_msgs/msg/Clock``: its ``clock``; a type whose first field is a
+    ``std_msgs/Header`` (``sensor_msgs/msg/JointState``): ``header.stamp``.
+    Both are read in place, without deserialising.
+    """
+    if type_name in ("rosgraph_msgs/msg/Clock", "rosgraph_msgs/Clock"):
+        return clock_ns_from_cdr
+    first = next(
+        (
+            line
+            for line in message_definition(type_name).splitlines()
+            if line.strip() and not line.lstrip().startswith("#")
+        ),
+        "",
+    )
+    return msgs.stamp_ns_from_cdr if _HEADER_FIRST.match(first) else None
 
 
 def message_class(type_name: str) -> Any:
@@ -70,6 +113,7 @@ class RecorderNode(ServoNode):
         self._counts: dict[str, int] = {}
         self._counted: list[str] = []
         self._subs = []
+        self.timeline = SimTimeline()
         for topic, type_name, cls in zip(topics, types, classes, strict=True):
             name = self.resolve_topic_name(topic)
             self.writer.add_topic(name, type_name)
@@ -77,21 +121,37 @@ class RecorderNode(ServoNode):
             if topic in values["counted_topics"]:
                 self._counted.append(name)
             qos = LATCHED_QOS if topic in values["latched_topics"] else STREAM_QOS
+            stamp = stamp_reader(type_name)
+            clock = stamp is clock_ns_from_cdr or topic in values["counted_topics"]
             self._subs.append(
-                self.create_subscription(cls, topic, self._callback(name), qos, raw=True)
+                self.create_subscription(
+                    cls, topic, self._callback(name, stamp, clock=clock), qos, raw=True
+                )
             )
         self.recorded = -1
         self._ready_timer = self.create_timer(0.01, self._check_ready, clock=steady_clock())
+        self._flush_timer = self.create_timer(
+            FLUSH_PERIOD_S, self.writer.flush, clock=steady_clock()
+        )
         self._closed = False
 
-    def _callback(self, name: str) -> Any:
+    def _callback(self, name: str, stamp: Callable[[bytes], int] | None, *, clock: bool) -> Any:
         writer = self.writer
         counts = self._counts
+        log_time = self.timeline.log_time
+        counted = name in self._counted
 
         def on_message(data: bytes) -> None:
-            writer.write(name, data, log_time_ns=time.time_ns())
+            stamp_ns = None
+            if stamp is not None:
+                try:
+                    stamp_ns = stamp(data)
+                except SignalError:
+                    pass  # a payload whose stamp cannot be read: logged at the present
+            t = log_time(stamp_ns, clock=clock)
+            writer.write(name, data, log_time_ns=t, publish_time_ns=t)
             counts[name] += 1
-            if name in self._counted:
+            if counted:
                 self._update_progress()
 
         return on_message

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from servo_axis.core.errors import ConfigError, SignalError
 
-__all__ = ["BagError", "BagWriteError"]
+__all__ = ["BagError", "BagWriteError", "NoBagError", "NotMcapError"]
 
 
 class BagError(ConfigError):
@@ -22,3 +22,11 @@ class BagWriteError(SignalError):
     The topic is not registered, the bag is closed, or a time is not an
     int >= 0.
     """
+
+
+class NoBagError(BagError):
+    """There is no bag to read or recover: no such directory, or no MCAP file in it."""
+
+
+class NotMcapError(BagError):
+    """A bag's data file is not an MCAP file (it does not start with the MCAP magic)."""

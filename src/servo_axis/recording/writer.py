@@ -35,8 +35,8 @@ from servo_axis.recording.definitions import (
     _split,
     message_class,
     message_definition,
-    type_hash,
 )
+from servo_axis.recording.definitions import type_hash as rihs01_hash
 from servo_axis.recording.errors import BagError, BagWriteError
 
 __all__ = ["DEFAULT_QOS", "METADATA_VERSION", "BagWriter"]
@@ -93,6 +93,9 @@ class BagWriter:
         Chunk compression: ``"zstd"``, ``"lz4"`` or ``"none"``.
     chunk_size : int
         Uncompressed chunk size in bytes.
+    file_name : str or None
+        Name of the MCAP file in ``directory``; ``<directory name>_0.mcap``
+        (as rosbag2 names it) if None.
 
     Raises
     ------
@@ -114,7 +117,12 @@ class BagWriter:
     """
 
     def __init__(
-        self, directory: Path, *, compression: str = "zstd", chunk_size: int = 1024 * 1024
+        self,
+        directory: Path,
+        *,
+        compression: str = "zstd",
+        chunk_size: int = 1024 * 1024,
+        file_name: str | None = None,
     ) -> None:
         if compression not in _COMPRESSION:
             raise BagError(
@@ -129,13 +137,20 @@ class BagWriter:
             raise BagError(f"directory: {directory} exists and is not empty")
         directory.mkdir(parents=True, exist_ok=True)
         self.directory = directory
-        self.file_name = f"{directory.name}_0.mcap"
+        if file_name is not None and (
+            not isinstance(file_name, str) or not file_name or Path(file_name).name != file_name
+        ):
+            raise BagError(f"file_name: expected a plain file name, got {file_name!r}")
+        self.file_name = file_name if file_name is not None else f"{directory.name}_0.mcap"
         self._file = (directory / self.file_name).open("wb")
         try:
             self._writer = Writer(
                 self._file, chunk_size=chunk_size, compression=_COMPRESSION[compression]
             )
             self._writer.start(profile="ros2", library=_LIBRARY)
+            # The magic and header in the file at once: a bag killed before its
+            # first flush is then an empty MCAP, not a file of 0 bytes.
+            self._file.flush()
         except BaseException:
             self._file.close()
             raise
@@ -154,6 +169,16 @@ class BagWriter:
     def message_counts(self) -> dict[str, int]:
         """Messages written per topic (registered topics, in registration order)."""
         return {name: t.count for name, t in self._topics.items()}
+
+    @property
+    def first_log_time_ns(self) -> int | None:
+        """Smallest log time written (ns); None before the first message."""
+        return self._first_ns
+
+    @property
+    def last_log_time_ns(self) -> int | None:
+        """Largest log time written (ns); None before the first message."""
+        return self._last_ns
 
     @property
     def message_count(self) -> int:
@@ -194,6 +219,38 @@ class BagWriter:
         full = f"{package}/msg/{tname}"
         definition = message_definition(full)
         message_class(full)
+        return self.add_recorded_topic(
+            name, full, definition=definition, qos_text=qos_text, type_hash=rihs01_hash(full) or ""
+        )
+
+    def add_recorded_topic(
+        self, name: str, type_name: str, *, definition: str, qos_text: str, type_hash: str
+    ) -> int:
+        """Register a topic from what a bag recorded, without looking the type up.
+
+        :meth:`add_topic` without the installed message package: the schema
+        text, QoS text and type hash are given as another bag holds them (its
+        schema record and channel metadata), so that a copy of a bag keeps
+        them unchanged. Used by :mod:`servo_axis.recording.recover`.
+
+        Returns
+        -------
+        int
+            The MCAP channel id.
+
+        Raises
+        ------
+        BagError
+            As :meth:`add_topic`, except for an unknown type.
+        """
+        if self._closed:
+            raise BagError(f"name: cannot add topic {name!r}, the bag is closed")
+        if not isinstance(name, str) or not name:
+            raise BagError(f"name: expected a non-empty topic name, got {name!r}")
+        if name in self._topics:
+            raise BagError(f"name: topic {name!r} is already registered")
+        package, tname = _split(type_name)
+        full = f"{package}/msg/{tname}"
         try:
             qos = yaml.safe_load(qos_text) if isinstance(qos_text, str) else None
         except yaml.YAMLError:
@@ -202,7 +259,7 @@ class BagWriter:
             raise BagError(
                 f"qos_text: expected a YAML list of QoS profiles for {name!r}, got {qos_text!r}"
             )
-        digest = type_hash(full) or ""
+        digest = type_hash
         if full not in self._schemas:
             self._schemas[full] = self._writer.register_schema(
                 name=full, encoding="ros2msg", data=definition.encode()
@@ -281,10 +338,17 @@ class BagWriter:
             self._last_ns = log_time_ns
 
     def flush(self) -> None:
-        """Finish the chunk in progress and flush the file (no fsync).
+        """Close the chunk in progress early and hand every byte to the OS (no fsync).
 
-        The file stays unreadable by summary-based readers until :meth:`close`;
-        flushing bounds what a crash loses. Flushing often lowers compression.
+        After it the file holds every message written so far in complete
+        chunks (a chunk is written only when it has a message; the header,
+        schemas and channels go with the first one), so a process killed
+        afterwards, even by SIGKILL, loses none of them: the bytes are in the
+        OS's file, only a power loss could drop them. Summary-based readers
+        read the file only after :meth:`close`;
+        :func:`servo_axis.recording.recover.recover_bag` makes a file that was
+        never closed whole again. Flushing often means smaller chunks and
+        slightly less compression.
         """
         if not self._closed:
             self._writer.flush()

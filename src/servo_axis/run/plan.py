@@ -29,9 +29,10 @@ from servo_axis.wire.topics import recorded_topics, subscriber_count, topic
 def sim_time_roles() -> tuple[str, ...]:
     """The nodes that run on the plant's simulated time: the consumers of ``/clock``.
 
-    The recorder records ``/clock`` but keeps wall time (it stamps the bag
-    with it), so that its subscriptions are exactly the ones counted in the
-    plant's ``wait_for_clock_subscribers``.
+    The recorder records ``/clock`` but does not run on it as a ROS clock
+    (it logs each message at the simulation time of its stamp,
+    :mod:`servo_axis.recording.timeline`), so that its subscriptions are
+    exactly the ones counted in the plant's ``wait_for_clock_subscribers``.
     """
     return topic("/clock").consumers
 

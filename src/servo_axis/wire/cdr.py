@@ -16,26 +16,46 @@ Supported types: ``sensor_msgs/msg/JointState`` (:class:`JointStateData`),
 ``std_msgs/msg/Float64MultiArray`` (:class:`MultiArrayData`) and
 ``rosgraph_msgs/msg/Clock`` (:class:`ClockData`). Every malformed payload raises
 :class:`~servo_axis.core.errors.SignalError`.
+
+The checks the nodes apply to a message's content are here too, as pure
+functions of plain values, so that the nodes (through
+:mod:`servo_axis.wire.messages`, on rclpy messages) and the analysis (on the
+decoded payloads of a bag) validate with the same code: joint names
+(:func:`state_names`, :func:`motor_names`), array lengths and finiteness
+(:func:`check_joint_arrays`, :func:`check_finite`), the stamp on the control
+grid (:func:`step_of_stamp_ns`) and the labels of a Float64MultiArray
+(:func:`check_labelled_values`, with the ``*_LABELS`` of each topic).
 """
 
 from __future__ import annotations
 
+import math
 import struct
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 from servo_axis.core.errors import SignalError
 
 __all__ = [
+    "FAULT_LABELS",
+    "PROGRESS_LABELS",
+    "STATS_LABELS",
+    "STATUS_LABELS",
     "SUPPORTED_TYPES",
     "ClockData",
     "JointStateData",
     "MultiArrayData",
+    "clock_ns_from_cdr",
     "decode",
     "decode_clock",
     "decode_float64_multi_array",
     "decode_joint_state",
+    "joint_state_step",
+    "labelled_values",
+    "motor_names",
+    "state_names",
+    "step_of_stamp_ns",
 ]
 
 _NS_PER_S = 1_000_000_000
@@ -286,6 +306,34 @@ def decode_clock(data: bytes) -> ClockData:
     return ClockData(stamp_ns=_Cursor(data, "rosgraph_msgs/msg/Clock").stamp_ns("clock"))
 
 
+_TIME = {_BIG: struct.Struct(">iI"), _LITTLE: struct.Struct("<iI")}
+
+
+def clock_ns_from_cdr(data: bytes) -> int:
+    """``clock`` (ns) of a ``rosgraph_msgs/msg/Clock`` CDR payload, read in place.
+
+    The two fields of the time right after the 4-byte encapsulation header
+    (either byte order), like
+    :func:`servo_axis.wire.messages.stamp_ns_from_cdr` for a header stamp,
+    without building a :class:`ClockData`: the recorder reads it for every
+    ``/clock`` message it logs.
+
+    Raises
+    ------
+    SignalError
+        If the payload is shorter than a header and a time, has an unsupported
+        encapsulation header or a ``nanosec`` of 10**9 or more.
+    """
+    if len(data) < _HEADER + 8 or data[0] != 0 or data[1] not in _TIME:
+        raise SignalError(
+            "rosgraph_msgs/msg/Clock: expected a CDR-encapsulated payload of at least 12 bytes"
+        )
+    sec, nanosec = _TIME[data[1]].unpack_from(data, _HEADER)
+    if nanosec >= _NS_PER_S:
+        raise SignalError(f"clock.nanosec: expected 0..999999999, got {nanosec}")
+    return int(sec) * _NS_PER_S + int(nanosec)
+
+
 _DECODERS: dict[str, Callable[[bytes], Any]] = {
     "sensor_msgs/msg/JointState": decode_joint_state,
     "std_msgs/msg/Float64MultiArray": decode_float64_multi_array,
@@ -327,3 +375,133 @@ def decode(type_name: str, data: bytes) -> JointStateData | MultiArrayData | Clo
         )
     result: JointStateData | MultiArrayData | ClockData = decoder(data)
     return result
+
+
+# -- checks shared by the nodes and the analysis -------------------------------
+
+#: Field labels of the Float64MultiArray topics (one labelled dimension each).
+STATUS_LABELS: tuple[str, ...] = (
+    "step",
+    "deadline_misses",
+    "rejected_commands",
+    "command_timeouts",
+)
+PROGRESS_LABELS: tuple[str, ...] = ("steps_recorded",)
+FAULT_LABELS: tuple[str, ...] = (
+    "step",
+    "code(1=following_error;2=travel;3=current;4=input_timeout)",
+    "value(m_or_A_or_s)",
+)
+STATS_LABELS: tuple[str, ...] = ("cycle", "rms_m", "max_m", "cycles_learned")
+
+
+def state_names(axis: str) -> list[str]:
+    """Joint names of the ``state`` topic: ``[<axis>_motor, <axis>_table]``."""
+    return [f"{axis}_motor", f"{axis}_table"]
+
+
+def motor_names(axis: str) -> list[str]:
+    """Joint names of the ``command``, ``reference`` and ``learning/correction`` topics."""
+    return [f"{axis}_motor"]
+
+
+def check_finite(name: str, values: Sequence[float]) -> Sequence[float]:
+    """``values`` if every one is finite, else :class:`SignalError` naming ``name[i]``.
+
+    Sums beyond 1e308 are no physical signal either and are refused too.
+    """
+    # Fast path: the sum of finite values is finite.
+    total = sum(values)
+    if total - total == 0.0:
+        return values
+    for i, v in enumerate(values):
+        if not math.isfinite(v):
+            raise SignalError(f"{name}[{i}]: expected a finite number, got {v!r}")
+    raise SignalError(f"{name}: values too large to be a physical signal, got {list(values)}")
+
+
+def check_joint_arrays(
+    got_names: Sequence[str],
+    names: Sequence[str],
+    arrays: Iterable[tuple[str, Sequence[float]]],
+) -> None:
+    """Check a JointState's names and arrays as every subscriber does.
+
+    Parameters
+    ----------
+    got_names : sequence of str
+        The message's ``name``.
+    names : sequence of str
+        The names it must have, in order.
+    arrays : iterable of (field, values)
+        The arrays the topic uses (``position``, ...): each must hold one
+        finite value per name.
+
+    Raises
+    ------
+    SignalError
+        Naming the first field that is wrong.
+    """
+    if list(got_names) != list(names):
+        raise SignalError(f"name: expected {list(names)}, got {list(got_names)}")
+    for field, values in arrays:
+        if len(values) != len(names):
+            raise SignalError(f"{field}: expected {len(names)} values, got {len(values)}")
+        check_finite(field, values)
+
+
+def step_of_stamp_ns(ns: int, period_ns: int) -> int:
+    """Control sample of a stamp of ``ns`` nanoseconds; :class:`SignalError` off the grid."""
+    step, rem = divmod(ns, period_ns)
+    if rem != 0 or ns < 0:
+        raise SignalError(f"header.stamp: {ns} ns is not on the control grid of {period_ns} ns")
+    return int(step)
+
+
+def check_labelled_values(
+    dim_labels: Sequence[str],
+    dim_sizes: Sequence[int],
+    data: Sequence[float],
+    labels: Sequence[str],
+) -> list[float]:
+    """The values of a labelled Float64MultiArray after checking its layout.
+
+    One dimension labelled ``",".join(labels)`` of size ``len(labels)``,
+    ``len(labels)`` finite values.
+
+    Raises
+    ------
+    SignalError
+        Naming what is wrong.
+    """
+    expected = ",".join(labels)
+    if len(dim_labels) != 1 or dim_labels[0] != expected:
+        raise SignalError(
+            f"layout.dim: expected one dimension labelled {expected!r}, got {list(dim_labels)}"
+        )
+    if len(data) != len(labels) or dim_sizes[0] != len(labels):
+        raise SignalError(f"data: expected {len(labels)} values, got {len(data)}")
+    return [float(v) for v in check_finite("data", data)]
+
+
+def joint_state_step(
+    msg: JointStateData, names: Sequence[str], fields: Sequence[str], period_ns: int
+) -> int:
+    """The control step of a decoded JointState that passes the subscribers' checks.
+
+    ``names`` are the joint names the topic must carry (:func:`state_names`,
+    :func:`motor_names`) and ``fields`` the arrays it uses (one finite value
+    per name each); the stamp must be on the grid of ``period_ns``.
+
+    Raises
+    ------
+    SignalError
+        Naming what is wrong (as :mod:`servo_axis.wire.messages` does).
+    """
+    check_joint_arrays(msg.name, names, ((f, getattr(msg, f)) for f in fields))
+    return step_of_stamp_ns(msg.stamp_ns, period_ns)
+
+
+def labelled_values(msg: MultiArrayData, labels: Sequence[str]) -> list[float]:
+    """The values of a decoded labelled Float64MultiArray (:func:`check_labelled_values`)."""
+    return check_labelled_values(msg.labels, msg.sizes, msg.data, labels)

@@ -1,0 +1,304 @@
+"""recover_bag: a bag whose recorder died, made readable again by independent readers."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+from builtin_interfaces.msg import Time
+from rclpy.serialization import serialize_message
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+
+from servo_axis.__main__ import main as cli
+from servo_axis.recording.errors import BagError, NoBagError, NotMcapError
+from servo_axis.recording.recover import RecoveryReport, recover_bag
+from servo_axis.recording.writer import BagWriter
+
+TYPES = {
+    "/state": "sensor_msgs/msg/JointState",
+    "/clock": "rosgraph_msgs/msg/Clock",
+    "/status": "std_msgs/msg/Float64MultiArray",
+    "/never": "std_msgs/msg/Float64MultiArray",
+}
+
+Written = list[tuple[str, int, bytes]]
+
+
+def _time(ns: int) -> Time:
+    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def batch(start: int, n: int) -> Written:
+    """``n`` steps from ``start``: a state per step, a clock every 10, a status every 50.
+
+    ``(topic, log time, payload)`` in write order, which is log-time order.
+    """
+    out: Written = []
+    for k in range(start, start + n):
+        t = k * 1_000_000
+        js = JointState(name=["x_motor", "x_table"], position=[k * 1e-6, -k * 1e-9])
+        js.header.stamp = _time(t)
+        out.append(("/state", t, serialize_message(js)))
+        # Distinct log times, so that every reader's order is the write order.
+        if k % 10 == 0:
+            out.append(("/clock", t + 1, serialize_message(Clock(clock=_time(t)))))
+        if k % 50 == 0:
+            out.append(("/status", t + 2, serialize_message(Float64MultiArray(data=[float(k)]))))
+    return out
+
+
+def open_writer(directory: Path, chunk_size: int = 1 << 20) -> BagWriter:
+    writer = BagWriter(directory, chunk_size=chunk_size)
+    for topic, type_name in TYPES.items():
+        writer.add_topic(topic, type_name)
+    return writer
+
+
+def write(writer: BagWriter, messages: Written) -> None:
+    for topic, t, data in messages:
+        writer.write(topic, data, log_time_ns=t)
+
+
+def killed_copy(data: bytes, directory: Path) -> Path:
+    """What a SIGKILLed recorder leaves: the file's bytes as they were, no metadata.yaml."""
+    directory.mkdir(parents=True)
+    (directory / f"{directory.name}_0.mcap").write_bytes(data)
+    return directory
+
+
+def read_rosbags(bag: Path) -> list[tuple[str, int, bytes]]:
+    """(topic, log time, payload) in log-time order, with rosbags' rosbag2 reader."""
+    from rosbags.rosbag2 import Reader
+
+    with Reader(bag) as reader:
+        return [(c.topic, t, bytes(raw)) for c, t, raw in reader.messages()]
+
+
+def read_mcap_ros2(bag: Path) -> list[tuple[str, int, Any]]:
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    (path,) = bag.glob("*.mcap")
+    with path.open("rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        return [
+            (m.channel.topic, m.message.log_time, m.decoded_message)
+            for m in reader.iter_decoded_messages(log_time_order=True)
+        ]
+
+
+def snapshot(directory: Path) -> dict[str, tuple[bytes, int]]:
+    return {p.name: (p.read_bytes(), p.stat().st_mtime_ns) for p in sorted(directory.iterdir())}
+
+
+def test_flushed_messages_of_a_killed_writer_are_all_recovered(tmp_path: Path) -> None:
+    messages = batch(0, 700) + batch(700, 300)
+    writer = open_writer(tmp_path / "live" / "bag", chunk_size=16 * 1024)
+    try:
+        write(writer, messages[:900])
+        writer.flush()
+        flushed = (tmp_path / "live" / "bag" / "bag_0.mcap").read_bytes()
+        write(writer, messages[900:])  # written after the flush: still in the open chunk
+        unflushed = (tmp_path / "live" / "bag" / "bag_0.mcap").read_bytes()
+    finally:
+        writer.close()
+    bag = killed_copy(unflushed, tmp_path / "killed" / "bag")
+    with pytest.raises(FileNotFoundError, match="metadata"):  # unreadable before recovery
+        read_rosbags(bag)
+
+    report = recover_bag(bag)
+
+    # Everything up to the flush, and whole chunks beyond it (16 KiB ones filled since).
+    got = read_rosbags(bag)
+    assert len(got) >= 900
+    assert got == messages[: len(got)]
+    assert report.needed_recovery
+    assert report.message_count == len(got)
+    assert (report.first_log_time_ns, report.last_log_time_ns) == (0, got[-1][1])
+    assert list(report.message_counts) == list(TYPES)  # every channel, the empty one too
+    assert report.message_counts["/never"] == 0
+    assert report.kept == bag / "bag_0.mcap.unfinished"
+    assert report.kept.read_bytes() == unflushed  # the original is kept as it was
+    # A flushed file recovers every message written before the flush.
+    bag2 = killed_copy(flushed, tmp_path / "killed2" / "bag")
+    assert recover_bag(bag2).dropped_bytes == 0
+    assert read_rosbags(bag2) == (messages[:900])
+    decoded = read_mcap_ros2(bag2)
+    assert [(t, n) for t, n, _ in decoded] == [(t, n) for t, n, _ in read_rosbags(bag2)]
+    states = [m for topic, _n, m in decoded if topic == "/state"]
+    assert [list(s.position) for s in states[:2]] == [[0.0, 0.0], [1e-6, -1e-9]]
+
+
+def test_recovered_metadata_is_what_closing_the_writer_writes(tmp_path: Path) -> None:
+    messages = batch(0, 400)
+    writer = open_writer(tmp_path / "live" / "bag")
+    write(writer, messages)
+    writer.flush()
+    data = (tmp_path / "live" / "bag" / "bag_0.mcap").read_bytes()
+    writer.close()
+    bag = killed_copy(data, tmp_path / "killed" / "bag")
+    recover_bag(bag)
+    closed = yaml.safe_load((tmp_path / "live" / "bag" / "metadata.yaml").read_text())
+    recovered = yaml.safe_load((bag / "metadata.yaml").read_text())
+    assert recovered == closed
+    info = recovered["rosbag2_bagfile_information"]
+    assert info["message_count"] == len(messages)
+    assert info["duration"]["nanoseconds"] == 399 * 1_000_000
+    # The MCAP file is a finished one: summary, statistics, the rosbag2 metadata record.
+    from mcap.reader import make_reader
+
+    with (bag / "bag_0.mcap").open("rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        assert summary is not None and summary.statistics is not None
+        assert summary.statistics.message_count == len(messages)
+        assert [m.name for m in reader.iter_metadata()] == ["rosbag2"]
+
+
+def test_truncated_file_gives_every_message_of_its_complete_chunks(tmp_path: Path) -> None:
+    from mcap.reader import make_reader
+
+    parts = [batch(0, 300), batch(300, 300), batch(600, 300)]
+    writer = open_writer(tmp_path / "live" / "bag")
+    ends = []
+    try:
+        for part in parts:
+            write(writer, part)
+            writer.flush()  # one chunk per part, each followed by its message indexes
+            ends.append((tmp_path / "live" / "bag" / "bag_0.mcap").stat().st_size)
+        data = (tmp_path / "live" / "bag" / "bag_0.mcap").read_bytes()
+    finally:
+        writer.close()
+    with (tmp_path / "live" / "bag" / "bag_0.mcap").open("rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    chunks = [(c.chunk_start_offset, c.chunk_length) for c in summary.chunk_indexes]
+    assert len(chunks) == 3
+    third_start, third_length = chunks[2]
+    # (cut at, messages recovered, bytes dropped: from the end of the last complete record)
+    everything = parts[0] + parts[1] + parts[2]
+    mid_second = chunks[1][0] + chunks[1][1] // 2
+    mid_third = third_start + third_length // 2
+    cases = {
+        "mid second chunk": (mid_second, parts[0], mid_second - ends[0]),
+        "after the second chunk's indexes": (ends[1], parts[0] + parts[1], 0),
+        "mid third chunk": (mid_third, parts[0] + parts[1], mid_third - ends[1]),
+        "third chunk one byte short": (
+            third_start + third_length - 1,
+            parts[0] + parts[1],
+            third_start + third_length - 1 - ends[1],
+        ),
+        "third chunk whole, its indexes cut": (third_start + third_length + 5, everything, 5),
+        "all flushed": (ends[2], everything, 0),
+    }
+    for i, (label, (size, expected, dropped)) in enumerate(cases.items()):
+        bag = killed_copy(data[:size], tmp_path / f"cut{i}" / "bag")
+        report = recover_bag(bag)
+        assert read_rosbags(bag) == expected, label
+        assert report.message_count == len(expected), label
+        assert report.dropped_bytes == dropped, label
+        assert report.kept is not None and report.kept.read_bytes() == data[:size], label
+
+
+def test_killed_before_any_message_gives_an_empty_readable_bag(tmp_path: Path) -> None:
+    writer = open_writer(tmp_path / "live" / "bag")
+    data = (tmp_path / "live" / "bag" / "bag_0.mcap").read_bytes()
+    writer.close()
+    assert data.startswith(b"\x89MCAP0\r\n")  # the header reached the file at once
+    for i, cut in enumerate((data, b"", data[:5])):
+        bag = killed_copy(cut, tmp_path / f"k{i}" / "bag")
+        report = recover_bag(bag)
+        assert report.needed_recovery and report.message_count == 0
+        assert read_rosbags(bag) == []
+
+
+def test_complete_bag_is_left_unchanged(tmp_path: Path) -> None:
+    messages = batch(0, 200)
+    with open_writer(tmp_path / "bag") as writer:
+        write(writer, messages)
+    before = snapshot(tmp_path / "bag")
+    report = recover_bag(tmp_path / "bag")
+    assert snapshot(tmp_path / "bag") == before
+    assert not report.needed_recovery and report.kept is None
+    assert report.message_counts == {"/state": 200, "/clock": 20, "/status": 4, "/never": 0}
+    assert (report.first_log_time_ns, report.last_log_time_ns) == (0, 199_000_000)
+    assert "complete, nothing to recover" in report.line()
+
+
+def test_complete_mcap_without_metadata_gets_only_its_metadata(tmp_path: Path) -> None:
+    with open_writer(tmp_path / "bag") as writer:
+        write(writer, batch(0, 100))
+    mcap_before = snapshot(tmp_path / "bag")["bag_0.mcap"]
+    expected = (tmp_path / "bag" / "metadata.yaml").read_text()
+    (tmp_path / "bag" / "metadata.yaml").unlink()
+    report = recover_bag(tmp_path / "bag")
+    assert report.needed_recovery and report.kept is None
+    assert sorted(p.name for p in (tmp_path / "bag").iterdir()) == ["bag_0.mcap", "metadata.yaml"]
+    assert snapshot(tmp_path / "bag")["bag_0.mcap"] == mcap_before
+    assert yaml.safe_load((tmp_path / "bag" / "metadata.yaml").read_text()) == yaml.safe_load(
+        expected
+    )
+    assert recover_bag(tmp_path / "bag").needed_recovery is False
+
+
+def test_second_recovery_of_a_new_unfinished_file_keeps_both_originals(tmp_path: Path) -> None:
+    writer = open_writer(tmp_path / "live" / "bag")
+    write(writer, batch(0, 50))
+    writer.flush()
+    data = (tmp_path / "live" / "bag" / "bag_0.mcap").read_bytes()
+    writer.close()
+    bag = killed_copy(data, tmp_path / "k" / "bag")
+    recover_bag(bag)
+    (bag / "bag_0.mcap").write_bytes(data)  # unfinished again
+    report = recover_bag(bag)
+    assert report.kept == bag / "bag_0.mcap.unfinished.1"
+    assert len(read_rosbags(bag)) == len(batch(0, 50))
+
+
+def test_what_is_not_a_bag_is_refused_with_a_bag_error(tmp_path: Path) -> None:
+    with pytest.raises(NoBagError, match="not a directory"):
+        recover_bag(tmp_path / "missing")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(NoBagError, match=r"no \*\.mcap file"):
+        recover_bag(tmp_path / "empty")
+    (tmp_path / "text").mkdir()
+    (tmp_path / "text" / "text_0.mcap").write_text("rosbag2_bagfile_information: {}\n")
+    with pytest.raises(NotMcapError, match="not an MCAP file"):
+        recover_bag(tmp_path / "text")
+    assert sorted(p.name for p in (tmp_path / "text").iterdir()) == ["text_0.mcap"]
+    (tmp_path / "two").mkdir()
+    for name in ("a.mcap", "b.mcap"):
+        (tmp_path / "two" / name).write_bytes(b"\x89MCAP0\r\n")
+    with pytest.raises(BagError, match="2 MCAP files"):
+        recover_bag(tmp_path / "two")
+    assert issubclass(NoBagError, BagError) and issubclass(NotMcapError, BagError)
+
+
+def test_command_line_prints_one_line_and_exits_2_on_a_bad_bag(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    writer = open_writer(tmp_path / "live" / "bag")
+    write(writer, batch(0, 1000))
+    writer.flush()
+    data = (tmp_path / "live" / "bag" / "bag_0.mcap").read_bytes()
+    writer.close()
+    bag = killed_copy(data, tmp_path / "k" / "bag")
+    assert cli(["bag", "recover", str(bag)]) == 0
+    out = capsys.readouterr().out
+    assert out.count("\n") == 1
+    assert "recovered 1120 messages (/state 1000, /clock 100, /status 20, /never 0;" in out
+    assert "log times 0.000 s .. 0.999 s (0.999 s)" in out  # 990 ms + 2 ns: the last status
+    assert cli(["bag", "recover", str(bag)]) == 0
+    assert "complete, nothing to recover" in capsys.readouterr().out
+    assert cli(["bag", "recover", str(tmp_path / "nothing")]) == 2
+    assert "no bag there" in capsys.readouterr().err
+
+
+def test_report_is_frozen(tmp_path: Path) -> None:
+    report = RecoveryReport(tmp_path, {"/a": 1}, 0, 0, needed_recovery=True)
+    with pytest.raises(AttributeError):
+        report.needed_recovery = False  # type: ignore[misc]
