@@ -51,7 +51,7 @@ def table_from_run(
     scenario = load_scenario(Path(summary.scenario_file))
     values = node_values(scenario, "feedforward")
     period = values["control_period_s"]
-    sig = load_signals(Path(run_dir) / "bag", period)
+    sig = load_signals(Path(run_dir) / "bag", period, scenario=scenario)
     torque = estimate_friction_torque(
         reference_rad=sig.reference_rad,
         current_A=sig.command_A,

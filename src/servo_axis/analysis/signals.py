@@ -1,36 +1,80 @@
 """Recorded signals of a run, per control step, read from its bag without ROS.
 
 The bag is read as raw CDR payloads (:func:`servo_axis.recording.reader.read_raw`)
-and the four topics the analysis needs are decoded with
-:mod:`servo_axis.wire.cdr`, by their leaf name (so ``/x/state`` of a
-namespaced axis is ``state``):
+and decoded with :mod:`servo_axis.wire.cdr`; a topic is known by its name in
+the table of topics (:mod:`servo_axis.wire.topics`) under any namespace (so
+``/x/state`` of a namespaced axis is ``state``, ``/x/clock`` is ``/clock``).
 
-* ``state`` (JointState): ``position`` = [encoder angle (rad), scale (m)];
-* ``reference`` (JointState): ``position[0]`` = feedback reference (rad),
-  ``effort[0]`` = feedforward current (A);
-* ``command`` (JointState): ``effort[0]`` = current reference (A);
-* ``fault`` (Float64MultiArray): ``data`` = [step, code, value].
+The recorder writes every message it gets, a stranger's junk included. Only
+validated samples become signals (:func:`read_streams`): each message is
+checked as the nodes check it, with the same functions
+(:mod:`servo_axis.wire.cdr`: joint names of the axis, one finite value per
+joint in each array the topic uses, the stamp on the control grid; the
+labels and finite values of a Float64MultiArray), and then one sample per
+step and stream is kept by a :class:`~servo_axis.wire.streams.StreamGate`
+applied in recording order: exactly the next step in lockstep, at most
+:data:`REALTIME_WINDOW` samples ahead in realtime, never beyond the run.
+What fails is dropped and counted (:attr:`Signals.dropped`): junk in a bag
+changes no figure. The rules per topic (:class:`StreamRules`):
 
-The step of a JointState is its ``header.stamp`` divided by the control
-period. Every other topic is only counted.
+* ``state`` (JointState ``[<axis>_motor, <axis>_table]``; ``position`` =
+  [encoder angle (rad), scale (m)], ``velocity``, ``effort``): steps 0, 1, ...
+* ``reference`` (JointState ``[<axis>_motor]``: ``position[0]`` = feedback
+  reference (rad), ``velocity``, ``effort[0]`` = feedforward current (A)): steps 0, 1, ...
+* ``command`` (JointState ``[<axis>_motor]``, ``effort[0]`` = current (A)): steps 0, 1, ...
+* ``learning/correction`` (JointState ``[<axis>_motor]``, ``position``,
+  ``velocity``): the reference instants from the second cycle on, one after
+  the other; none in a run without learning.
+* ``learning/cycle_stats`` (``[cycle, rms_m, max_m, cycles_learned]``):
+  cycles 1, 2, ... of the run, ``rms_m, max_m >= 0``, ``cycles_learned`` a
+  whole number, never decreasing; none in a run without learning.
+* ``fault`` (``[step, code, value]``): a step of the run, later than the
+  previous fault's, a code of :class:`~servo_axis.core.feedback.loop.Fault`.
+* ``plant/status`` (``[step, deadline_misses, rejected_commands,
+  command_timeouts]``): whole numbers >= 0, the counters never decreasing;
+  in lockstep the steps 0, ``status_every_steps``, ...; in realtime increasing
+  (a last one at the end of the run).
+* ``/clock``: the steps 0, ``clock_every_steps``, ...
+* ``recorder/progress`` (if recorded): a whole number of steps, never
+  decreasing, at most the run's steps.
+
+The rules come from the run's parameters: the scenario if given, else the
+run's ``params.yaml`` next to the bag (what the nodes ran with), else the
+defaults of the schema. Every other topic is only counted.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
+import yaml
 from numpy.typing import NDArray
 
 from servo_axis.analysis.metrics import to_plain
+from servo_axis.core.errors import ServoAxisError, SignalError
 from servo_axis.core.feedback.loop import Fault
 from servo_axis.core.feedback.output import controlled_output
-from servo_axis.params.factories import build_generator, feedforward_values, node_values
-from servo_axis.recording.reader import read_raw
-from servo_axis.wire.cdr import decode_float64_multi_array, decode_joint_state
+from servo_axis.params.factories import (
+    build_generator,
+    checked_values,
+    feedforward_values,
+    grid,
+    learning_period_steps,
+    node_values,
+    run_steps,
+)
+from servo_axis.params.scenario import ROLES, SHARED_SECTION
+
+# The per-file readers give each message's channel sequence number (the
+# order the recorder wrote a topic's messages in), which read_raw does not.
+from servo_axis.recording.reader import _file_messages, _mcap_files
+from servo_axis.wire import cdr, topics
+from servo_axis.wire.streams import StreamGate, decode_joint_stream
 
 #: Name of each fault code of the ``fault`` topic (``following_error``, ...).
 FAULT_NAMES: dict[int, str] = {int(f): f.name.lower() for f in Fault}
@@ -68,6 +112,12 @@ class FaultRecord:
         return cls(step=data["step"], code=data["code"], name=data["name"], value=data["value"])
 
 
+#: How far past the last kept sample a sample of a realtime run may be, in
+#: samples of its stream (there a lost message is a deadline miss, not an
+#: error); a lockstep run takes exactly the next one.
+REALTIME_WINDOW = 100
+
+
 @dataclass(frozen=True, eq=False)
 class Signals:
     """Signals of a run per recorded control step.
@@ -75,18 +125,23 @@ class Signals:
     Attributes
     ----------
     step : ndarray of int
-        Control samples that have both a ``state`` and a ``reference``
-        message, ascending.
+        Control samples that have both a validated ``state`` and a validated
+        ``reference`` message, ascending.
     encoder_rad, scale_m : ndarray of float
         Sensor readings at those steps (rad, m).
     reference_rad, feedforward_A : ndarray of float
         Feedback reference (rad) and feedforward current (A).
     command_A : ndarray of float
-        Current reference (A); NaN at a step without a ``command`` message.
+        Current reference (A); NaN at a step without a validated ``command`` message.
     faults : list of FaultRecord
-        The ``fault`` messages, in log-time order.
+        The validated ``fault`` messages, in recording order.
     counts : dict
-        Messages per topic (every topic of the bag, in order of first message).
+        Messages per topic as recorded, junk included (every topic of the
+        bag, in order of first message).
+    dropped : dict
+        Recorded messages that failed validation or their stream's gate, per
+        topic that has rules (:func:`read_streams`; 0 included), in order of
+        first message.
     """
 
     step: NDArray[np.int_]
@@ -97,52 +152,414 @@ class Signals:
     command_A: NDArray[np.float64]
     faults: list[FaultRecord] = field(default_factory=list)
     counts: dict[str, int] = field(default_factory=dict)
+    dropped: dict[str, int] = field(default_factory=dict)
 
 
-def load_signals(bag_dir: Path, period_s: float) -> Signals:
-    """Arrays per step from a bag: state, reference and command, plus faults and counts.
+@dataclass(frozen=True)
+class StreamRules:
+    """What a valid recorded sample of a run is: the parameters the rules need.
+
+    Attributes
+    ----------
+    period_ns : int
+        Control period ``T_u``, ns: a stamp must be a whole number of them.
+    axis : str
+        The axis of the joint names (``<axis>_motor``, ``<axis>_table``).
+    mode : str
+        ``lockstep`` (exactly the next sample) or ``realtime`` (at most
+        :data:`REALTIME_WINDOW` samples ahead).
+    steps : int or None
+        Control steps of the run (nothing at or beyond); None: unknown.
+    ratio : int
+        ``T_r / T_u``: the learning corrections are on the reference instants.
+    cycle_steps : int or None
+        Control steps per learning cycle; None: no learning in the run.
+    status_every_steps, clock_every_steps : int
+        The plant's ``plant/status`` and ``/clock`` strides.
+    """
+
+    period_ns: int
+    axis: str = "x"
+    mode: str = "lockstep"
+    steps: int | None = None
+    ratio: int = 2
+    cycle_steps: int | None = None
+    status_every_steps: int = 50
+    clock_every_steps: int = 10
+
+    @property
+    def window(self) -> int:
+        """The gates' window: 1 in lockstep, :data:`REALTIME_WINDOW` in realtime."""
+        return 1 if self.mode == "lockstep" else REALTIME_WINDOW
+
+    @classmethod
+    def defaults(cls, period_s: float) -> StreamRules:
+        """The rules of a run of unknown parameters: the schema's defaults, no length, no learning."""
+        plant = checked_values("plant", {})
+        return cls(
+            period_ns=_period_ns(period_s),
+            axis=plant["axis"],
+            mode=plant["mode"],
+            ratio=grid(plant).ratio,
+            status_every_steps=plant["status_every_steps"],
+            clock_every_steps=plant["clock_every_steps"],
+        )
+
+    @classmethod
+    def from_scenario(cls, scenario: dict[str, Any], period_s: float) -> StreamRules:
+        """The rules of a run of ``scenario`` (a single-axis scenario or a run's parameters)."""
+        plant = node_values(scenario, "plant")
+        cycle = None
+        if "feedforward" in scenario:
+            cycle = learning_period_steps(node_values(scenario, "feedforward"))
+        return cls(
+            period_ns=_period_ns(period_s),
+            axis=plant["axis"],
+            mode=plant["mode"],
+            steps=run_steps(plant),
+            ratio=grid(plant).ratio,
+            cycle_steps=cycle,
+            status_every_steps=plant["status_every_steps"],
+            clock_every_steps=plant["clock_every_steps"],
+        )
+
+    @classmethod
+    def for_bag(
+        cls, bag_dir: Path, period_s: float, scenario: dict[str, Any] | None = None
+    ) -> StreamRules:
+        """The rules of ``scenario``, else of the run's ``params.yaml`` beside the bag, else the defaults."""
+        if scenario is not None:
+            return cls.from_scenario(scenario, period_s)
+        params = run_parameters(Path(bag_dir).parent / "params.yaml")
+        if params is not None:
+            try:
+                return cls.from_scenario(params, period_s)
+            except ServoAxisError:
+                pass
+        return cls.defaults(period_s)
+
+
+def _period_ns(period_s: float) -> int:
+    ns = round(period_s * 1e9)
+    if ns <= 0:
+        raise SignalError(f"period_s: expected a positive period, got {period_s!r}")
+    return ns
+
+
+def run_parameters(path: Path) -> dict[str, Any] | None:
+    """A run's ``params.yaml`` as a single-axis scenario (``/**/<node>`` -> ``<node>``); None if unreadable."""
+    try:
+        data = yaml.safe_load(Path(path).read_text())
+    except (OSError, yaml.YAMLError):
+        return None
+    if not isinstance(data, dict):
+        return None
+    out: dict[str, Any] = {}
+    for key, section in data.items():
+        name = key[len("/**/") :] if isinstance(key, str) and key.startswith("/**/") else key
+        if name == SHARED_SECTION or name in ROLES:
+            out[name] = section
+    return out
+
+
+class Kept(NamedTuple):
+    """A recorded message that passed its topic's rules."""
+
+    step: int  #: control step (cycle number of cycle_stats, value of recorder/progress)
+    data: bytes  #: the CDR payload as recorded
+    msg: Any  #: the decoded message (wire.cdr)
+
+
+@dataclass(frozen=True, eq=False)
+class BagStreams:
+    """The validated streams of a bag (:func:`read_streams`).
+
+    Attributes
+    ----------
+    kept : dict
+        Per recorded topic with rules (its name as recorded), the messages
+        kept, in recording order: one per step.
+    dropped : dict
+        Per topic with rules, how many recorded messages were dropped.
+    first_reason : dict
+        Per topic with a dropped message, why the first one was dropped.
+    counts : dict
+        Messages per topic as recorded (every topic, in order of first message).
+    """
+
+    kept: dict[str, list[Kept]]
+    dropped: dict[str, int]
+    first_reason: dict[str, str]
+    counts: dict[str, int]
+
+    def by_table_name(self, name: str) -> list[Kept]:
+        """The kept messages of table topic ``name`` (``state``, ``/clock``, ...), every namespace."""
+        out: list[Kept] = []
+        for topic, kept in self.kept.items():
+            if table_name(topic) == name:
+                out.extend(kept)
+        return out
+
+
+def table_name(topic: str) -> str | None:
+    """The table name (:data:`servo_axis.wire.topics.TOPICS`) of a recorded topic, None if none.
+
+    ``/x/state``, ``/state`` and ``state`` are ``state``; ``/x/clock`` is ``/clock``.
+    """
+    best: str | None = None
+    for entry in topics.TOPICS:
+        rel = entry.name.lstrip("/")
+        if topic in (rel, "/" + rel) or topic.endswith("/" + rel):
+            if best is None or len(rel) > len(best.lstrip("/")):
+                best = entry.name
+    return best
+
+
+_Check = Callable[[bytes], tuple[int, Any, Callable[[], None] | None]]
+
+
+class _Stream:
+    """One recorded topic's rules: payload checks, then its gate (if any)."""
+
+    def __init__(self, check: _Check, gate: StreamGate | None) -> None:
+        self._check = check
+        self._gate = gate
+
+    def take(self, data: bytes) -> tuple[int, Any]:
+        step, msg, commit = self._check(data)
+        if self._gate is not None:
+            self._gate.accept(step)
+        if commit is not None:
+            commit()
+        return step, msg
+
+
+def _whole(name: str, value: float, minimum: int = 0) -> int:
+    if not float(value).is_integer() or value < minimum:
+        raise SignalError(f"{name}: expected a whole number >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def _joint_stream(rules: StreamRules, name: str) -> _Check:
+    def check(data: bytes) -> tuple[int, Any, None]:
+        step, msg = decode_joint_stream(name, data, axis=rules.axis, period_ns=rules.period_ns)
+        return step, msg, None
+
+    return check
+
+
+def _never(reason: str) -> _Check:
+    def check(data: bytes) -> tuple[int, Any, None]:
+        raise SignalError(reason)
+
+    return check
+
+
+def _stats_stream(rules: StreamRules) -> _Check:
+    learned = [0]
+
+    def check(data: bytes) -> tuple[int, Any, Callable[[], None]]:
+        msg = cdr.decode_float64_multi_array(data)
+        cycle, rms, peak, count = cdr.labelled_values(msg, cdr.STATS_LABELS)
+        step = _whole("cycle", cycle, 1)
+        n = _whole("cycles_learned", count)
+        if rms < 0 or peak < 0:
+            raise SignalError(f"rms_m, max_m: expected >= 0, got {rms!r}, {peak!r}")
+        if n < learned[0] or n > step:
+            raise SignalError(f"cycles_learned: {n} after {learned[0]}, in cycle {step}")
+
+        def commit() -> None:
+            learned[0] = n
+
+        return step, msg, commit
+
+    return check
+
+
+def _fault_stream(rules: StreamRules) -> _Check:
+    def check(data: bytes) -> tuple[int, Any, None]:
+        msg = cdr.decode_float64_multi_array(data)
+        step, code, _ = cdr.labelled_values(msg, cdr.FAULT_LABELS)
+        if _whole("code", code) not in FAULT_NAMES:
+            raise SignalError(f"code: expected one of {sorted(FAULT_NAMES)}, got {code!r}")
+        return _whole("step", step), msg, None
+
+    return check
+
+
+def _status_stream(rules: StreamRules) -> _Check:
+    last = [0, 0, 0]
+
+    def check(data: bytes) -> tuple[int, Any, Callable[[], None]]:
+        msg = cdr.decode_float64_multi_array(data)
+        values = cdr.labelled_values(msg, cdr.STATUS_LABELS)
+        step = _whole("step", values[0])
+        counters = [_whole(n, v) for n, v in zip(cdr.STATUS_LABELS[1:], values[1:], strict=True)]
+        if any(c < p for c, p in zip(counters, last, strict=True)):
+            raise SignalError(f"counters decrease: {counters} after {last}")
+
+        def commit() -> None:
+            last[:] = counters
+
+        return step, msg, commit
+
+    return check
+
+
+def _clock_stream(rules: StreamRules) -> _Check:
+    def check(data: bytes) -> tuple[int, Any, None]:
+        msg = cdr.decode_clock(data)
+        return cdr.step_of_stamp_ns(msg.stamp_ns, rules.period_ns), msg, None
+
+    return check
+
+
+def _progress_stream(rules: StreamRules) -> _Check:
+    last = [0]
+
+    def check(data: bytes) -> tuple[int, Any, Callable[[], None]]:
+        msg = cdr.decode_float64_multi_array(data)
+        (value,) = cdr.labelled_values(msg, cdr.PROGRESS_LABELS)
+        done = _whole("steps_recorded", value)
+        if done < last[0] or (rules.steps is not None and done > rules.steps):
+            raise SignalError(f"steps_recorded: {done} after {last[0]} (run of {rules.steps})")
+
+        def commit() -> None:
+            last[0] = done
+
+        return done, msg, commit
+
+    return check
+
+
+def stream_for(name: str, rules: StreamRules) -> _Stream | None:
+    """The rules of table topic ``name`` (a fresh gate), None for a topic without rules."""
+    w, limit = rules.window, rules.steps
+    if name in ("state", "command", "reference"):
+        return _Stream(_joint_stream(rules, name), StreamGate(window=w, first=0, limit=limit))
+    if name == "learning/correction":
+        if rules.cycle_steps is None:
+            return _Stream(_never("no learning in this run"), None)
+        check = _joint_stream(rules, name)
+        gate = StreamGate(window=w, first=rules.cycle_steps, limit=limit, stride=rules.ratio)
+        return _Stream(check, gate)
+    if name == "learning/cycle_stats":
+        if rules.cycle_steps is None:
+            return _Stream(_never("no learning in this run"), None)
+        cycles = None if limit is None else (limit - 1) // rules.cycle_steps + 1
+        return _Stream(_stats_stream(rules), StreamGate(window=min(w, 2), first=1, limit=cycles))
+    if name == "fault":
+        # Strictly later than the previous one, anywhere in the run.
+        return _Stream(_fault_stream(rules), StreamGate(window=2**62, first=0, limit=limit))
+    if name == "plant/status":
+        if rules.mode == "lockstep":
+            gate = StreamGate(window=1, first=0, limit=limit, stride=rules.status_every_steps)
+        else:  # every status_every_steps and a last one at the end
+            end = None if limit is None else limit + 1
+            gate = StreamGate(window=2 * rules.status_every_steps, first=0, limit=end)
+        return _Stream(_status_stream(rules), gate)
+    if name == "/clock":
+        gate = StreamGate(window=w, first=0, limit=limit, stride=rules.clock_every_steps)
+        return _Stream(_clock_stream(rules), gate)
+    if name == "recorder/progress":
+        return _Stream(_progress_stream(rules), None)
+    return None
+
+
+class _Recorded(NamedTuple):
+    type_name: str
+    data: bytes
+
+
+def recorded_by_topic(bag_dir: Path) -> dict[str, list[_Recorded]]:
+    """Every message of a bag per topic, in the order the recorder wrote them.
+
+    Topics in order of first message (log time). Within a topic the order is
+    the file's, then the channel's sequence number: the recorder's arrival
+    order, which is what a gate must see. The log times are no such order:
+    the recorder logs a message at its stamp (simulation time), so a junk
+    message stamped in the past would sort before the real one it follows.
+    """
+    out: dict[str, list[tuple[int, int, int, _Recorded]]] = {}
+    first: dict[str, tuple[int, int]] = {}
+    n = 0
+    for file_index, path in enumerate(_mcap_files(Path(bag_dir))):
+        for log_time, schema, channel, msg in _file_messages(path, None):
+            n += 1
+            data = msg.data if type(msg.data) is bytes else bytes(msg.data)
+            item = _Recorded(schema.name if schema is not None else "", data)
+            out.setdefault(channel.topic, []).append((file_index, msg.sequence, n, item))
+            first[channel.topic] = min(first.get(channel.topic, (log_time, n)), (log_time, n))
+    order = sorted(out, key=first.__getitem__)
+    return {t: [x[3] for x in sorted(out[t], key=lambda x: x[:3])] for t in order}
+
+
+def read_streams(bag_dir: Path, rules: StreamRules) -> BagStreams:
+    """The validated messages of every topic of a bag, in recording order.
+
+    Each message of a topic with rules (:func:`stream_for`) is decoded,
+    checked and offered to its topic's gate in the order the recorder got
+    them (:func:`recorded_by_topic`); what fails is dropped and counted.
+    Topics without rules are only counted.
+    """
+    kept: dict[str, list[Kept]] = {}
+    dropped: dict[str, int] = {}
+    reasons: dict[str, str] = {}
+    counts: dict[str, int] = {}
+    for topic, messages in recorded_by_topic(Path(bag_dir)).items():
+        counts[topic] = len(messages)
+        name = table_name(topic)
+        stream = stream_for(name, rules) if name is not None else None
+        if stream is None or name is None:
+            continue
+        kept[topic], dropped[topic] = [], 0
+        expected = topics.topic(name).type_name
+        for m in messages:
+            try:
+                if m.type_name and m.type_name != expected:
+                    raise SignalError(f"type: expected {expected}, got {m.type_name}")
+                step, msg = stream.take(m.data)
+            except SignalError as err:
+                dropped[topic] += 1
+                reasons.setdefault(topic, str(err))
+                continue
+            kept[topic].append(Kept(step, m.data, msg))
+    return BagStreams(kept=kept, dropped=dropped, first_reason=reasons, counts=counts)
+
+
+def load_signals(
+    bag_dir: Path, period_s: float, *, scenario: dict[str, Any] | None = None
+) -> Signals:
+    """Arrays per step from a bag's validated samples: state, reference and command, plus faults and counts.
 
     Parameters
     ----------
     bag_dir : Path
         The bag directory.
     period_s : float
-        Control period ``T_u``, s: a message stamped ``t`` is step ``t // T_u``.
+        Control period ``T_u``, s: a message stamped ``t`` is step ``t / T_u``
+        (a stamp off that grid is dropped).
+    scenario : dict or None
+        The run's (single-axis) scenario, for the rules (:class:`StreamRules`);
+        None: the run's ``params.yaml`` beside the bag, else the defaults.
 
     Returns
     -------
     Signals
         The steps common to ``state`` and ``reference``, sorted, with the
-        signals at those steps.
+        signals at those steps; what was dropped per topic.
     """
-    period_ns = round(period_s * 1e9)
-    state: dict[int, tuple[float, float]] = {}
-    ref: dict[int, tuple[float, float]] = {}
-    cmd: dict[int, float] = {}
-    faults: list[FaultRecord] = []
-    counts: dict[str, int] = {}
-    for m in read_raw(Path(bag_dir)):
-        counts[m.topic] = counts.get(m.topic, 0) + 1
-        leaf = m.topic.rsplit("/", 1)[-1]
-        if leaf == "state":
-            js = decode_joint_state(m.data)
-            state[js.stamp_ns // period_ns] = (js.position[0], js.position[1])
-        elif leaf == "reference":
-            js = decode_joint_state(m.data)
-            ref[js.stamp_ns // period_ns] = (js.position[0], js.effort[0])
-        elif leaf == "command":
-            js = decode_joint_state(m.data)
-            cmd[js.stamp_ns // period_ns] = js.effort[0]
-        elif leaf == "fault":
-            step, code, value = decode_float64_multi_array(m.data).data
-            faults.append(
-                FaultRecord(
-                    step=int(step),
-                    code=int(code),
-                    name=FAULT_NAMES.get(int(code), "?"),
-                    value=value,
-                )
-            )
+    rules = StreamRules.for_bag(Path(bag_dir), period_s, scenario)
+    streams = read_streams(Path(bag_dir), rules)
+    state = {k.step: (k.msg.position[0], k.msg.position[1]) for k in streams.by_table_name("state")}
+    ref = {k.step: (k.msg.position[0], k.msg.effort[0]) for k in streams.by_table_name("reference")}
+    cmd = {k.step: k.msg.effort[0] for k in streams.by_table_name("command")}
+    faults = []
+    for k in streams.by_table_name("fault"):
+        step, code, value = k.msg.data
+        faults.append(
+            FaultRecord(step=int(step), code=int(code), name=FAULT_NAMES[int(code)], value=value)
+        )
     steps = sorted(set(state) & set(ref))
     return Signals(
         step=np.array(steps, dtype=int),
@@ -152,7 +569,8 @@ def load_signals(bag_dir: Path, period_s: float) -> Signals:
         feedforward_A=np.array([ref[s][1] for s in steps]),
         command_A=np.array([cmd.get(s, math.nan) for s in steps]),
         faults=faults,
-        counts=counts,
+        counts=streams.counts,
+        dropped=streams.dropped,
     )
 
 

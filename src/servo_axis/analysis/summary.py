@@ -426,7 +426,7 @@ def summarise(
     period = common["control_period_s"]
     lead = common["lead_m_per_rad"]
     ff = node_values(scenario, "feedforward")
-    sig = load_signals(run_dir / "bag", period)
+    sig = load_signals(run_dir / "bag", period, scenario=scenario)
     target, y = tracking(scenario, scenario_path, sig)
     error = lead * (target - y)
     cycle: float | None
@@ -507,7 +507,7 @@ def run_series(run_dir: Path) -> RunSeries:
     scenario_path = Path(summary.scenario_file)
     scenario = load_scenario(scenario_path)
     lead = _axis_values(scenario)["lead_m_per_rad"]
-    sig = load_signals(run_dir / "bag", summary.control_period_s)
+    sig = load_signals(run_dir / "bag", summary.control_period_s, scenario=scenario)
     target, y = tracking(scenario, scenario_path, sig)
     return RunSeries(summary, sig, target, y, lead)
 

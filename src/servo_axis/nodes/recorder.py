@@ -44,6 +44,7 @@ from servo_axis.recording.timeline import SimTimeline
 from servo_axis.recording.writer import BagWriter
 from servo_axis.wire import messages as msgs
 from servo_axis.wire.cdr import clock_ns_from_cdr
+from servo_axis.wire.streams import JOINT_STREAMS, StreamGate, decode_joint_stream
 
 #: Wall-time period (s) of the flush of the bag: half the 0.5 s a killed
 #: recorder may lose, so that a tick delayed by a long callback still keeps
@@ -103,6 +104,7 @@ class RecorderNode(ServoNode):
             )
         classes = [message_class(t) for t in types]
         self._v = values
+        self._axis = values["axis"]
         self._steps = run_steps(values)
         try:
             self.writer = BagWriter(Path(values["output_dir"]), compression=values["compression"])
@@ -112,6 +114,12 @@ class RecorderNode(ServoNode):
         self._progress_pub = self.publisher("recorder/progress")
         self._counts: dict[str, int] = {}
         self._counted: list[str] = []
+        # Only the valid next sample of a counted stream counts as recorded (a
+        # stranger's junk is written to the bag but never acknowledged, so it
+        # cannot move the plant's flow control).
+        self._gates: dict[str, tuple[str, StreamGate]] = {}
+        window = 1 if values["mode"] == "lockstep" else 100
+        self._period_ns = msgs.period_ns(values["control_period_s"])
         self._subs = []
         self.timeline = SimTimeline()
         for topic, type_name, cls in zip(topics, types, classes, strict=True):
@@ -120,6 +128,12 @@ class RecorderNode(ServoNode):
             self._counts[name] = 0
             if topic in values["counted_topics"]:
                 self._counted.append(name)
+                if topic not in JOINT_STREAMS:
+                    raise ParameterFileError(
+                        f"parameter 'counted_topics': {topic!r} is not a per-sample stream "
+                        f"(one of {sorted(JOINT_STREAMS)})"
+                    )
+                self._gates[name] = (topic, StreamGate(window=window, first=0, limit=self._steps))
             qos = LATCHED_QOS if topic in values["latched_topics"] else STREAM_QOS
             stamp = stamp_reader(type_name)
             clock = stamp is clock_ns_from_cdr or topic in values["counted_topics"]
@@ -152,6 +166,15 @@ class RecorderNode(ServoNode):
             writer.write(name, data, log_time_ns=t, publish_time_ns=t)
             counts[name] += 1
             if counted:
+                topic, gate = self._gates[name]
+                try:
+                    step, _ = decode_joint_stream(
+                        topic, data, axis=self._axis, period_ns=self._period_ns
+                    )
+                    gate.accept(step)
+                except SignalError as err:
+                    self.reject(topic, f"{topic} recorded but not counted: {err}")
+                    return
                 self._update_progress()
 
         return on_message
@@ -166,12 +189,17 @@ class RecorderNode(ServoNode):
     def _update_progress(self, force: bool = False) -> None:
         if self.recorded < 0:
             return
-        done = min(self._counts[n] for n in self._counted) if self._counted else 0
+        done = min(self._recorded_steps(n) for n in self._counted) if self._counted else 0
         if done == self.recorded and not force:
             return
         self.recorded = done
         if force or done % self._v["ack_every_steps"] == 0 or done >= self._steps:
             self._progress_pub.publish(msgs.labelled_array(msgs.PROGRESS_LABELS, [done]))
+
+    def _recorded_steps(self, name: str) -> int:
+        """Steps of counted stream ``name`` written in order (the next expected step)."""
+        last = self._gates[name][1].last
+        return 0 if last is None else last + 1
 
     @property
     def message_counts(self) -> dict[str, int]:

@@ -5,15 +5,27 @@ changing the caller's environment for good: the domain goes to
 ``rclpy.init(domain_id=...)``, and the variables rcl and Fast DDS read when a
 context and its participant are made are set only while the watcher's
 context and node are created (:func:`temporary_environ`), then put back.
+
+What the watcher shows is validated (:class:`ProgressFilter`): a
+``recorder/progress`` message must be labelled ``steps_recorded`` and hold
+one finite whole number of steps, not less than the last one taken and not
+more than the run's steps; anything else (NaN, inf, a wrong layout, a value
+from the past or beyond the run) is dropped and counted, never shown and
+never raised. A stranger's message that passes every rule cannot be told
+from the recorder's (rclpy 7.1 gives a subscriber no publisher id per
+message), but it can only move the line forward within the run.
 """
 
 from __future__ import annotations
 
 import os
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from typing import Any, TextIO
+
+from servo_axis.core.errors import SignalError
+from servo_axis.wire.cdr import PROGRESS_LABELS, check_labelled_values
 
 
 @contextmanager
@@ -35,6 +47,58 @@ def temporary_environ(values: Mapping[str, str]) -> Iterator[None]:
                 os.environ[key] = value
 
 
+class ProgressFilter:
+    """The values of ``recorder/progress`` that move the shown progress.
+
+    Parameters
+    ----------
+    total : int or None
+        The run's steps (a value beyond them is refused); None: no bound.
+
+    Attributes
+    ----------
+    steps : int
+        The last value taken (-1 before the first).
+    rejected : int
+        Messages refused so far.
+    last_reason : str or None
+        Why the last refused message was refused.
+    """
+
+    def __init__(self, total: int | None = None) -> None:
+        self.total = total
+        self.steps = -1
+        self.rejected = 0
+        self.last_reason: str | None = None
+
+    def check(
+        self, dim_labels: Sequence[str], dim_sizes: Sequence[int], data: Sequence[float]
+    ) -> int:
+        """The steps a message says are recorded; :class:`SignalError` if it must not be shown."""
+        (value,) = check_labelled_values(dim_labels, dim_sizes, data, PROGRESS_LABELS)
+        if not value.is_integer() or value < 0:
+            raise SignalError(f"steps_recorded: expected a whole number >= 0, got {value!r}")
+        steps = int(value)
+        if self.total is not None and steps > self.total:
+            raise SignalError(f"steps_recorded: {steps} is beyond the run's {self.total} steps")
+        if steps < self.steps:
+            raise SignalError(f"steps_recorded: {steps} after {self.steps} (it never decreases)")
+        return steps
+
+    def offer(
+        self, dim_labels: Sequence[str], dim_sizes: Sequence[int], data: Sequence[float]
+    ) -> bool:
+        """Take a message's value if it passes :meth:`check`, else count it; True if taken."""
+        try:
+            steps = self.check(dim_labels, dim_sizes, data)
+        except SignalError as err:
+            self.rejected += 1
+            self.last_reason = str(err)
+            return False
+        self.steps = steps
+        return True
+
+
 class ProgressWatcher:
     """Follows ``recorder/progress`` from the runner (an rclpy node of its own).
 
@@ -51,6 +115,15 @@ class ProgressWatcher:
         ``os.environ`` is as before once the watcher exists. ``ROS_LOG_DIR``
         is only used when the caller has none (rclpy's logging is set up
         once per process).
+    steps : int or None
+        The run's steps: a progress beyond them is refused (None: no bound).
+
+    Attributes
+    ----------
+    steps : int
+        Steps recorded, as the last valid message said (-1 before the first).
+    rejected : int
+        ``recorder/progress`` messages refused (:class:`ProgressFilter`).
     """
 
     def __init__(
@@ -59,6 +132,7 @@ class ProgressWatcher:
         *,
         domain_id: int | None = None,
         environ: Mapping[str, str] | None = None,
+        steps: int | None = None,
     ) -> None:
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
@@ -92,16 +166,26 @@ class ProgressWatcher:
             except BaseException:
                 rclpy.try_shutdown(context=self._context)
                 raise
-        self.steps = -1
+        self.filter = ProgressFilter(steps)
         self.node.create_subscription(
             Float64MultiArray, "recorder/progress", self._on, topic_qos("recorder/progress")
         )
         self._executor = SingleThreadedExecutor(context=self._context)
         self._executor.add_node(self.node)
 
+    @property
+    def steps(self) -> int:
+        """Steps recorded, as the last valid message said (-1 before the first)."""
+        return self.filter.steps
+
+    @property
+    def rejected(self) -> int:
+        """``recorder/progress`` messages refused so far."""
+        return self.filter.rejected
+
     def _on(self, msg: Any) -> None:
-        if msg.data:
-            self.steps = max(self.steps, int(msg.data[0]))
+        dims = list(msg.layout.dim)
+        self.filter.offer([d.label for d in dims], [d.size for d in dims], msg.data)
 
     def spin(self, seconds: float) -> None:
         """Handle what has arrived, waiting at most ``seconds``."""

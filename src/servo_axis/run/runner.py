@@ -376,7 +376,10 @@ def _run_nodes(
         for run in runs:
             if "recorder" in run.roles:
                 run.watcher = ProgressWatcher(
-                    run.namespace or "/", domain_id=domain_id, environ=settings
+                    run.namespace or "/",
+                    domain_id=domain_id,
+                    environ=settings,
+                    steps=run_steps(node_values(run.scenario, "plant")),
                 )
         watch.t_start = time.monotonic()
         previous_handlers = catch_stop_signals(watch.signals)

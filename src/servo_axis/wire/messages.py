@@ -9,13 +9,14 @@ whose label lists the fields, comma-separated, with units; a vector that
 belongs to a step carries that step as its first element, labelled ``step``.
 
 Decoders validate: names, lengths, finiteness and the stamp grid. They raise
-:class:`servo_axis.core.errors.SignalError` naming what is wrong.
+:class:`servo_axis.core.errors.SignalError` naming what is wrong. The checks
+themselves are pure functions of :mod:`servo_axis.wire.cdr` (no rclpy), which
+the analysis applies to the payloads of a bag: one rule for both.
 """
 
 from __future__ import annotations
 
 import array
-import math
 import struct
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -27,17 +28,22 @@ from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
 from servo_axis.core.errors import SignalError
 
-NS_PER_S = 1_000_000_000
-
-#: Field labels of the Float64MultiArray topics (one labelled dimension each).
-STATUS_LABELS = ("step", "deadline_misses", "rejected_commands", "command_timeouts")
-PROGRESS_LABELS = ("steps_recorded",)
-FAULT_LABELS = (
-    "step",
-    "code(1=following_error;2=travel;3=current;4=input_timeout)",
-    "value(m_or_A_or_s)",
+# The labels and joint names are defined beside the pure checks (wire.cdr) and
+# re-exported here, where the nodes take them from.
+from servo_axis.wire.cdr import FAULT_LABELS as FAULT_LABELS
+from servo_axis.wire.cdr import PROGRESS_LABELS as PROGRESS_LABELS
+from servo_axis.wire.cdr import STATS_LABELS as STATS_LABELS
+from servo_axis.wire.cdr import STATUS_LABELS as STATUS_LABELS
+from servo_axis.wire.cdr import (
+    check_finite,
+    check_joint_arrays,
+    check_labelled_values,
+    step_of_stamp_ns,
 )
-STATS_LABELS = ("cycle", "rms_m", "max_m", "cycles_learned")
+from servo_axis.wire.cdr import motor_names as motor_names
+from servo_axis.wire.cdr import state_names as state_names
+
+NS_PER_S = 1_000_000_000
 
 
 def period_ns(period_s: float) -> int:
@@ -56,11 +62,7 @@ def stamp_from_step(step: int, period_ns_: int) -> Time:
 
 def step_from_stamp(stamp: Time, period_ns_: int) -> int:
     """Control sample index of ``stamp``; raises if it is off the grid."""
-    ns = stamp.sec * NS_PER_S + stamp.nanosec
-    step, rem = divmod(ns, period_ns_)
-    if rem != 0 or ns < 0:
-        raise SignalError(f"header.stamp: {ns} ns is not on the control grid of {period_ns_} ns")
-    return int(step)
+    return step_of_stamp_ns(stamp.sec * NS_PER_S + stamp.nanosec, period_ns_)
 
 
 def stamp_ns_from_cdr(data: bytes) -> int:
@@ -83,28 +85,13 @@ def clock_message(step: int, period_ns_: int) -> Clock:
     return Clock(clock=stamp_from_step(step, period_ns_))
 
 
-def _finite(name: str, values: Sequence[float]) -> Sequence[float]:
-    # Fast path: the sum of finite values is finite (sums beyond 1e308 are
-    # no physical signal either and are rejected too).
-    total = sum(values)
-    if total - total == 0.0:
-        return values
-    for i, v in enumerate(values):
-        if not math.isfinite(v):
-            raise SignalError(f"{name}[{i}]: expected a finite number, got {v!r}")
-    raise SignalError(f"{name}: values too large to be a physical signal, got {list(values)}")
+_finite = check_finite
 
 
 def _check_joint_state(
     msg: JointState, names: Sequence[str], fields: Sequence[str], period_ns_: int
 ) -> int:
-    if list(msg.name) != list(names):
-        raise SignalError(f"name: expected {list(names)}, got {list(msg.name)}")
-    for field in fields:
-        got = len(getattr(msg, field))
-        if got != len(names):
-            raise SignalError(f"{field}: expected {len(names)} values, got {got}")
-        _finite(field, getattr(msg, field))
+    check_joint_arrays(msg.name, names, ((f, getattr(msg, f)) for f in fields))
     return step_from_stamp(msg.header.stamp, period_ns_)
 
 
@@ -145,16 +132,6 @@ class StateSample:
     velocity_m_s: float
     motor_torque_Nm: float
     friction_force_N: float
-
-
-def state_names(axis: str) -> list[str]:
-    """Joint names of the ``state`` topic."""
-    return [f"{axis}_motor", f"{axis}_table"]
-
-
-def motor_names(axis: str) -> list[str]:
-    """Joint names of the ``command`` and ``reference`` topics."""
-    return [f"{axis}_motor"]
 
 
 def state_to_msg(sample: StateSample, *, axis: str, period_ns_: int) -> JointState:
@@ -285,13 +262,7 @@ def labelled_array(labels: Sequence[str], values: Sequence[float]) -> Float64Mul
 def labelled_array_values(msg: Float64MultiArray, labels: Sequence[str]) -> list[float]:
     """Values of a :func:`labelled_array` message after checking its labels."""
     dims = list(msg.layout.dim)
-    expected = ",".join(labels)
-    if len(dims) != 1 or dims[0].label != expected:
-        got = [d.label for d in dims]
-        raise SignalError(f"layout.dim: expected one dimension labelled {expected!r}, got {got}")
-    if len(msg.data) != len(labels) or dims[0].size != len(labels):
-        raise SignalError(f"data: expected {len(labels)} values, got {len(msg.data)}")
-    return [float(v) for v in _finite("data", msg.data)]
+    return check_labelled_values([d.label for d in dims], [d.size for d in dims], msg.data, labels)
 
 
 @dataclass(frozen=True)

@@ -16,10 +16,12 @@ Nothing here imports rclpy.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+import struct
+from collections.abc import Callable, Iterable, Iterator
 from typing import TypeVar
 
 from servo_axis.core.errors import SignalError
+from servo_axis.wire import cdr
 
 T = TypeVar("T")
 
@@ -100,3 +102,34 @@ def gated(items: Iterable[tuple[int, T]], gate: StreamGate) -> Iterator[tuple[in
         except SignalError:
             continue
         yield step, item
+
+
+#: The JointState streams of the table: their joint names (of the axis) and
+#: the arrays each carries (one finite value per joint in each).
+JOINT_STREAMS: dict[str, tuple[Callable[[str], list[str]], tuple[str, ...]]] = {
+    "state": (cdr.state_names, ("position", "velocity", "effort")),
+    "command": (cdr.motor_names, ("effort",)),
+    "reference": (cdr.motor_names, ("position", "velocity", "effort")),
+    "learning/correction": (cdr.motor_names, ("position", "velocity")),
+}
+
+
+def decode_joint_stream(
+    name: str, data: bytes, *, axis: str, period_ns: int
+) -> tuple[int, cdr.JointStateData]:
+    """Step and message of a recorded JointState of stream ``name`` that passes the subscribers' checks.
+
+    Raises
+    ------
+    SignalError
+        For a payload that does not decode, the wrong joints, a missing or
+        non-finite value, a stamp off the control grid.
+    """
+    names_of, fields = JOINT_STREAMS[name]
+    try:
+        msg = cdr.decode_joint_state(data)
+    except (ValueError, IndexError, struct.error) as err:
+        if isinstance(err, SignalError):
+            raise
+        raise SignalError(f"{name}: payload does not decode ({err})") from err
+    return cdr.joint_state_step(msg, names_of(axis), fields, period_ns), msg

@@ -1,8 +1,10 @@
 """Signals from a bag written in the test (CDR made with rosbags, no rclpy), and summarise().
 
-The bag holds an axis ``/x``: ``state`` on steps 0..N-1 but 7, ``reference``
-on steps 0..N+4, ``command`` on every step but 3 and 10, one ``fault`` and
-some ``/clock`` and ``plant/status`` messages that are only counted.
+The bag holds an axis ``/x`` of a realtime run (its ``params.yaml`` beside the
+bag says so; a lost sample is allowed there): ``state`` on steps 0..N-1 but
+7, ``reference`` on steps 0..N+4, ``command`` on every step but 3 and 10, one
+``fault`` and some ``/clock`` and ``plant/status`` messages that are only
+counted. Junk in a bag: test_analysis_junk.py.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from servo_axis.params.factories import build_generator, feedforward_values
 from servo_axis.params.scenario import load_scenario
 from servo_axis.params.schemas import SHARED
 from servo_axis.recording.writer import BagWriter
+from servo_axis.wire.cdr import FAULT_LABELS, STATUS_LABELS
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"
@@ -62,7 +65,9 @@ class Cdr:
         )
         return bytes(self.ts.serialize_cdr(msg, JOINT_STATE))
 
-    def multi_array(self, label: str, data: list[float]) -> bytes:
+    def multi_array(self, label: str | tuple[str, ...], data: list[float]) -> bytes:
+        if isinstance(label, tuple):
+            label = ",".join(label)
         dim = self.t["std_msgs/msg/MultiArrayDimension"](label=label, size=len(data), stride=1)
         layout = self.t["std_msgs/msg/MultiArrayLayout"](dim=[dim], data_offset=0)
         msg = self.t[MULTI_ARRAY](layout=layout, data=np.array(data, dtype=np.float64))
@@ -108,12 +113,16 @@ def write_bag(directory: Path) -> dict[str, int]:
 
         for k in range(N + 5):
             v = signals_of_step(k)
-            if k % 50 == 0:
+            if k % 10 == 0:
                 put("/clock", cdr.clock(k))
             put(
                 "/x/reference",
                 cdr.joint_state(
-                    k, ["x_motor"], position=[v["reference_rad"]], effort=[v["feedforward_A"]]
+                    k,
+                    ["x_motor"],
+                    position=[v["reference_rad"]],
+                    velocity=[0.0],
+                    effort=[v["feedforward_A"]],
                 ),
             )
             if k >= N:
@@ -132,9 +141,9 @@ def write_bag(directory: Path) -> dict[str, int]:
             if k not in MISSING_COMMAND:
                 put("/x/command", cdr.joint_state(k, ["x_motor"], effort=[v["command_A"]]))
             if k == int(FAULT[0]):
-                put("/x/fault", cdr.multi_array("step,code,value", list(FAULT)))
-            if k % 100 == 0:
-                put("/x/plant/status", cdr.multi_array("step", [float(k)]))
+                put("/x/fault", cdr.multi_array(FAULT_LABELS, list(FAULT)))
+            if k % 50 == 0:
+                put("/x/plant/status", cdr.multi_array(STATUS_LABELS, [float(k), 0.0, 0.0, 0.0]))
     return counts
 
 
@@ -142,6 +151,11 @@ def write_bag(directory: Path) -> dict[str, int]:
 def run_dir(tmp_path: Path) -> tuple[Path, dict[str, int]]:
     run = tmp_path / "run"
     counts = write_bag(run / "bag")
+    # The run's parameters as the runner writes them: the analysis takes its
+    # rules from them (realtime: the stream may skip a sample).
+    shared = {"mode": "realtime", "control_period_s": PERIOD_S, "lead_m_per_rad": LEAD}
+    params = {"/**": {"ros__parameters": shared}, "/**/plant": {"ros__parameters": {}}}
+    (run / "params.yaml").write_text(yaml.safe_dump(params))
     return run, counts
 
 
@@ -150,6 +164,7 @@ def write_scenario(path: Path, **feedforward: Any) -> Path:
         "/**": {
             "ros__parameters": {
                 "scenario": {"name": "tiny", "description": "a tiny run"},
+                "mode": "realtime",
                 "control_period_s": PERIOD_S,
                 "lead_m_per_rad": LEAD,
             }
@@ -183,17 +198,24 @@ def test_load_signals_reads_the_bag_by_leaf_topic(run_dir: tuple[Path, dict[str,
     assert sig.faults == [FaultRecord(step=120, code=1, name="following_error", value=2.5e-3)]
     assert sig.counts == counts
     assert list(sig.counts) == list(counts)  # order of first message
+    assert sig.dropped == dict.fromkeys(counts, 0)  # every topic of this bag has rules
 
 
-def test_load_signals_of_an_unknown_fault_code(tmp_path: Path) -> None:
+def test_load_signals_drops_a_fault_of_an_unknown_code_or_layout(tmp_path: Path) -> None:
     cdr = Cdr()
     with BagWriter(tmp_path / "bag") as bag:
         bag.add_topic("fault", MULTI_ARRAY)
-        bag.write("fault", cdr.multi_array("step,code,value", [4.0, 99.0, -1.0]), log_time_ns=5)
+        bag.write("fault", cdr.multi_array(FAULT_LABELS, [4.0, 99.0, -1.0]), log_time_ns=5)
+        bag.write("fault", cdr.multi_array("step,code,value", [5.0, 1.0, -1.0]), log_time_ns=6)
+        bag.write("fault", cdr.multi_array(FAULT_LABELS, [6.5, 1.0, -1.0]), log_time_ns=7)
+        bag.write("fault", cdr.multi_array(FAULT_LABELS, [7.0, 3.0, -1.0]), log_time_ns=8)
+        bag.write("fault", cdr.multi_array(FAULT_LABELS, [7.0, 3.0, -2.0]), log_time_ns=9)
     sig = load_signals(tmp_path / "bag", PERIOD_S)
     assert sig.step.size == 0 and sig.command_A.size == 0
-    assert sig.faults == [FaultRecord(step=4, code=99, name="?", value=-1.0)]
-    assert sig.counts == {"fault": 1}
+    # Unknown code, wrong labels, a step that is no whole number, the same step again.
+    assert sig.faults == [FaultRecord(step=7, code=3, name="current", value=-1.0)]
+    assert sig.counts == {"fault": 5}
+    assert sig.dropped == {"fault": 4}
 
 
 def test_tracking_uses_the_feedback_sensor(
@@ -216,7 +238,10 @@ def test_tracking_with_learning_recomputes_the_original_target(
 ) -> None:
     run, _ = run_dir
     sig = load_signals(run / "bag", PERIOD_S)
-    path = write_scenario(tmp_path / "learn.yaml", learning={"enabled": True, "cycle_s": 0.1})
+    # The learning law (rptc) corrects the target, which needs PTC.
+    path = write_scenario(
+        tmp_path / "learn.yaml", learning={"enabled": True, "cycle_s": 0.1}, ptc={"enabled": True}
+    )
     scenario = load_scenario(path)
     target, _ = tracking(scenario, path, sig)
     values = feedforward_values(scenario, path)
@@ -282,7 +307,7 @@ def old_way_summary(path: Path, counts: dict[str, int], wall: float) -> dict[str
         "description": "a tiny run",
         "scenario_file": str(path),
         "processes": "composed",
-        "time_mode": "lockstep",
+        "time_mode": "realtime",
         "control_period_s": PERIOD_S,
         "steps": len(steps),
         "sim_time_s": sim_time,
@@ -361,8 +386,16 @@ def write_circle_axis(run: Path, tmp_path: Path, col: int, d: np.ndarray) -> Pat
         bag.add_topic("state", JOINT_STATE)
         bag.add_topic("reference", JOINT_STATE)
         for k in steps.tolist():
-            ref = cdr.joint_state(k, ["m"], position=[target[k]], effort=[0.0])
-            state = cdr.joint_state(k, ["m", "t"], position=[measured[k], measured[k] * LEAD])
+            ref = cdr.joint_state(
+                k, ["x_motor"], position=[target[k]], velocity=[0.0], effort=[0.0]
+            )
+            state = cdr.joint_state(
+                k,
+                ["x_motor", "x_table"],
+                position=[measured[k], measured[k] * LEAD],
+                velocity=[0.0, 0.0],
+                effort=[0.0, 0.0],
+            )
             bag.write("reference", ref, log_time_ns=2 * k + 1)
             bag.write("state", state, log_time_ns=2 * k + 2)
     path = write_scenario(tmp_path / f"axis{col}.yaml")
@@ -445,15 +478,22 @@ def test_friction_table_from_run_uses_the_scenario_nominal_model(tmp_path: Path)
             t = 3 * i
             bag.write(
                 "reference",
-                cdr.joint_state(i, ["m"], position=[ref[i]], effort=[0.0]),
+                cdr.joint_state(i, ["x_motor"], position=[ref[i]], velocity=[0.0], effort=[0.0]),
                 log_time_ns=t,
             )
             bag.write(
                 "state",
-                cdr.joint_state(i, ["m", "t"], position=[ref[i], ref[i] * LEAD]),
+                cdr.joint_state(
+                    i,
+                    ["x_motor", "x_table"],
+                    position=[ref[i], ref[i] * LEAD],
+                    velocity=[0.0, 0.0],
+                    effort=[0.0, 0.0],
+                ),
                 log_time_ns=t + 1,
             )
-            bag.write("command", cdr.joint_state(i, ["m"], effort=[current[i]]), log_time_ns=t + 2)
+            command = cdr.joint_state(i, ["x_motor"], effort=[current[i]])
+            bag.write("command", command, log_time_ns=t + 2)
     path = write_scenario(tmp_path / "fid.yaml")
     scenario = load_scenario(path)
     nominal = {"torque_constant_Nm_per_A": 0.8, "inertia_kgm2": 0.02, "damping_Nms_per_rad": 0.05}

@@ -1,0 +1,306 @@
+"""Junk on every subscribed topic during a run changes neither the bag's own streams nor a figure.
+
+A clean run and a junk run of the same short learning scenario (a 3-cycle
+copy of ``rptc_friction_table``) go through the user's entry point
+``python -m servo_axis run``. During the junk run a stranger node in this
+process publishes, at 200 Hz, every kind of junk on every topic some node
+subscribes to: NaN, inf, short arrays, an empty message, wrong joint names or
+labels, past stamps (step 0, the recorded step - 5), stamps ahead (+1000
+steps, 1e9 s) and off the control grid; on the Float64MultiArray topics NaN,
+inf, wrong labels, past, future and fractional values. The recorder records
+all of it; the validated streams of the bag (the analysis's
+:func:`~servo_axis.analysis.signals.read_streams`) must equal the clean
+run's, byte for byte, and so must the summary's figures.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+import time
+from collections import Counter
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+from numpy.testing import assert_allclose
+
+from servo_axis.analysis.signals import StreamRules, read_streams
+from servo_axis.analysis.summary import RunSummary
+from servo_axis.params.scenario import load_scenario
+
+pytestmark = pytest.mark.integration
+
+CONFIG = Path(__file__).resolve().parents[2] / "config"
+PERIOD_S = 0.001
+PERIOD_NS = 1_000_000
+CYCLE_STEPS = 500
+DURATION_S = 1.5  # 3 learning cycles of 0.5 s
+COMPARED = ("/state", "/command", "/reference", "/learning/correction", "/learning/cycle_stats")
+RUN_TIMEOUT_S = 40.0
+
+
+def short_scenario(dst: Path) -> Path:
+    """rptc_friction_table, 3 cycles, its friction table by absolute path."""
+    data = yaml.safe_load((CONFIG / "rptc_friction_table.yaml").read_text())
+    data["/**"]["ros__parameters"]["duration_s"] = DURATION_S
+    table = data["feedforward"]["ros__parameters"]["friction_table"]
+    table["file"] = str((CONFIG / table["file"]).resolve())
+    dst.write_text(yaml.safe_dump(data))
+    return dst
+
+
+def start_run(scenario: Path, out: Path, domain: int) -> subprocess.Popen[bytes]:
+    cmd = [sys.executable, "-m", "servo_axis", "run", str(scenario), "--out", str(out)]
+    cmd += ["--domain-id", str(domain), "--no-plots"]
+    log = (out.parent / f"{out.name}.out").open("wb")
+    return subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+
+
+def finish(proc: subprocess.Popen[bytes], timeout_s: float) -> int | None:
+    """The run's exit code; None if it had to be stopped (SIGINT, then SIGKILL) after ``timeout_s``."""
+    try:
+        return proc.wait(timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, 2)
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, 9)
+            proc.wait()
+        return None
+
+
+def tails(run_dir: Path, lines: int = 4) -> str:
+    """The runner's last line and each node log's last lines, for a failure message."""
+    out = (run_dir.parent / f"{run_dir.name}.out").read_text(errors="replace")
+    text = [f"runner: {out.strip().splitlines()[-1][-300:] if out.strip() else ''}"]
+    for log in sorted((run_dir / "logs").glob("[a-z]*.log")):
+        text += [f"{log.stem}: {line[-300:]}" for line in log.read_text().splitlines()[-lines:]]
+    return "\n".join(text)
+
+
+class JunkPublisher:
+    """A stranger on every subscribed topic, cycling through the junk kinds at 200 Hz."""
+
+    def __init__(self, domain: int) -> None:
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        from rosgraph_msgs.msg import Clock
+        from sensor_msgs.msg import JointState
+        from std_msgs.msg import Float64MultiArray
+
+        from servo_axis.nodes.runtime import LATCHED_QOS, STREAM_QOS
+        from servo_axis.wire.topics import TOPICS
+
+        self._rclpy = rclpy
+        self.context = rclpy.context.Context()
+        rclpy.init(args=[], context=self.context, domain_id=domain)
+        self.node = rclpy.create_node("junk", context=self.context, enable_rosout=False)
+        classes = {"JointState": JointState, "Float64MultiArray": Float64MultiArray, "Clock": Clock}
+        self.pubs: dict[str, Any] = {}
+        for t in TOPICS:
+            if not t.consumers:
+                continue  # only the topics some node subscribes to
+            qos = LATCHED_QOS if t.qos == "latched" else STREAM_QOS
+            cls = classes[t.type_name.rsplit("/", 1)[-1]]
+            self.pubs[t.name] = self.node.create_publisher(cls, t.name, qos)
+        # The recorded step (to stamp "past" and "ahead" junk near the run's present).
+        self.recorded = -1
+        self._mine: set[float] = set()  # values this node put on recorder/progress
+        self.node.create_subscription(
+            Float64MultiArray, "recorder/progress", self._on_progress, LATCHED_QOS
+        )
+        self.jobs = [(topic, kind) for topic in self.pubs for kind in self.kinds(topic)]
+        self.sent: Counter[tuple[str, str]] = Counter()
+        self._next = 0
+        self.node.create_timer(0.005, self._tick)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+
+    def _on_progress(self, msg: Any) -> None:
+        dims = list(msg.layout.dim)
+        if len(dims) != 1 or dims[0].label != "steps_recorded" or len(msg.data) != 1:
+            return
+        value = msg.data[0]
+        if math.isfinite(value) and value.is_integer() and 0 <= value <= 1500:
+            if value not in self._mine:
+                self.recorded = max(self.recorded, int(value))
+
+    @staticmethod
+    def kinds(topic: str) -> list[str]:
+        stamps = ["past_0", "past_5", "ahead_1000", "ahead_1e9s", "off_grid"]
+        if topic == "/clock":
+            return stamps
+        if topic in ("plant/status", "recorder/progress"):
+            return [
+                "nan",
+                "inf",
+                "short",
+                "empty",
+                "wrong_labels",
+                "past",
+                "future",
+                "huge",
+                "half",
+            ]
+        return ["nan", "inf", "short", "empty", "wrong_names", *stamps]
+
+    def _tick(self) -> None:
+        topic, kind = self.jobs[self._next % len(self.jobs)]
+        self._next += 1
+        # Until the real streams have begun, a "past" stamp is no past: skip those.
+        if kind.startswith("past") and self.recorded < 20:
+            return
+        msg = self.make(topic, kind)
+        self.pubs[topic].publish(msg)
+        self.sent[(topic, kind)] += 1
+
+    def make(self, topic: str, kind: str) -> Any:
+        from builtin_interfaces.msg import Time
+        from rosgraph_msgs.msg import Clock
+        from sensor_msgs.msg import JointState
+        from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+
+        now = max(self.recorded, 0)
+        ns = (now + 1) * PERIOD_NS
+        if kind == "past_0":
+            ns = 0 if topic != "learning/correction" else 2 * PERIOD_NS
+        elif kind == "past_5":
+            ns = max(now - 5, 0) * PERIOD_NS
+        elif kind == "ahead_1000":
+            ns = (now + 1000) * PERIOD_NS
+        elif kind == "ahead_1e9s":
+            ns = 10**18
+        elif kind == "off_grid":
+            ns = (now + 1) * PERIOD_NS + PERIOD_NS // 2
+        stamp = Time(sec=ns // 10**9, nanosec=ns % 10**9)
+        if topic == "/clock":
+            return Clock(clock=stamp)
+        if topic in ("plant/status", "recorder/progress"):
+            labels = (
+                "step,deadline_misses,rejected_commands,command_timeouts"
+                if topic == "plant/status"
+                else "steps_recorded"
+            )
+            size = len(labels.split(","))
+            value = {
+                "nan": math.nan,
+                "inf": math.inf,
+                "past": -5.0,
+                "future": float(now + 1000),
+                "huge": 1e9,
+                "half": now + 0.5,
+            }.get(kind, float(now))
+            data = [value] + [0.0] * (size - 1)
+            if topic == "recorder/progress":
+                self._mine.add(value)
+            if kind == "short":
+                data = data[:-1]
+            msg = Float64MultiArray()
+            if kind != "empty":
+                label = "junk" if kind == "wrong_labels" else labels
+                msg.layout.dim = [MultiArrayDimension(label=label, size=size, stride=size)]
+                msg.data = data
+            return msg
+        names, fields = {
+            "state": (["x_motor", "x_table"], ("position", "velocity", "effort")),
+            "command": (["x_motor"], ("effort",)),
+            "reference": (["x_motor"], ("position", "velocity", "effort")),
+            "learning/correction": (["x_motor"], ("position", "velocity")),
+        }[topic]
+        msg = JointState()
+        if kind == "empty":
+            return msg
+        msg.header.stamp = stamp
+        msg.name = ["y_motor", "y_table"][: len(names)] if kind == "wrong_names" else names
+        fill = {"nan": math.nan, "inf": math.inf}.get(kind, 0.5)
+        for f in fields:
+            n = len(names) - 1 if kind == "short" else len(names)
+            setattr(msg, f, [fill] * n)
+        return msg
+
+    def spin_while(self, running: Callable[[], bool], timeout_s: float) -> None:
+        end = time.monotonic() + timeout_s
+        while running() and time.monotonic() < end:
+            self.executor.spin_once(timeout_sec=0.005)
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        self._rclpy.try_shutdown(context=self.context)
+
+
+def test_junk_on_every_topic_changes_no_stream_and_no_figure(ros_env: int, tmp_path: Path) -> None:
+    # A domain above the 1..100 that the suite's fixture and the runner's
+    # default take, so that no other run on this machine is a stranger here.
+    domain = 101 + ros_env % 100
+    scenario_path = short_scenario(tmp_path / "short.yaml")
+    scenario = load_scenario(scenario_path)
+    rules = StreamRules.from_scenario(scenario, PERIOD_S)
+    assert (rules.steps, rules.cycle_steps, rules.window) == (1500, CYCLE_STEPS, 1)
+
+    clean_proc = start_run(scenario_path, tmp_path / "clean", domain)
+    clean_code = finish(clean_proc, RUN_TIMEOUT_S)
+    assert clean_code == 0, tails(tmp_path / "clean")
+
+    junk = JunkPublisher(domain)
+    try:
+        proc = start_run(scenario_path, tmp_path / "junk", domain)
+        try:
+            junk.spin_while(lambda: proc.poll() is None, RUN_TIMEOUT_S)
+        finally:
+            junk_code = finish(proc, 10.0)
+    finally:
+        junk.close()
+    print(f"exit codes: clean {clean_code}, junk {junk_code}")
+    print("junk published per (topic, kind):", dict(sorted(junk.sent.items())))
+    clean = read_streams(tmp_path / "clean" / "bag", rules)
+    dirty = read_streams(tmp_path / "junk" / "bag", rules)
+    for topic in clean.counts:
+        got = [(k.step, k.data) for k in dirty.kept.get(topic, [])]
+        want = [(k.step, k.data) for k in clean.kept.get(topic, [])]
+        print(
+            f"{topic}: clean {clean.counts[topic]} recorded, {len(want)} kept;"
+            f" junk run {dirty.counts.get(topic, 0)} recorded, {len(got)} kept, "
+            f"{dirty.dropped.get(topic, 0)} dropped ({dirty.first_reason.get(topic, '-')}); "
+            f"kept == the clean run's first {len(got)}: {got == want[: len(got)]}"
+        )
+    assert junk_code is not None, f"the junk run did not finish in {RUN_TIMEOUT_S} s:\n" + tails(
+        tmp_path / "junk"
+    )
+    assert junk_code in (0, 3), tails(tmp_path / "junk")
+
+    # Junk of every kind went out on every subscribed topic.
+    assert {t for t, _ in junk.sent} == set(junk.pubs)
+    assert all(junk.sent[job] > 0 for job in junk.jobs), junk.sent
+    # The clean bag holds nothing to drop, and its streams are complete.
+    assert sum(clean.dropped.values()) == 0, clean.first_reason
+    assert [k.step for k in clean.kept["/state"]] == list(range(1500))
+    assert [k.step for k in clean.kept["/learning/cycle_stats"]] == [1, 2]
+    # The junk run's own streams are the clean run's, byte for byte.
+    for topic in COMPARED:
+        got = [(k.step, k.data) for k in dirty.kept[topic]]
+        want = [(k.step, k.data) for k in clean.kept[topic]]
+        assert got == want, (topic, len(got), len(want), dirty.first_reason.get(topic))
+    # The recorder recorded the junk too.
+    for topic in ("/state", "/command", "/reference", "/clock", "/plant/status"):
+        assert dirty.counts[topic] > len(dirty.kept[topic]), topic
+        assert dirty.dropped[topic] > 0, topic
+    # The summary's figures are the clean run's.
+    a = RunSummary.from_json(tmp_path / "clean" / "summary.json")
+    b = RunSummary.from_json(tmp_path / "junk" / "summary.json")
+    assert a.steps == b.steps == 1500
+    assert len(a.tracking_error.cycles) == 3
+    assert_allclose(
+        [(c.rms_m, c.max_m) for c in b.tracking_error.cycles],
+        [(c.rms_m, c.max_m) for c in a.tracking_error.cycles],
+        rtol=0,
+        atol=0,
+    )
+    assert b.tracking_error == a.tracking_error
+    assert b.faults == a.faults == ()
