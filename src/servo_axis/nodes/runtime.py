@@ -117,21 +117,62 @@ def run_main(
 
     A node whose parameters are bad raises a :class:`ServoAxisError` in its
     constructor, before it creates any publisher; that is reported on stderr
-    and the process exits with :data:`EXIT_BAD_CONFIG`.
+    and the process exits with :data:`EXIT_BAD_CONFIG`. So does a parameter
+    file that is missing or not YAML (checked before rcl reads it), and
+    anything else rcl refuses in the ROS arguments (its ``RCLError``) or in
+    the parameters while the node is made: one line on stderr, no traceback.
 
     SIGINT and SIGTERM end the spin loop between callbacks, and the context
     is shut down only after it: rclpy's own handler shuts the context down at
     once, so a callback under way (a stop in the middle of a run) would fail
     to publish and log a traceback.
     """
+    import re
+    import tempfile
+
+    from rclpy.exceptions import NameValidationException, ParameterException
+    from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+
+    from servo_axis.params.scenario import check_params_files
+
+    def refuse(problem: object) -> int:
+        # rcl's messages carry C source locations (", at /project/src/...:271").
+        text = re.sub(r",? at \S+:\d+", "", " ".join(str(problem).split()))
+        print(f"{name}: {text}", file=sys.stderr, flush=True)
+        return EXIT_BAD_CONFIG
+
+    try:
+        check_params_files(sys.argv if args is None else args)
+    except ServoAxisError as err:
+        return refuse(err)
+    # rcl logs its own line on stderr before it raises: hold stderr while it
+    # reads the arguments, and pass on what it wrote only if it succeeded.
+    refused: Exception | None = None
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as held:
+        os.dup2(held.fileno(), 2)
+        try:
+            rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+        except _rclpy.RCLError as err:
+            refused = err
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        if refused is not None:
+            return refuse(f"bad ROS arguments or parameter file: {refused}")
+        held.seek(0)
+        os.write(2, held.read())
     stop_requested: list[int] = []
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     previous = catch_stop_signals(stop_requested)
     nodes: list[Node] = []
     code = 0
     try:
         for factory in factories:
-            nodes.append(factory())
+            try:
+                nodes.append(factory())
+            except (_rclpy.RCLError, ParameterException, NameValidationException) as err:
+                return refuse(err)
             if stop_requested:
                 return code
         spin_nodes(nodes, lambda: bool(stop_requested) or (done is not None and done(nodes)))

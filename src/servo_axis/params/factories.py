@@ -44,6 +44,20 @@ from servo_axis.storage import load_friction_table
 
 Values = Mapping[str, Any]
 
+#: The keys of the ``nominal.*`` values, by the names the core constructors give them.
+NOMINAL_KEYS = {
+    name: f"nominal.{name}"
+    for name in ("torque_constant_Nm_per_A", "inertia_kgm2", "damping_Nms_per_rad")
+}
+#: The key of the control period where a core constructor calls it ``period_s``.
+PERIOD_KEYS = {"period_s": "control_period_s"}
+#: Integration steps per control period and per dead time a plant may take
+#: (``control_period_s / sim_step_s``, ``dead_time_s / sim_step_s``): more
+#: would not run in any useful time, or not fit in memory.
+MAX_SIM_STEPS = 100_000
+#: Reference instants a learning cycle may hold (its arrays are this long).
+MAX_CYCLE_INSTANTS = 1_000_000
+
 # --------------------------------------------------------------------------- common
 
 
@@ -59,7 +73,7 @@ def run_steps(values: Values) -> int:
 
 def nominal_model(values: Values) -> NominalModel:
     """The nominal model ``P_n`` of eq. (1) (the shared ``nominal.*`` keys)."""
-    return build("nominal.", NominalModel, **section(values, "nominal"))
+    return build("nominal.", NominalModel, keys=NOMINAL_KEYS, **section(values, "nominal"))
 
 
 #: Which reference.* keys each kind takes.
@@ -148,6 +162,24 @@ def ball_screw_params(values: Values) -> BallScrewParams:
             "parameter 'modes': modes.frequency_hz, modes.zeta and modes.a must have the "
             f"same length, got {len(freqs)}, {len(zetas)}, {len(gains)}"
         )
+    for key, listed in (("frequency_hz", freqs), ("zeta", zetas)):
+        if any(x <= 0.0 for x in listed):
+            raise ParameterFileError(
+                f"parameter 'modes.{key}': expected every element > 0 when modes are given "
+                f"(all three lists [0.0]: no mode), got {listed!r}"
+            )
+    h = values["sim_step_s"]
+    if any(f >= 0.5 / h for f in freqs):
+        raise ParameterFileError(
+            "parameter 'modes.frequency_hz': expected every element below the Nyquist "
+            f"frequency of sim_step_s ({0.5 / h:g} Hz), got {freqs!r}"
+        )
+    for key in ("control_period_s", "dead_time_s"):
+        if values[key] / h > MAX_SIM_STEPS:
+            raise ParameterFileError(
+                f"parameter '{key}': expected at most {MAX_SIM_STEPS} integration steps "
+                f"(sim_step_s = {h!r} s), got {values[key]!r} s"
+            )
     return build(
         "",
         BallScrewParams,
@@ -182,12 +214,31 @@ def build_loop(values: Values) -> FeedbackLoop:
     """The feedback loop (PID, optional DOB, trips) of checked feedback values."""
     period = values["control_period_s"]
     nominal = nominal_model(values).as_kwargs()
-    gains = build("", design_pid_pole_placement, bandwidth_hz=values["bandwidth_hz"], **nominal)
-    pid = build("", DiscretePid, gains=gains, period_s=period)
+    # The gains follow from bandwidth_hz and the nominal model alone.
+    from_bandwidth = {
+        name: "bandwidth_hz" for name in ("kp_A_per_rad", "ki_A_per_rad_s", "derivative_tau_s", "a")
+    }
+    try:
+        gains = build(
+            "",
+            design_pid_pole_placement,
+            keys={**NOMINAL_KEYS, **from_bandwidth},
+            bandwidth_hz=values["bandwidth_hz"],
+            **nominal,
+        )
+    except OverflowError as err:
+        raise ParameterFileError(
+            f"parameter 'bandwidth_hz': expected PID gains that are finite numbers, "
+            f"got {values['bandwidth_hz']!r}"
+        ) from err
+    pid = build(
+        "", DiscretePid, keys={**PERIOD_KEYS, **from_bandwidth}, gains=gains, period_s=period
+    )
     dob = (
         build(
             "dob.",
             DisturbanceObserver,
+            keys={**NOMINAL_KEYS, **PERIOD_KEYS},
             cutoff_hz=values["dob.cutoff_hz"],
             period_s=period,
             **nominal,
@@ -196,7 +247,9 @@ def build_loop(values: Values) -> FeedbackLoop:
         else None
     )
     limits = build("limits.", SafetyLimits, **section(values, "limits"))
-    return FeedbackLoop(
+    return build(
+        "",
+        FeedbackLoop,
         pid=pid,
         dob=dob,
         lead_m_per_rad=values["lead_m_per_rad"],
@@ -219,20 +272,32 @@ def register_feedforward_term(name: str, build: TermBuilder) -> None:
     FEEDFORWARD_TERMS[name] = build
 
 
-def _friction_table_term(values: Values) -> FeedforwardTerm | None:
+def _friction_table_path(values: Values) -> str | None:
+    """The friction table file when the term is on (None when off), not read."""
     if not values["friction_table.enabled"]:
         return None
-    path = values["friction_table.file"]
+    path = str(values["friction_table.file"])
     if not path:
         raise ParameterFileError(
             "parameter 'friction_table.file': required when friction_table.enabled is true"
         )
+    return path
+
+
+def _friction_table_term(values: Values) -> FeedforwardTerm | None:
+    path = _friction_table_path(values)
+    if path is None:
+        return None
     try:
         table = load_friction_table(path)
     except (OSError, ServoAxisError) as err:
         raise ParameterFileError(f"parameter 'friction_table.file': {err}") from err
-    return FrictionTableTerm(
-        table, torque_constant_Nm_per_A=values["nominal.torque_constant_Nm_per_A"]
+    return build(
+        "",
+        FrictionTableTerm,
+        keys=NOMINAL_KEYS,
+        table=table,
+        torque_constant_Nm_per_A=values["nominal.torque_constant_Nm_per_A"],
     )
 
 
@@ -245,27 +310,59 @@ def build_terms(values: Values) -> list[FeedforwardTerm]:
 
 
 def learning_period_steps(values: Values) -> int | None:
-    """Control samples per learning period of checked feedforward values (None: no learning)."""
+    """Control samples per learning period of checked feedforward values (None: no learning).
+
+    The cycle is a whole number (>= 4) of reference periods ``T_r``, as the
+    learning unit needs it (:func:`build_learning_law`).
+    """
     if not values["learning.enabled"]:
         return None
-    return build(
-        "learning.", grid(values).steps_per, period_s=values["learning.cycle_s"], name="cycle_s"
+    g = grid(values)
+    instants = build(
+        "learning.", g.instants_per, period_s=values["learning.cycle_s"], name="cycle_s", minimum=4
     )
+    return cycle_instants("learning.cycle_s", values["learning.cycle_s"], instants) * g.ratio
 
 
-def build_generator(values: Values) -> FeedforwardGenerator:
-    """The feedforward generator of checked feedforward values."""
+def cycle_instants(key: str, cycle_s: float, instants: int) -> int:
+    """``instants``, if a learning cycle of that many reference instants is not too long."""
+    if instants > MAX_CYCLE_INSTANTS:
+        raise ParameterFileError(
+            f"parameter '{key}': expected at most {MAX_CYCLE_INSTANTS} reference periods "
+            f"per learning cycle, got {cycle_s!r} s ({instants})"
+        )
+    return instants
+
+
+def build_generator(
+    values: Values, *, terms: list[FeedforwardTerm] | None = None
+) -> FeedforwardGenerator:
+    """The feedforward generator of checked feedforward values.
+
+    ``terms`` replaces the terms the values switch on (:func:`build_terms`,
+    which reads their files); :func:`check_consistency` builds it with none.
+    """
     period_steps = learning_period_steps(values)
-    side = learning_law(values["learning.law"]).side if period_steps is not None else "target"
+    side = (
+        learning_law(values["learning.law"], "learning.law").side
+        if period_steps is not None
+        else "target"
+    )
+    if period_steps is not None and side == "target" and not values["ptc.enabled"]:
+        raise ParameterFileError(
+            f"parameter 'ptc.enabled': learning law {values['learning.law']!r} corrects the "
+            "target, which needs PTC, got false"
+        )
     return build(
         "",
         FeedforwardGenerator,
+        keys={**NOMINAL_KEYS, "learning_period_steps": "learning.cycle_s"},
         reference=build_reference(values),
         grid=grid(values),
         lead_m_per_rad=values["lead_m_per_rad"],
         nominal=nominal_model(values),
         ptc_enabled=values["ptc.enabled"],
-        terms=build_terms(values),
+        terms=build_terms(values) if terms is None else terms,
         learning_period_steps=period_steps,
         learning_side=side,
     )
@@ -309,11 +406,11 @@ def register_learning_law(
     LEARNING_LAWS[name] = LearningLawEntry(schema=schema, period=period, side=side, build=build)
 
 
-def learning_law(name: object) -> LearningLawEntry:
-    """The registered law ``name`` (ParameterFileError naming ``law`` otherwise)."""
+def learning_law(name: object, key: str = "law") -> LearningLawEntry:
+    """The registered law ``name`` (ParameterFileError naming ``key`` otherwise)."""
     if not isinstance(name, str) or name not in LEARNING_LAWS:
         raise ParameterFileError(
-            f"parameter 'law': expected one of {sorted(LEARNING_LAWS)}, got {name!r}"
+            f"parameter '{key}': expected one of {sorted(LEARNING_LAWS)}, got {name!r}"
         )
     return LEARNING_LAWS[name]
 
@@ -321,9 +418,11 @@ def learning_law(name: object) -> LearningLawEntry:
 def _rptc(values: Values) -> LearningLaw:
     g = grid(values)
     nd = build("", g.instants_per, period_s=values["cycle_s"], name="cycle_s", minimum=4)
+    nd = cycle_instants("cycle_s", values["cycle_s"], nd)
     params = build(
         "",
         LearningParams,
+        keys={**PERIOD_KEYS, "samples_per_cycle": "cycle_s"},
         samples_per_cycle=nd,
         nq=values["nq"],
         n=values["n"],
@@ -365,8 +464,66 @@ def node_schema(role: str, given: Values) -> dict[str, Param]:
 
 
 def checked_values(role: str, given: Values) -> dict[str, Any]:
-    """Checked values of node ``role``: ``given`` where set, defaults elsewhere."""
-    return check_values(node_schema(role, given), given, role)
+    """Checked values of node ``role``: ``given`` where set, defaults elsewhere.
+
+    Each key against its schema first (:func:`~servo_axis.params.schema.check_values`),
+    then what depends on several keys (:func:`check_consistency`), so that
+    whoever checks a section (the node, the runner before it starts any
+    process) refuses what the node would.
+
+    Raises
+    ------
+    ParameterFileError
+        Naming the full key (or keys) at fault.
+    """
+    values = check_values(node_schema(role, given), given, role)
+    check_consistency(role, values)
+    return values
+
+
+def check_consistency(role: str, values: Values) -> None:
+    """Build (and drop) what node ``role`` builds of its values; no file is read.
+
+    The run length (``duration_s`` against ``control_period_s``), the plant
+    model (``sim_step_s`` divides ``control_period_s``, the modes, ...), the
+    feedback loop (the DOB cut-off below Nyquist, ...), the feedforward
+    generator (``learning.cycle_s`` whole, PTC for target-side learning), the
+    learning law (``n Nq + 2 < Nd``) and the recorder's topic lists. What
+    needs a file (a friction table, a learning memory) or the node's
+    transport (the learning cycle against the stream depth) is the node's.
+
+    Raises
+    ------
+    ParameterFileError
+        Naming the key (or keys) at fault.
+    """
+    run_steps(values)
+    if role == "plant":
+        build_plant(values)
+    elif role == "feedback":
+        build_loop(values)
+    elif role == "feedforward":
+        _friction_table_path(values)
+        build_generator(values, terms=[])
+    elif role == "learning":
+        build_learning_law(values)
+        build_reference(values)
+    elif role == "recorder":
+        check_recorder_topics(values)
+
+
+def check_recorder_topics(values: Values) -> None:
+    """One type per topic; the latched and counted topics among them."""
+    topics, types = values["topics"], values["types"]
+    if len(topics) != len(types) or not topics:
+        raise ParameterFileError(
+            f"parameter 'types': expected one type per topic ({len(topics)} topics), "
+            f"got {len(types)}"
+        )
+    for key in ("latched_topics", "counted_topics"):
+        extra = set(values[key]) - set(topics)
+        if extra:
+            raise ParameterFileError(f"parameter '{key}': {sorted(extra)} not in 'topics'")
 
 
 def node_values(scenario: dict[str, Any], role: str) -> dict[str, Any]:

@@ -61,8 +61,10 @@ def load_scenario(path: Path) -> dict[str, Any]:
     """Read a scenario (a ROS parameter file) and check its top-level layout."""
     try:
         data = yaml.safe_load(Path(path).read_text())
-    except (OSError, yaml.YAMLError) as err:
+    except OSError as err:
         raise ConfigError(f"scenario {path}: cannot read it: {err}") from err
+    except (yaml.YAMLError, UnicodeDecodeError) as err:
+        raise ConfigError(f"scenario {path}: not valid YAML: {yaml_problem(err)}") from err
     if not isinstance(data, dict):
         raise ConfigError(f"scenario {path}: expected a mapping of node sections")
     for key, value in data.items():
@@ -76,6 +78,47 @@ def load_scenario(path: Path) -> dict[str, Any]:
     if "plant" not in data:
         raise ConfigError(f"scenario {path}: a 'plant' section is required")
     return data
+
+
+def params_files(args: list[str]) -> list[str]:
+    """The files of the ``--params-file FILE`` options of a ROS command line."""
+    return [args[i + 1] for i, a in enumerate(args[:-1]) if a == "--params-file"]
+
+
+def check_params_files(args: list[str]) -> None:
+    """Every ``--params-file`` of a node's command line exists and is YAML, before rcl reads it.
+
+    rcl's own refusal is an exception with a C source location and a log
+    line; this names the file and the problem in one line.
+
+    Raises
+    ------
+    ConfigError
+        ``parameter file <path>: ...`` for a file that cannot be read or is
+        not valid YAML (the position of the error in the message).
+    """
+    for name in params_files(args):
+        try:
+            yaml.safe_load(Path(name).read_text())
+        except OSError as err:
+            raise ConfigError(f"parameter file {name}: cannot read it: {err.strerror}") from err
+        except (yaml.YAMLError, UnicodeDecodeError) as err:
+            raise ConfigError(
+                f"parameter file {name}: not valid YAML: {yaml_problem(err)}"
+            ) from err
+
+
+def yaml_problem(err: Exception) -> str:
+    """A YAML error in one line: the problem and where (1-based line, column)."""
+    if not isinstance(err, yaml.MarkedYAMLError) or err.problem is None:
+        return " ".join(str(err).split())
+    text = str(err.problem)
+    if err.problem_mark is not None:
+        text += f" at line {err.problem_mark.line + 1}, column {err.problem_mark.column + 1}"
+    if err.context and err.context_mark is not None:
+        mark = err.context_mark
+        text += f" ({err.context} from line {mark.line + 1}, column {mark.column + 1})"
+    return text
 
 
 def axis_section(key: str) -> tuple[str, str] | None:

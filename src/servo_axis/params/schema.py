@@ -183,13 +183,28 @@ def check_values(schema: Schema, given: Mapping[str, object], node: str = "node"
     return values
 
 
-def build(prefix: str, factory: Callable[..., T], **kwargs: Any) -> T:
-    """Call a validating constructor; re-raise its error naming the full parameter."""
+def build(
+    prefix: str,
+    factory: Callable[..., T],
+    *,
+    keys: Mapping[str, str] | None = None,
+    **kwargs: Any,
+) -> T:
+    """Call a validating constructor; re-raise its error naming the full parameter.
+
+    The constructor's :class:`ConfigError` names its own argument
+    (``period_s: ...``); the parameter is ``prefix`` + that name, or
+    ``keys[name]`` when the argument comes from a key of another name
+    (``{"period_s": "control_period_s"}``).
+    """
     try:
         return factory(**kwargs)
+    except ParameterFileError:
+        raise  # already names its parameter
     except ConfigError as err:
         field, _, detail = str(err).partition(": ")
-        raise ParameterFileError(f"parameter '{prefix}{field}': {detail}") from err
+        name = (keys or {}).get(field, prefix + field)
+        raise ParameterFileError(f"parameter '{name}': {detail}") from err
 
 
 def section(values: Mapping[str, Any], prefix: str) -> dict[str, Any]:
