@@ -38,7 +38,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
 from servo_axis.analysis.health import NodeDeath, RunHealth, assess
-from servo_axis.core.errors import ConfigError
+from servo_axis.core.errors import ConfigError, ParameterFileError
 from servo_axis.params.factories import checked_values, node_values, run_steps
 from servo_axis.params.scenario import (
     axes_of,
@@ -315,21 +315,25 @@ def prepare_axis_runs(
             "each axis in its own namespace (no --composed, no --namespace)"
         )
     for axis in axes:  # every section of every axis, before anything is written or started
-        _check_sections(axis_view(scenario, axis, scenario_path.parent), run_dir / axis)
+        view = axis_view(scenario, axis, scenario_path.parent)
+        _check_sections(view, run_dir / axis, scenario_path.parent)
     if not axes:
-        _check_sections(scenario, run_dir)
+        _check_sections(scenario, run_dir, scenario_path.parent)
     return [
         _prepare_axis(scenario, scenario_path, run_dir, axis, namespace, extra_args or [])
         for axis in axes or [""]
     ]
 
 
-def _check_sections(scenario: dict[str, Any], axis_dir: Path) -> None:
+def _check_sections(scenario: dict[str, Any], axis_dir: Path, scenario_dir: Path) -> None:
     """Check each node's section as the node will (ParameterFileError naming the key)."""
     roles = roles_of(scenario)
-    overrides = handshake_overrides(scenario, roles, axis_dir / "bag", axis_dir)
+    overrides = handshake_overrides(scenario, roles, axis_dir / "bag", scenario_dir)
     for role in roles:
-        checked_values(role, {**node_params(scenario, role), **overrides.get(role, {})})
+        values = checked_values(role, {**node_params(scenario, role), **overrides.get(role, {})})
+        table = values.get("friction_table.file") if values.get("friction_table.enabled") else None
+        if table and not Path(table).is_file():
+            raise ParameterFileError(f"parameter 'friction_table.file': no such file {table}")
 
 
 def _prepare_axis(
