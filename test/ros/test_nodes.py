@@ -26,7 +26,7 @@ from servo_axis.nodes.feedforward import FeedforwardNode
 from servo_axis.nodes.learning import LearningNode
 from servo_axis.nodes.plant import PlantNode
 from servo_axis.nodes.recorder import RecorderNode
-from servo_axis.nodes.runtime import LATCHED_QOS, STREAM_QOS
+from servo_axis.nodes.runtime import LATCHED_QOS, LIVELINESS_LEASE_S, STREAM_QOS
 from servo_axis.params.scenario import (
     axes_of,
     axis_view,
@@ -236,13 +236,21 @@ def test_feedback_trips_when_reference_stops_arriving(context: Context) -> None:
     probe = Probe(context)
     nodes = [fb, probe]
     spin_until(context, nodes, connected(probe, fb))
+    probe.destroy_publisher(probe.ref_pub)  # the generator is gone: no reference will come
     t0 = time.monotonic()
-    probe.state_pub.publish(probe.state(0))  # no reference will ever come
+    probe.state_pub.publish(probe.state(0))
     spin_until(context, nodes, lambda: len(probe.faults) >= 1 and len(probe.commands) >= 1)
     elapsed = time.monotonic() - t0
     assert probe.faults[0][:2] == [0.0, 4.0]
     assert probe.commands[0].current_A == 0.0
-    assert 0.3 <= elapsed < 0.3 + 1.0
+    # Within the stated bound: lease + input_timeout_s + the watchdog period.
+    assert 0.3 <= elapsed < LIVELINESS_LEASE_S + 0.3 + 0.03 + 0.2
+    assert [f.kind for f in fb.health.fallbacks] == ["input_timeout"]
+    # Every later state is answered, with zero current: the plant runs to the end.
+    for k in range(1, 4):
+        probe.state_pub.publish(probe.state(k))
+    spin_until(context, nodes, lambda: len(probe.commands) >= 4)
+    assert [(c.step, c.current_A) for c in probe.commands] == [(k, 0.0) for k in range(4)]
     fb.destroy_node()
     probe.destroy_node()
 
@@ -277,7 +285,7 @@ def test_plant_rejects_bad_commands_and_waits_for_a_valid_one(context: Context) 
     plant = PlantNode(
         context=context, parameter_overrides=[Parameter("wait_for_state_subscribers", value=1)]
     )
-    probe = Node("cmd_probe", context=context)
+    probe = Node("feedback", context=context)  # the plant waits for the expected consumers
     cmd_pub = probe.create_publisher(JointState, "command", STREAM_QOS)
     states: list[msgs.StateSample] = []
     probe.create_subscription(
@@ -331,7 +339,7 @@ def test_realtime_plant_holds_the_newest_command_and_counts_misses(context: Cont
             Parameter("wait_for_state_subscribers", value=1),
         ],
     )
-    probe = Node("rt_probe", context=context)
+    probe = Node("feedback", context=context)
     cmd_pub = probe.create_publisher(JointState, "command", STREAM_QOS)
 
     def command(step: int, current: float) -> JointState:
@@ -485,7 +493,7 @@ def test_learning_node_learns_only_from_whole_cycles_of_valid_states(context: Co
 
     with pytest.raises(ParameterFileError, match=r"'cycle_s': at most"):
         node(cycle_s=2.0)  # more than the state stream's history can hold
-    learning = node()
+    learning = node(late_join=True)  # respawned mid-run: joins at the first state it gets
     probe = Probe(context)
     stats: list[list[float]] = []
     probe.create_subscription(
@@ -495,12 +503,11 @@ def test_learning_node_learns_only_from_whole_cycles_of_valid_states(context: Co
     spin_until(context, nodes, lambda: probe.state_pub.get_subscription_count() >= 1)
     probe.state_pub.publish(probe.state(10**6))  # beyond the run's 2,000 steps: rejected
     spin_until(context, nodes, lambda: learning.rejected >= 1)
-    for k in range(40):
-        if k != 4:  # one reference instant of cycle 1 never arrives
-            probe.state_pub.publish(probe.state(k))
+    for k in range(4, 40):  # joins at step 4: cycle 1 lacks two of its instants
+        probe.state_pub.publish(probe.state(k))
     spin_until(context, nodes, lambda: len(stats) >= 2)
     assert learning.rejected == 1
-    # Cycle 1 lacks an instant: reported but not learned; cycle 2 is learned.
+    # Cycle 1 was seen in part: reported but not learned; cycle 2 is learned.
     assert [s[0] for s in stats] == [1.0, 2.0] and [s[3] for s in stats] == [0.0, 1.0]
     # The axis stood still at 0: the error is the reference itself.
     target_m = learning.reference.sample(np.arange(10, 20) * 2e-3)[0]
@@ -691,7 +698,7 @@ def test_the_learning_unit_listens_only_once_its_outputs_are_heard(context: Cont
             Parameter("wait_for_correction_subscribers", value=1),
         ],
     )
-    probe = Node("heard_probe", context=context)
+    probe = Node("feedforward", context=context)  # the expected consumer, by name
     nodes = [learning, probe]
     deadline = time.monotonic() + 0.5
     spin_until(context, nodes, lambda: time.monotonic() > deadline)
@@ -702,3 +709,233 @@ def test_the_learning_unit_listens_only_once_its_outputs_are_heard(context: Cont
     spin_until(context, nodes, lambda: probe.count_subscribers("state") == 1)
     learning.destroy_node()
     probe.destroy_node()
+
+
+# -- streams, peers and handshakes (issue 7) -------------------------------------------
+
+
+def test_stamps_ahead_of_the_stream_do_not_displace_it(context: Context, tmp_path: Path) -> None:
+    """A valid-looking state and reference stamped step + 1000 and 1e9 s, mid-run:
+    refused by the feedback; the run goes on and every step is commanded once."""
+    scenario = CONFIG / "ptc_nominal.yaml"
+    steps = 300
+    data = load_scenario(scenario)
+    data["/**"]["ros__parameters"]["duration_s"] = 0.3
+    nodes = graph_nodes(context, data, tmp_path / "bag", scenario.parent)
+    recorder, feedback, plant = nodes[0], nodes[roles_of(data).index("feedback")], nodes[-1]
+    assert isinstance(feedback, FeedbackNode) and isinstance(plant, PlantNode)
+    junk = Probe(context)
+    junk_at = 100
+    far = 10**12  # 1e9 s at 1 ms
+
+    def on_state(m: JointState) -> None:
+        if msgs.step_from_stamp(m.header.stamp, PERIOD_NS) == junk_at:
+            for step in (junk_at + 1000, far):
+                junk.state_pub.publish(junk.state(step))
+                junk.ref_pub.publish(junk.reference(step, 0.5, 3.0))
+
+    junk.create_subscription(JointState, "state", on_state, STREAM_QOS)
+    try:
+        spin_until(context, [*nodes, junk], lambda: plant.done, timeout_s=30)
+        counts = recorder.message_counts
+    finally:
+        recorder.close()
+        for n in [*nodes, junk]:
+            n.destroy_node()
+    assert counts["/command"] == steps
+    assert counts["/state"] == steps + 2  # the recorder keeps what was on the wire
+    assert feedback.health.rejected == {"state": 2, "reference": 2}
+    assert not feedback.loop.tripped and not plant.health.fallbacks
+    assert plant.health.rejected == {}
+
+
+def test_learning_unit_validates_a_state_before_it_moves_its_gate(context: Context) -> None:
+    """NaN, short and wrong-name states a little ahead leave the collected error alone."""
+    learning = LearningNode(
+        context=context,
+        parameter_overrides=[Parameter("cycle_s", value=0.02), Parameter("nq", value=2)],
+    )
+    probe = Probe(context)
+    stats: list[list[float]] = []
+    probe.create_subscription(
+        Float64MultiArray, "learning/cycle_stats", lambda m: stats.append(list(m.data)), STREAM_QOS
+    )
+    nodes = [learning, probe]
+    spin_until(context, nodes, lambda: probe.state_pub.get_subscription_count() >= 1)
+    for k in range(10):
+        probe.state_pub.publish(probe.state(k))
+    spin_until(context, nodes, lambda: learning._gate.last == 8)
+    collected = learning._error.error.copy()
+    nan = probe.state(12)
+    nan.position = [math.nan, 0.0]
+    short = probe.state(12)
+    short.effort = [0.0]
+    wrong = probe.state(12)
+    wrong.name = ["y_motor", "y_table"]
+    ahead_nan = probe.state(10)
+    ahead_nan.velocity = [math.inf, 0.0]
+    for m in (nan, short, wrong, ahead_nan):
+        probe.state_pub.publish(m)
+    spin_until(context, nodes, lambda: learning.rejected >= 4)
+    assert learning._gate.last == 8
+    np.testing.assert_array_equal(learning._error.error, collected)
+    for k in range(10, 40):
+        probe.state_pub.publish(probe.state(k))
+    spin_until(context, nodes, lambda: len(stats) >= 2)
+    # Cycle 1 was whole after all: learned (cycles_learned 1 after it).
+    assert learning.rejected == 4 and learning.health.rejected == {"state": 4}
+    assert [s[0] for s in stats] == [1.0, 2.0] and [s[3] for s in stats] == [1.0, 2.0]
+    target_m = learning.reference.sample(np.arange(0, 10) * 2e-3)[0]
+    np.testing.assert_allclose(stats[0][1], np.sqrt(np.mean(target_m**2)), rtol=1e-12)
+    learning.destroy_node()
+    probe.destroy_node()
+
+
+def progress_message(value: float) -> Float64MultiArray:
+    """A recorder/progress message with any value (the encoder refuses NaN/inf)."""
+    msg = msgs.labelled_array(msgs.PROGRESS_LABELS, [0])
+    msg.data = [value]
+    return msg
+
+
+def test_plant_rejects_implausible_recorder_progress_under_its_topic(context: Context) -> None:
+    steps = 30
+    plant = PlantNode(
+        context=context,
+        parameter_overrides=[
+            Parameter("duration_s", value=steps * 1e-3),
+            Parameter("flow_control", value=True),
+            Parameter("max_recorder_lag_steps", value=5),
+            Parameter("wait_for_state_subscribers", value=1),
+        ],
+    )
+    feedback = Node("feedback", context=context)
+    cmd_pub = feedback.create_publisher(JointState, "command", STREAM_QOS)
+    states: list[int] = []
+    recorder = Node("recorder", context=context)
+    progress_pub = recorder.create_publisher(Float64MultiArray, "recorder/progress", LATCHED_QOS)
+    auto_ack = [False]
+
+    def on_state(m: JointState) -> None:
+        step = msgs.step_from_stamp(m.header.stamp, PERIOD_NS)
+        states.append(step)
+        if auto_ack[0]:
+            progress_pub.publish(progress_message(len(states)))
+        cmd_pub.publish(
+            msgs.command_to_msg(msgs.CommandSample(step, 0.0), axis="x", period_ns_=PERIOD_NS)
+        )
+
+    feedback.create_subscription(JointState, "state", on_state, STREAM_QOS)
+    nodes = [plant, feedback, recorder]
+    spin_until(context, nodes, lambda: cmd_pub.get_subscription_count() >= 1)
+    progress_pub.publish(progress_message(0))  # ready
+    spin_until(context, nodes, lambda: len(states) == 6 and plant._command is not None)
+    assert plant.plant.step_index == 5  # held at the lag: step 6 needs step 1 recorded
+    # NaN, inf, not whole, beyond the 6 states published (one at a time: depth 1)
+    for count, bad in enumerate((math.nan, math.inf, 2.5, 1000.0), start=1):
+        progress_pub.publish(progress_message(bad))
+        spin_until(context, nodes, lambda n=count: plant.rejected >= n)
+    progress_pub.publish(progress_message(3.0))  # good: the plant may go to step 8
+    spin_until(context, nodes, lambda: len(states) == 9)
+    progress_pub.publish(progress_message(2.0))  # below the last one
+    spin_until(context, nodes, lambda: plant.rejected >= 5)
+    assert plant._flow.recorded == 3 and plant.plant.step_index == 8
+    auto_ack[0] = True
+    progress_pub.publish(progress_message(len(states)))
+    spin_until(context, nodes, lambda: plant.done)
+    assert states == list(range(steps))
+    assert plant.health.rejected == {"recorder/progress": 5}  # not counted as commands
+    assert not plant.health.fallbacks and plant._flow.enabled
+    for n in nodes:
+        n.destroy_node()
+
+
+def test_plant_waits_for_a_slow_feedback_and_falls_back_only_once_it_is_gone(
+    context: Context,
+) -> None:
+    steps = 10
+    plant = PlantNode(
+        context=context,
+        parameter_overrides=[
+            Parameter("duration_s", value=steps * 1e-3),
+            Parameter("command_timeout_s", value=0.2),
+            Parameter("wait_for_state_subscribers", value=1),
+        ],
+    )
+    feedback = Node("feedback", context=context)
+    cmd_pub = feedback.create_publisher(JointState, "command", STREAM_QOS)
+    states: list[msgs.StateSample] = []
+    feedback.create_subscription(
+        JointState,
+        "state",
+        lambda m: states.append(msgs.state_from_msg(m, axis="x", period_ns_=PERIOD_NS)),
+        STREAM_QOS,
+    )
+    nodes = [plant, feedback]
+    spin_until(context, nodes, lambda: len(states) == 1 and cmd_pub.get_subscription_count() >= 1)
+    slow = time.monotonic() + 4 * 0.2  # four command timeouts, and more than the 1 s lease
+    spin_until(context, nodes, lambda: time.monotonic() > slow + LIVELINESS_LEASE_S)
+    assert plant._timeouts == 0 and plant.plant.step_index == 0 and not plant.health.fallbacks
+    cmd_pub.publish(msgs.command_to_msg(msgs.CommandSample(0, 2.0), axis="x", period_ns_=PERIOD_NS))
+    spin_until(context, nodes, lambda: len(states) == 2)
+    assert states[1].motor_torque_Nm == pytest.approx(2.0 * 0.715, rel=1e-12)
+    t0 = time.monotonic()
+    feedback.destroy_publisher(cmd_pub)  # the feedback is gone
+    spin_until(context, nodes, lambda: plant.done, timeout_s=5)
+    assert time.monotonic() - t0 < LIVELINESS_LEASE_S + 0.2 + 0.05 + 0.5
+    spin_until(context, nodes, lambda: len(states) == steps)
+    (fallback,) = plant.health.fallbacks
+    assert (fallback.kind, fallback.step) == ("command_timeout", 1)
+    assert plant._timeouts == steps - 1
+    assert [s.step for s in states] == list(range(steps))
+    for n in nodes:
+        n.destroy_node()
+
+
+def test_feedforward_keeps_the_last_correction_only_once_the_learning_unit_is_gone(
+    context: Context,
+) -> None:
+    ff = FeedforwardNode(
+        context=context,
+        parameter_overrides=[
+            Parameter("learning.enabled", value=True),
+            Parameter("learning.cycle_s", value=0.02),  # 20 samples, 10 reference instants
+            Parameter("learning.timeout_s", value=0.2),
+            Parameter("preview_steps", value=100),
+        ],
+    )
+    learning = Node("learning", context=context)
+    pub = learning.create_publisher(JointState, "learning/correction", STREAM_QOS)
+    nodes = [ff, learning]
+    spin_until(context, nodes, lambda: pub.get_subscription_count() >= 1 and ff.published == 18)
+    later = time.monotonic() + 5 * 0.2  # the plant stands still, the unit lives: wait
+    spin_until(context, nodes, lambda: time.monotonic() > later)
+    assert ff.missed_corrections == 0 and ff.published == 18 and not ff.health.fallbacks
+    t0 = time.monotonic()
+    learning.destroy_publisher(pub)
+    spin_until(context, nodes, lambda: ff.missed_corrections == 1)
+    assert time.monotonic() - t0 < LIVELINESS_LEASE_S + 0.2 + 0.04 + 0.5
+    (fallback,) = ff.health.fallbacks
+    assert (fallback.kind, fallback.step) == ("learning_timeout", 18)
+    assert ff.published == 38  # cycle 2 runs with the last (zero) correction
+    for n in nodes:
+        n.destroy_node()
+
+
+def test_feedback_listens_only_once_its_command_is_heard(context: Context) -> None:
+    fb = FeedbackNode(
+        context=context, parameter_overrides=[Parameter("wait_for_command_subscribers", value=1)]
+    )
+    stranger = Node("someone", context=context)
+    stranger.create_subscription(JointState, "command", lambda m: None, STREAM_QOS)
+    nodes = [fb, stranger]
+    deadline = time.monotonic() + 0.7
+    spin_until(context, nodes, lambda: time.monotonic() > deadline)
+    # A stranger's subscription does not stand in for the plant's.
+    assert not fb.inputs_subscribed and stranger.count_subscribers("state") == 0
+    plant = Node("plant", context=context)
+    plant.create_subscription(JointState, "command", lambda m: None, STREAM_QOS)
+    spin_until(context, [*nodes, plant], lambda: fb.inputs_subscribed)
+    spin_until(context, [*nodes, plant], lambda: stranger.count_subscribers("state") == 1)
+    for n in [*nodes, plant]:
+        n.destroy_node()

@@ -66,6 +66,8 @@ class Stamped(Protocol):
 
 T = TypeVar("T")
 
+#: The node name the ROS graph gives an endpoint whose node it has not learnt yet.
+UNKNOWN_NODE_NAME = "_NODE_NAME_UNKNOWN_"
 #: Seconds between two looks at the graph for strangers.
 STRANGER_CHECK_S = 0.5
 #: Seconds the expected consumers of a topic must have been matched when a
@@ -121,6 +123,7 @@ class ServoNode(Node):
         self._watched: list[str] = []
         self._stranger_gids: set[str] = set()
         self._matched_since: dict[str, float] = {}
+        self._prefix: bytes | None = None
         self.create_timer(STRANGER_CHECK_S, self._check_strangers, clock=steady_clock())
 
     def publisher(self, name: str) -> Publisher:
@@ -182,8 +185,32 @@ class ServoNode(Node):
 
     # -- peers -------------------------------------------------------------------
     def peer_alive(self, name: str) -> bool:
-        """Whether a publisher of subscribed topic ``name`` is alive (liveliness)."""
-        return self._alive.get(name, 0) > 0
+        """Whether a publisher of subscribed topic ``name`` is alive (liveliness).
+
+        Fast DDS asserts AUTOMATIC liveliness between participants only: a
+        publisher of this process (the same participant: a composed run, the
+        nodes of a test) counts as alive only for a lease after its last
+        message. Such a publisher lives as long as it is in the graph, so it
+        counts as alive while it is there.
+        """
+        if self._alive.get(name, 0) > 0:
+            return True
+        prefix = self._participant_prefix()
+        if prefix is None:
+            return False
+        infos = self.get_publishers_info_by_topic(self.resolve_topic_name(name))
+        return any(bytes(i.endpoint_gid)[: len(prefix)] == prefix for i in infos)
+
+    def _participant_prefix(self) -> bytes | None:
+        """The GUID prefix (12 bytes) of this process's DDS participant, from our own endpoints."""
+        if self._prefix is None:
+            ns, me = self.get_namespace(), self.get_name()
+            for topic_name in ("/rosout", "/parameter_events"):
+                for info in self.get_publishers_info_by_topic(topic_name):
+                    if info.node_name == me and info.node_namespace == ns:
+                        self._prefix = bytes(info.endpoint_gid)[:12]
+                        return self._prefix
+        return self._prefix
 
     def fallback(self, kind: str, step: int, detail: str) -> None:
         """Record (log, report) that the node went on other than by the protocol."""
@@ -227,7 +254,13 @@ class ServoNode(Node):
         new = False
         for name in self._watched:
             entry = topics.topic(name)
-            infos = self.get_publishers_info_by_topic(self.resolve_topic_name(name))
+            # An endpoint discovered before its participant's node names has
+            # node "_NODE_NAME_UNKNOWN_": not judged until the graph names it.
+            infos = [
+                i
+                for i in self.get_publishers_info_by_topic(self.resolve_topic_name(name))
+                if i.node_name != UNKNOWN_NODE_NAME
+            ]
             is_ours = [i.node_name == entry.producer and i.node_namespace == ns for i in infos]
             ours = [i for i, mine in zip(infos, is_ours, strict=True) if mine]
             others = [i for i, mine in zip(infos, is_ours, strict=True) if not mine]

@@ -8,10 +8,33 @@ Topics (relative to the namespace):
   (Float64MultiArray ``[step, code, value]``, latched, once on a trip).
 
 For ``state[k]`` the node answers ``command[k]`` as soon as
-``reference[k]`` is here. If it does not come within ``input_timeout_s`` of
-wall time, the loop trips: zero current from then on, fault published. The
-controlled output is :func:`servo_axis.core.feedback.output.controlled_output`
-of the ``sensor`` parameter.
+``reference[k]`` is here. The controlled output is
+:func:`servo_axis.core.feedback.output.controlled_output` of the ``sensor``
+parameter.
+
+Streams: ``state`` is taken exactly in order in lockstep (the next step
+only; realtime: at most :data:`~servo_axis.nodes.lockstep.REALTIME_WINDOW`
+steps ahead), ``reference`` exactly in order (the generator publishes it so)
+and at most ``max_preview_steps`` ahead of the last state: a message stamped
+ahead of the stream is refused and never displaces it.
+
+Handshake: with ``wait_for_command_subscribers``, the node subscribes to
+``state`` (which the plant waits for before step 0) and ``reference`` only
+once its ``command`` publisher is matched with the plant and the recorder
+(:meth:`~servo_axis.nodes.base.ServoNode.consumers_matched`), so that no
+command is published unheard.
+
+Fallback: in lockstep the node waits for ``reference[k]`` as long as the
+generator lives (liveliness of ``reference``); once it has been gone for
+``input_timeout_s`` while a state waits, the loop trips (fault
+``input_timeout``, zero current from then on, recorded as a fallback) and
+every later state is answered with zero current, so the plant runs to the
+end. A generator that dies makes the loop trip within
+``LIVELINESS_LEASE_S + input_timeout_s + input_timeout_s / 10`` (the lease
+after which it is seen gone, the grace, the watchdog period) of its death
+or of the first state it leaves unanswered, whichever is later. In realtime
+the wall-clock rule stays: ``input_timeout_s`` after a state came without
+its reference.
 
 Run: ``python -m servo_axis.nodes.feedback --ros-args --params-file config/<scenario>.yaml``
 """
@@ -25,10 +48,11 @@ from servo_axis.core.errors import SignalError
 from servo_axis.core.feedback.loop import Fault, LoopOutput
 from servo_axis.core.feedback.output import controlled_output
 from servo_axis.nodes.base import ServoNode
-from servo_axis.nodes.lockstep import SampleBuffer, StampGate
+from servo_axis.nodes.lockstep import PeerWatch, SampleBuffer, stream_window
 from servo_axis.nodes.runtime import run_main, steady_clock
 from servo_axis.params.factories import build_loop
 from servo_axis.wire import messages as msgs
+from servo_axis.wire.streams import StreamGate
 
 
 class FeedbackNode(ServoNode):
@@ -47,38 +71,61 @@ class FeedbackNode(ServoNode):
         self._command_msg = msgs.joint_state_template(msgs.motor_names(self._axis), ("effort",))
         self._command_pub = self.publisher("command")
         self._fault_pub = self.publisher("fault")
-        period_ns, axis = self._period_ns, self._axis
-        self.subscribe(
-            "state",
-            lambda m: self._state_gate(msgs.state_from_msg(m, axis=axis, period_ns_=period_ns)),
-            self._on_state,
-        )
-        self.subscribe(
-            "reference",
-            lambda m: self._reference_gate(
-                msgs.reference_from_msg(m, axis=axis, period_ns_=period_ns)
-            ),
-            self._on_reference,
-        )
-        self.create_timer(values["input_timeout_s"] / 10.0, self._watchdog, clock=steady_clock())
 
         self._references: SampleBuffer[msgs.ReferenceSample] = SampleBuffer()
-        self._states = StampGate()
-        self._refs = StampGate()
+        self._states = StreamGate(window=stream_window(self._lockstep), first=0)
+        self._refs = StreamGate(window=1, first=0)
         self._held: msgs.ReferenceSample | None = None
         self._pending: msgs.StateSample | None = None
         self._pending_since = 0.0
+        self._feedforward = PeerWatch()
         self.missed_references = 0
+        self.inputs_subscribed = False
+        # The plant starts only once this node subscribes to `state`; doing so
+        # only after `command` is matched with its consumers means that no
+        # command is lost to a reader still being discovered.
+        if self.consumers_matched(
+            self._command_pub, "command", values["wait_for_command_subscribers"]
+        ):
+            self._subscribe_inputs()
+            self._outputs_timer = None
+        else:
+            self._outputs_timer = self.create_timer(
+                0.01, self._subscribe_when_heard, clock=steady_clock()
+            )
+        self.create_timer(values["input_timeout_s"] / 10.0, self._watchdog, clock=steady_clock())
 
-    def _state_gate(self, state: msgs.StateSample) -> msgs.StateSample:
-        self._states.accept(state.step)
-        return state
+    def _subscribe_when_heard(self) -> None:
+        if not self.consumers_matched(
+            self._command_pub, "command", self._v["wait_for_command_subscribers"]
+        ):
+            return
+        if self._outputs_timer is not None:
+            self._outputs_timer.cancel()
+        self._subscribe_inputs()
 
-    def _reference_gate(self, ref: msgs.ReferenceSample) -> msgs.ReferenceSample:
-        self._refs.check(ref.step)
-        if ref.step > max(self._states.last, 0) + self._v["max_preview_steps"]:
+    def _subscribe_inputs(self) -> None:
+        period_ns, axis = self._period_ns, self._axis
+        self.subscribe(
+            "state",
+            lambda m: msgs.state_from_msg(m, axis=axis, period_ns_=period_ns),
+            self._on_state,
+            gate=self._states,
+        )
+        self.subscribe(
+            "reference",
+            lambda m: self._within_preview(
+                msgs.reference_from_msg(m, axis=axis, period_ns_=period_ns)
+            ),
+            self._on_reference,
+            gate=self._refs,
+        )
+        self.inputs_subscribed = True
+
+    def _within_preview(self, ref: msgs.ReferenceSample) -> msgs.ReferenceSample:
+        last_state = self._states.last if self._states.last is not None else 0
+        if ref.step > max(last_state, 0) + self._v["max_preview_steps"]:
             raise SignalError(f"step {ref.step} is too far in the future")
-        self._refs.accept(ref.step)
         return ref
 
     def _on_state(self, state: msgs.StateSample) -> None:
@@ -128,12 +175,24 @@ class FeedbackNode(ServoNode):
         )
 
     def _watchdog(self) -> None:
+        now = time.monotonic()
+        self._feedforward.look(self.peer_alive("reference"), now)
         if self._pending is None or self.loop.tripped:
             return
-        waited = time.monotonic() - self._pending_since
-        if waited > self._v["input_timeout_s"]:
+        timeout = self._v["input_timeout_s"]
+        if self._lockstep:
+            # Wait as long as the generator lives; a gone one gets
+            # input_timeout_s to come back.
+            waited = self._feedforward.gone_for(now)
+            detail = f"the feedforward generator (reference) has been gone for {waited:.3g} s"
+        else:
+            waited = now - self._pending_since
+            detail = f"no reference within {waited:.3g} s of wall time"
+        if waited > timeout:
+            step = self._pending.step
             self.loop.trip(Fault.INPUT_TIMEOUT)
-            self._publish_fault(self._pending.step, Fault.INPUT_TIMEOUT, waited)
+            self._publish_fault(step, Fault.INPUT_TIMEOUT, waited)
+            self.fallback("input_timeout", step, f"{detail}: tripped, zero current from here")
             self._try_answer()
 
     def _publish_fault(self, step: int, fault: Fault, value: float) -> None:

@@ -9,10 +9,23 @@ Topics (relative to the namespace):
 * with learning, subscribes ``learning/correction`` and applies each
   period's correction from the period it is stamped for.
 
-It publishes the first window as soon as ``wait_for_reference_subscribers``
-subscribers have matched, then tops the window up whenever the plant has
-used half of it. It never publishes past the end of the run, so that every
-run records the same messages.
+It publishes the first window as soon as its ``reference`` publisher is
+matched with its ``wait_for_reference_subscribers`` consumers (the feedback
+and the recorder, by name: :meth:`~servo_axis.nodes.base.ServoNode.consumers_matched`),
+then tops the window up whenever the plant has used half of it. It never
+publishes past the end of the run, so that every run records the same
+messages. A ``plant/status`` must carry a whole step, not below the last
+one and not beyond the references published (realtime: the run's end);
+others are rejected.
+
+Fallback (``learning.timeout_s``): in lockstep a cycle waits for its
+correction as long as the learning unit lives (liveliness of
+``learning/correction``). It runs with the last correction (recorded as a
+fallback) only once the unit has been gone for ``learning.timeout_s``, or
+once it went away during the wait (a respawned unit did not see the cycle
+end it owed a correction for) and the plant has then stood still for
+``learning.timeout_s``. In realtime: once the plant has stood still at the
+boundary for ``learning.timeout_s``.
 
 Run: ``python -m servo_axis.nodes.feedforward --ros-args --params-file config/<scenario>.yaml``
 """
@@ -26,6 +39,7 @@ import numpy as np
 
 from servo_axis.core.errors import SignalError
 from servo_axis.nodes.base import ServoNode
+from servo_axis.nodes.lockstep import PeerWatch
 from servo_axis.nodes.runtime import run_main, steady_clock
 from servo_axis.params.factories import build_generator, grid, learning_period_steps, run_steps
 from servo_axis.wire import messages as msgs
@@ -47,9 +61,14 @@ class FeedforwardNode(ServoNode):
 
         self._pub = self.publisher("reference")
         self._learning = values["learning.enabled"]
+        self._lockstep = values["mode"] == "lockstep"
         self._corrections: dict[int, dict[int, tuple[float, float]]] = {}
         self.missed_corrections = 0
         self._waiting_since: float | None = None
+        self._learner = PeerWatch()
+        self.started = False
+        self.published = 0  # samples 0 .. published-1 are out
+        self._plant_step = -1
         period_ns, axis = self._period_ns, self._axis
         if self._learning:
             self._cycle_steps = learning_period_steps(values) or 0
@@ -65,24 +84,35 @@ class FeedforwardNode(ServoNode):
             )
         self.subscribe(
             "plant/status",
-            lambda m: int(msgs.labelled_array_values(m, msgs.STATUS_LABELS)[0]),
+            lambda m: self._plausible_status(msgs.labelled_array_values(m, msgs.STATUS_LABELS)[0]),
             self._on_status,
         )
         self._start_timer = self.create_timer(0.01, self._try_start, clock=steady_clock())
 
-        self.started = False
-        self.published = 0  # samples 0 .. published-1 are out
-        self._plant_step = -1
-
     def _try_start(self) -> None:
-        if self._pub.get_subscription_count() < self._v["wait_for_reference_subscribers"]:
+        if not self.consumers_matched(
+            self._pub, "reference", self._v["wait_for_reference_subscribers"]
+        ):
             return
         self._start_timer.cancel()
         self.started = True
         self._fill(self._window)
 
+    def _plausible_status(self, value: float) -> int:
+        """The plant's step: whole, not below the last one, not beyond what the
+        plant can have reached (lockstep: the references published)."""
+        if value != int(value):
+            raise SignalError(f"step: expected a whole number, got {value!r}")
+        step = int(value)
+        if step < self._plant_step:
+            raise SignalError(f"step {step} below the last one {self._plant_step}")
+        bound = self.published if self._lockstep else self._steps
+        if step > bound:
+            raise SignalError(f"step {step} beyond what the plant can have reached ({bound})")
+        return step
+
     def _on_status(self, step: int) -> None:
-        self._plant_step = max(self._plant_step, step)
+        self._plant_step = step
         if self._waiting_since is not None:
             self._waiting_since = time.monotonic()  # the plant still moves: not stalled yet
         if self.started and self.published - self._plant_step <= self._window // 2:
@@ -116,27 +146,50 @@ class FeedforwardNode(ServoNode):
             self._fill(self._plant_step + self._window)
 
     def _learning_watchdog(self) -> None:
-        # A dead learning unit must not stop the axis: once the preview is used
-        # up to the cycle boundary and no plant/status has come for
-        # learning.timeout_s (the plant is stalled at the boundary), go on with
-        # the last correction (no learning for that cycle). Keep it below the
-        # feedback's input_timeout_s.
+        # A dead learning unit must not stop the axis; a live one is waited
+        # for (see the module docstring). The plant stands still at the
+        # boundary when no plant/status has come since _waiting_since.
+        now = time.monotonic()
+        self._learner.look(self.peer_alive("learning/correction"), now)
         ready = self.generator.ready_until()
         if ready is None or self.published < ready or ready >= self._steps:
             self._waiting_since = None
+            self._learner.forget()
             return
         if self._waiting_since is None:
-            self._waiting_since = time.monotonic()
-        elif time.monotonic() - self._waiting_since > self._v["learning.timeout_s"]:
-            cycle = (ready + self._grid.ratio) // self._cycle_steps
-            self.generator.repeat_correction(cycle)
-            self.missed_corrections += 1
-            self.get_logger().warning(
-                f"no learning correction for cycle {cycle + 1} within {self._v['learning.timeout_s']} s: "
-                f"keeping the last one ({self.missed_corrections} missed)"
+            self._waiting_since = now
+            return
+        timeout = self._v["learning.timeout_s"]
+        if not self._lockstep:
+            why = f"the plant stood still for {now - self._waiting_since:.3g} s"
+            late = now - self._waiting_since > timeout
+        elif self._learner.gone_for(now) > timeout:
+            why = f"the learning unit has been gone for {self._learner.gone_for(now):.3g} s"
+            late = True
+        elif self._learner.lost_at is not None:
+            still = now - max(self._waiting_since, self._learner.lost_at)
+            why = (
+                f"the learning unit went away during the wait and the plant stood still "
+                f"for {still:.3g} s"
             )
-            self._waiting_since = None
-            self._fill(self._plant_step + self._window)
+            late = still > timeout
+        else:
+            return  # it lives: wait however long it takes
+        if not late:
+            return
+        cycle = (ready + self._grid.ratio) // self._cycle_steps
+        self.generator.repeat_correction(cycle)
+        self._corrections.pop(cycle, None)
+        self.missed_corrections += 1
+        self.fallback(
+            "learning_timeout",
+            ready,
+            f"no learning correction for cycle {cycle + 1} within {timeout} s ({why}): "
+            f"keeping the last one ({self.missed_corrections} missed)",
+        )
+        self._waiting_since = None
+        self._learner.forget()
+        self._fill(self._plant_step + self._window)
 
     def _fill(self, until: int) -> None:
         until = min(until, self._steps)

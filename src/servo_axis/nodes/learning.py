@@ -18,6 +18,14 @@ as the feedforward generator from ``reference.*``) and the controlled output
 (``start_cycle``, the switch of 000 Fig. 17), writes its memory file and
 publishes ``c_{j+1}``. See docs/learning_protocol.md.
 
+The ``state`` stream is taken raw: only the reference instants are
+deserialised, validated whole and then passed through a
+:class:`~servo_axis.wire.streams.StreamGate` of stride ``ratio`` (exactly
+the next instant in lockstep, from step 0, or from the first one received
+with ``late_join``); the samples between them are skipped once their stamp
+is read, and never move the gate. A message stamped ahead, or one that is
+not valid, changes nothing.
+
 Run: ``python -m servo_axis.nodes.learning --ros-args --params-file config/<scenario>.yaml``
 """
 
@@ -33,7 +41,7 @@ from sensor_msgs.msg import JointState
 from servo_axis.core.errors import ParameterFileError, ServoAxisError, SignalError
 from servo_axis.core.feedback.output import controlled_output
 from servo_axis.nodes.base import ServoNode
-from servo_axis.nodes.lockstep import PeriodCollector, StampGate
+from servo_axis.nodes.lockstep import PeriodCollector, stream_window
 from servo_axis.nodes.runtime import STREAM_QOS, run_main, steady_clock
 from servo_axis.params.factories import (
     build_learning_law,
@@ -44,6 +52,7 @@ from servo_axis.params.factories import (
 )
 from servo_axis.storage import load_memory, save_memory
 from servo_axis.wire import messages as msgs
+from servo_axis.wire.streams import StreamGate
 
 
 class LearningNode(ServoNode):
@@ -84,7 +93,12 @@ class LearningNode(ServoNode):
         )
         self._correction_pub = self.publisher("learning/correction")
         self._stats_pub = self.publisher("learning/cycle_stats")
-        self._gate = StampGate(limit=self._steps)
+        self._gate = StreamGate(
+            window=stream_window(values["mode"] == "lockstep"),
+            first=None if values["late_join"] else 0,
+            limit=self._steps,
+            stride=self._grid.ratio,
+        )
         self._error = PeriodCollector(nd)
         self._target = np.zeros(nd)
         self._target_cycle = -1
@@ -98,14 +112,16 @@ class LearningNode(ServoNode):
 
     def _subscribe_when_heard(self) -> None:
         v = self._v
-        if (
-            self._correction_pub.get_subscription_count() < v["wait_for_correction_subscribers"]
-            or self._stats_pub.get_subscription_count() < v["wait_for_stats_subscribers"]
+        if not self.consumers_matched(
+            self._correction_pub, "learning/correction", v["wait_for_correction_subscribers"]
+        ) or not self.consumers_matched(
+            self._stats_pub, "learning/cycle_stats", v["wait_for_stats_subscribers"]
         ):
             return
         self._outputs_timer.cancel()
-        # raw: only the reference instants are decoded.
-        self.subscribe("state", self._decode_state, self._on_state, raw=True)
+        # raw: only the reference instants are decoded; the gate sees only
+        # those, once they are known valid.
+        self.subscribe("state", self._decode_state, self._on_state, raw=True, gate=self._gate)
         self.state_subscribed = True
 
     def _resume_memory(self) -> None:
@@ -124,13 +140,17 @@ class LearningNode(ServoNode):
         )
 
     def _decode_state(self, data: bytes) -> msgs.StateSample | None:
-        """The state of a reference instant; None for the samples between them."""
+        """The state of a reference instant, validated whole; None for the samples between them.
+
+        Nothing changes here: the base node passes the returned sample's step
+        through the gate afterwards (a None leaves it alone).
+        """
         step, rem = divmod(msgs.stamp_ns_from_cdr(data), self._period_ns)
-        if rem:
+        if rem or step < 0:
             raise SignalError(f"header.stamp: not on the control grid of {self._period_ns} ns")
-        self._gate.accept(step)
         if not self._grid.is_reference_instant(step):
             return None  # only the reference instants are learned from
+        self._gate.check(step)  # cheap refusal of stale or far stamps before deserialising
         msg = deserialize_message(data, JointState)
         return msgs.state_from_msg(msg, axis=self._axis, period_ns_=self._period_ns)
 

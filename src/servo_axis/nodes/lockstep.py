@@ -1,7 +1,9 @@
 """The lockstep stepping logic of the nodes, without rclpy (testable as plain objects).
 
-* :class:`StampGate`: a per-sample stream accepts only stamps after the last
-  one (and not beyond a limit);
+* :func:`stream_window`: how far a per-sample stream may jump
+  (:class:`servo_axis.wire.streams.StreamGate` takes the stamps);
+* :class:`PeerWatch`: since when a lockstep node's producer is gone (the only
+  case in which it stops waiting for it);
 * :class:`FlowControl`: the plant never runs more than a lag ahead of what
   the recorder has acknowledged, and ends only when it has everything;
 * :class:`SampleBuffer`: samples that came ahead (the feedforward's preview)
@@ -17,35 +19,58 @@ from typing import Generic, TypeVar
 
 import numpy as np
 
-from servo_axis.core.errors import SignalError
-
 S = TypeVar("S")
 
 
-class StampGate:
-    """Accepts steps strictly after the last accepted one and below ``limit``.
+#: Window of a per-sample stream in realtime (:class:`~servo_axis.wire.streams.StreamGate`),
+#: in samples of the stream. A realtime stream is reliable and in order, so
+#: it skips a sample only if the transport lost it (the keep-last 2,000
+#: history overflowed); a window of a few samples tolerates such a short gap,
+#: and bounds what a junk stamp inside it can displace to that many samples
+#: (the real stream is taken again right after it). A stamp further ahead is
+#: refused as in lockstep.
+REALTIME_WINDOW = 10
 
-    Parameters
-    ----------
-    limit : int or None
-        First step that is beyond the stream (e.g. the run's length).
+
+def stream_window(lockstep: bool) -> int:
+    """The window of a per-sample stream gate: exactly the next in lockstep."""
+    return 1 if lockstep else REALTIME_WINDOW
+
+
+class PeerWatch:
+    """Whether, and since when, a peer (a topic's publisher) is gone.
+
+    A watchdog calls :meth:`look` with :meth:`ServoNode.peer_alive`'s answer;
+    :meth:`gone_for` is how long the peer has been gone without interruption
+    (0 while it lives; a peer never seen is gone from the first look), and
+    :attr:`lost_at` when a peer seen alive went away (it may be back since:
+    a respawned node, which missed what the old one owed), until
+    :meth:`forget`.
     """
 
-    def __init__(self, limit: int | None = None) -> None:
-        self.last = -1
-        self.limit = limit
+    def __init__(self) -> None:
+        self.gone_since: float | None = None
+        self.lost_at: float | None = None
+        self.alive = False
 
-    def check(self, step: int) -> None:
-        """Raise :class:`SignalError` for a stale or out-of-run step (nothing changes)."""
-        if step <= self.last:
-            raise SignalError(f"stale stamp (step {step} after {self.last})")
-        if self.limit is not None and step >= self.limit:
-            raise SignalError(f"stamp beyond the run's last step {self.limit - 1} (step {step})")
+    def look(self, alive: bool, now: float) -> None:
+        """Record one look at the peer's liveliness at (monotonic) time ``now``."""
+        if alive:
+            self.gone_since = None
+        else:
+            if self.gone_since is None:
+                self.gone_since = now
+            if self.alive and self.lost_at is None:
+                self.lost_at = now
+        self.alive = alive
 
-    def accept(self, step: int) -> None:
-        """:meth:`check`, then take ``step`` as the last one."""
-        self.check(step)
-        self.last = step
+    def gone_for(self, now: float) -> float:
+        """Seconds the peer has been gone without interruption (0 while it lives)."""
+        return 0.0 if self.gone_since is None else now - self.gone_since
+
+    def forget(self) -> None:
+        """Clear :attr:`lost_at` (the wait it mattered for is over)."""
+        self.lost_at = None
 
 
 class FlowControl:

@@ -18,6 +18,15 @@ Lockstep: the plant publishes ``state[k]`` and waits for ``command[k]``,
 then integrates one control period. Before publishing ``state[k]`` it waits
 until the recorder has acknowledged step ``k - max_recorder_lag_steps``;
 after the last step it waits until the recorder has everything, then stops.
+It takes exactly ``command[k]`` of the step it waits for, once; an
+acknowledgement on ``recorder/progress`` must be a whole number, not below
+the last one and not beyond the states published (others are rejected and
+counted under that topic). It waits for the feedback and the recorder as
+long as they live (liveliness of ``command``, ``recorder/progress``): only
+once the feedback has been gone for ``command_timeout_s`` does it apply
+zero current (every step while it stays gone; a fallback, counted as
+command timeouts), and only once the recorder has been gone that long does
+it switch flow control off (a fallback).
 Realtime: a wall-clock timer steps at the control period; a command that has
 not arrived is a deadline miss and the newest current received is held, as a
 drive holds its last set-point: a command that arrives after its tick is not
@@ -32,16 +41,22 @@ from __future__ import annotations
 import time
 from typing import Any
 
-from servo_axis.core.errors import ParameterFileError
+from servo_axis.core.errors import ParameterFileError, SignalError
 from servo_axis.core.models.base import PlantOutput
 from servo_axis.nodes.base import ServoNode
-from servo_axis.nodes.lockstep import FlowControl
+from servo_axis.nodes.lockstep import FlowControl, PeerWatch
 from servo_axis.nodes.runtime import run_main, steady_clock
 from servo_axis.params.factories import build_plant, run_steps
 from servo_axis.wire import messages as msgs
 
-#: Wall time the plant waits at the end for the recorder to acknowledge everything.
+#: Wall time the plant waits at the end for the recorder to acknowledge
+#: everything, in realtime or after a fallback (in lockstep it waits while
+#: the recorder lives, and says so every this many seconds).
 FINISH_TIMEOUT_S = 10.0
+#: Steps applied with zero current per watchdog look (every 50 ms) while
+#: the feedback is gone: the executor stays free for the recorder and for a
+#: feedback that comes back.
+ZERO_STEPS_PER_LOOK = 100
 
 
 def state_sample(out: PlantOutput) -> msgs.StateSample:
@@ -87,43 +102,54 @@ class PlantNode(ServoNode):
         self._state_pub = self.publisher("state")
         self._clock_pub = self.publisher("/clock") if values["publish_clock"] else None
         self._status_pub = self.publisher("plant/status")
-        period_ns, axis = self._period_ns, self._axis
-        self.subscribe(
-            "command",
-            lambda m: msgs.command_from_msg(m, axis=axis, period_ns_=period_ns),
-            self._on_command,
-        )
-        self.subscribe(
-            "recorder/progress",
-            lambda m: int(msgs.labelled_array_values(m, msgs.PROGRESS_LABELS)[0]),
-            self._on_progress,
-        )
 
         self.done = False
         self.started = False
         self._awaiting: int | None = None  # step whose command we wait for
         self._command: float | None = None
+        self._published = 0  # states 0 .. _published - 1 are out
+        self._feedback = PeerWatch()
+        self._recorder = PeerWatch()
+        self._feedback_gone_step: int | None = None  # first step of a zero-current fallback
         self._last_current = 0.0
         self._held_step = -1  # step of the command whose current is held
         self._finishing = False
         self._deadline_misses = 0
         self._timeouts = 0
-        self._waiting_since = time.monotonic()
+        self._finish_started = 0.0
+        period_ns, axis = self._period_ns, self._axis
+        self.subscribe(
+            "command",
+            lambda m: self._awaited_command(
+                msgs.command_from_msg(m, axis=axis, period_ns_=period_ns)
+            ),
+            self._on_command,
+        )
+        self.subscribe(
+            "recorder/progress",
+            lambda m: self._plausible_progress(
+                msgs.labelled_array_values(m, msgs.PROGRESS_LABELS)[0]
+            ),
+            self._on_progress,
+        )
+
         self._start_timer = self.create_timer(0.01, self._try_start, clock=steady_clock())
         self._rt_timer: Any = None
-        self._finish_started = 0.0
         self.create_timer(0.05, self._watchdog, clock=steady_clock())
 
     # -- start ---------------------------------------------------------------
     def _connected(self) -> bool:
         v = self._v
-        if self._state_pub.get_subscription_count() < v["wait_for_state_subscribers"]:
+        if not self.consumers_matched(self._state_pub, "state", v["wait_for_state_subscribers"]):
             return False
-        if self._status_pub.get_subscription_count() < v["wait_for_status_subscribers"]:
+        if not self.consumers_matched(
+            self._status_pub, "plant/status", v["wait_for_status_subscribers"]
+        ):
             return False
-        if self._clock_pub is not None:
-            if self._clock_pub.get_subscription_count() < v["wait_for_clock_subscribers"]:
-                return False
+        if self._clock_pub is not None and not self.consumers_matched(
+            self._clock_pub, "/clock", v["wait_for_clock_subscribers"]
+        ):
+            return False
         return self._flow.ready
 
     def _try_start(self) -> None:
@@ -135,23 +161,53 @@ class PlantNode(ServoNode):
         self._publish(self.plant.output())
         if self._lockstep:
             self._awaiting = 0
-            self._waiting_since = time.monotonic()
         else:
             self._rt_timer = self.create_timer(
                 self._v["control_period_s"], self._realtime_tick, clock=steady_clock()
             )
 
+    # -- input checks (nothing changes before a message is known good) ----------
+    def _awaited_command(self, cmd: msgs.CommandSample) -> msgs.CommandSample:
+        """Lockstep: the command of the step the plant waits for, once; realtime: a
+        command not older than the held one and not ahead of the plant."""
+        expected = self.plant.step_index
+        if self._lockstep:
+            if self._awaiting is None:
+                raise SignalError(f"not waiting for a command (step {cmd.step})")
+            if cmd.step < expected:
+                raise SignalError(f"stale stamp (step {cmd.step}, expected {expected})")
+            if cmd.step > expected:
+                raise SignalError(
+                    f"stamp ahead of the stream (step {cmd.step}, expected {expected})"
+                )
+            if self._command is not None:
+                raise SignalError(f"a second command for step {cmd.step}")
+        elif not self._held_step < cmd.step <= expected:
+            when = "stale" if cmd.step <= self._held_step else "future"
+            raise SignalError(f"{when} stamp (step {cmd.step}, expected {expected})")
+        elif cmd.step == expected and self._command is not None:
+            raise SignalError(f"a second command for step {cmd.step}")
+        return cmd
+
+    def _plausible_progress(self, value: float) -> int:
+        """A recorder acknowledgement: a whole number of steps, not below the last
+        one, not beyond the states published."""
+        if value != int(value):
+            raise SignalError(f"steps_recorded: expected a whole number, got {value!r}")
+        recorded = int(value)
+        if recorded < self._flow.recorded:
+            raise SignalError(f"steps_recorded {recorded} below the last one {self._flow.recorded}")
+        if recorded > self._published:
+            raise SignalError(
+                f"steps_recorded {recorded} beyond the {self._published} states published"
+            )
+        return recorded
+
     # -- callbacks -------------------------------------------------------------
     def _on_command(self, cmd: msgs.CommandSample) -> None:
-        expected = self.plant.step_index
-        if not self._lockstep and self._held_step < cmd.step < expected:
+        if not self._lockstep and cmd.step < self.plant.step_index:
+            # Late, but newer than the held current: it replaces it.
             self._last_current, self._held_step = cmd.current_A, cmd.step
-            return
-        if cmd.step != expected:
-            when = "stale" if cmd.step < expected else "future"
-            self.reject(
-                "command", f"command rejected: {when} stamp (step {cmd.step}, expected {expected})"
-            )
             return
         self._command = cmd.current_A
         if self._lockstep:
@@ -163,24 +219,77 @@ class PlantNode(ServoNode):
             self._advance()
 
     def _watchdog(self) -> None:
-        if self._finishing and not self.done:
-            if time.monotonic() - self._finish_started > FINISH_TIMEOUT_S:
+        now = time.monotonic()
+        grace = self._v["command_timeout_s"]
+        self._feedback.look(self.peer_alive("command"), now)
+        self._recorder.look(self.peer_alive("recorder/progress"), now)
+        if self.done:
+            return
+        recorder_gone = self._recorder.gone_for(now)
+        if self._lockstep and self._waits_for_recorder() and recorder_gone > grace:
+            # A gone recorder gets command_timeout_s to come back; while it
+            # lives the plant waits for it however long it takes.
+            self._flow.enabled = False
+            self.fallback(
+                "recorder_gone",
+                self.plant.step_index,
+                f"the recorder (recorder/progress) has been gone for {recorder_gone:.3g} s at "
+                f"{self._flow.recorded} steps acknowledged: flow control off",
+            )
+            self._advance()
+            return
+        if self._finishing:
+            if self._lockstep and not self.health.fallbacks:
+                if now - self._finish_started > FINISH_TIMEOUT_S:
+                    self.get_logger().warning(
+                        f"waiting for the recorder: {self._flow.recorded} of {self._steps} steps "
+                        "acknowledged (it lives)"
+                    )
+                    self._finish_started = now
+                return
+            # Realtime, or a run that already went on by a fallback (whose
+            # commands the recorder may never get): stop after FINISH_TIMEOUT_S.
+            if now - self._finish_started > FINISH_TIMEOUT_S:
                 self.get_logger().error(
                     f"recorder acknowledged {self._flow.recorded} of {self._steps} steps within "
                     f"{FINISH_TIMEOUT_S} s; stopping anyway"
                 )
                 self.done = True
             return
-        if not self._lockstep or self._awaiting is None or self.done or self._command is not None:
+        if not self._lockstep or self._awaiting is None or self._command is not None:
             return
-        if time.monotonic() - self._waiting_since > self._v["command_timeout_s"]:
-            self._timeouts += 1
-            self.get_logger().error(
-                f"no valid command for step {self._awaiting} within "
-                f"{self._v['command_timeout_s']} s: applying zero current"
+        gone = self._feedback.gone_for(now)
+        if gone <= grace:
+            # While the feedback lives, wait for its command however long it takes.
+            self._feedback_gone_step = None
+            return
+        step = self._awaiting
+        if self._feedback_gone_step is None:
+            self._feedback_gone_step = step
+            self.fallback(
+                "command_timeout",
+                step,
+                f"the feedback (command) has been gone for {gone:.3g} s: zero current from "
+                "this step while it stays gone",
             )
+        for _ in range(ZERO_STEPS_PER_LOOK):
+            # The steps the gone feedback leaves unanswered, a batch per look.
+            if self._awaiting is None or self._command is not None or self._finishing:
+                break
+            self._timeouts += 1
             self._command = 0.0
+            before = self.plant.step_index
             self._advance()
+            if self.plant.step_index == before:
+                break  # held back by flow control; the next look goes on
+
+    def _waits_for_recorder(self) -> bool:
+        """Flow control holds the plant (a step waiting for an acknowledgement, or the end)."""
+        if not self._flow.enabled or not self.started:
+            return False
+        if self._finishing:
+            return not self._flow.complete
+        return self._command is not None and not self._flow.may_step_to(self.plant.step_index + 1)
 
     # -- stepping --------------------------------------------------------------
     def _advance(self) -> None:
@@ -200,7 +309,6 @@ class PlantNode(ServoNode):
             self._finish()
             return
         self._awaiting = out.step
-        self._waiting_since = time.monotonic()
         self._publish(out)
 
     def _realtime_tick(self) -> None:
@@ -236,6 +344,7 @@ class PlantNode(ServoNode):
         self._advance()
 
     def _publish(self, out: PlantOutput) -> None:
+        self._published = out.step + 1
         if self._clock_pub is not None and out.step % self._v["clock_every_steps"] == 0:
             self._clock_pub.publish(msgs.clock_message(out.step, self._period_ns))
         self._state_pub.publish(

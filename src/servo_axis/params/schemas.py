@@ -51,7 +51,8 @@ SHARED: dict[str, Param] = {
     "control_period_s": Param(
         _BALL_SCREW["control_period_s"],
         unit="s",
-        above=0.0,
+        minimum=1e-6,
+        maximum=1.0,
         meaning="control period T_u (command hold, sampling of the loop); "
         "the reference period is T_r = 2 T_u (000 Sect. III)",
     ),
@@ -156,8 +157,10 @@ PLANT: dict[str, Param] = {
         2.0,
         unit="s",
         above=0.0,
-        meaning="lockstep: wall time to wait for a command before applying zero current "
-        "(counted as a command timeout)",
+        meaning="lockstep: how long a gone feedback (liveliness of `command`) gets to come "
+        "back before the plant applies zero current (a fallback; each such step counted as a "
+        "command timeout); while it lives the plant waits however long it takes. Likewise how "
+        "long a gone recorder gets before flow control is switched off. Realtime: unused",
     ),
     "status_every_steps": Param(
         50,
@@ -359,13 +362,24 @@ FEEDBACK: dict[str, Param] = {
         0.5,
         unit="s",
         above=0.0,
-        meaning="wall time to wait for the reference of a sample before tripping to zero current",
+        meaning="lockstep: how long a gone feedforward generator (liveliness of `reference`) "
+        "gets to come back while a state waits for its reference, before the loop trips to "
+        "zero current (a fallback); while it lives the loop waits. Trip within 1 s lease + "
+        "input_timeout_s + input_timeout_s / 10 of its death. Realtime: wall time after a "
+        "state without its reference",
     ),
     "max_preview_steps": Param(
         20000,
         unit="steps",
         minimum=1,
         meaning="reject a reference more than this many samples ahead of the last state",
+    ),
+    "wait_for_command_subscribers": Param(
+        0,
+        minimum=0,
+        meaning="subscribe to `state` (which the plant waits for) and `reference` only once "
+        "this many subscribers of `command` (the plant, the recorder) have matched: no "
+        "command is published unheard",
     ),
 }
 
@@ -464,8 +478,10 @@ FEEDFORWARD: dict[str, Param] = {
         0.5,
         unit="s",
         above=0.0,
-        meaning="wall time to wait for a cycle's correction before repeating the last one; "
-        "keep below the feedback's input_timeout_s",
+        meaning="lockstep: how long a gone learning unit (liveliness of learning/correction) "
+        "gets to come back before a cycle waiting for its correction runs with the last one "
+        "(a fallback); while it lives the cycle waits. Realtime: wall time the plant may stand "
+        "still at the cycle boundary; keep below the feedback's input_timeout_s",
     ),
 }
 
@@ -520,6 +536,11 @@ LEARNING: dict[str, Param] = {
         0,
         minimum=0,
         meaning="likewise for learning/cycle_stats",
+    ),
+    "late_join": Param(
+        False,
+        meaning="join a running `state` stream at the first step received (a unit respawned "
+        "mid-run; the runner sets it) instead of expecting step 0",
     ),
     "memory.on_bad_file": Param(
         "fail",

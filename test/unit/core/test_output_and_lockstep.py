@@ -7,9 +7,16 @@ import math
 import numpy as np
 import pytest
 
-from servo_axis.core.errors import ConfigError, SignalError
+from servo_axis.core.errors import ConfigError
 from servo_axis.core.feedback.output import controlled_output
-from servo_axis.nodes.lockstep import FlowControl, PeriodCollector, SampleBuffer, StampGate
+from servo_axis.nodes.lockstep import (
+    REALTIME_WINDOW,
+    FlowControl,
+    PeerWatch,
+    PeriodCollector,
+    SampleBuffer,
+    stream_window,
+)
 
 
 def test_controlled_output_picks_the_sensor() -> None:
@@ -25,14 +32,24 @@ def test_controlled_output_picks_the_sensor() -> None:
         controlled_output("laser", **kw)
 
 
-def test_stamp_gate_accepts_only_later_steps_within_the_run() -> None:
-    gate = StampGate(limit=10)
-    gate.accept(0)
-    gate.accept(3)
-    for bad, text in ((3, "stale"), (1, "stale"), (10, "beyond")):
-        with pytest.raises(SignalError, match=text):
-            gate.accept(bad)
-    assert gate.last == 3  # a rejected step changes nothing
+def test_stream_window_is_exactly_the_next_in_lockstep() -> None:
+    assert stream_window(True) == 1
+    assert stream_window(False) == REALTIME_WINDOW > 1
+
+
+def test_peer_watch_times_a_gone_peer_and_remembers_a_lost_one() -> None:
+    watch = PeerWatch()
+    watch.look(False, 10.0)  # never seen: gone from the first look
+    assert watch.gone_for(10.5) == 0.5 and watch.lost_at is None
+    watch.look(True, 11.0)
+    assert watch.gone_for(12.0) == 0.0  # alive: never "gone for" anything
+    watch.look(False, 12.0)
+    watch.look(False, 12.5)
+    assert watch.gone_for(13.0) == 1.0 and watch.lost_at == 12.0
+    watch.look(True, 13.0)  # back (a respawned peer): no longer gone, but it was lost
+    assert watch.gone_for(14.0) == 0.0 and watch.lost_at == 12.0
+    watch.forget()
+    assert watch.lost_at is None
 
 
 def test_flow_control_holds_the_plant_within_the_lag_and_to_the_end() -> None:

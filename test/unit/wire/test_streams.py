@@ -1,0 +1,106 @@
+"""StreamGate: which stamps of a per-sample stream are taken (no ROS)."""
+
+from __future__ import annotations
+
+import pytest
+
+from servo_axis.core.errors import SignalError
+from servo_axis.wire.streams import StreamGate, gated
+
+
+def refused(gate: StreamGate, step: int, text: str) -> None:
+    """``step`` is refused with ``text`` and the gate is left as it was."""
+    before = (gate.last, gate.expected)
+    with pytest.raises(SignalError, match=text):
+        gate.accept(step)
+    assert (gate.last, gate.expected) == before
+
+
+def test_lockstep_gate_takes_exactly_the_next_step() -> None:
+    gate = StreamGate()  # window 1, from step 0
+    assert gate.expected == 0
+    refused(gate, 1, "ahead")  # step 0 first
+    gate.accept(0)
+    gate.accept(1)
+    assert gate.expected == 2
+    refused(gate, 3, "ahead")  # a skipped step is not taken
+    refused(gate, 1, "stale")  # a replay
+    refused(gate, 0, "stale")
+    gate.accept(2)
+    assert gate.last == 2
+
+
+def test_junk_far_ahead_or_behind_never_displaces_the_stream() -> None:
+    gate = StreamGate()  # no limit: only the stream's own order refuses them
+    for k in range(5):
+        gate.accept(k)
+    # A stranger's step + 1000, a stamp of 1e9 s (10**12 steps of 1 ms), a replay.
+    for junk in (4 + 1000, 10**12, 2):
+        with pytest.raises(SignalError):
+            gate.accept(junk)
+        assert gate.last == 4
+    gate.accept(5)  # the real stream goes on
+    assert gate.last == 5
+
+
+def test_realtime_window_bounds_how_far_the_stream_may_jump() -> None:
+    gate = StreamGate(window=3)
+    gate.accept(2)  # within 3 of first - 1 = -1
+    refused(gate, 6, "at most 5")
+    gate.accept(5)  # two samples lost: taken
+    refused(gate, 5, "stale")
+    refused(gate, 9, "ahead")
+    gate.accept(8)
+    # A junk stamp inside the window displaces the stream by at most the window.
+    assert gate.expected == 9
+
+
+def test_stride_only_takes_the_stream_grid() -> None:
+    gate = StreamGate(stride=2, limit=20)
+    refused(gate, 1, "grid")
+    gate.accept(0)
+    refused(gate, 4, "ahead")  # the next is 2
+    refused(gate, 3, "grid")
+    gate.accept(2)
+    assert gate.expected == 4
+    wide = StreamGate(stride=2, window=2)
+    wide.accept(2)  # first - stride = -2; 2 is within two samples
+    refused(wide, 8, "at most 6")
+    wide.accept(6)
+
+
+def test_first_none_joins_a_running_stream_at_the_first_step_it_gets() -> None:
+    gate = StreamGate(first=None, limit=100)
+    assert gate.expected is None
+    refused(gate, 100, "beyond")  # the limit holds before the first step too
+    refused(gate, -1, "negative")
+    gate.accept(57)
+    assert gate.expected == 58
+    refused(gate, 59, "ahead")
+    gate.accept(58)
+    joining = StreamGate(first=None, stride=2)
+    refused(joining, 7, "grid")
+    joining.accept(40)
+    assert joining.expected == 42
+
+
+def test_limit_is_the_first_step_beyond_the_stream() -> None:
+    gate = StreamGate(limit=3)
+    for k in range(3):
+        gate.accept(k)
+    refused(gate, 3, "beyond the run's last step 2")
+    refused(gate, 10**9, "beyond")
+
+
+def test_check_changes_nothing_and_parameters_are_checked() -> None:
+    gate = StreamGate()
+    gate.check(0)
+    assert gate.last == -1 and gate.expected == 0
+    for kwargs in ({"window": 0}, {"stride": 0}):
+        with pytest.raises(ValueError):
+            StreamGate(**kwargs)
+
+
+def test_gated_keeps_what_the_gate_takes_in_arrival_order() -> None:
+    items = [(0, "a"), (1000, "junk"), (1, "b"), (1, "replay"), (3, "gap"), (2, "c")]
+    assert list(gated(items, StreamGate())) == [(0, "a"), (1, "b"), (2, "c")]
