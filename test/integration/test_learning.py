@@ -171,7 +171,9 @@ def test_killed_learning_unit_resumes_from_its_memory(ros_env: int, tmp_path: Pa
         spin_until(lambda: watcher.steps > killed_at_step + 1500, 60)
         count_before_restart = len(stats)
         (log_dir / "restart").mkdir()
-        restarted = start_nodes(params, ["learning"], [], env, log_dir / "restart", False)
+        restarted = start_nodes(
+            params, ["learning"], ["-p", "late_join:=true"], env, log_dir / "restart", False
+        )
         spin_until(lambda: len(stats) >= count_before_restart + 3, 90)
     finally:
         ex.shutdown()

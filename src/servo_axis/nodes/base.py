@@ -70,6 +70,10 @@ T = TypeVar("T")
 UNKNOWN_NODE_NAME = "_NODE_NAME_UNKNOWN_"
 #: Seconds between two looks at the graph for strangers.
 STRANGER_CHECK_S = 0.5
+#: Seconds a second endpoint of the producer's own name may stay in the graph
+#: before it counts as a stranger: longer than the participant lease (5 s) of
+#: a dead node replaced by a restarted one.
+TWIN_GRACE_S = 7.0
 #: Seconds the expected consumers of a topic must have been matched when a
 #: stranger subscriber makes the matched count ambiguous (see
 #: :meth:`ServoNode.consumers_matched`).
@@ -122,6 +126,7 @@ class ServoNode(Node):
         self._alive: dict[str, int] = {}
         self._watched: list[str] = []
         self._stranger_gids: set[str] = set()
+        self._twin_looks: dict[str, dict[str, int]] = {}
         self._matched_since: dict[str, float] = {}
         self._prefix: bytes | None = None
         self.create_timer(STRANGER_CHECK_S, self._check_strangers, clock=steady_clock())
@@ -264,7 +269,15 @@ class ServoNode(Node):
             is_ours = [i.node_name == entry.producer and i.node_namespace == ns for i in infos]
             ours = [i for i, mine in zip(infos, is_ours, strict=True) if mine]
             others = [i for i, mine in zip(infos, is_ours, strict=True) if not mine]
-            strangers = others + ours[1:]
+            # Two endpoints of the producer's own name: a restarted node and
+            # the dead one, whose endpoint stays in the graph until its
+            # participant's lease (5 s) ends; a duplicate that outlives that
+            # is a stranger.
+            twins = {bytes(i.endpoint_gid).hex() for i in ours[1:]}
+            seen = self._twin_looks.get(name, {})
+            self._twin_looks[name] = looks = {g: seen.get(g, 0) + 1 for g in twins}
+            lasting = {g for g, n in looks.items() if n * STRANGER_CHECK_S > TWIN_GRACE_S}
+            strangers = others + [i for i in ours[1:] if bytes(i.endpoint_gid).hex() in lasting]
             for info in strangers:
                 gid = bytes(info.endpoint_gid).hex()
                 if gid in self._stranger_gids:

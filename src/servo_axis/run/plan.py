@@ -110,6 +110,10 @@ def handshake_overrides(
         wait_for_clock_subscribers=subscriber_count("/clock", roles, recorded),
         wait_for_status_subscribers=subscriber_count("plant/status", roles, recorded),
     )
+    if "feedback" in roles:
+        out.setdefault("feedback", {})["wait_for_command_subscribers"] = subscriber_count(
+            "command", roles, recorded
+        )
     if "feedforward" in roles:
         ff: dict[str, Any] = {
             "wait_for_reference_subscribers": subscriber_count("reference", roles, recorded)
