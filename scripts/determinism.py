@@ -115,8 +115,15 @@ def main(argv: list[str] | None = None) -> int:
                     reference = hashes
                 same = hashes == reference and bool(hashes)
                 identical += same
+                diff = sorted(
+                    f"{bag}:{topic}"
+                    for bag, per_topic in hashes.items()
+                    for topic, value in per_topic.items()
+                    if (reference or {}).get(bag, {}).get(topic) != value
+                )
                 print(
-                    f"run {i + 1:>3}: exit {code}, {'identical' if same else 'DIFFERENT'}",
+                    f"run {i + 1:>3}: exit {code}, "
+                    + ("identical" if same else f"DIFFERENT ({', '.join(diff) or 'no bag'})"),
                     flush=True,
                 )
     finally:

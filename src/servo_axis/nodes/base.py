@@ -124,6 +124,8 @@ class ServoNode(Node):
         self._report_dir = Path(self.values["report_dir"]) if self.values["report_dir"] else None
         self._complain = Throttle()
         self._alive: dict[str, int] = {}
+        self._lapsed: dict[str, int] = {}
+        self._subscriptions_by_topic: dict[str, Subscription] = {}
         self._watched: list[str] = []
         self._stranger_gids: set[str] = set()
         self._twin_looks: dict[str, dict[str, int]] = {}
@@ -168,11 +170,13 @@ class ServoNode(Node):
 
         def on_liveliness(info: Any) -> None:
             self._alive[name] = info.alive_count
+            self._lapsed[name] = info.not_alive_count
 
         self._alive.setdefault(name, 0)
+        self._lapsed.setdefault(name, 0)
         if name not in self._watched:
             self._watched.append(name)
-        return self.create_subscription(
+        subscription = self.create_subscription(
             MESSAGE_CLASSES[entry.type_name],
             name,
             on_message,
@@ -180,6 +184,8 @@ class ServoNode(Node):
             raw=raw,
             event_callbacks=SubscriptionEventCallbacks(liveliness=on_liveliness),
         )
+        self._subscriptions_by_topic[name] = subscription
+        return subscription
 
     def reject(self, topic_name: str, text: str) -> None:
         """Count a dropped message of ``topic_name`` and log it (at most once a second)."""
@@ -199,6 +205,12 @@ class ServoNode(Node):
         counts as alive while it is there.
         """
         if self._alive.get(name, 0) > 0:
+            return True
+        # A matched publisher whose liveliness has not lapsed is alive: Fast
+        # DDS sends a writer's first AUTOMATIC assertion up to a lease after
+        # it is created, and a peer must not count as gone before it.
+        sub = self._subscriptions_by_topic.get(name)
+        if sub is not None and sub.get_publisher_count() > 0 and not self._lapsed.get(name, 0):
             return True
         prefix = self._participant_prefix()
         if prefix is None:

@@ -143,6 +143,7 @@ class FeedforwardNode(ServoNode):
             values = np.array([part[i] for i in range(nd)])
             self.generator.set_correction(cycle, values[:, 0], values[:, 1])
             self._waiting_since = None
+            self._learner.forget()
             self._fill(self._plant_step + self._window)
 
     def _learning_watchdog(self) -> None:
@@ -154,7 +155,6 @@ class FeedforwardNode(ServoNode):
         ready = self.generator.ready_until()
         if ready is None or self.published < ready or ready >= self._steps:
             self._waiting_since = None
-            self._learner.forget()
             return
         if self._waiting_since is None:
             self._waiting_since = now
@@ -187,8 +187,9 @@ class FeedforwardNode(ServoNode):
             f"no learning correction for cycle {cycle + 1} within {timeout} s ({why}): "
             f"keeping the last one ({self.missed_corrections} missed)",
         )
+        # lost_at stays until a correction comes: a restarted unit that has
+        # not delivered one yet may owe the next boundary too.
         self._waiting_since = None
-        self._learner.forget()
         self._fill(self._plant_step + self._window)
 
     def _fill(self, until: int) -> None:

@@ -34,6 +34,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from rclpy.event_handler import SubscriptionEventCallbacks
+
 from servo_axis.core.errors import ConfigError, ParameterFileError, SignalError
 from servo_axis.nodes.base import ServoNode
 from servo_axis.nodes.runtime import LATCHED_QOS, STREAM_QOS, run_main, steady_clock
@@ -118,6 +120,7 @@ class RecorderNode(ServoNode):
         # stranger's junk is written to the bag but never acknowledged, so it
         # cannot move the plant's flow control).
         self._gates: dict[str, tuple[str, StreamGate]] = {}
+        self._gone: set[str] = set()
         window = 1 if values["mode"] == "lockstep" else 100
         self._period_ns = msgs.period_ns(values["control_period_s"])
         self._subs = []
@@ -136,10 +139,21 @@ class RecorderNode(ServoNode):
                 self._gates[name] = (topic, StreamGate(window=window, first=0, limit=self._steps))
             qos = LATCHED_QOS if topic in values["latched_topics"] else STREAM_QOS
             stamp = stamp_reader(type_name)
-            clock = stamp is clock_ns_from_cdr or topic in values["counted_topics"]
+            # The loop's own streams move the timeline; the reference runs ahead.
+            clock = stamp is clock_ns_from_cdr or topic in ("state", "command")
+            events = (
+                SubscriptionEventCallbacks(liveliness=self._liveliness(name))
+                if name in self._gates
+                else None
+            )
             self._subs.append(
                 self.create_subscription(
-                    cls, topic, self._callback(name, stamp, clock=clock), qos, raw=True
+                    cls,
+                    topic,
+                    self._callback(name, stamp, clock=clock),
+                    qos,
+                    raw=True,
+                    event_callbacks=events,
                 )
             )
         self.recorded = -1
@@ -189,12 +203,30 @@ class RecorderNode(ServoNode):
     def _update_progress(self, force: bool = False) -> None:
         if self.recorded < 0:
             return
-        done = min(self._recorded_steps(n) for n in self._counted) if self._counted else 0
+        counted = [n for n in self._counted if n not in self._gone] or self._counted
+        done = min(self._recorded_steps(n) for n in counted) if counted else 0
         if done == self.recorded and not force:
             return
         self.recorded = done
         if force or done % self._v["ack_every_steps"] == 0 or done >= self._steps:
             self._progress_pub.publish(msgs.labelled_array(msgs.PROGRESS_LABELS, [done]))
+
+    def _liveliness(self, name: str) -> Any:
+        def on_liveliness(info: Any) -> None:
+            if info.alive_count == 0 and info.not_alive_count > 0 and name not in self._gone:
+                # The producer is gone: its stream stops being counted (what
+                # it published is on disk), so the rest of the run is recorded.
+                self._gone.add(name)
+                self.fallback(
+                    "publisher_gone",
+                    self._recorded_steps(name),
+                    f"the publisher of {name} is gone; its stream is no longer counted",
+                )
+                self._update_progress()
+            elif info.alive_count > 0:
+                self._gone.discard(name)
+
+        return on_liveliness
 
     def _recorded_steps(self, name: str) -> int:
         """Steps of counted stream ``name`` written in order (the next expected step)."""

@@ -572,9 +572,10 @@ RECORDER: dict[str, Param] = {
         [t.name for t in _DEFAULT_RECORDED if t.qos == "latched"],
         meaning="those of `topics` subscribed with the latched (transient-local) QoS",
     ),
-    # The per-sample topics of the loop itself (the topic table's `counted`).
-    # Not the reference: it runs ahead of the loop, and a dead feedforward
-    # generator must not stall the axis its feedback loop has just tripped.
+    # The per-sample streams (the topic table's `counted`): the run ends only
+    # when every sample of each is on disk. A stream whose publisher's
+    # liveliness lapsed (a dead feedforward generator) stops being counted,
+    # so that it cannot stall the axis its feedback loop has just tripped.
     "counted_topics": Param(
         [t.name for t in _DEFAULT_RECORDED if t.counted],
         meaning="those of `topics` whose smallest message count is the steps acknowledged "

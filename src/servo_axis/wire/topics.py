@@ -63,7 +63,7 @@ TOPICS: tuple[Topic, ...] = (
           "sensor readings and true motion at every sample"),
     Topic("command", JOINT_STATE, "stream", "feedback", ("plant",), True, True,
           "current reference, the answer to state[k]"),
-    Topic("reference", JOINT_STATE, "stream", "feedforward", ("feedback",), True, False,
+    Topic("reference", JOINT_STATE, "stream", "feedforward", ("feedback",), True, True,
           "feedback reference and feedforward current, published ahead"),
     Topic("/clock", CLOCK, "stream", "plant", ("feedback", "feedforward", "learning"), True, False,
           "simulation time every clock_every_steps samples"),
