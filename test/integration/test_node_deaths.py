@@ -45,6 +45,7 @@ class Killed:
     ended_at: float
     trip_seen_at: float | None
     restart_seen_at: float | None
+    shm_before: set[str]
 
     @property
     def summary(self) -> dict:
@@ -65,6 +66,7 @@ def _pids_of(run_dir: Path, role: str) -> list[int]:
 def run_and_kill(role: str, tmp_path: Path, domain: int) -> Killed:
     """Run the scenario, SIGKILL ``role`` once the plant runs, follow what happens."""
     run_dir = tmp_path / "run"
+    shm_before = {p.name for p in Path("/dev/shm").iterdir()}
     proc = subprocess.Popen(
         [sys.executable, "-m", "servo_axis", "run", SCENARIO, "--out", str(run_dir),
          "--domain-id", str(domain), "--no-plots"],
@@ -107,12 +109,17 @@ def run_and_kill(role: str, tmp_path: Path, domain: int) -> Killed:
         proc.wait()
         if proc.stderr:
             proc.stderr.close()
-    return Killed(proc.returncode, run_dir, stderr, killed_at, ended_at, trip_seen, restart_seen)
+    return Killed(
+        proc.returncode, run_dir, stderr, killed_at, ended_at, trip_seen, restart_seen, shm_before
+    )
 
 
 def _assert_reaped_and_readable(k: Killed) -> None:
     for role in ("plant", "feedback", "feedforward", "learning", "recorder"):
         assert _pids_of(k.run_dir, role) == [], f"{role} left running"
+    # The killed participant's Fast DDS shared-memory files are gone too.
+    left = {p.name for p in Path("/dev/shm").iterdir()} - k.shm_before
+    assert not left, left
     from rosbags.rosbag2 import Reader
 
     with Reader(k.run_dir / "bag") as reader:

@@ -1,9 +1,10 @@
 """The node processes of a run: their environment, start, stop and clean-up.
 
 Each node is its own process started with this interpreter (the venv's),
-in its own process group, with a private ROS domain, localhost discovery,
-UDP transport (no ``/dev/shm`` files left behind even on SIGKILL) and a fast
-discovery profile. On a machine with two or more cores the plant and the
+in its own process group, with a private ROS domain, localhost discovery
+and a fast discovery profile. rmw_fastrtps adds the shared-memory transport
+for localhost discovery whatever the profile says; what a SIGKILLed node
+leaves in ``/dev/shm`` is removed by :func:`clean_stale_shm`. On a machine with two or more cores the plant and the
 feedback share one core (in lockstep they take turns) and the other nodes
 get the rest (``SERVO_AXIS_PIN=0`` turns this off).
 """
@@ -38,8 +39,9 @@ def ros_environment(domain_id: int, log_dir: Path) -> dict[str, str]:
 def discovery_settings(log_dir: Path) -> dict[str, str]:
     """The variables rcl and Fast DDS read when a context and its participant are made.
 
-    Localhost discovery, UDP transport, the 100 ms discovery announcement
-    profile shipped with the package, and the ROS log directory.
+    Localhost discovery, the 100 ms discovery announcement profile shipped
+    with the package (UDP only, which rmw_fastrtps extends with shared memory
+    under localhost discovery), and the ROS log directory.
     """
     profile = resources.files("servo_axis") / "data" / "fastdds_localhost.xml"
     return {
@@ -185,7 +187,8 @@ def clean_stale_shm(*, since: float, shm_dir: Path = Path("/dev/shm")) -> list[s
     """Remove Fast DDS shared-memory files a SIGKILLed node left behind.
 
     With localhost discovery rmw_fastrtps uses shared memory; a clean exit
-    removes its files, SIGKILL does not. A segment is stale when nobody holds
+    removes its files, SIGKILL does not, and the port segments a killed
+    participant had opened stay behind after their last user exits too. A segment is stale when nobody holds
     the lock on its ``_el`` file (live owners hold it; the kernel releases it
     when the owner dies) or, for a port segment, when it has no ``_el`` at
     all. Only files touched since ``since`` (epoch seconds: the start of the

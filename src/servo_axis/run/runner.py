@@ -53,6 +53,7 @@ from servo_axis.params.scenario import (
 from servo_axis.run.plan import handshake_overrides, write_run_params
 from servo_axis.run.processes import (
     Proc,
+    clean_stale_shm,
     default_domain_id,
     discovery_settings,
     ros_environment,
@@ -376,6 +377,7 @@ def _run_nodes(
     env = ros_environment(domain_id, runs[0].log_dir)
     settings = discovery_settings(runs[0].log_dir)
     watch = _Watch()
+    started = time.time()  # epoch, for the shared-memory clean-up
     try:
         for run in runs:
             if "recorder" in run.roles:
@@ -407,6 +409,12 @@ def _run_nodes(
         for run in runs:
             if run.watcher is not None:
                 run.watcher.close()
+        procs = [p for run in runs for p in run.procs]
+        if any((p.popen.returncode or 0) < 0 for p in procs):
+            # Again once the watchers are closed: a killed participant never
+            # lets go of the port segments it opened (the watchers' own
+            # included), so their last user's clean exit leaves them behind.
+            clean_stale_shm(since=started)
     return watch
 
 
