@@ -69,10 +69,7 @@ from servo_axis.params.factories import (
     run_steps,
 )
 from servo_axis.params.scenario import ROLES, SHARED_SECTION
-
-# The per-file readers give each message's channel sequence number (the
-# order the recorder wrote a topic's messages in), which read_raw does not.
-from servo_axis.recording.reader import _file_messages, _mcap_files
+from servo_axis.recording.reader import RawMessage, read_raw
 from servo_axis.wire import cdr, topics
 from servo_axis.wire.streams import StreamGate, decode_joint_stream
 
@@ -475,23 +472,18 @@ def recorded_by_topic(bag_dir: Path) -> dict[str, list[_Recorded]]:
     """Every message of a bag per topic, in the order the recorder wrote them.
 
     Topics in order of first message (log time). Within a topic the order is
-    the file's, then the channel's sequence number: the recorder's arrival
-    order, which is what a gate must see. The log times are no such order:
-    the recorder logs a message at its stamp (simulation time), so a junk
-    message stamped in the past would sort before the real one it follows.
+    the channel's sequence number: the recorder's arrival order, which is
+    what a gate must see. The log times are no such order: the recorder logs
+    a message at its stamp (simulation time), so a junk message stamped in
+    the past would sort before the real one it follows.
     """
-    out: dict[str, list[tuple[int, int, int, _Recorded]]] = {}
-    first: dict[str, tuple[int, int]] = {}
-    n = 0
-    for file_index, path in enumerate(_mcap_files(Path(bag_dir))):
-        for log_time, schema, channel, msg in _file_messages(path, None):
-            n += 1
-            data = msg.data if type(msg.data) is bytes else bytes(msg.data)
-            item = _Recorded(schema.name if schema is not None else "", data)
-            out.setdefault(channel.topic, []).append((file_index, msg.sequence, n, item))
-            first[channel.topic] = min(first.get(channel.topic, (log_time, n)), (log_time, n))
-    order = sorted(out, key=first.__getitem__)
-    return {t: [x[3] for x in sorted(out[t], key=lambda x: x[:3])] for t in order}
+    by_topic: dict[str, list[RawMessage]] = {}
+    for m in read_raw(Path(bag_dir)):  # log-time order: topics in order of first message
+        by_topic.setdefault(m.topic, []).append(m)
+    return {
+        topic: [_Recorded(m.type_name, m.data) for m in sorted(ms, key=lambda m: m.sequence)]
+        for topic, ms in by_topic.items()
+    }
 
 
 def read_streams(bag_dir: Path, rules: StreamRules) -> BagStreams:

@@ -266,6 +266,31 @@ class ServoNode(Node):
         since = self._matched_since.setdefault(name, time.monotonic())
         return time.monotonic() - since >= MATCH_SETTLE_S
 
+    def after_consumers_matched(
+        self, outputs: list[tuple[Publisher, str, int]], then: Callable[[], None]
+    ) -> None:
+        """Call ``then`` once each ``(publisher, topic, count)`` has its consumers matched.
+
+        A node subscribes to the input it answers (``state``) only then, so
+        that nothing it publishes in answer is lost to a reader still being
+        discovered: the plant takes step 0 only once all of its ``state``
+        subscribers are in. At once if they already are.
+        """
+
+        def ready() -> bool:
+            return all(self.consumers_matched(pub, name, n) for pub, name, n in outputs)
+
+        if ready():
+            then()
+            return
+
+        def poll() -> None:
+            if ready():
+                timer.cancel()
+                then()
+
+        timer = self.create_timer(0.01, poll, clock=steady_clock())
+
     def _check_strangers(self) -> None:
         ns = self.get_namespace()
         new = False

@@ -84,25 +84,11 @@ class FeedbackNode(ServoNode):
         # The plant starts only once this node subscribes to `state`; doing so
         # only after `command` is matched with its consumers means that no
         # command is lost to a reader still being discovered.
-        if self.consumers_matched(
-            self._command_pub, "command", values["wait_for_command_subscribers"]
-        ):
-            self._subscribe_inputs()
-            self._outputs_timer = None
-        else:
-            self._outputs_timer = self.create_timer(
-                0.01, self._subscribe_when_heard, clock=steady_clock()
-            )
+        self.after_consumers_matched(
+            [(self._command_pub, "command", values["wait_for_command_subscribers"])],
+            self._subscribe_inputs,
+        )
         self.create_timer(values["input_timeout_s"] / 10.0, self._watchdog, clock=steady_clock())
-
-    def _subscribe_when_heard(self) -> None:
-        if not self.consumers_matched(
-            self._command_pub, "command", self._v["wait_for_command_subscribers"]
-        ):
-            return
-        if self._outputs_timer is not None:
-            self._outputs_timer.cancel()
-        self._subscribe_inputs()
 
     def _subscribe_inputs(self) -> None:
         period_ns, axis = self._period_ns, self._axis

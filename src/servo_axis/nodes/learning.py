@@ -42,7 +42,7 @@ from servo_axis.core.errors import ParameterFileError, ServoAxisError, SignalErr
 from servo_axis.core.feedback.output import controlled_output
 from servo_axis.nodes.base import ServoNode
 from servo_axis.nodes.lockstep import PeriodCollector, stream_window
-from servo_axis.nodes.runtime import STREAM_QOS, run_main, steady_clock
+from servo_axis.nodes.runtime import STREAM_QOS, run_main
 from servo_axis.params.factories import (
     build_learning_law,
     build_reference,
@@ -106,19 +106,19 @@ class LearningNode(ServoNode):
         # only after its own outputs are matched means that nothing it
         # publishes is lost to a reader still being discovered.
         self.state_subscribed = False
-        self._outputs_timer = self.create_timer(
-            0.01, self._subscribe_when_heard, clock=steady_clock()
+        self.after_consumers_matched(
+            [
+                (
+                    self._correction_pub,
+                    "learning/correction",
+                    values["wait_for_correction_subscribers"],
+                ),
+                (self._stats_pub, "learning/cycle_stats", values["wait_for_stats_subscribers"]),
+            ],
+            self._subscribe_state,
         )
 
-    def _subscribe_when_heard(self) -> None:
-        v = self._v
-        if not self.consumers_matched(
-            self._correction_pub, "learning/correction", v["wait_for_correction_subscribers"]
-        ) or not self.consumers_matched(
-            self._stats_pub, "learning/cycle_stats", v["wait_for_stats_subscribers"]
-        ):
-            return
-        self._outputs_timer.cancel()
+    def _subscribe_state(self) -> None:
         # raw: only the reference instants are decoded; the gate sees only
         # those, once they are known valid.
         self.subscribe("state", self._decode_state, self._on_state, raw=True, gate=self._gate)

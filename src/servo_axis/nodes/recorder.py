@@ -45,8 +45,8 @@ from servo_axis.recording.definitions import message_definition
 from servo_axis.recording.timeline import SimTimeline
 from servo_axis.recording.writer import BagWriter
 from servo_axis.wire import messages as msgs
-from servo_axis.wire.cdr import clock_ns_from_cdr
-from servo_axis.wire.streams import JOINT_STREAMS, StreamGate, decode_joint_stream
+from servo_axis.wire.cdr import clock_ns_from_cdr, step_of_stamp_ns
+from servo_axis.wire.streams import JOINT_STREAMS, StreamGate
 
 #: Wall-time period (s) of the flush of the bag: half the 0.5 s a killed
 #: recorder may lose, so that a tick delayed by a long callback still keeps
@@ -106,7 +106,6 @@ class RecorderNode(ServoNode):
             )
         classes = [message_class(t) for t in types]
         self._v = values
-        self._axis = values["axis"]
         self._steps = run_steps(values)
         try:
             self.writer = BagWriter(Path(values["output_dir"]), compression=values["compression"])
@@ -116,9 +115,9 @@ class RecorderNode(ServoNode):
         self._progress_pub = self.publisher("recorder/progress")
         self._counts: dict[str, int] = {}
         self._counted: list[str] = []
-        # Only the valid next sample of a counted stream counts as recorded (a
-        # stranger's junk is written to the bag but never acknowledged, so it
-        # cannot move the plant's flow control).
+        # Only the next step of a counted stream counts as recorded (a
+        # stranger's message ahead or behind is written to the bag but never
+        # acknowledged, so it cannot move the plant's flow control).
         self._gates: dict[str, tuple[str, StreamGate]] = {}
         self._gone: set[str] = set()
         window = 1 if values["mode"] == "lockstep" else 100
@@ -180,12 +179,14 @@ class RecorderNode(ServoNode):
             writer.write(name, data, log_time_ns=t, publish_time_ns=t)
             counts[name] += 1
             if counted:
+                # The stamp only (read once, above): the subscribers validate the
+                # payloads; what counts here is that each step is on disk, and a
+                # stranger's message ahead or behind cannot move the gate.
                 topic, gate = self._gates[name]
                 try:
-                    step, _ = decode_joint_stream(
-                        topic, data, axis=self._axis, period_ns=self._period_ns
-                    )
-                    gate.accept(step)
+                    if stamp_ns is None:
+                        raise SignalError("header.stamp: cannot be read")
+                    gate.accept(step_of_stamp_ns(stamp_ns, self._period_ns))
                 except SignalError as err:
                     self.reject(topic, f"{topic} recorded but not counted: {err}")
                     return

@@ -46,12 +46,17 @@ class RawMessage:
         Log (receive) time in ns.
     data : bytes
         The CDR payload, encapsulation header included.
+    sequence : int
+        The channel's sequence number: the order the recorder wrote the
+        topic's messages in (its arrival order; the log times are simulation
+        stamps, which a junk message can put anywhere).
     """
 
     topic: str
     type_name: str
     log_time_ns: int
     data: bytes
+    sequence: int = 0
 
 
 def read_metadata(directory: Path) -> dict[str, Any]:
@@ -156,4 +161,5 @@ def read_raw(directory: Path, *, topics: Iterable[str] | None = None) -> Iterato
             schema.name if schema is not None else "",
             log_time,
             data if type(data) is bytes else bytes(data),
+            msg.sequence,
         )
