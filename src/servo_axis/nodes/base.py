@@ -52,7 +52,13 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 from servo_axis.core.errors import SignalError
-from servo_axis.nodes.runtime import LATCHED_QOS, STREAM_QOS, Throttle, steady_clock
+from servo_axis.nodes.runtime import (
+    LATCHED_QOS,
+    LATCHED_READ_QOS,
+    STREAM_QOS,
+    Throttle,
+    steady_clock,
+)
 from servo_axis.params.factories import checked_values
 from servo_axis.params.schema import BUILTIN
 from servo_axis.wire import topics
@@ -80,6 +86,8 @@ TWIN_GRACE_S = 7.0
 MATCH_SETTLE_S = 0.5
 
 QOS: dict[str, QoSProfile] = {"stream": STREAM_QOS, "latched": LATCHED_QOS}
+#: What the subscriptions ask for (a deep queue on latched topics too).
+READER_QOS: dict[str, QoSProfile] = {"stream": STREAM_QOS, "latched": LATCHED_READ_QOS}
 MESSAGE_CLASSES: dict[str, Any] = {
     topics.JOINT_STATE: JointState,
     topics.FLOAT64_MULTI_ARRAY: Float64MultiArray,
@@ -88,8 +96,13 @@ MESSAGE_CLASSES: dict[str, Any] = {
 
 
 def topic_qos(name: str) -> QoSProfile:
-    """The QoS profile of a topic of the table."""
+    """The QoS profile of a topic of the table (its publisher's)."""
     return QOS[topics.topic(name).qos]
+
+
+def reader_qos(name: str) -> QoSProfile:
+    """The QoS profile a subscription to a topic of the table asks for."""
+    return READER_QOS[topics.topic(name).qos]
 
 
 class ServoNode(Node):
@@ -146,6 +159,7 @@ class ServoNode(Node):
         *,
         raw: bool = False,
         gate: StreamGate | None = None,
+        qos: QoSProfile | None = None,
     ) -> Subscription:
         """Subscribe to table topic ``name``: ``handle(decode(msg))`` for the valid ones.
 
@@ -154,7 +168,8 @@ class ServoNode(Node):
         With a ``gate``, the decoded sample's ``step`` must be one the gate
         takes (it is checked after decoding, so a junk message never moves
         the gate); a ``decode`` that returns None for a message it skips
-        leaves the gate alone.
+        leaves the gate alone. ``qos`` replaces the table's profile (a late
+        joiner that wants no history).
         """
         entry = topics.topic(name)
 
@@ -180,7 +195,7 @@ class ServoNode(Node):
             MESSAGE_CLASSES[entry.type_name],
             name,
             on_message,
-            QOS[entry.qos],
+            READER_QOS[entry.qos] if qos is None else qos,
             raw=raw,
             event_callbacks=SubscriptionEventCallbacks(liveliness=on_liveliness),
         )

@@ -42,7 +42,7 @@ from servo_axis.core.errors import ParameterFileError, ServoAxisError, SignalErr
 from servo_axis.core.feedback.output import controlled_output
 from servo_axis.nodes.base import ServoNode
 from servo_axis.nodes.lockstep import PeriodCollector, stream_window
-from servo_axis.nodes.runtime import STREAM_QOS, run_main
+from servo_axis.nodes.runtime import LATE_JOIN_QOS, STREAM_QOS, run_main
 from servo_axis.params.factories import (
     build_learning_law,
     build_reference,
@@ -121,7 +121,11 @@ class LearningNode(ServoNode):
     def _subscribe_state(self) -> None:
         # raw: only the reference instants are decoded; the gate sees only
         # those, once they are known valid.
-        self.subscribe("state", self._decode_state, self._on_state, raw=True, gate=self._gate)
+        # A late joiner takes no history: it resumes from what comes next.
+        qos = LATE_JOIN_QOS if self._v["late_join"] else None
+        self.subscribe(
+            "state", self._decode_state, self._on_state, raw=True, gate=self._gate, qos=qos
+        )
         self.state_subscribed = True
 
     def _resume_memory(self) -> None:

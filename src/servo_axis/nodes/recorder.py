@@ -38,15 +38,15 @@ from rclpy.event_handler import SubscriptionEventCallbacks
 
 from servo_axis.core.errors import ConfigError, ParameterFileError, SignalError
 from servo_axis.nodes.base import ServoNode
-from servo_axis.nodes.runtime import LATCHED_QOS, STREAM_QOS, run_main, steady_clock
+from servo_axis.nodes.runtime import LATCHED_READ_QOS, STREAM_QOS, run_main, steady_clock
 from servo_axis.params.factories import run_steps
 from servo_axis.recording.definitions import message_class as bag_message_class
 from servo_axis.recording.definitions import message_definition
 from servo_axis.recording.timeline import SimTimeline
-from servo_axis.recording.writer import BagWriter
+from servo_axis.recording.writer import DEFAULT_QOS, LATCHED_QOS_TEXT, BagWriter
 from servo_axis.wire import messages as msgs
-from servo_axis.wire.cdr import clock_ns_from_cdr, step_of_stamp_ns
-from servo_axis.wire.streams import JOINT_STREAMS, StreamGate
+from servo_axis.wire.cdr import clock_ns_from_cdr
+from servo_axis.wire.streams import JOINT_STREAMS, StreamGate, decode_joint_stream
 
 #: Wall-time period (s) of the flush of the bag: half the 0.5 s a killed
 #: recorder may lose, so that a tick delayed by a long callback still keeps
@@ -122,11 +122,15 @@ class RecorderNode(ServoNode):
         self._gone: set[str] = set()
         window = 1 if values["mode"] == "lockstep" else 100
         self._period_ns = msgs.period_ns(values["control_period_s"])
+        self._axis = values["axis"]
         self._subs = []
         self.timeline = SimTimeline()
         for topic, type_name, cls in zip(topics, types, classes, strict=True):
             name = self.resolve_topic_name(topic)
-            self.writer.add_topic(name, type_name)
+            latched = topic in values["latched_topics"]
+            self.writer.add_topic(
+                name, type_name, qos_text=LATCHED_QOS_TEXT if latched else DEFAULT_QOS
+            )
             self._counts[name] = 0
             if topic in values["counted_topics"]:
                 self._counted.append(name)
@@ -136,7 +140,7 @@ class RecorderNode(ServoNode):
                         f"(one of {sorted(JOINT_STREAMS)})"
                     )
                 self._gates[name] = (topic, StreamGate(window=window, first=0, limit=self._steps))
-            qos = LATCHED_QOS if topic in values["latched_topics"] else STREAM_QOS
+            qos = LATCHED_READ_QOS if topic in values["latched_topics"] else STREAM_QOS
             stamp = stamp_reader(type_name)
             # The loop's own streams move the timeline; the reference runs ahead.
             clock = stamp is clock_ns_from_cdr or topic in ("state", "command")
@@ -179,14 +183,18 @@ class RecorderNode(ServoNode):
             writer.write(name, data, log_time_ns=t, publish_time_ns=t)
             counts[name] += 1
             if counted:
-                # The stamp only (read once, above): the subscribers validate the
-                # payloads; what counts here is that each step is on disk, and a
-                # stranger's message ahead or behind cannot move the gate.
+                # Only a sample its subscribers would take counts: a stranger's
+                # NaN or short message stamped with the next step must not
+                # take the real one's place (measured: a junk publisher already
+                # on the domain had steps 0-1 of `state` counted before the
+                # plant started, and the run never did), and nothing ahead or
+                # behind may move the gate.
                 topic, gate = self._gates[name]
                 try:
-                    if stamp_ns is None:
-                        raise SignalError("header.stamp: cannot be read")
-                    gate.accept(step_of_stamp_ns(stamp_ns, self._period_ns))
+                    step, _ = decode_joint_stream(
+                        topic, data, axis=self._axis, period_ns=self._period_ns
+                    )
+                    gate.accept(step)
                 except SignalError as err:
                     self.reject(topic, f"{topic} recorded but not counted: {err}")
                     return

@@ -39,29 +39,32 @@ from servo_axis.recording.definitions import (
 from servo_axis.recording.definitions import type_hash as rihs01_hash
 from servo_axis.recording.errors import BagError, BagWriteError
 
-__all__ = ["DEFAULT_QOS", "METADATA_VERSION", "BagWriter"]
+__all__ = ["DEFAULT_QOS", "LATCHED_QOS_TEXT", "METADATA_VERSION", "BagWriter", "offered_qos_text"]
 
 #: ``rosbag2_bagfile_information.version`` written (ROS 2 Jazzy).
 METADATA_VERSION = 9
 
-#: ``offered_qos_profiles`` of a reliable, volatile, keep-last (depth 2000)
-#: publisher, in the form rosbag2 (Jazzy, metadata version 9) writes it:
-#: enumerations by name, infinite durations as ``9223372036 s 854775807 ns``.
-DEFAULT_QOS = """- history: keep_last
-  depth: 2000
-  reliability: reliable
-  durability: volatile
-  deadline:
-    sec: 9223372036
-    nsec: 854775807
-  lifespan:
-    sec: 9223372036
-    nsec: 854775807
-  liveliness: automatic
-  liveliness_lease_duration:
-    sec: 9223372036
-    nsec: 854775807
-  avoid_ros_namespace_conventions: false"""
+
+def offered_qos_text(*, depth: int, durability: str, lease_s: int) -> str:
+    """``offered_qos_profiles`` of a reliable keep-last publisher.
+
+    In the form rosbag2 (Jazzy, metadata version 9) writes it: enumerations
+    by name, infinite durations as ``9223372036 s 854775807 ns``.
+    """
+    inf = "    sec: 9223372036\n    nsec: 854775807"
+    return (
+        f"- history: keep_last\n  depth: {depth}\n  reliability: reliable\n"
+        f"  durability: {durability}\n  deadline:\n{inf}\n  lifespan:\n{inf}\n"
+        f"  liveliness: automatic\n  liveliness_lease_duration:\n"
+        f"    sec: {lease_s}\n    nsec: 0\n"
+        "  avoid_ros_namespace_conventions: false"
+    )
+
+
+#: The per-sample streams' profile (``nodes.runtime.STREAM_QOS``).
+DEFAULT_QOS = offered_qos_text(depth=2000, durability="transient_local", lease_s=1)
+#: The latched topics' profile (``nodes.runtime.LATCHED_QOS``).
+LATCHED_QOS_TEXT = offered_qos_text(depth=1, durability="transient_local", lease_s=1)
 
 # The MCAP header's library string, unchanged from the single-module bag.py so that
 # bags written before and after the split have identical headers.

@@ -139,7 +139,7 @@ class ProgressWatcher:
         from rclpy.signals import SignalHandlerOptions
         from std_msgs.msg import Float64MultiArray
 
-        from servo_axis.nodes.base import topic_qos
+        from servo_axis.nodes.base import reader_qos
 
         settings = dict(environ or {})
         if "ROS_LOG_DIR" in os.environ:
@@ -168,7 +168,7 @@ class ProgressWatcher:
                 raise
         self.filter = ProgressFilter(steps)
         self.node.create_subscription(
-            Float64MultiArray, "recorder/progress", self._on, topic_qos("recorder/progress")
+            Float64MultiArray, "recorder/progress", self._on, reader_qos("recorder/progress")
         )
         self._executor = SingleThreadedExecutor(context=self._context)
         self._executor.add_node(self.node)

@@ -16,7 +16,7 @@ JOINT_STATE = "sensor_msgs/msg/JointState"
 FLOAT64_MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"
 CLOCK = "rosgraph_msgs/msg/Clock"
 
-#: QoS names: reliable, volatile, keep-last 2000 (per-sample streams, deep
+#: QoS names: reliable, transient-local, keep-last 2000 (per-sample streams, deep
 #: enough for the preview window and the recorder's lag); reliable,
 #: transient-local, depth 1 (a late subscriber gets the last message).
 QOS_NAMES = ("stream", "latched")
