@@ -55,3 +55,75 @@ def simulate(scenario_path: Path, *, steps: int | None = None) -> Trajectory:
         out[k] = (y.encoder_rad, y.scale_m, r, u_ff, u)
         y = sim.step(u)
     return Trajectory(*(out[:, i].copy() for i in range(5)))
+
+
+@dataclass(frozen=True)
+class LearningRun:
+    """A core-only run with its learning unit (:func:`simulate_learning`)."""
+
+    trajectory: Trajectory
+    error_m: (
+        np.ndarray
+    )  #: per period, the error the law learned from (m at the table for trial laws)
+    law: object  #: the learning law after the run
+
+
+def simulate_learning(scenario_path: Path, *, steps: int | None = None) -> LearningRun:
+    """Run the loop of a scenario with an input-side (trial) learning law, as plain calls.
+
+    What the node graph does in lockstep, in the same order: at the last
+    sample of period ``j`` the law learns from the error of period ``j``
+    (from ``start_cycle``) and the correction for period ``j + 1`` is set
+    before its first sample; the run's last period is not learned from.
+    """
+    scenario = load_scenario(scenario_path)
+    pv = factories.node_values(scenario, "plant")
+    fbv = factories.node_values(scenario, "feedback")
+    ffv = factories.feedforward_values(scenario, scenario_path)
+    lv = factories.node_values(
+        scenario, "learning"
+    )  # the runner's copies (reference, cycle, bandwidth) below
+    for key, value in ffv.items():
+        if key.startswith("reference."):
+            lv[key] = value
+    lv["cycle_s"] = ffv["learning.cycle_s"]
+    lv["sensor"] = fbv["sensor"]
+    if "feedback.bandwidth_hz" in lv:
+        lv["feedback.bandwidth_hz"] = fbv["bandwidth_hz"]
+    law = factories.build_learning_law(lv)
+    if law.side != "input":
+        raise ValueError(f"law {law.name!r}: simulate_learning runs input-side laws")
+    n = factories.run_steps(pv) if steps is None else steps
+    sim = factories.build_plant(pv)
+    loop = factories.build_loop(fbv)
+    gen = factories.build_generator(ffv)
+    reference = factories.build_reference(ffv)
+    tu = pv["control_period_s"]
+    lead = pv["lead_m_per_rad"]
+    sensor = fbv["sensor"]
+    period = law.samples_per_period
+    out = np.empty((n, 5))
+    errors = []
+    y = sim.output()
+    for k in range(n):
+        ((r, _, u_ff),) = gen.samples(k, k + 1)
+        angle = controlled_output(
+            sensor, encoder_rad=y.encoder_rad, scale_m=y.scale_m, lead_m_per_rad=lead
+        )
+        u = loop.update(angle_rad=angle, reference_rad=r, feedforward_A=u_ff).current_A
+        out[k] = (y.encoder_rad, y.scale_m, r, u_ff, u)
+        y = sim.step(u)
+        j, idx = divmod(k, period)
+        if idx == period - 1 and k + 1 < n:
+            ks = np.arange(j * period, (j + 1) * period)
+            target = reference.sample(ks * tu)[0] / lead
+            measured = controlled_output(
+                sensor, encoder_rad=out[ks, 0], scale_m=out[ks, 1], lead_m_per_rad=lead
+            )
+            error = lead * (target - measured)
+            errors.append(error)
+            if j + 2 >= lv["start_cycle"]:
+                law.learn(error, period=j + 1)
+            (current,) = law.next_correction(period=j + 2)
+            gen.set_correction(j + 1, current)
+    return LearningRun(Trajectory(*(out[:, i].copy() for i in range(5))), np.array(errors), law)

@@ -440,6 +440,11 @@ def stream_for(name: str, rules: StreamRules) -> _Stream | None:
         check = _joint_stream(rules, name)
         gate = StreamGate(window=w, first=rules.cycle_steps, limit=limit, stride=rules.ratio)
         return _Stream(check, gate)
+    if name == "learning/input_correction":
+        if rules.cycle_steps is None:
+            return _Stream(_never("no learning in this run"), None)
+        check = _joint_stream(rules, name)
+        return _Stream(check, StreamGate(window=w, first=rules.cycle_steps, limit=limit))
     if name == "learning/cycle_stats":
         if rules.cycle_steps is None:
             return _Stream(_never("no learning in this run"), None)

@@ -206,6 +206,9 @@ class RunSummary:
     health : RunHealth or None
         Deaths, restarts, fallbacks, strangers and the exit code (the runner's
         view; None for a summary made from a bag alone).
+    period_name : str or None
+        ``trial`` when the periods of ``tracking_error.cycles`` are trials (a
+        ``trials`` reference, paper 001); None (not written) for cycles.
     """
 
     scenario: str
@@ -226,6 +229,7 @@ class RunSummary:
     reference_period_s: float | None
     tracking_error: TrackingError
     health: RunHealth | None = field(default=None, metadata={"omit_none": True})
+    period_name: str | None = field(default=None, metadata={"omit_none": True})
 
     def to_dict(self) -> dict[str, Any]:
         """The mapping of ``summary.json``, keys in file order."""
@@ -258,6 +262,7 @@ class RunSummary:
             reference_period_s=data["reference_period_s"],
             tracking_error=TrackingError.from_dict(data["tracking_error"]),
             health=RunHealth.from_dict(data["health"]) if "health" in data else None,
+            period_name=data.get("period_name"),
         )
 
     @classmethod
@@ -459,6 +464,7 @@ def summarise(
             error_statistics(error, sig.step, period_s=period, cycle_s=cycle)
         ),
         health=health,
+        period_name="trial" if ff["reference.kind"] == "trials" else None,
     )
     (run_dir / SUMMARY_FILE).write_text(summary.to_json())
     return summary

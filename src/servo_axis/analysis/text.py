@@ -55,11 +55,12 @@ def format_summary(summary: RunSummary) -> str:
     ]
     if te.after_first_cycle is not None:
         a = te.after_first_cycle
+        name = s.period_name or "cycle"
         lines += [
-            _row("after cycle 1", a.all_samples),
+            _row(f"after {name} 1", a.all_samples),
             _row("... at T_r instants", a.reference_instants),
             "",
-            "cycle   RMS (um)       max (um)       max at T_r (um)",
+            f"{name:<5}   RMS (um)       max (um)       max at T_r (um)",
         ]
         for c in te.cycles:
             lines.append(

@@ -6,6 +6,7 @@ All in SI at the table side (m, m/s, m/s^2); the axis divides by the lead
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -191,16 +192,131 @@ class PointToPointReference:
         return pos, sign * d * dshape, sign * d * ddshape
 
 
+@dataclass(frozen=True, kw_only=True)
+class TrialReference:
+    """Trials of an out-and-back move, one trajectory per stretch of trials (paper 001).
+
+    Iterative learning control (001 Sect. III) repeats a trial: a trajectory
+    of ``N`` samples that starts and ends at rest at the same position. Trial
+    ``j`` (1-based) covers ``[(j - 1) T, j T)`` with ``T = trial_s``; it runs
+    trajectory ``m``, the last one whose ``first_trials[m] <= j``, so that the
+    reference can change at a given trial (001 Fig. 9a: Ref. 1 for trials
+    1-5, Ref. 2 from trial 6).
+
+    Trajectory ``m`` rests at ``offset_m`` until ``start_times_s[m]``, then
+    moves out and back in ``move_times_s[m]``:
+    ``x = offset + A sin^4(pi u)``, ``u = (tau - t_0) / T_m`` in ``[0, 1]``,
+    and rests again until the end of the trial. ``sin^4`` starts and ends
+    with zero velocity, acceleration and jerk, and reverses the velocity at
+    ``u = 1/2`` (at ``offset + A``), away from the trial's ends; the stretches
+    around it more than 100 um from a reversal are what the weighting of 001
+    eq. (27) keeps when ``|A|`` is well above 100 um.
+
+    Parameters
+    ----------
+    trial_s : float
+        ``T``, length of a trial, s, > 0.
+    amplitudes_m : sequence of float
+        ``A`` of each trajectory, m, non-zero (either sign).
+    move_times_s : sequence of float
+        ``T_m`` of each trajectory, s, > 0.
+    start_times_s : sequence of float
+        ``t_0`` of each trajectory, s, >= 0, with ``t_0 + T_m < T`` (a rest
+        at both ends of every trial).
+    first_trials : sequence of int
+        The trial each trajectory starts at: 1 first, strictly increasing.
+    offset_m : float
+        Position at rest, m.
+    """
+
+    trial_s: float
+    amplitudes_m: tuple[float, ...]
+    move_times_s: tuple[float, ...]
+    start_times_s: tuple[float, ...]
+    first_trials: tuple[int, ...]
+    offset_m: float = 0.0
+
+    def __post_init__(self) -> None:
+        require_positive("trial_s", self.trial_s)
+        require_finite("offset_m", self.offset_m)
+        fields = {
+            "amplitudes_m": self.amplitudes_m,
+            "move_times_s": self.move_times_s,
+            "start_times_s": self.start_times_s,
+            "first_trials": self.first_trials,
+        }
+        count = len(self.amplitudes_m)
+        for name, values in fields.items():
+            object.__setattr__(self, name, tuple(values))
+            if len(values) != count or count == 0:
+                raise ConfigError(
+                    f"{name}: expected one value per trajectory ({max(count, 1)}), got {list(values)!r}"
+                )
+        for a in self.amplitudes_m:
+            if require_finite("amplitudes_m", a) == 0.0:
+                raise ConfigError("amplitudes_m: expected non-zero amplitudes, got 0.0")
+        for t_move, t_0 in zip(self.move_times_s, self.start_times_s, strict=True):
+            require_positive("move_times_s", t_move)
+            require_nonnegative("start_times_s", t_0)
+            if not t_0 + t_move < self.trial_s:
+                raise ConfigError(
+                    f"move_times_s: a trajectory must start and end at rest within the trial: "
+                    f"start {t_0!r} s + move {t_move!r} s is not below trial_s = {self.trial_s!r} s"
+                )
+        firsts = self.first_trials
+        if (
+            any(isinstance(f, bool) or not isinstance(f, int) for f in firsts)
+            or firsts[0] != 1
+            or any(b <= a for a, b in itertools.pairwise(firsts))
+        ):
+            raise ConfigError(
+                f"first_trials: expected whole numbers starting at 1, strictly increasing, got {list(firsts)!r}"
+            )
+
+    @property
+    def period_s(self) -> float | None:
+        """None: the reference repeats per trial only while the trajectory stays the same."""
+        return None
+
+    def trajectory_of(self, trial: int) -> int:
+        """Index of the trajectory trial ``trial`` (1-based) runs."""
+        if trial < 1:
+            raise ConfigError(f"trial: expected a trial number >= 1, got {trial!r}")
+        return max(m for m, first in enumerate(self.first_trials) if first <= trial)
+
+    def sample(self, t_s: ArrayLike) -> Arrays:
+        t = np.asarray(t_s, dtype=float)
+        trial = np.floor(t / self.trial_s).astype(np.int64) + 1
+        tau = t - (trial - 1) * self.trial_s
+        index = np.zeros(t.shape, dtype=np.int64)
+        for m, first in enumerate(self.first_trials):
+            index[trial >= first] = m
+        amp = np.asarray(self.amplitudes_m)[index]
+        move = np.asarray(self.move_times_s)[index]
+        u = (tau - np.asarray(self.start_times_s)[index]) / move
+        moving = (u > 0.0) & (u < 1.0)
+        # Exactly 0 at rest (sin(pi) is not): a velocity of 0 means rest.
+        s = np.where(moving, np.sin(np.pi * u), 0.0)
+        c = np.cos(np.pi * u)
+        w = np.pi / move
+        return (
+            self.offset_m + amp * s**4,
+            4.0 * amp * w * s**3 * c,
+            4.0 * amp * w * w * s**2 * (3.0 * c * c - s * s),
+        )
+
+
 #: Reference kinds by name, for parameter files.
 KINDS: dict[str, Any] = {
     "sine": SineReference,
     "one_minus_cos": OneMinusCosReference,
     "point_to_point": PointToPointReference,
+    "trials": TrialReference,
 }
 
 
 def make_reference(kind: str, **params: Any) -> Reference:
-    """Build a reference by name (``sine``, ``one_minus_cos``, ``point_to_point``).
+    """Build a reference by name (``sine``, ``one_minus_cos``, ``point_to_point``, ``trials``).
 
     Raises
     ------

@@ -62,7 +62,7 @@ class FeedforwardNode(ServoNode):
         self._pub = self.publisher("reference")
         self._learning = values["learning.enabled"]
         self._lockstep = values["mode"] == "lockstep"
-        self._corrections: dict[int, dict[int, tuple[float, float]]] = {}
+        self._corrections: dict[int, dict[int, tuple[float, ...]]] = {}
         self.missed_corrections = 0
         self._waiting_since: float | None = None
         self._learner = PeerWatch()
@@ -72,13 +72,28 @@ class FeedforwardNode(ServoNode):
         period_ns, axis = self._period_ns, self._axis
         if self._learning:
             self._cycle_steps = learning_period_steps(values) or 0
-            self.subscribe(
-                "learning/correction",
-                lambda m: self._correction_gate(
-                    msgs.correction_from_msg(m, axis=axis, period_ns_=period_ns)
-                ),
-                self._on_correction,
-            )
+            if self.generator.learning_side == "target":
+                # (position, velocity) per reference instant
+                self._correction_topic = "learning/correction"
+                self._stride = self._grid.ratio
+                self.subscribe(
+                    self._correction_topic,
+                    lambda m: self._correction_gate(
+                        msgs.correction_from_msg(m, axis=axis, period_ns_=period_ns)
+                    ),
+                    self._on_correction,
+                )
+            else:
+                # (current,) per control sample
+                self._correction_topic = "learning/input_correction"
+                self._stride = 1
+                self.subscribe(
+                    self._correction_topic,
+                    lambda m: self._correction_gate(
+                        msgs.input_correction_from_msg(m, axis=axis, period_ns_=period_ns)
+                    ),
+                    self._on_correction,
+                )
             self.create_timer(
                 values["learning.timeout_s"] / 5.0, self._learning_watchdog, clock=steady_clock()
             )
@@ -118,30 +133,35 @@ class FeedforwardNode(ServoNode):
         if self.started and self.published - self._plant_step <= self._window // 2:
             self._fill(self._plant_step + self._window)
 
-    def _correction_gate(self, c: msgs.CorrectionSample) -> tuple[int, int, msgs.CorrectionSample]:
-        """``(period, index, sample)`` of a correction for a period still to come."""
-        g = self._grid
-        if not g.is_reference_instant(c.step):
+    def _correction_gate(
+        self, c: msgs.CorrectionSample | msgs.InputCorrectionSample
+    ) -> tuple[int, int, tuple[float, ...]]:
+        """``(period, index, values)`` of a correction for a period still to come."""
+        if c.step % self._stride:
             raise SignalError(f"step {c.step} is not a reference instant")
-        nd = self._cycle_steps // g.ratio
-        cycle, idx = divmod(g.instant_of(c.step), nd)
+        nd = self._cycle_steps // self._stride
+        cycle, idx = divmod(c.step // self._stride, nd)
         ready = self.generator.ready_until()
-        if cycle < 1 or (ready is not None and cycle * self._cycle_steps - g.ratio < ready):
+        # A target-side correction is first needed one reference interval early.
+        lead = self._stride if self._stride > 1 else 0
+        if cycle < 1 or (ready is not None and cycle * self._cycle_steps - lead < ready):
             raise SignalError(f"cycle {cycle + 1} is already under way")
         under_way = 0 if ready is None else ready // self._cycle_steps
         if cycle * self._cycle_steps >= self._steps or cycle > under_way + 2:
             raise SignalError(f"cycle {cycle + 1} is too far in the future")
-        return cycle, idx, c
+        if isinstance(c, msgs.CorrectionSample):
+            return cycle, idx, (c.position_rad, c.velocity_rad_s)
+        return cycle, idx, (c.current_A,)
 
-    def _on_correction(self, item: tuple[int, int, msgs.CorrectionSample]) -> None:
-        cycle, idx, c = item
-        nd = self._cycle_steps // self._grid.ratio
+    def _on_correction(self, item: tuple[int, int, tuple[float, ...]]) -> None:
+        cycle, idx, values_at = item
+        nd = self._cycle_steps // self._stride
         part = self._corrections.setdefault(cycle, {})
-        part[idx] = (c.position_rad, c.velocity_rad_s)
+        part[idx] = values_at
         if len(part) == nd:
             del self._corrections[cycle]
             values = np.array([part[i] for i in range(nd)])
-            self.generator.set_correction(cycle, values[:, 0], values[:, 1])
+            self.generator.set_correction(cycle, *(values[:, c] for c in range(values.shape[1])))
             self._waiting_since = None
             self._learner.forget()
             self._fill(self._plant_step + self._window)
@@ -151,7 +171,7 @@ class FeedforwardNode(ServoNode):
         # for (see the module docstring). The plant stands still at the
         # boundary when no plant/status has come since _waiting_since.
         now = time.monotonic()
-        self._learner.look(self.peer_alive("learning/correction"), now)
+        self._learner.look(self.peer_alive(self._correction_topic), now)
         ready = self.generator.ready_until()
         if ready is None or self.published < ready or ready >= self._steps:
             self._waiting_since = None
@@ -195,7 +215,8 @@ class FeedforwardNode(ServoNode):
     def _fill(self, until: int) -> None:
         until = min(until, self._steps)
         ready = self.generator.ready_until()
-        ratio = self._grid.ratio
+        # Only a target-side correction is needed one reference interval early.
+        ratio = self._grid.ratio if self._learning and self._stride > 1 else 0
         if ready is not None and ready < self._steps <= ready + ratio:
             # The run's last samples look one instant into the cycle after
             # it, whose correction the learning unit never publishes: repeat

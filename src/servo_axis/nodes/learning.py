@@ -32,7 +32,7 @@ Run: ``python -m servo_axis.nodes.learning --ros-args --params-file config/<scen
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from rclpy.serialization import deserialize_message
@@ -40,6 +40,7 @@ from sensor_msgs.msg import JointState
 
 from servo_axis.core.errors import ParameterFileError, ServoAxisError, SignalError
 from servo_axis.core.feedback.output import controlled_output
+from servo_axis.core.learning.base import IdentifyingLaw
 from servo_axis.nodes.base import ServoNode
 from servo_axis.nodes.lockstep import PeriodCollector, stream_window
 from servo_axis.nodes.runtime import LATE_JOIN_QOS, STREAM_QOS, run_main
@@ -61,21 +62,22 @@ class LearningNode(ServoNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("learning", **kwargs)
         values = self.values
-        if learning_law(values["law"]).period != "cycle":
-            raise ParameterFileError(
-                f"parameter 'law': {values['law']!r} learns per trial; this unit runs cycle laws"
-            )
         self._grid = grid(values)
         self.law = build_learning_law(values)
+        law_outputs = learning_law(values["law"]).outputs
+        self._side = self.law.side
+        # A target-side law learns from the reference instants, an input-side
+        # (trial) law from every control sample.
+        self._stride = self._grid.ratio if self._side == "target" else 1
         nd = self.law.samples_per_period
-        # In lockstep the plant can run up to one whole cycle ahead of this
-        # node (the feedforward generator holds the next cycle until its
+        # In lockstep the plant can run up to one whole period ahead of this
+        # node (the feedforward generator holds the next period until its
         # correction is out); the state stream's history must hold that much.
-        if self._grid.step_of(nd) > STREAM_QOS.depth - 10:
+        if nd * self._stride > STREAM_QOS.depth - 10:
             tu = values["control_period_s"]
             raise ParameterFileError(
                 f"parameter 'cycle_s': at most {(STREAM_QOS.depth - 10) * tu!r} s "
-                f"({STREAM_QOS.depth - 10} control samples) per learning cycle, got {values['cycle_s']!r}"
+                f"({STREAM_QOS.depth - 10} control samples) per learning period, got {values['cycle_s']!r}"
             )
         self.reference = build_reference(values)
         self._v = values
@@ -88,16 +90,43 @@ class LearningNode(ServoNode):
         self._memory = Path(values["memory.file"]) if values["memory.file"] else None
         self._resume_memory()
 
-        self._correction_msg = msgs.joint_state_template(
-            msgs.motor_names(self._axis), ("position", "velocity")
-        )
-        self._correction_pub = self.publisher("learning/correction")
+        if self._side == "target":
+            self._correction_topic = "learning/correction"
+            self._correction_msg = msgs.joint_state_template(
+                msgs.motor_names(self._axis), ("position", "velocity")
+            )
+        else:
+            self._correction_topic = "learning/input_correction"
+            self._correction_msg = msgs.joint_state_template(
+                msgs.motor_names(self._axis), ("effort",)
+            )
+        self._correction_pub = self.publisher(self._correction_topic)
         self._stats_pub = self.publisher("learning/cycle_stats")
+        outputs = [
+            (
+                self._correction_pub,
+                self._correction_topic,
+                values["wait_for_correction_subscribers"],
+            ),
+            (self._stats_pub, "learning/cycle_stats", values["wait_for_stats_subscribers"]),
+        ]
+        # What a projection-based law identified, recorded with the stats.
+        self._parameters_pub = self._table_pub = None
+        if "learning/parameters" in law_outputs:
+            self._parameters_pub = self.publisher("learning/parameters")
+            outputs.append(
+                (self._parameters_pub, "learning/parameters", values["wait_for_stats_subscribers"])
+            )
+        if "learning/friction_table" in law_outputs:
+            self._table_pub = self.publisher("learning/friction_table")
+            outputs.append(
+                (self._table_pub, "learning/friction_table", values["wait_for_stats_subscribers"])
+            )
         self._gate = StreamGate(
             window=stream_window(values["mode"] == "lockstep"),
             first=None if values["late_join"] else 0,
             limit=self._steps,
-            stride=self._grid.ratio,
+            stride=self._stride,
         )
         self._error = PeriodCollector(nd)
         self._target = np.zeros(nd)
@@ -106,20 +135,10 @@ class LearningNode(ServoNode):
         # only after its own outputs are matched means that nothing it
         # publishes is lost to a reader still being discovered.
         self.state_subscribed = False
-        self.after_consumers_matched(
-            [
-                (
-                    self._correction_pub,
-                    "learning/correction",
-                    values["wait_for_correction_subscribers"],
-                ),
-                (self._stats_pub, "learning/cycle_stats", values["wait_for_stats_subscribers"]),
-            ],
-            self._subscribe_state,
-        )
+        self.after_consumers_matched(outputs, self._subscribe_state)
 
     def _subscribe_state(self) -> None:
-        # raw: only the reference instants are decoded; the gate sees only
+        # raw: only the samples learned from are decoded; the gate sees only
         # those, once they are known valid.
         # A late joiner takes no history: it resumes from what comes next.
         qos = LATE_JOIN_QOS if self._v["late_join"] else None
@@ -144,7 +163,7 @@ class LearningNode(ServoNode):
         )
 
     def _decode_state(self, data: bytes) -> msgs.StateSample | None:
-        """The state of a reference instant, validated whole; None for the samples between them.
+        """The state of a sample learned from, validated whole; None for the samples between them.
 
         Nothing changes here: the base node passes the returned sample's step
         through the gate afterwards (a None leaves it alone).
@@ -152,8 +171,8 @@ class LearningNode(ServoNode):
         step, rem = divmod(msgs.stamp_ns_from_cdr(data), self._period_ns)
         if rem or step < 0:
             raise SignalError(f"header.stamp: not on the control grid of {self._period_ns} ns")
-        if not self._grid.is_reference_instant(step):
-            return None  # only the reference instants are learned from
+        if step % self._stride:
+            return None  # a target-side law learns from the reference instants only
         self._gate.check(step)  # cheap refusal of stale or far stamps before deserialising
         msg = deserialize_message(data, JointState)
         return msgs.state_from_msg(msg, axis=self._axis, period_ns_=self._period_ns)
@@ -161,10 +180,14 @@ class LearningNode(ServoNode):
     def _on_state(self, state: msgs.StateSample | None) -> None:
         if state is None:
             return
-        cycle, idx = divmod(self._grid.instant_of(state.step), self._nd)
+        cycle, idx = divmod(state.step // self._stride, self._nd)
         if cycle != self._target_cycle:
-            # The original target of a whole cycle in one call.
-            t = (cycle * self._nd + np.arange(self._nd)) * self._grid.reference_period_s
+            # The original target of a whole period in one call.
+            t = (
+                (cycle * self._nd + np.arange(self._nd))
+                * self._stride
+                * self._grid.control_period_s
+            )
             self._target = self.reference.sample(t)[0] / self._lead
             self._target_cycle = cycle
         y = controlled_output(
@@ -174,49 +197,85 @@ class LearningNode(ServoNode):
             lead_m_per_rad=self._lead,
         )
         self._error.put(idx, self._target[idx] - y)
-        # The run's last cycle ends with the run: nothing after it would be
+        # The run's last period ends with the run: nothing after it would be
         # used, and a message published as the run stops may or may not make
         # it into the bag (which must be the same every run).
-        if idx == self._nd - 1 and self._grid.step_of((cycle + 1) * self._nd) < self._steps:
+        if idx == self._nd - 1 and (cycle + 1) * self._nd * self._stride < self._steps:
             self._end_of_cycle(cycle)
 
     def _end_of_cycle(self, cycle: int) -> None:
         complete = self._error.complete
         received = self._error.received
         error = self._error.restart()
-        # Cycle ``cycle`` (0-based) ends; its correction is for 1-based cycle
+        # The error is in rad at the motor; a trial law learns in m at the table.
+        scale = 1.0 if self._side == "target" else self._lead
+        # Period ``cycle`` (0-based) ends; its correction is for 1-based period
         # ``cycle + 2``; learning is on from ``start_cycle`` (1-based, >= 2).
         if cycle + 2 >= self._v["start_cycle"]:
             if complete:
-                self.law.learn(error)
+                self.law.learn(scale * error, period=cycle + 1)
             else:
-                # Started or restarted mid-cycle, or states were rejected: a
+                # Started or restarted mid-period, or states were rejected: a
                 # partial error would teach a wrong correction.
                 self.get_logger().warning(
-                    f"cycle {cycle + 1} not learned: {received} of {self._nd} reference instants received"
+                    f"{self.law.period} {cycle + 1} not learned: {received} of {self._nd} "
+                    "samples received"
                 )
         # Persist before publishing: whatever a listener has seen of this
-        # cycle (correction, stats) is already on disk if the unit dies now.
+        # period (correction, stats) is already on disk if the unit dies now.
         if self._memory is not None:
             save_memory(self._memory, self.law, scenario=self._scenario)
-        position, velocity = self.law.next_correction()
-        first = (cycle + 1) * self._nd
-        for idx in range(self._nd):
-            self._correction_pub.publish(
-                msgs.write_correction(
-                    self._correction_msg,
-                    msgs.CorrectionSample(
-                        self._grid.step_of(first + idx), float(position[idx]), float(velocity[idx])
-                    ),
-                    period_ns_=self._period_ns,
-                )
-            )
+        # The stats (and what the law identified) go out before the correction:
+        # the run cannot end before the correction has been used, so they are
+        # in the bag by then (they are not counted streams; published after
+        # it, a descheduled unit let the run end without the last stats,
+        # 1 run in 20 under CPU load).
         err_m = self._lead * error[np.isfinite(error)]
         rms = float(np.sqrt(np.mean(err_m**2))) if err_m.size else 0.0
         peak = float(np.max(np.abs(err_m))) if err_m.size else 0.0
         self._stats_pub.publish(
             msgs.labelled_array(msgs.STATS_LABELS, [cycle + 1, rms, peak, self.law.periods_learned])
         )
+        if self._parameters_pub is not None:
+            p = cast(IdentifyingLaw, self.law).physical_parameters()
+            self._parameters_pub.publish(
+                msgs.labelled_array(
+                    msgs.PARAMETER_LABELS,
+                    [cycle + 1, *(p[k] for k in msgs.PARAMETER_LABELS[1:])],
+                )
+            )
+        if self._table_pub is not None:
+            x_r, torque = cast(IdentifyingLaw, self.law).friction_table()
+            self._table_pub.publish(msgs.friction_table_to_msg(cycle + 1, x_r, torque))
+        self._publish_correction(cycle + 1)
+
+    def _publish_correction(self, cycle: int) -> None:
+        """The correction for 0-based period ``cycle`` (1-based ``cycle + 1``), sample by sample."""
+        first = cycle * self._nd
+        if self._side == "target":
+            position, velocity = self.law.next_correction(period=cycle + 1)
+            for idx in range(self._nd):
+                self._correction_pub.publish(
+                    msgs.write_correction(
+                        self._correction_msg,
+                        msgs.CorrectionSample(
+                            self._grid.step_of(first + idx),
+                            float(position[idx]),
+                            float(velocity[idx]),
+                        ),
+                        period_ns_=self._period_ns,
+                    )
+                )
+            return
+        (current,) = self.law.next_correction(period=cycle + 1)
+        for idx in range(self._nd):
+            self._correction_pub.publish(
+                msgs.write_input_correction(
+                    self._correction_msg,
+                    msgs.InputCorrectionSample(first + idx, float(current[idx])),
+                    period_ns_=self._period_ns,
+                )
+            )
 
 
 def main(args: list[str] | None = None) -> int:

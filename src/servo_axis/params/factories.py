@@ -81,6 +81,14 @@ REFERENCE_KEYS = {
     "sine": ("amplitude_m", "frequency_hz", "offset_m", "phase_rad", "ramp_s"),
     "one_minus_cos": ("amplitude_m", "frequency_hz"),
     "point_to_point": ("distance_m", "move_time_s", "dwell_s"),
+    "trials": (
+        "trial_s",
+        "amplitudes_m",
+        "move_times_s",
+        "start_times_s",
+        "first_trials",
+        "offset_m",
+    ),
 }
 
 
@@ -317,11 +325,21 @@ def learning_period_steps(values: Values) -> int | None:
     """
     if not values["learning.enabled"]:
         return None
+    check_trial_period("learning.cycle_s", values["learning.cycle_s"], values)
     g = grid(values)
     instants = build(
         "learning.", g.instants_per, period_s=values["learning.cycle_s"], name="cycle_s", minimum=4
     )
     return cycle_instants("learning.cycle_s", values["learning.cycle_s"], instants) * g.ratio
+
+
+def check_trial_period(key: str, period_s: float, values: Values) -> None:
+    """A learning period over a ``trials`` reference is one trial (``reference.trial_s``)."""
+    if values["reference.kind"] == "trials" and period_s != values["reference.trial_s"]:
+        raise ParameterFileError(
+            f"parameter '{key}': expected one trial, reference.trial_s = "
+            f"{values['reference.trial_s']!r} s, got {period_s!r} s"
+        )
 
 
 def cycle_instants(key: str, cycle_s: float, instants: int) -> int:
@@ -383,12 +401,15 @@ class LearningLawEntry:
         ``cycle``/``trial`` and ``target``/``input`` (:mod:`servo_axis.core.learning.base`).
     build : callable
         ``build(values) -> LearningLaw`` from checked learning values.
+    outputs : tuple of str
+        The topics the learning unit publishes with this law.
     """
 
     schema: Mapping[str, Param]
     period: str
     side: str
     build: Callable[[Values], LearningLaw]
+    outputs: tuple[str, ...] = ()
 
 
 LEARNING_LAWS: dict[str, LearningLawEntry] = {}
@@ -401,9 +422,19 @@ def register_learning_law(
     period: str,
     side: str,
     build: Callable[[Values], LearningLaw],
+    identifies: tuple[str, ...] = (),
 ) -> None:
-    """Make a learning law selectable as ``learning.law: <name>``."""
-    LEARNING_LAWS[name] = LearningLawEntry(schema=schema, period=period, side=side, build=build)
+    """Make a learning law selectable as ``learning.law: <name>``.
+
+    ``identifies`` names what else the law publishes besides its correction
+    and the per-period stats: ``"learning/parameters"`` and / or
+    ``"learning/friction_table"`` (an :class:`~servo_axis.core.learning.base.IdentifyingLaw`).
+    """
+    correction = "learning/correction" if side == "target" else "learning/input_correction"
+    outputs = (correction, "learning/cycle_stats", *identifies)
+    LEARNING_LAWS[name] = LearningLawEntry(
+        schema=schema, period=period, side=side, build=build, outputs=outputs
+    )
 
 
 def learning_law(name: object, key: str = "law") -> LearningLawEntry:
@@ -432,6 +463,97 @@ def _rptc(values: Values) -> LearningLaw:
 
 
 register_learning_law("rptc", schema={}, period="cycle", side="target", build=_rptc)
+
+
+def _ilc_params(values: Values) -> Any:
+    from servo_axis.core.learning.ilc import IlcParams
+
+    g = grid(values)
+    check_trial_period("cycle_s", values["cycle_s"], values)
+    n = build("", g.steps_per, period_s=values["cycle_s"], name="cycle_s")
+    nominal = nominal_model(values)
+    pid = build(
+        "feedback.",
+        design_pid_pole_placement,
+        keys=NOMINAL_KEYS,
+        inertia_kgm2=nominal.inertia_kgm2,
+        damping_Nms_per_rad=nominal.damping_Nms_per_rad,
+        torque_constant_Nm_per_A=nominal.torque_constant_Nm_per_A,
+        bandwidth_hz=values["feedback.bandwidth_hz"],
+    )
+    return build(
+        "",
+        IlcParams,
+        keys={"samples_per_trial": "cycle_s", "period_s": "control_period_s"},
+        samples_per_trial=n,
+        nq=values["nq"],
+        period_s=g.control_period_s,
+        lead_m_per_rad=values["lead_m_per_rad"],
+        nominal=nominal,
+        pid=pid,
+    )
+
+
+def _silc(values: Values) -> LearningLaw:
+    from servo_axis.core.learning.ilc import StandardIlc
+
+    law: LearningLaw = build("", StandardIlc, params=_ilc_params(values))
+    return law
+
+
+def _trial_reference(values: Values) -> Callable[[int], tuple[Any, Any, Any]]:
+    """``reference_of(trial)``: the reference of 1-based trial ``trial`` at its control samples (m)."""
+    reference = build_reference(values)
+    g = grid(values)
+    n = g.steps_per(values["cycle_s"], name="cycle_s")
+    k = np.arange(n)
+
+    def reference_of(trial: int) -> tuple[Any, Any, Any]:
+        return reference.sample(((trial - 1) * n + k) * g.control_period_s)
+
+    return reference_of
+
+
+def _pilc(friction_table: bool) -> Callable[[Values], LearningLaw]:
+    def make(values: Values) -> LearningLaw:
+        from servo_axis.core.learning.pilc import ProjectionIlc, ProjectionParams
+
+        projection = build(
+            "",
+            ProjectionParams,
+            x_mu_m=values["x_mu_m"],
+            threshold_m=values["threshold_m"],
+        )
+        law: LearningLaw = build(
+            "",
+            ProjectionIlc,
+            ilc=_ilc_params(values),
+            projection=projection,
+            reference_of=_trial_reference(values),
+            friction_table=friction_table,
+        )
+        return law
+
+    return make
+
+
+register_learning_law("silc", schema=schemas.ILC, period="trial", side="input", build=_silc)
+register_learning_law(
+    "pilc_bf",
+    schema={**schemas.ILC, **schemas.PILC},
+    period="trial",
+    side="input",
+    build=_pilc(False),
+    identifies=("learning/parameters",),
+)
+register_learning_law(
+    "pilc_bfft",
+    schema={**schemas.ILC, **schemas.PILC},
+    period="trial",
+    side="input",
+    build=_pilc(True),
+    identifies=("learning/parameters", "learning/friction_table"),
+)
 
 
 def build_learning_law(values: Values) -> LearningLaw:
@@ -527,8 +649,17 @@ def check_recorder_topics(values: Values) -> None:
 
 
 def node_values(scenario: dict[str, Any], role: str) -> dict[str, Any]:
-    """Checked parameter values of one node of a scenario (no ROS)."""
-    return checked_values(role, node_params(scenario, role))
+    """Checked parameter values of one node of a scenario (no ROS).
+
+    The feedforward generator's ``learning.law`` is the learning section's
+    ``law`` (one source; the runner passes it on the same way).
+    """
+    given = node_params(scenario, role)
+    if role == "feedforward" and "learning.law" not in given:
+        law = node_params(scenario, "learning").get("law")
+        if law is not None:
+            given = {**given, "learning.law": law}
+    return checked_values(role, given)
 
 
 def feedforward_values(scenario: dict[str, Any], scenario_path: Path) -> dict[str, Any]:

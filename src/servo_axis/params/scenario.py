@@ -207,7 +207,12 @@ def roles_of(scenario: dict[str, Any]) -> list[str]:
 
 class _QuotingDumper(yaml.SafeDumper):  # type: ignore[misc]
     """Quotes every string: rcl's parameter parser reads a bare ``y``, ``on``
-    or ``1e3`` as a bool or a number, PyYAML writes them bare."""
+    or ``1e3`` as a bool or a number, PyYAML writes them bare. Never writes
+    an alias: rcl refuses them ("Will not support aliasing"), and PyYAML
+    writes one for a list that two sections share."""
+
+    def ignore_aliases(self, data: Any) -> bool:
+        return True
 
 
 _QuotingDumper.add_representer(

@@ -142,6 +142,12 @@ def coerce(name: str, default: object, value: object) -> object:
                 isinstance(v, int | float) and not isinstance(v, bool) for v in value
             ):
                 return [float(v) for v in value]
+            if (
+                isinstance(elem, int)
+                and not isinstance(elem, bool)
+                and all(isinstance(v, int) and not isinstance(v, bool) for v in value)
+            ):
+                return [int(v) for v in value]
     raise ParameterFileError(f"parameter '{name}': expected {type_name(default)}, got {value!r}")
 
 
@@ -149,7 +155,11 @@ def type_name(default: object) -> str:
     """``a number``, ``a list of strings``, ... for the type of ``default``."""
     if isinstance(default, list):
         elem = default[0] if default else 0.0
-        return "a list of strings" if isinstance(elem, str) else "a list of numbers"
+        if isinstance(elem, str):
+            return "a list of strings"
+        if isinstance(elem, int) and not isinstance(elem, bool):
+            return "a list of integers"
+        return "a list of numbers"
     return {bool: "a boolean", int: "an integer", float: "a number", str: "a string"}[type(default)]
 
 

@@ -387,9 +387,9 @@ FEEDBACK: dict[str, Param] = {
 REFERENCE: dict[str, Param] = {
     "reference.kind": Param(
         "sine",
-        choices=("sine", "one_minus_cos", "point_to_point"),
+        choices=("sine", "one_minus_cos", "point_to_point", "trials"),
         meaning="trajectory: offset + A sin(2 pi f t + phase); A (1 - cos 2 pi f t); "
-        "minimum-jerk moves back and forth",
+        "minimum-jerk moves back and forth; trials of out-and-back moves (001)",
     ),
     "reference.amplitude_m": Param(
         0.01,
@@ -403,7 +403,9 @@ REFERENCE: dict[str, Param] = {
         above=0.0,
         meaning="frequency f (sine, one_minus_cos)",
     ),
-    "reference.offset_m": Param(0.0, unit="m", meaning="offset of the sine"),
+    "reference.offset_m": Param(
+        0.0, unit="m", meaning="offset of the sine; rest position of the trials"
+    ),
     "reference.phase_rad": Param(0.0, unit="rad", meaning="phase of the sine at t = 0"),
     "reference.ramp_s": Param(
         0.0,
@@ -427,6 +429,38 @@ REFERENCE: dict[str, Param] = {
         unit="s",
         minimum=0.0,
         meaning="point_to_point: standstill after each move",
+    ),
+    "reference.trial_s": Param(
+        1.0,
+        unit="s",
+        above=0.0,
+        meaning="trials: length T of one trial (N = T / T_u samples; the learning period of "
+        "a trial law)",
+    ),
+    "reference.amplitudes_m": Param(
+        [0.002, 0.003],
+        unit="m",
+        meaning="trials: amplitude A of each trajectory x = offset + A sin^4(pi u) "
+        "(out and back, one velocity reversal at its middle)",
+    ),
+    "reference.move_times_s": Param(
+        [0.6, 0.5],
+        unit="s",
+        above=0.0,
+        meaning="trials: duration T_m of each trajectory's move",
+    ),
+    "reference.start_times_s": Param(
+        [0.1, 0.2],
+        unit="s",
+        minimum=0.0,
+        meaning="trials: start t_0 of each trajectory's move within the trial "
+        "(t_0 + T_m < trial_s: at rest at both ends)",
+    ),
+    "reference.first_trials": Param(
+        [1, 6],
+        minimum=1,
+        meaning="trials: the trial (1-based) from which each trajectory is run; 1 first, "
+        "increasing (001 Fig. 9a: Ref. 1 for trials 1-5, Ref. 2 from trial 6)",
     ),
 }
 
@@ -490,7 +524,8 @@ LEARNING: dict[str, Param] = {
     "law": Param(
         "rptc",
         meaning="learning law (registered name): rptc = repetitive PTC with the n-times "
-        "filter (000)",
+        "filter (000); silc = standard ILC, pilc_bf / pilc_bfft = projection-based ILC with "
+        "basis functions / and the data-based friction table (001)",
     ),
     "cycle_s": Param(
         0.5,
@@ -551,6 +586,34 @@ LEARNING: dict[str, Param] = {
     "sensor": SENSOR,
 }
 
+#: Keys of the trial laws of paper 001 (``silc``, ``pilc_bf``, ``pilc_bfft``).
+ILC: dict[str, Param] = {
+    "feedback.bandwidth_hz": Param(
+        FEEDBACK["bandwidth_hz"].default,
+        unit="Hz",
+        above=0.0,
+        meaning="bandwidth of the feedback section's PID (the runner copies it): the learning "
+        "filter L is the ZPETC of S_n P_n of that loop (001 Sect. IV-A-3)",
+    ),
+}
+
+#: Keys of the projection-based laws (001 Sect. III-B/C).
+PILC: dict[str, Param] = {
+    "x_mu_m": Param(
+        5e-6,
+        unit="m",
+        above=0.0,
+        meaning="x_mu of the friction basis b_rf, eq. (13) (001: 5 um)",
+    ),
+    "threshold_m": Param(
+        1e-4,
+        unit="m",
+        above=0.0,
+        meaning="displacement from a reversal beyond which W = 1 (eq. (27)) and below which the "
+        "friction table is used (001: 100 um)",
+    ),
+}
+
 #: What the recorder records by default: the topics of the loop's three nodes.
 _DEFAULT_RECORDED = topics.recorded_topics(("plant", "feedback", "feedforward"))
 
@@ -606,5 +669,7 @@ SECTIONS: dict[str, Mapping[str, Param]] = {
     "feedback": FEEDBACK,
     "feedforward": FEEDFORWARD,
     "learning": LEARNING,
+    "learning (laws silc, pilc_bf, pilc_bfft)": ILC,
+    "learning (laws pilc_bf, pilc_bfft)": PILC,
     "recorder": RECORDER,
 }

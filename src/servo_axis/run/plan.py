@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from servo_axis.params import schemas
+from servo_axis.params.factories import learning_law
 from servo_axis.params.scenario import (
     ROLES,
     SHARED_SECTION,
@@ -47,8 +48,15 @@ def recorder_topics(scenario: dict[str, Any], roles: list[str]) -> tuple[list[st
     rec = node_params(scenario, "recorder")
     if "topics" in rec:
         return list(rec["topics"]), list(rec.get("types", []))
-    default = recorded_topics(roles)
+    outputs = set(law_outputs(scenario)) if "learning" in roles else set()
+    default = [t for t in recorded_topics(roles) if t.producer != "learning" or t.name in outputs]
     return [t.name for t in default], [t.type_name for t in default]
+
+
+def law_outputs(scenario: dict[str, Any]) -> tuple[str, ...]:
+    """The topics the learning unit of ``scenario`` publishes (its law's)."""
+    law = node_params(scenario, "learning").get("law", schemas.LEARNING["law"].default)
+    return learning_law(law, "learning.law").outputs
 
 
 def handshake_overrides(
@@ -101,7 +109,7 @@ def handshake_overrides(
     if "learning" in roles:
         out["learning"].update(
             wait_for_correction_subscribers=subscriber_count(
-                "learning/correction", roles, recorded
+                law_outputs(scenario)[0], roles, recorded
             ),
             wait_for_stats_subscribers=subscriber_count("learning/cycle_stats", roles, recorded),
         )
@@ -147,6 +155,12 @@ def learning_overrides(scenario: dict[str, Any], bag_dir: Path) -> dict[str, Any
     feedback = flatten(scenario.get("feedback", {}).get("ros__parameters", {}))
     if "sensor" in feedback:
         out["sensor"] = feedback["sensor"]
+    law = node_params(scenario, "learning").get("law", schemas.LEARNING["law"].default)
+    if learning_law(law, "learning.law").period == "trial":
+        # A trial law's learning filter inverts the loop's own S_n P_n.
+        out["feedback.bandwidth_hz"] = feedback.get(
+            "bandwidth_hz", schemas.FEEDBACK["bandwidth_hz"].default
+        )
     if "memory.file" not in node_params(scenario, "learning"):
         out["memory.file"] = str(bag_dir.parent / "learning_memory.json")
     return out

@@ -300,3 +300,95 @@ def correction_from_msg(msg: JointState, *, axis: str, period_ns_: int) -> Corre
     """Decode and validate a ``learning/correction`` message."""
     step = _check_joint_state(msg, motor_names(axis), ("position", "velocity"), period_ns_)
     return CorrectionSample(step=step, position_rad=msg.position[0], velocity_rad_s=msg.velocity[0])
+
+
+@dataclass(frozen=True)
+class InputCorrectionSample:
+    """Learned feedforward current at a control sample (topic ``learning/input_correction``).
+
+    JointState name ``[<axis>_motor]``, stamped with the control sample it
+    applies to: ``effort`` = current added to the control input (A), the
+    ``f_{j+1}`` of paper 001 eq. (3)/(11).
+    """
+
+    step: int
+    current_A: float
+
+
+def write_input_correction(
+    msg: JointState, sample: InputCorrectionSample, *, period_ns_: int
+) -> JointState:
+    """Fill a template from :func:`input_correction_to_msg` with ``sample`` (publisher reuse)."""
+    return _fill(msg, sample.step, period_ns_, effort=(sample.current_A,))
+
+
+def input_correction_to_msg(
+    sample: InputCorrectionSample, *, axis: str, period_ns_: int
+) -> JointState:
+    """Encode an :class:`InputCorrectionSample`."""
+    template = joint_state_template(motor_names(axis), ("effort",))
+    return write_input_correction(template, sample, period_ns_=period_ns_)
+
+
+def input_correction_from_msg(
+    msg: JointState, *, axis: str, period_ns_: int
+) -> InputCorrectionSample:
+    """Decode and validate a ``learning/input_correction`` message."""
+    step = _check_joint_state(msg, motor_names(axis), ("effort",), period_ns_)
+    return InputCorrectionSample(step=step, current_A=msg.effort[0])
+
+
+#: ``learning/parameters``: the trial whose data gave them, then what a
+#: projection-based law identified (001 eq. (14b) in SI units).
+PARAMETER_LABELS = ("trial", "inertia_kgm2", "damping_Nms_per_rad", "coulomb_Nm")
+
+#: ``learning/friction_table``: three labelled segments, one after the other.
+FRICTION_TABLE_LABELS = ("trial", "x_r_m", "torque_Nm")
+
+
+def friction_table_to_msg(
+    trial: int, x_r_m: Sequence[float], torque_Nm: Sequence[float]
+) -> Float64MultiArray:
+    """A friction table (001 Fig. 8) as ``[trial, x_r_m..., torque_Nm...]`` with one dimension per segment.
+
+    Raises
+    ------
+    SignalError
+        If the two columns differ in length or hold NaN/inf.
+    """
+    x = [float(v) for v in x_r_m]
+    t = [float(v) for v in torque_Nm]
+    if len(x) != len(t):
+        raise SignalError(f"torque_Nm: expected {len(x)} values (one per x_r_m), got {len(t)}")
+    check_finite("x_r_m", x)
+    check_finite("torque_Nm", t)
+    msg = Float64MultiArray()
+    sizes = (1, len(x), len(t))
+    msg.layout.dim = [
+        MultiArrayDimension(label=label, size=size, stride=size)
+        for label, size in zip(FRICTION_TABLE_LABELS, sizes, strict=True)
+    ]
+    msg.data = [float(trial), *x, *t]
+    return msg
+
+
+def friction_table_from_msg(msg: Float64MultiArray) -> tuple[int, list[float], list[float]]:
+    """``(trial, x_r_m, torque_Nm)`` of a :func:`friction_table_to_msg` message, checked."""
+    dims = list(msg.layout.dim)
+    labels = tuple(d.label for d in dims)
+    if labels != FRICTION_TABLE_LABELS:
+        raise SignalError(
+            f"layout: expected segments {list(FRICTION_TABLE_LABELS)}, got {list(labels)}"
+        )
+    sizes = [d.size for d in dims]
+    data = list(msg.data)
+    if sizes[0] != 1 or sizes[1] != sizes[2] or sum(sizes) != len(data):
+        raise SignalError(
+            f"layout: expected sizes [1, n, n] adding up to {len(data)} values, got {sizes}"
+        )
+    check_finite("data", data)
+    trial = data[0]
+    if trial != int(trial) or trial < 1:
+        raise SignalError(f"trial: expected a whole number >= 1, got {trial!r}")
+    n = sizes[1]
+    return int(trial), data[1 : 1 + n], data[1 + n :]

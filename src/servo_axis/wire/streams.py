@@ -110,6 +110,7 @@ JOINT_STREAMS: dict[str, tuple[Callable[[str], list[str]], tuple[str, ...]]] = {
     "command": (cdr.motor_names, ("effort",)),
     "reference": (cdr.motor_names, ("position", "velocity", "effort")),
     "learning/correction": (cdr.motor_names, ("position", "velocity")),
+    "learning/input_correction": (cdr.motor_names, ("effort",)),
 }
 
 

@@ -22,6 +22,7 @@ from servo_axis.analysis.summary import (
     load_summary,
     summary_from_dict,
 )
+from servo_axis.analysis.text import format_summary
 
 
 def old_way(tracking_error: dict[str, Any], **over: Any) -> dict[str, Any]:
@@ -89,8 +90,17 @@ def test_run_summary_fields_are_typed() -> None:
     assert all(isinstance(c, CycleStats) for c in te.cycles)
     assert [c.cycle for c in te.cycles] == [2, 3, 4]  # cycle 1 misses step 0
     assert te.after_first_cycle is not None
-    # health is optional: the runner adds it, a summary made from a bag alone has none
-    assert {f.name for f in dataclasses.fields(RunSummary)} == set(old_way({})) | {"health"}
+    # health is optional: the runner adds it, a summary made from a bag alone
+    # has none; period_name is written only for trials
+    assert {f.name for f in dataclasses.fields(RunSummary)} == set(old_way({})) | {
+        "health",
+        "period_name",
+    }
+    assert summary.period_name is None and "period_name" not in summary.to_dict()
+    trials = dataclasses.replace(summary, period_name="trial")
+    assert RunSummary.from_json(trials.to_json()) == trials
+    assert "trial   RMS (um)" in format_summary(trials)
+    assert "cycle   RMS (um)" in format_summary(summary)
     with pytest.raises(dataclasses.FrozenInstanceError):
         summary.steps = 3  # type: ignore[misc]
 

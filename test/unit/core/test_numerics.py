@@ -26,6 +26,7 @@ from servo_axis.core.reference import (
     OneMinusCosReference,
     PointToPointReference,
     SineReference,
+    TrialReference,
     make_reference,
 )
 from servo_axis.storage import load_friction_table, save_friction_table
@@ -114,6 +115,83 @@ def test_point_to_point_endpoints_rest_and_return() -> None:
     one_way = PointToPointReference(distance_m=0.02, move_time_s=0.3, back_and_forth=False)
     assert one_way.period_s is None
     assert_allclose(one_way.sample(np.array([5.0]))[0], [0.02])
+
+
+def _trials() -> TrialReference:
+    return TrialReference(
+        trial_s=1.0,
+        amplitudes_m=(2e-3, -3e-3),
+        move_times_s=(0.6, 0.5),
+        start_times_s=(0.1, 0.2),
+        first_trials=(1, 3),
+        offset_m=0.001,
+    )
+
+
+def test_trial_reference_is_sin4_per_trial_and_switches_at_its_trial() -> None:
+    ref = _trials()
+    t = np.linspace(0.0, 4.0, 400_001)
+    pos, vel, acc = ref.sample(t)
+    h = t[1] - t[0]
+    # Derivatives are consistent across trial boundaries (smooth, at rest there).
+    assert_allclose(np.gradient(pos, h)[1:-1], vel[1:-1], atol=1e-4 * np.max(np.abs(vel)))
+    assert_allclose(np.gradient(vel, h)[2:-2], acc[2:-2], atol=2e-3 * np.max(np.abs(acc)))
+    # The closed form, trial by trial: Ref. 1 in trials 1-2, Ref. 2 from trial 3.
+    for trial, (a, t0, tm) in {
+        1: (2e-3, 0.1, 0.6),
+        2: (2e-3, 0.1, 0.6),
+        3: (-3e-3, 0.2, 0.5),
+        4: (-3e-3, 0.2, 0.5),
+    }.items():
+        tau = np.linspace(0.0, 0.999, 1000)
+        u = np.clip((tau - t0) / tm, 0.0, 1.0)
+        expected = 0.001 + a * np.sin(np.pi * u) ** 4
+        assert_allclose(ref.sample(tau + (trial - 1) * 1.0)[0], expected, rtol=0, atol=1e-15)
+        assert ref.trajectory_of(trial) == (0 if trial < 3 else 1)
+    # At rest at both ends of every trial, at the rest position; one reversal
+    # at the middle of the move, at offset + A.
+    for start in (0.0, 1.0, 2.0, 3.0):
+        p0, v0, a0 = ref.sample(np.array([start, start + 0.05, start + 0.95]))
+        assert_allclose(p0, 0.001, atol=1e-18)
+        assert_allclose(v0, 0.0, atol=0)
+        assert_allclose(a0, 0.0, atol=0)
+    one = (t >= 0.0) & (t < 1.0)
+    crossings = np.flatnonzero(np.diff(np.sign(vel[one][vel[one] != 0])))
+    assert crossings.size == 1
+    assert_allclose(ref.sample(np.array([0.4]))[0], 0.001 + 2e-3, rtol=1e-12)
+    assert ref.period_s is None
+
+
+def test_trial_reference_refuses_what_is_not_a_trial() -> None:
+    base = {
+        "trial_s": 1.0,
+        "amplitudes_m": (2e-3,),
+        "move_times_s": (0.6,),
+        "start_times_s": (0.1,),
+        "first_trials": (1,),
+    }
+    with pytest.raises(ConfigError, match="move_times_s: a trajectory must start and end at rest"):
+        TrialReference(**{**base, "start_times_s": (0.5,)})
+    with pytest.raises(ConfigError, match="first_trials"):
+        TrialReference(**{**base, "first_trials": (2,)})
+    with pytest.raises(ConfigError, match="first_trials"):
+        TrialReference(
+            **{
+                **base,
+                "amplitudes_m": (1e-3, 2e-3),
+                "move_times_s": (0.6, 0.6),
+                "start_times_s": (0.1, 0.1),
+                "first_trials": (1, 1),
+            }
+        )
+    with pytest.raises(ConfigError, match="move_times_s: expected one value per trajectory"):
+        TrialReference(**{**base, "amplitudes_m": (1e-3, 2e-3)})
+    with pytest.raises(ConfigError, match="amplitudes_m: expected non-zero"):
+        TrialReference(**{**base, "amplitudes_m": (0.0,)})
+    with pytest.raises(ConfigError, match="trial_s"):
+        TrialReference(**{**base, "trial_s": 0.0})
+    with pytest.raises(ConfigError, match="trial"):
+        _trials().trajectory_of(0)
 
 
 def test_reference_validation_names_the_field() -> None:

@@ -18,7 +18,9 @@ from servo_axis.params.schemas import (
     BALL_SCREW,
     FEEDBACK,
     FEEDFORWARD,
+    ILC,
     LEARNING,
+    PILC,
     PLANT,
     RECORDER,
     REFERENCE,
@@ -36,7 +38,7 @@ NODE_SCHEMAS: dict[str, Mapping[str, Param]] = {
     "plant": {**PLANT, **BALL_SCREW},
     "feedback": FEEDBACK,
     "feedforward": FEEDFORWARD,
-    "learning": LEARNING,
+    "learning": {**LEARNING, **ILC, **PILC},
     "recorder": RECORDER,
 }
 
@@ -112,9 +114,10 @@ def test_the_configs_are_found() -> None:
 
 
 def test_sections_cover_every_schema() -> None:
-    expected = [SHARED, PLANT, BALL_SCREW, FEEDBACK, FEEDFORWARD, LEARNING, RECORDER]
+    expected = [SHARED, PLANT, BALL_SCREW, FEEDBACK, FEEDFORWARD, LEARNING, ILC, PILC, RECORDER]
     assert list(SECTIONS.values()) == expected
     assert not set(PLANT) & set(BALL_SCREW)
+    assert not set(LEARNING) & (set(ILC) | set(PILC)) and not set(ILC) & set(PILC)
     assert not set(SHARED) & {k for s in NODE_SCHEMAS.values() if s is not SHARED for k in s}
 
 

@@ -51,6 +51,11 @@ def test_period_ns_requires_whole_nanoseconds() -> None:
             msgs.reference_to_msg,
             msgs.reference_from_msg,
         ),
+        (
+            msgs.InputCorrectionSample(4321, -0.123456789),
+            msgs.input_correction_to_msg,
+            msgs.input_correction_from_msg,
+        ),
     ],
 )
 def test_round_trip_through_cdr(sample: object, encode: object, decode: object) -> None:
@@ -113,3 +118,47 @@ def test_stamp_from_cdr_reads_the_header_without_deserialising() -> None:
         assert msgs.stamp_ns_from_cdr(serialize_message(msg)) == step * PERIOD_NS
     with pytest.raises(SignalError, match="CDR"):
         msgs.stamp_ns_from_cdr(b"\x07\x07")
+
+
+def test_input_correction_rejects_nan_and_other_fields() -> None:
+    msg = msgs.input_correction_to_msg(
+        msgs.InputCorrectionSample(2, 0.5), axis="x", period_ns_=PERIOD_NS
+    )
+    msg.effort = [math.nan]
+    with pytest.raises(SignalError, match="effort"):
+        msgs.input_correction_from_msg(msg, axis="x", period_ns_=PERIOD_NS)
+    msg.effort = []
+    with pytest.raises(SignalError, match="effort"):
+        msgs.input_correction_from_msg(msg, axis="x", period_ns_=PERIOD_NS)
+    target_side = msgs.correction_to_msg(
+        msgs.CorrectionSample(2, 0.1, 0.2), axis="x", period_ns_=PERIOD_NS
+    )
+    with pytest.raises(SignalError, match="effort"):
+        msgs.input_correction_from_msg(target_side, axis="x", period_ns_=PERIOD_NS)
+
+
+def test_friction_table_round_trip_and_checks() -> None:
+    x_r = [0.0, 2.5e-6, 1e-5, 9.9e-5]
+    torque = [-3.2, -1.1, 2.9, 3.2]
+    msg = msgs.friction_table_to_msg(4, x_r, torque)
+    wire = deserialize_message(serialize_message(msg), Float64MultiArray)
+    assert msgs.friction_table_from_msg(wire) == (4, x_r, torque)
+    empty = deserialize_message(
+        serialize_message(msgs.friction_table_to_msg(1, [], [])), Float64MultiArray
+    )
+    assert msgs.friction_table_from_msg(empty) == (1, [], [])
+    with pytest.raises(SignalError, match="torque_Nm"):
+        msgs.friction_table_to_msg(1, x_r, torque[:-1])
+    with pytest.raises(SignalError, match="x_r_m"):
+        msgs.friction_table_to_msg(1, [math.nan], [0.0])
+    short = msgs.friction_table_to_msg(4, x_r, torque)
+    short.data = list(short.data)[:-1]
+    with pytest.raises(SignalError, match="sizes"):
+        msgs.friction_table_from_msg(short)
+    relabelled = msgs.friction_table_to_msg(4, x_r, torque)
+    relabelled.layout.dim[1].label = "x"
+    with pytest.raises(SignalError, match="segments"):
+        msgs.friction_table_from_msg(relabelled)
+    zero_trial = msgs.friction_table_to_msg(0, x_r, torque)
+    with pytest.raises(SignalError, match="trial"):
+        msgs.friction_table_from_msg(zero_trial)

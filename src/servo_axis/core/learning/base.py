@@ -65,12 +65,23 @@ class LearningLaw(Protocol):
         """Periods learned so far."""
         ...
 
-    def learn(self, error: FloatArray) -> object:
-        """Learn one period's error (``samples_per_period`` values, rad)."""
+    def learn(self, error: FloatArray, *, period: int | None = None) -> object:
+        """Learn one period's error (``samples_per_period`` values).
+
+        ``period`` is the 1-based number of the period (cycle, trial) the
+        error was measured in; a trial law needs it (the reference of a trial
+        may differ from the next one's), a cycle law may ignore it. The unit
+        of the error is the law's (rad for ``rptc``, m at the table for the
+        trial laws).
+        """
         ...
 
-    def next_correction(self) -> tuple[FloatArray, ...]:
-        """The correction of the next period: ``(position, velocity)`` or ``(current,)``."""
+    def next_correction(self, *, period: int | None = None) -> tuple[FloatArray, ...]:
+        """The correction for period ``period`` (1-based; the next one).
+
+        ``(position, velocity)`` per reference instant (target side) or
+        ``(current,)`` per control sample (input side).
+        """
         ...
 
     def identity(self) -> dict[str, Any]:
@@ -83,6 +94,18 @@ class LearningLaw(Protocol):
 
     def load_state(self, state: Mapping[str, Any]) -> None:
         """Restore a memory written from :meth:`state` (checks lengths and values)."""
+        ...
+
+
+class IdentifyingLaw(LearningLaw, Protocol):
+    """A law that also identifies the plant (projection-based ILC, paper 001 Sect. III-B/C)."""
+
+    def physical_parameters(self) -> dict[str, float]:
+        """``inertia_kgm2``, ``damping_Nms_per_rad``, ``coulomb_Nm`` as identified (001 eq. (14b))."""
+        ...
+
+    def friction_table(self) -> tuple[FloatArray, FloatArray]:
+        """The data-based friction table (001 Fig. 8): ``x_r`` (m) and torque (N m); empty if none."""
         ...
 
 

@@ -110,7 +110,7 @@ class PeriodicSignalGenerator:
         self._correction = c.copy()
         self.cycles_learned = int(cycles_learned)
 
-    def learn(self, error: ArrayLike) -> FloatArray:
+    def learn(self, error: ArrayLike, *, period: int | None = None) -> FloatArray:
         """Learn one cycle's tracking error: ``c_{j+1} = c_j + Q~n e_j`` (eq. (9), (19)).
 
         Parameters
@@ -118,6 +118,9 @@ class PeriodicSignalGenerator:
         error : array, shape (Nd,)
             Tracking error ``r - y`` at the ``Nd`` reference samples of the
             cycle, in the unit of the correction (rad or m).
+        period : int, optional
+            The cycle's number; the correction carries over cycle to cycle,
+            so it is not used.
 
         Returns
         -------
@@ -156,8 +159,8 @@ class PeriodicSignalGenerator:
         """Cycles learned so far."""
         return self.cycles_learned
 
-    def next_correction(self) -> tuple[FloatArray, FloatArray]:
-        """Position and velocity of the next cycle's correction (:meth:`states`)."""
+    def next_correction(self, *, period: int | None = None) -> tuple[FloatArray, FloatArray]:
+        """Position and velocity of the next cycle's correction (:meth:`states`), whatever ``period``."""
         return self.states()
 
     def identity(self) -> dict[str, Any]:
