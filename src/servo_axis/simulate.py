@@ -18,6 +18,7 @@ import numpy as np
 from servo_axis.core.feedback.output import controlled_output
 from servo_axis.params import factories
 from servo_axis.params.scenario import load_scenario
+from servo_axis.run.plan import learning_values
 
 
 @dataclass(frozen=True)
@@ -80,16 +81,7 @@ def simulate_learning(scenario_path: Path, *, steps: int | None = None) -> Learn
     pv = factories.node_values(scenario, "plant")
     fbv = factories.node_values(scenario, "feedback")
     ffv = factories.feedforward_values(scenario, scenario_path)
-    lv = factories.node_values(
-        scenario, "learning"
-    )  # the runner's copies (reference, cycle, bandwidth) below
-    for key, value in ffv.items():
-        if key.startswith("reference."):
-            lv[key] = value
-    lv["cycle_s"] = ffv["learning.cycle_s"]
-    lv["sensor"] = fbv["sensor"]
-    if "feedback.bandwidth_hz" in lv:
-        lv["feedback.bandwidth_hz"] = fbv["bandwidth_hz"]
+    lv = learning_values(scenario, scenario_path)
     law = factories.build_learning_law(lv)
     if law.side != "input":
         raise ValueError(f"law {law.name!r}: simulate_learning runs input-side laws")

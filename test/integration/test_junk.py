@@ -212,6 +212,7 @@ class JunkPublisher:
             "command": (["x_motor"], ("effort",)),
             "reference": (["x_motor"], ("position", "velocity", "effort")),
             "learning/correction": (["x_motor"], ("position", "velocity")),
+            "learning/input_correction": (["x_motor"], ("effort",)),
         }[topic]
         msg = JointState()
         if kind == "empty":

@@ -25,6 +25,7 @@ from servo_axis.analysis.summary import (
     cycle_errors,
     run_series,
 )
+from servo_axis.analysis.text import period_word
 from servo_axis.core.errors import ConfigError
 from servo_axis.core.timing import SampleGrid
 
@@ -55,7 +56,7 @@ def plot_cycles(
             ms=4,
             label=f"{label}: RMS",
         )
-    ax.set_xlabel("cycle")
+    ax.set_xlabel(period_word(summaries))
     ax.set_ylabel("tracking error (um)")
     ax.set_title(title)
     ax.grid(True, which="both", lw=0.3)
@@ -78,8 +79,10 @@ def plot_error_overlay(
     enlarged (000 Fig. 13(b)-(c), Fig. 15(b)-(c))."""
     plt = _pyplot()
     fig, (whole, zoom) = plt.subplots(2, 1, figsize=(9, 6))
+    word = "cycle"
     for run_dir, label in zip(run_dirs, labels, strict=True):
         series = run_series(Path(run_dir))
+        word = series.summary.period_name or "cycle"
         t = series.time_s
         err_um = series.error_m * 1e6
         whole.plot(t, err_um, lw=0.7, label=label)
@@ -88,7 +91,7 @@ def plot_error_overlay(
             inside = (t >= (zoom_cycle - 1) * cycle_s) & (t < zoom_cycle * cycle_s)
             zoom.plot(t[inside], err_um[inside], lw=0.8, label=label)
     whole.set_title(title)
-    zoom.set_title(f"cycle {zoom_cycle} enlarged")
+    zoom.set_title(f"{word} {zoom_cycle} enlarged")
     for ax in (whole, zoom):
         ax.set_xlabel("time (s)")
         ax.set_ylabel("tracking error (um)")
@@ -147,7 +150,7 @@ def plot(run_dir: Path) -> list[Path]:
                 [summary],
                 [summary.scenario],
                 run_dir / "cycle_errors.png",
-                title=f"{summary.scenario}: tracking error per cycle",
+                title=f"{summary.scenario}: tracking error per {summary.period_name or 'cycle'}",
             )
         )
     return paths

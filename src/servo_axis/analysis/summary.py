@@ -209,6 +209,11 @@ class RunSummary:
     period_name : str or None
         ``trial`` when the periods of ``tracking_error.cycles`` are trials (a
         ``trials`` reference, paper 001); None (not written) for cycles.
+    ilc_convergence : dict or None
+        For a trial law (paper 001): ``nq`` and ``max |Q (1 - S L P)|`` of
+        eq. (7) on the nominal model (``nominal``; the law refuses to start
+        at 1 or above) and on the rigid-body part of the scenario's plant
+        (``plant``); None (not written) otherwise.
     """
 
     scenario: str
@@ -230,6 +235,7 @@ class RunSummary:
     tracking_error: TrackingError
     health: RunHealth | None = field(default=None, metadata={"omit_none": True})
     period_name: str | None = field(default=None, metadata={"omit_none": True})
+    ilc_convergence: dict[str, float] | None = field(default=None, metadata={"omit_none": True})
 
     def to_dict(self) -> dict[str, Any]:
         """The mapping of ``summary.json``, keys in file order."""
@@ -263,6 +269,7 @@ class RunSummary:
             tracking_error=TrackingError.from_dict(data["tracking_error"]),
             health=RunHealth.from_dict(data["health"]) if "health" in data else None,
             period_name=data.get("period_name"),
+            ilc_convergence=data.get("ilc_convergence"),
         )
 
     @classmethod
@@ -465,9 +472,40 @@ def summarise(
         ),
         health=health,
         period_name="trial" if ff["reference.kind"] == "trials" else None,
+        ilc_convergence=ilc_convergence(scenario, scenario_path),
     )
     (run_dir / SUMMARY_FILE).write_text(summary.to_json())
     return summary
+
+
+def ilc_convergence(scenario: dict[str, Any], scenario_path: Path) -> dict[str, float] | None:
+    """``{"nq", "nominal", "plant"}``: the measure of 001 eq. (7) for a trial law, else None.
+
+    ``plant`` is the ball screw's rigid-body part (``J``, ``D``, ``K_T`` of
+    the plant section) under the same PID and ``L``.
+    """
+    if "learning" not in scenario or "plant" not in scenario:
+        return None
+    from servo_axis.core.learning.ilc import convergence_measure
+    from servo_axis.core.models.base import NominalModel
+    from servo_axis.params.factories import ilc_params, learning_law
+    from servo_axis.run.plan import learning_values
+
+    values = learning_values(scenario, scenario_path)
+    if learning_law(values["law"]).period != "trial":
+        return None
+    pv = node_values(scenario, "plant")
+    params = ilc_params(values)
+    plant = NominalModel(
+        inertia_kgm2=pv["inertia_kgm2"],
+        damping_Nms_per_rad=pv["damping_Nms_per_rad"],
+        torque_constant_Nm_per_A=pv["torque_constant_Nm_per_A"],
+    )
+    return {
+        "nq": params.nq,
+        "nominal": convergence_measure(params=params),
+        "plant": convergence_measure(params=params, plant=plant),
+    }
 
 
 @dataclass(frozen=True, eq=False)

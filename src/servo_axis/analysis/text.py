@@ -48,6 +48,15 @@ def format_summary(summary: RunSummary) -> str:
         "faults            "
         + (", ".join(f"{f.name} at step {f.step}" for f in s.faults) or "none"),
         *_health_lines(s.health),
+        *(
+            [
+                f"ILC eq. (7)       max |Q(1 - S L P)| = {s.ilc_convergence['nominal']:.4g} "
+                f"(nominal), {s.ilc_convergence['plant']:.4g} (plant), "
+                f"Nq = {s.ilc_convergence['nq']:g}"
+            ]
+            if s.ilc_convergence
+            else []
+        ),
         "",
         "tracking error (um)          RMS            max",
         _row("all samples", te.all_samples),
@@ -102,6 +111,11 @@ def format_any_summary(summary: RunSummary | AxesSummary) -> str:
     return format_summary(summary)
 
 
+def period_word(summaries: Sequence[RunSummary]) -> str:
+    """``trial`` when the first run's periods are trials, else ``cycle``."""
+    return (summaries[0].period_name if summaries else None) or "cycle"
+
+
 def compare_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> str:
     """Max and RMS tracking error per cycle of several runs side by side (000 Fig. 15).
 
@@ -111,13 +125,14 @@ def compare_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> str
     per_run = [cycle_errors(s) for s in summaries]
     n = max((len(c["cycle"]) for c in per_run), default=0)
     width = max(14, *(len(label) + 2 for label in labels))
+    word = period_word(summaries)
     lines: list[str] = []
     for title, key in (("max", "max_m"), ("RMS", "rms_m")):
         if lines:
             lines.append("")
         lines += [
-            f"{title} error per cycle (um)",
-            "cycle" + "".join(f"{x:>{width}}" for x in labels),
+            f"{title} error per {word} (um)",
+            f"{word:<5}" + "".join(f"{x:>{width}}" for x in labels),
         ]
         for k in range(n):
             cells = [

@@ -465,7 +465,8 @@ def _rptc(values: Values) -> LearningLaw:
 register_learning_law("rptc", schema={}, period="cycle", side="target", build=_rptc)
 
 
-def _ilc_params(values: Values) -> Any:
+def ilc_params(values: Values) -> Any:
+    """The :class:`~servo_axis.core.learning.ilc.IlcParams` of checked values of a trial law."""
     from servo_axis.core.learning.ilc import IlcParams
 
     g = grid(values)
@@ -497,7 +498,7 @@ def _ilc_params(values: Values) -> Any:
 def _silc(values: Values) -> LearningLaw:
     from servo_axis.core.learning.ilc import StandardIlc
 
-    law: LearningLaw = build("", StandardIlc, params=_ilc_params(values))
+    law: LearningLaw = build("", StandardIlc, params=ilc_params(values))
     return law
 
 
@@ -527,7 +528,7 @@ def _pilc(friction_table: bool) -> Callable[[Values], LearningLaw]:
         law: LearningLaw = build(
             "",
             ProjectionIlc,
-            ilc=_ilc_params(values),
+            ilc=ilc_params(values),
             projection=projection,
             reference_of=_trial_reference(values),
             friction_table=friction_table,

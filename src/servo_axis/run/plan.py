@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from servo_axis.params import schemas
-from servo_axis.params.factories import learning_law
+from servo_axis.params.factories import checked_values, learning_law
 from servo_axis.params.scenario import (
     ROLES,
     SHARED_SECTION,
@@ -184,3 +184,15 @@ def write_run_params(
         out[f"/**/{role}"] = {"ros__parameters": params}
     path.write_text(dump_params(out))
     return path
+
+
+def learning_values(scenario: dict[str, Any], scenario_path: Path) -> dict[str, Any]:
+    """The learning unit's checked values with what the runner copies into them.
+
+    ``reference.*`` and ``cycle_s`` of the feedforward section, ``sensor``
+    and (for a trial law) ``feedback.bandwidth_hz`` of the feedback section
+    (:func:`learning_overrides`); no memory file.
+    """
+    overrides = learning_overrides(scenario, Path(scenario_path).parent / "bag")
+    overrides.pop("memory.file", None)
+    return checked_values("learning", {**node_params(scenario, "learning"), **overrides})

@@ -95,11 +95,18 @@ def test_run_summary_fields_are_typed() -> None:
     assert {f.name for f in dataclasses.fields(RunSummary)} == set(old_way({})) | {
         "health",
         "period_name",
+        "ilc_convergence",
     }
+    assert summary.ilc_convergence is None and "ilc_convergence" not in summary.to_dict()
     assert summary.period_name is None and "period_name" not in summary.to_dict()
-    trials = dataclasses.replace(summary, period_name="trial")
+    trials = dataclasses.replace(
+        summary,
+        period_name="trial",
+        ilc_convergence={"nq": 16, "nominal": 0.0223, "plant": 0.2526},
+    )
     assert RunSummary.from_json(trials.to_json()) == trials
     assert "trial   RMS (um)" in format_summary(trials)
+    assert "0.0223 (nominal), 0.2526 (plant), Nq = 16" in format_summary(trials)
     assert "cycle   RMS (um)" in format_summary(summary)
     with pytest.raises(dataclasses.FrozenInstanceError):
         summary.steps = 3  # type: ignore[misc]
