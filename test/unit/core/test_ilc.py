@@ -337,3 +337,21 @@ def test_memory_round_trip_gives_the_same_correction() -> None:
     other.load_state(decode_memory(text, other, scenario="s"))
     assert np.array_equal(other.next_correction()[0], law.next_correction()[0])
     assert law.identity()["law"] == "silc" and law.identity()["nq"] == 8
+
+
+def test_a_memory_of_another_law_or_trial_length_is_refused_by_name() -> None:
+    from servo_axis.core.errors import TableError
+
+    law = StandardIlc(paper_params(200, nq=8))
+    law.learn(np.full(200, 1e-6), period=1)
+    text = encode_memory(law, scenario="s")
+    longer = StandardIlc(paper_params(300, nq=8))
+    with pytest.raises(TableError, match=r"memory: samples_per_trial is 200, this run has 300"):
+        decode_memory(text, longer, scenario="s")
+    other_nq = StandardIlc(paper_params(200, nq=6))
+    with pytest.raises(TableError, match=r"memory: nq is 8, this run has 6"):
+        decode_memory(text, other_nq, scenario="s")
+    body = json.loads(text)
+    body["law"] = "pilc_bfft"
+    with pytest.raises(TableError, match=r"memory: law is 'pilc_bfft', this run has 'silc'"):
+        decode_memory(json.dumps(body), law, scenario="s")

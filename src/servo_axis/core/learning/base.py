@@ -150,8 +150,15 @@ def decode_memory(
     state = body.get("state")
     if not isinstance(state, dict) or body.get("sha256") != _digest(state):
         raise TableError(f"{source}: the memory does not match its checksum (corrupt or edited)")
-    expected = {"law": law.name, "scenario": scenario, **law.identity()}
-    got = {"law": body.get("law"), "scenario": body.get("scenario"), **body.get("identity", {})}
+    # The file's own law and scenario come last: an identity that repeats
+    # the law's name must not hide a file of another law.
+    expected = {**law.identity(), "law": law.name, "scenario": scenario}
+    identity = body.get("identity")
+    got = {
+        **(identity if isinstance(identity, dict) else {}),
+        "law": body.get("law"),
+        "scenario": body.get("scenario"),
+    }
     for key, value in expected.items():
         if got.get(key) != value:
             raise TableError(f"{source}: {key} is {got.get(key)!r}, this run has {value!r}")
