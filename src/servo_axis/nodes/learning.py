@@ -213,7 +213,12 @@ class LearningNode(ServoNode):
         # ``cycle + 2``; learning is on from ``start_cycle`` (1-based, >= 2).
         if cycle + 2 >= self._v["start_cycle"]:
             if complete:
-                self.law.learn(scale * error, period=cycle + 1)
+                try:
+                    self.law.learn(scale * error, period=cycle + 1)
+                except ServoAxisError as err:
+                    # The law refuses this period's data (a singular projection,
+                    # say): the axis goes on with the correction it has.
+                    self.get_logger().error(f"{self.law.period} {cycle + 1} not learned: {err}")
             else:
                 # Started or restarted mid-period, or states were rejected: a
                 # partial error would teach a wrong correction.

@@ -517,7 +517,12 @@ def _trial_reference(values: Values) -> Callable[[int], tuple[Any, Any, Any]]:
 
 def _pilc(friction_table: bool) -> Callable[[Values], LearningLaw]:
     def make(values: Values) -> LearningLaw:
-        from servo_axis.core.learning.pilc import ProjectionIlc, ProjectionParams
+        from servo_axis.core.learning.pilc import (
+            ProjectionIlc,
+            ProjectionParams,
+            reversal_displacement,
+            weighting,
+        )
 
         projection = build(
             "",
@@ -525,14 +530,30 @@ def _pilc(friction_table: bool) -> Callable[[Values], LearningLaw]:
             x_mu_m=values["x_mu_m"],
             threshold_m=values["threshold_m"],
         )
+        reference_of = _trial_reference(values)
         law: LearningLaw = build(
             "",
             ProjectionIlc,
             ilc=ilc_params(values),
             projection=projection,
-            reference_of=_trial_reference(values),
+            reference_of=reference_of,
             friction_table=friction_table,
         )
+        if friction_table:
+            # W of eq. (27) must have data in every trajectory: refused here,
+            # before anything moves, not at the end of a trial.
+            reference = build_reference(values)
+            firsts = getattr(reference, "first_trials", (1,))
+            for trial in firsts:
+                pos, vel, _ = reference_of(trial)
+                x_r = reversal_displacement(pos, vel)
+                try:
+                    weighting(x_r, threshold_m=values["threshold_m"], velocity_m_s=vel)
+                except ServoAxisError as err:
+                    detail = str(err).partition(": ")[2]
+                    raise ParameterFileError(
+                        f"parameter 'threshold_m': trial {trial} (its reference): {detail}"
+                    ) from err
         return law
 
     return make
