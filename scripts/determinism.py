@@ -64,6 +64,7 @@ def one_run(scenario: str, out: Path, domain: int, composed: bool, stranger: boo
     env = ros_environment(domain, out.parent / f"{out.name}-ros-log")
     Path(env["ROS_LOG_DIR"]).mkdir(parents=True, exist_ok=True)
     extra = None
+    started = time.time()  # epoch, for the shared-memory clean-up
     if stranger:
         extra = subprocess.Popen(
             [sys.executable, "-c", STRANGER], env=env, stdout=subprocess.DEVNULL,
@@ -79,10 +80,15 @@ def one_run(scenario: str, out: Path, domain: int, composed: bool, stranger: boo
         if extra is not None:
             extra.send_signal(signal.SIGINT)
             try:
-                extra.wait(5)
+                extra.wait(10)
             except subprocess.TimeoutExpired:
+                # Under CPU load its shutdown can outlast the wait; killed, it
+                # leaves its shared-memory files (and its peers') behind.
                 extra.kill()
                 extra.wait()
+                from servo_axis.run.processes import clean_stale_shm
+
+                clean_stale_shm(since=started)
 
 
 def main(argv: list[str] | None = None) -> int:
