@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 import os
 import time
+import warnings
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -52,7 +53,10 @@ def ros_env(
 
     left = clean_stale_shm(since=started)
     if left:
-        print(f"\n[shm] {request.node.nodeid} left Fast DDS shared memory behind: {left}")
+        warnings.warn(
+            f"{request.node.nodeid} left Fast DDS shared memory behind (removed): {left}",
+            stacklevel=1,
+        )
 
 
 def read_raw_payloads(bag_dir: Path) -> dict[str, list[bytes]]:
