@@ -34,6 +34,7 @@ from servo_axis.core.learning.base import LearningLaw
 from servo_axis.core.learning.rptc import LearningParams, PeriodicSignalGenerator
 from servo_axis.core.models.ball_screw import BallScrewParams, BallScrewPlant, DisturbanceParams
 from servo_axis.core.models.base import NominalModel, Plant
+from servo_axis.core.models.tilting_table import TiltingTableParams, TiltingTablePlant
 from servo_axis.core.reference import Reference, make_reference
 from servo_axis.core.sensors import SensorParams
 from servo_axis.core.timing import SampleGrid
@@ -208,6 +209,33 @@ def ball_screw_params(values: Values) -> BallScrewParams:
         scale=build("scale.", SensorParams, **section(values, "scale")),
     )
 
+
+def tilting_table_params(values: Values) -> TiltingTableParams:
+    """:class:`TiltingTableParams` from checked plant values (paper 003)."""
+    return build(
+        "",
+        TiltingTableParams,
+        keys={"encoder_resolution_rad": "encoder.resolution"},
+        torque_constant_Nm_per_A=values["torque_constant_Nm_per_A"],
+        inertia_kgm2=values["inertia_kgm2"],
+        damping_Nms_per_rad=values["damping_Nms_per_rad"],
+        unbalance_Nm=values["unbalance_Nm"],
+        coulomb_Nm=values["coulomb_Nm"],
+        control_period_s=values["control_period_s"],
+        sim_step_s=values["sim_step_s"],
+        current_limit_A=values["current_limit_A"],
+        initial_angle_rad=values["initial_angle_rad"],
+        initial_velocity_rad_s=values["initial_velocity_rad_s"],
+        noise_rad=values["noise_rad"],
+        encoder_resolution_rad=values["encoder.resolution"],
+    )
+
+
+register_plant_model(
+    "tilting_table",
+    schema=schemas.TILTING_TABLE,
+    build=lambda values, rng: TiltingTablePlant(tilting_table_params(values), rng=rng),
+)
 
 register_plant_model(
     "ball_screw",

@@ -24,6 +24,7 @@ from collections.abc import Mapping
 from servo_axis.core.feedback.loop import SafetyLimits
 from servo_axis.core.friction.model import FrictionParams
 from servo_axis.core.models.ball_screw import BallScrewParams, DisturbanceParams
+from servo_axis.core.models.tilting_table import TiltingTableParams
 from servo_axis.params.schema import Param
 from servo_axis.wire import topics
 
@@ -305,6 +306,64 @@ BALL_SCREW: dict[str, Param] = {
         unit="m",
         minimum=0.0,
         meaning="standard deviation of Gaussian scale noise before quantisation",
+    ),
+}
+
+#: Keys of the plant model ``tilting_table`` (paper 003 eq. (2); defaults: its Table I).
+_TILT = _dataclass_defaults(TiltingTableParams)
+TILTING_TABLE: dict[str, Param] = {
+    "torque_constant_Nm_per_A": Param(
+        _TILT["torque_constant_Nm_per_A"],
+        unit="N m/A",
+        above=0.0,
+        meaning="K_T: the wire carries a current i, the motor torque is T_m = K_T i",
+    ),
+    "inertia_kgm2": Param(
+        _TILT["inertia_kgm2"], unit="kg m^2", above=0.0, meaning="J of 003 eq. (2) (50e-4)"
+    ),
+    "damping_Nms_per_rad": Param(
+        _TILT["damping_Nms_per_rad"],
+        unit="N m s/rad",
+        minimum=0.0,
+        meaning="D of 003 eq. (2) (130e-4)",
+    ),
+    "unbalance_Nm": Param(
+        _TILT["unbalance_Nm"],
+        unit="N m",
+        minimum=0.0,
+        meaning="U = F R of 003 eq. (1)-(2), the largest unbalance torque (0.3)",
+    ),
+    "coulomb_Nm": Param(
+        _TILT["coulomb_Nm"],
+        unit="N m",
+        minimum=0.0,
+        meaning="C of 003 eq. (2): Coulomb friction that sticks at zero velocity (0.02)",
+    ),
+    "sim_step_s": Param(
+        _TILT["sim_step_s"],
+        unit="s",
+        above=0.0,
+        meaning="RK4 sub-step of the integration; divides control_period_s",
+    ),
+    "current_limit_A": Param(
+        _TILT["current_limit_A"],
+        unit="A",
+        above=0.0,
+        meaning="amplifier saturation (15.27: the test bench's peak torque at K_T = 1)",
+    ),
+    "initial_angle_rad": Param(0.0, unit="rad", meaning="table angle at step 0"),
+    "initial_velocity_rad_s": Param(0.0, unit="rad/s", meaning="table velocity at step 0"),
+    "noise_rad": Param(
+        _TILT["noise_rad"],
+        unit="rad",
+        minimum=0.0,
+        meaning="half-width of the uniform encoder noise, seeded by noise_seed (003: 1e-5)",
+    ),
+    "encoder.resolution": Param(
+        _TILT["encoder_resolution_rad"],
+        unit="rad",
+        minimum=0.0,
+        meaning="encoder count applied after the noise; 0 = ideal",
     ),
 }
 
@@ -666,6 +725,7 @@ SECTIONS: dict[str, Mapping[str, Param]] = {
     "/**": SHARED,
     "plant": PLANT,
     "plant (model ball_screw)": BALL_SCREW,
+    "plant (model tilting_table)": TILTING_TABLE,
     "feedback": FEEDBACK,
     "feedforward": FEEDFORWARD,
     "learning": LEARNING,

@@ -27,6 +27,7 @@ from servo_axis.params.schemas import (
     SECTIONS,
     SENSOR,
     SHARED,
+    TILTING_TABLE,
 )
 
 REPO = Path(__file__).resolve().parents[3]
@@ -114,9 +115,20 @@ def test_the_configs_are_found() -> None:
 
 
 def test_sections_cover_every_schema() -> None:
-    expected = [SHARED, PLANT, BALL_SCREW, FEEDBACK, FEEDFORWARD, LEARNING, ILC, PILC, RECORDER]
+    expected = [
+        SHARED,
+        PLANT,
+        BALL_SCREW,
+        TILTING_TABLE,
+        FEEDBACK,
+        FEEDFORWARD,
+        LEARNING,
+        ILC,
+        PILC,
+        RECORDER,
+    ]
     assert list(SECTIONS.values()) == expected
-    assert not set(PLANT) & set(BALL_SCREW)
+    assert not set(PLANT) & set(BALL_SCREW) and not set(PLANT) & set(TILTING_TABLE)
     assert not set(LEARNING) & (set(ILC) | set(PILC)) and not set(ILC) & set(PILC)
     assert not set(SHARED) & {k for s in NODE_SCHEMAS.values() if s is not SHARED for k in s}
 
