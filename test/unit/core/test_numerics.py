@@ -395,3 +395,24 @@ def test_friction_feedforward_follows_the_direction() -> None:
     assert_allclose(cur[100:240], 3.0 / KT)  # moving up, far from the start
     assert_allclose(cur[400:700], -3.0 / KT)  # moving down, > 4 um past the reversal at 250
     assert cur[251] == pytest.approx(-table.torque_Nm_at(x[250] - x[251]) / KT, rel=1e-12)
+
+
+def test_discrete_filter_state_round_trip_and_settle() -> None:
+    from servo_axis.core.feedback.discrete import tustin
+
+    w = 2 * math.pi * 20.0
+    lpf = tustin(np.array([w * w]), np.array([1.0, 2 * w, w * w]), 4e-4)
+    for x in (0.3, -1.0, 2.0):
+        lpf.update(x)
+    saved = lpf.state
+    other = tustin(np.array([w * w]), np.array([1.0, 2 * w, w * w]), 4e-4)
+    other.set_state(saved)
+    assert [lpf.update(0.7) for _ in range(5)] == [other.update(0.7) for _ in range(5)]
+    with pytest.raises(ConfigError, match="z: expected 2 values"):
+        other.set_state([0.0])
+    # Settled on x, a unit-DC-gain low-pass stays at x; its derivative at 0.
+    lpf.settle(0.25)
+    assert_allclose([lpf.update(0.25) for _ in range(10)], 0.25, rtol=1e-12)
+    deriv = tustin(np.array([w * w, 0.0]), np.array([1.0, 2 * w, w * w]), 4e-4)
+    deriv.settle(0.25)
+    assert_allclose([deriv.update(0.25) for _ in range(10)], 0.0, atol=1e-12)

@@ -6,6 +6,8 @@ loop): one implementation of the per-sample update.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from servo_axis.core.errors import ConfigError
@@ -34,6 +36,25 @@ class DiscreteFilter:
     def reset(self) -> None:
         """Zero the internal state."""
         self._z = [0.0] * len(self._z)
+
+    @property
+    def state(self) -> list[float]:
+        """The internal state (a copy): ``order`` values, to persist and restore."""
+        return list(self._z)
+
+    def set_state(self, z: list[float]) -> None:
+        """Restore a :attr:`state` (ConfigError on a wrong length)."""
+        if len(z) != len(self._z):
+            raise ConfigError(f"z: expected {len(self._z)} values, got {len(z)}")
+        self._z = [float(v) for v in z]
+
+    def settle(self, x: float) -> None:
+        """Set the state to the steady state for the input ``x`` held forever (DC gain b(1)/a(1))."""
+        y = x * sum(self.b) / sum(self.a)
+        n = len(self._z)
+        self._z = [
+            math.fsum(self.b[j] * x - self.a[j] * y for j in range(i + 1, n + 1)) for i in range(n)
+        ]
 
     def update(self, x: float) -> float:
         """Filter one sample."""

@@ -6,5 +6,7 @@ configuration (DESIGN 4): the PTC's model is replaced from that step on
 (:meth:`servo_axis.core.feedforward.ptc.MultiratePtc.replace_model`). An
 identifier is a module here (numerics: regression, RLS, PE index) plus its
 registration in :mod:`servo_axis.params.factories`, and its node under
-:mod:`servo_axis.nodes`. None is built yet.
+:mod:`servo_axis.nodes`. Built: the numerics of DLPID (``rls``: conditional RLS
+with per-parameter forgetting and projection; ``pe``: the PE index;
+``dlpid``: the two layers and the signal chain). Not yet: its node.
 """
