@@ -62,6 +62,14 @@ class FeedforwardGenerator:
     learning_side : str
         ``"target"`` (added to ``x_d`` before PTC, per reference instant) or
         ``"input"`` (added to ``u_ff``, per control sample).
+    estimate_period_steps : int or None
+        Control samples per online estimate (``T_RLS / T_u``, paper 003), a
+        whole number of reference periods; None: no online estimates.
+    estimate_latency_steps : int
+        Samples between the last sample an estimate is computed from and the
+        first it applies to, minus one: estimate ``n`` applies from
+        ``(n + 1) R + latency``; at least one estimate period, so that the
+        preview never runs ahead of the estimates it depends on.
     """
 
     def __init__(
@@ -75,11 +83,14 @@ class FeedforwardGenerator:
         terms: Sequence[FeedforwardTerm] = (),
         learning_period_steps: int | None = None,
         learning_side: str = "target",
+        estimate_period_steps: int | None = None,
+        estimate_latency_steps: int = 0,
     ) -> None:
         self._reference = reference
         self._grid = grid
         self._tu = grid.control_period_s
         self._lead = require_positive("lead_m_per_rad", lead_m_per_rad)
+        self._kt = nominal.torque_constant_Nm_per_A
         self.ptc = (
             MultiratePtc(**nominal.as_kwargs(), control_period_s=self._tu, ratio=grid.ratio)
             if ptc_enabled
@@ -101,6 +112,27 @@ class FeedforwardGenerator:
                 )
         self._cycle_steps = learning_period_steps
         self._side = learning_side
+        # Online estimates (paper 003): the n-th (n = 0, 1, ...) is computed
+        # from the samples up to (n + 1) R - 1 and applies from
+        # (n + 1) R + latency; nothing from there on is given before it is set.
+        self._estimate_period = estimate_period_steps
+        self._next_estimate: int | None = None
+        if estimate_period_steps is not None:
+            for name, value in (
+                ("estimate_period_steps", estimate_period_steps),
+                ("estimate_latency_steps", estimate_latency_steps),
+            ):
+                if isinstance(value, bool) or not isinstance(value, int) or value % ratio:
+                    raise ConfigError(
+                        f"{name}: expected a whole number of reference periods ({ratio} "
+                        f"control samples), got {value!r}"
+                    )
+            if estimate_period_steps < ratio or estimate_latency_steps < estimate_period_steps:
+                raise ConfigError(
+                    "estimate_latency_steps: expected at least one estimate period "
+                    f"({estimate_period_steps} samples), got {estimate_latency_steps!r}"
+                )
+            self._next_estimate = estimate_period_steps + estimate_latency_steps
         self._corrections: dict[int, np.ndarray] = {}
         self._next = 0
         self._block_start = 0
@@ -145,6 +177,58 @@ class FeedforwardGenerator:
         previous = self._corrections.get(cycle - 1, np.zeros((n, columns)))
         self.set_correction(cycle, *(previous[:, c] for c in range(columns)))
 
+    @property
+    def next_estimate_step(self) -> int | None:
+        """The sample from which the next online estimate applies (None: no estimates)."""
+        return self._next_estimate
+
+    def set_estimate(
+        self,
+        from_step: int,
+        *,
+        inertia_kgm2: float,
+        damping_Nms_per_rad: float,
+        unbalance_Nm: float,
+        coulomb_Nm: float,
+    ) -> None:
+        """The online estimate that applies from ``from_step`` (003 Fig. 3, eq. (11)-(15)).
+
+        The PTC's model is rebuilt from ``J``, ``D`` (eq. (11)) and every
+        adaptive term (one with ``set_parameters``: the MNC) gets ``U``, ``C``,
+        from ``from_step`` on. Estimates come in order, one per estimate
+        period: ``from_step`` must be :attr:`next_estimate_step`.
+
+        Raises
+        ------
+        ConfigError
+            Without estimates, or ``from_step`` not the next one expected,
+            or a value the model refuses.
+        """
+        if self._next_estimate is None or self._estimate_period is None:
+            raise ConfigError("from_step: this generator takes no online estimates")
+        if from_step != self._next_estimate:
+            raise ConfigError(
+                f"from_step: expected the next estimate's step {self._next_estimate}, "
+                f"got {from_step!r}"
+            )
+        ratio = self._grid.ratio
+        if self.ptc is not None:
+            self.ptc.replace_model(
+                from_instant=from_step // ratio,
+                inertia_kgm2=inertia_kgm2,
+                damping_Nms_per_rad=damping_Nms_per_rad,
+                torque_constant_Nm_per_A=self._kt,
+            )
+            self.ptc.forget_before(self._next // ratio)
+        for term in self._terms:
+            setter = getattr(term, "set_parameters", None)
+            if setter is not None:
+                setter(from_step=from_step, unbalance_Nm=unbalance_Nm, coulomb_Nm=coulomb_Nm)
+                forget = getattr(term, "forget_before", None)
+                if forget is not None:
+                    forget(self._next)
+        self._next_estimate = from_step + self._estimate_period
+
     def ready_until(self) -> int | None:
         """First control sample that waits for a learning correction not yet set (None: none waits).
 
@@ -152,13 +236,14 @@ class FeedforwardGenerator:
         ``j-1`` need ``x_d`` at the first instant of period ``j``, so they
         wait for ``c_j``. Input side: period ``j`` starts with its own.
         """
-        if self._cycle_steps is None:
-            return None
-        cycle = max(1, self._next // self._cycle_steps)
-        while cycle in self._corrections:
-            cycle += 1
-        lead = self._grid.ratio if self._side == "target" else 0
-        return cycle * self._cycle_steps - lead
+        limits = [] if self._next_estimate is None else [self._next_estimate]
+        if self._cycle_steps is not None:
+            cycle = max(1, self._next // self._cycle_steps)
+            while cycle in self._corrections:
+                cycle += 1
+            lead = self._grid.ratio if self._side == "target" else 0
+            limits.append(cycle * self._cycle_steps - lead)
+        return min(limits) if limits else None
 
     def _block_end(self, k0: int) -> int:
         end = k0 - (k0 % BLOCK_STEPS) + BLOCK_STEPS
@@ -170,6 +255,8 @@ class FeedforwardGenerator:
             for cut in (boundary - self._grid.ratio, boundary):
                 if k0 < cut < end:
                     end = cut
+        if self._next_estimate is not None and k0 < self._next_estimate < end:
+            end = self._next_estimate  # the next model starts there
         return end
 
     def _targets(self, ti: np.ndarray, first_instant: int) -> np.ndarray:
@@ -235,7 +322,8 @@ class FeedforwardGenerator:
         k = start
         while k < stop:
             if not self._block_start <= k < self._block_start + len(self._block):
-                self._block_start = k if self._cycle_steps is not None else k - (k % BLOCK_STEPS)
+                cut = self._cycle_steps is not None or self._next_estimate is not None
+                self._block_start = k if cut else k - (k % BLOCK_STEPS)
                 self._block = self._compute_block(
                     self._block_start, self._block_end(self._block_start)
                 )

@@ -165,6 +165,11 @@ class MultiratePtc:
             )
         )
 
+    def forget_before(self, instant: int) -> None:
+        """Drop the models no instant from ``instant`` on uses (keeps the one in force)."""
+        while len(self._models) > 1 and self._models[1].from_instant <= instant:
+            self._models.pop(0)
+
     def feedforward(self, x_d: NDArray[np.float64], first_instant: int = 0) -> PtcOutput:
         """Feedforward for the target states ``x_d`` at reference instants ``i0 .. i0 + M``.
 

@@ -1,0 +1,162 @@
+"""Adaptive PTC and the multirate nonlinearity compensator of paper 003 (no ROS)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from servo_axis.core.errors import ConfigError
+from servo_axis.core.feedforward.generator import FeedforwardGenerator
+from servo_axis.core.feedforward.mnc import MncParams, NonlinearityCompensator, friction_model_Nm
+from servo_axis.core.feedforward.terms import ReferenceBlock
+from servo_axis.core.models.base import NominalModel
+from servo_axis.core.models.tilting_table import TiltingTableParams, TiltingTablePlant
+from servo_axis.core.reference import SineReference
+from servo_axis.core.timing import SampleGrid
+
+TU = 4e-4
+J, D, U, C = 50e-4, 130e-4, 0.3, 0.02
+#: A smooth tilt that starts at rest: 0.6 + 0.5 sin(2 pi 0.5 s(t) - pi / 2), ramped.
+TILT = SineReference(
+    amplitude_m=0.5, frequency_hz=0.5, offset_m=0.6, phase_rad=-math.pi / 2, ramp_s=0.5
+)
+
+
+def block(steps: np.ndarray, reference: SineReference = TILT) -> ReferenceBlock:
+    pos, vel, acc = reference.sample(steps * TU)
+    return ReferenceBlock(step=steps, position_m=pos, velocity_m_s=vel, acceleration_m_s2=acc)
+
+
+def test_friction_model_of_eq_14() -> None:
+    w = np.array([-10.0, -1.0, -0.05, 0.0, 0.05, 1.0, 10.0])
+    got = friction_model_Nm(w, coulomb_Nm=C, alpha=1e4, omega_th_rad_s=0.05)
+    expected = [
+        C / math.pi * (math.atan(1e4 * (x - 0.05)) + math.atan(1e4 * (x + 0.05))) for x in w
+    ]
+    assert_allclose(got, expected, rtol=1e-15)
+    assert got[3] == 0.0  # odd: no friction at rest
+    assert_allclose(got[[0, -1]], [-C, C], rtol=1e-4)  # +-C beyond the dead zone
+    assert_allclose(got[[2, 4]], [-C / 2, C / 2], rtol=1e-3)  # half at its edge
+
+
+def test_mnc_takes_the_interval_ends_and_its_schedule() -> None:
+    mnc = NonlinearityCompensator(
+        MncParams(unbalance_Nm=U, coulomb_Nm=C, torque_constant_Nm_per_A=0.5, control_period_s=TU),
+        reference=TILT,
+    )
+    mnc.set_parameters(from_step=6, unbalance_Nm=0.2, coulomb_Nm=0.03)
+    steps = np.arange(2, 12)
+    got = mnc.currents(block(steps))
+    for k, value in zip(steps, got, strict=True):
+        at = k if k % 2 == 0 else k + 1  # eq. (13)/(15): [f(k), f(k + 2)] for k = 2i
+        pos, vel, _ = TILT.sample(np.array([at * TU]))
+        u, c = (U, C) if k < 6 else (0.2, 0.03)
+        torque = u * math.sin(pos[0]) + c / math.pi * (
+            math.atan(1e4 * (vel[0] - 0.05)) + math.atan(1e4 * (vel[0] + 0.05))
+        )
+        assert value == pytest.approx(torque / 0.5, rel=1e-13, abs=1e-16)
+    marc = NonlinearityCompensator(
+        MncParams(unbalance_Nm=U, coulomb_Nm=C, friction=False, control_period_s=TU),
+        reference=TILT,
+    )  # eq. (17): the unbalance only
+    pos, _, _ = TILT.sample(np.array([4 * TU, 6 * TU]))
+    assert_allclose(marc.currents(block(np.array([4, 5]))), U * np.sin(pos), rtol=1e-14)
+    with pytest.raises(ConfigError, match="from_step: expected an integer after 6"):
+        mnc.set_parameters(from_step=6, unbalance_Nm=0.1, coulomb_Nm=0.0)
+    with pytest.raises(ConfigError, match="unbalance_Nm"):
+        mnc.set_parameters(from_step=8, unbalance_Nm=math.nan, coulomb_Nm=0.0)
+    with pytest.raises(ConfigError, match="alpha"):
+        MncParams(alpha=0.0)
+
+
+def generator(
+    nominal: NominalModel, *, terms: list[object] = (), estimates: bool = False, **kw: int
+) -> FeedforwardGenerator:
+    return FeedforwardGenerator(
+        reference=TILT,
+        grid=SampleGrid(control_period_s=TU),
+        lead_m_per_rad=1.0,
+        nominal=nominal,
+        terms=list(terms),  # type: ignore[arg-type]
+        estimate_period_steps=10 if estimates else None,
+        estimate_latency_steps=kw.get("latency", 10),
+    )
+
+
+def test_estimates_apply_from_their_step_and_nothing_runs_ahead() -> None:
+    initial = NominalModel(
+        inertia_kgm2=20e-4, damping_Nms_per_rad=100e-4, torque_constant_Nm_per_A=1.0
+    )
+    true = NominalModel(inertia_kgm2=J, damping_Nms_per_rad=D, torque_constant_Nm_per_A=1.0)
+    gen = generator(initial, estimates=True, latency=20)
+    assert gen.ready_until() == gen.next_estimate_step == 30  # R + latency
+    first = gen.samples(0, 30)
+    with pytest.raises(ConfigError, match="stop: samples from 30 on wait"):
+        gen.samples(30, 31)
+    with pytest.raises(ConfigError, match="from_step: expected the next estimate's step 30"):
+        gen.set_estimate(
+            40, inertia_kgm2=J, damping_Nms_per_rad=D, unbalance_Nm=0.0, coulomb_Nm=0.0
+        )
+    gen.set_estimate(30, inertia_kgm2=J, damping_Nms_per_rad=D, unbalance_Nm=0.0, coulomb_Nm=0.0)
+    assert gen.ready_until() == 40
+    after = gen.samples(30, 40)
+    # Before its step the initial model, from it the estimate: exactly what a
+    # generator built with each model from the start gives.
+    assert first == generator(initial).samples(0, 30)
+    assert after == generator(true).samples(0, 40)[30:]
+    with pytest.raises(ConfigError, match="estimate_latency_steps: expected at least one"):
+        generator(initial, estimates=True, latency=2)
+    with pytest.raises(ConfigError, match="estimate_latency_steps: expected a whole number"):
+        generator(initial, estimates=True, latency=15)
+
+
+def run_open_loop(*, unbalance: float, period_s: float, seconds: float = 1.0) -> np.ndarray:
+    """|theta - theta_d| at the T_r instants, feedforward only, model and U exact."""
+    plant = TiltingTablePlant(
+        TiltingTableParams(
+            inertia_kgm2=J,
+            damping_Nms_per_rad=D,
+            unbalance_Nm=unbalance,
+            coulomb_Nm=0.0,
+            noise_rad=0.0,
+            control_period_s=period_s,
+            sim_step_s=period_s / 10,
+            initial_angle_rad=float(TILT.sample(np.array([0.0]))[0][0]),
+        ),
+        rng=np.random.default_rng(0),
+    )
+    mnc = NonlinearityCompensator(
+        MncParams(
+            unbalance_Nm=unbalance, coulomb_Nm=0.0, friction=False, control_period_s=period_s
+        ),
+        reference=TILT,
+    )
+    gen = FeedforwardGenerator(
+        reference=TILT,
+        grid=SampleGrid(control_period_s=period_s),
+        lead_m_per_rad=1.0,
+        nominal=NominalModel(inertia_kgm2=J, damping_Nms_per_rad=D, torque_constant_Nm_per_A=1.0),
+        terms=[mnc],
+    )
+    n = round(seconds / period_s)
+    errors = []
+    for k, (_, _, u_ff) in enumerate(gen.samples(0, n)):
+        if k % 2 == 0:
+            target = TILT.sample(np.array([k * period_s]))[0][0]
+            errors.append(plant.output().angle_rad - target)
+        plant.step(u_ff)
+    return np.abs(np.array(errors))
+
+
+def test_adaptive_ptc_with_the_true_model_tracks_at_the_reference_instants() -> None:
+    # Linear part only: perfect tracking at every T_r instant, to rounding.
+    assert np.max(run_open_loop(unbalance=0.0, period_s=TU)) < 1e-12
+    # With the unbalance the MNC holds U sin(theta_d) over each sample, so the
+    # error is that of a zero-order hold: small, and second order in T_u.
+    e1 = np.max(run_open_loop(unbalance=U, period_s=TU))
+    e2 = np.max(run_open_loop(unbalance=U, period_s=TU / 2))
+    assert 0.0 < e1 < 1e-4
+    assert 2.5 < e1 / e2 < 8.0, (e1, e2)
