@@ -1,22 +1,30 @@
-"""Learning unit node: runs the learning law of ``law`` per period (RPTC of paper 000).
+"""Learning unit node: runs the learning law of ``law`` per period.
+
+A cycle law with target-side corrections (``rptc``, paper 000) or a trial law
+with input-side ones (``silc``, ``pilc_bf``, ``pilc_bfft``, paper 001).
 
 Topics (relative to the namespace):
 
-* subscribes ``state`` (JointState, every sample; it uses the reference
-  instants ``k = ratio * i``);
-* publishes ``learning/correction`` (JointState, ``Nd`` messages per cycle,
-  stamped with the reference instants of the *next* cycle: ``position`` =
-  correction of the target angle (rad), ``velocity`` = its central-difference
-  velocity (rad/s)) and ``learning/cycle_stats`` (Float64MultiArray
-  ``[cycle, rms_m, max_m, cycles_learned]``, once per cycle).
+* subscribes ``state`` (JointState, every sample; a target-side law uses the
+  reference instants ``k = ratio * i``, an input-side law every sample);
+* publishes, for a target-side law, ``learning/correction`` (JointState,
+  ``Nd`` messages per cycle, stamped with the reference instants of the
+  *next* cycle: ``position`` = correction of the target angle (rad),
+  ``velocity`` = its central-difference velocity (rad/s)); for an
+  input-side law ``learning/input_correction`` (``N`` messages per trial,
+  stamped with the control samples of the next trial: ``effort`` = the
+  current ``f_{j+1}`` (A)); ``learning/cycle_stats`` (Float64MultiArray
+  ``[cycle, rms_m, max_m, cycles_learned]``, once per period); and, for a
+  projection-based law, ``learning/parameters`` and
+  ``learning/friction_table``.
 
-At the last reference instant of cycle ``j`` it has the whole error
-``e_j = x/R - y`` against the *original* target (it builds the same reference
-as the feedforward generator from ``reference.*``) and the controlled output
-``y`` the feedback uses (``sensor``, :func:`controlled_output`), learns
-``c_{j+1} = c_j + Q~n e_j`` (eq. (9), (19)) if learning is on for that cycle
-(``start_cycle``, the switch of 000 Fig. 17), writes its memory file and
-publishes ``c_{j+1}``. See docs/learning_protocol.md.
+At the last sample of period ``j`` it has the whole error ``e_j = x/R - y``
+against the *original* target (it builds the same reference as the
+feedforward generator from ``reference.*``) and the controlled output ``y``
+the feedback uses (``sensor``, :func:`controlled_output`), learns (from
+``start_cycle`` on, the switch of 000 Fig. 17), writes its memory file,
+publishes the stats (and what the law identified) and then the correction
+of period ``j + 1``. See docs/learning_protocol.md.
 
 The ``state`` stream is taken raw: only the reference instants are
 deserialised, validated whole and then passed through a
