@@ -20,8 +20,8 @@ from typing import Any
 
 import numpy as np
 import pytest
-from ilc_scenarios import SWITCH, TRIAL_S, TRIALS, short_trials
 from numpy.testing import assert_allclose
+from run_support import SWITCH, TRIAL_S, TRIALS, pids_of, short_trials
 
 from servo_axis.analysis.health import EXIT_NOT_DETERMINISTIC
 from servo_axis.analysis.summary import RunSummary
@@ -99,16 +99,6 @@ def test_projection_ilc_carries_over_to_a_new_reference(
     assert memory["law"] == "pilc_bfft" and memory["periods_learned"] == TRIALS - 1
 
 
-def _pids(run_dir: Path, role: str) -> list[int]:
-    out = subprocess.run(
-        ["pgrep", "-f", f"servo_axis.nodes.{role} .*{run_dir}/params.yaml"],
-        capture_output=True,
-        text=True,
-        check=False,
-    )
-    return [int(p) for p in out.stdout.split()]
-
-
 def test_killed_learning_unit_resumes_and_still_carries_over(ros_env: int, tmp_path: Path) -> None:
     path = short_trials("bfft", tmp_path / "bfft.yaml")
     run_dir = tmp_path / "run"
@@ -133,7 +123,7 @@ def test_killed_learning_unit_resumes_and_still_carries_over(ros_env: int, tmp_p
             except (OSError, ValueError, KeyError):
                 pass
             time.sleep(0.005)
-        (pid,) = _pids(run_dir, "learning")
+        (pid,) = pids_of(run_dir, "learning")
         os.kill(pid, signal.SIGKILL)
         _, stderr = proc.communicate(timeout=120)
     finally:
@@ -142,7 +132,7 @@ def test_killed_learning_unit_resumes_and_still_carries_over(ros_env: int, tmp_p
             proc.wait()
     assert proc.returncode == EXIT_NOT_DETERMINISTIC, stderr
     for role in ("plant", "feedback", "feedforward", "learning", "recorder"):
-        assert _pids(run_dir, role) == [], f"{role} left running"
+        assert pids_of(run_dir, role) == [], f"{role} left running"
     summary = RunSummary.from_json(run_dir / "summary.json")
     assert summary.health is not None
     (death,) = summary.health.deaths

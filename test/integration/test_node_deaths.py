@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from run_support import pids_of
 
 from servo_axis.analysis.health import EXIT_FAILED, EXIT_FAULT, EXIT_NOT_DETERMINISTIC
 from servo_axis.nodes.runtime import LIVELINESS_LEASE_S
@@ -52,17 +53,6 @@ class Killed:
         return json.loads((self.run_dir / "summary.json").read_text())
 
 
-def _pids_of(run_dir: Path, role: str) -> list[int]:
-    """Processes of ``role`` started for this run (their command line names its params file)."""
-    out = subprocess.run(
-        ["pgrep", "-f", f"servo_axis.nodes.{role} .*{run_dir}/params.yaml"],
-        capture_output=True,
-        text=True,
-        check=False,
-    )
-    return [int(p) for p in out.stdout.split()]
-
-
 def run_and_kill(role: str, tmp_path: Path, domain: int) -> Killed:
     """Run the scenario, SIGKILL ``role`` once the plant runs, follow what happens."""
     run_dir = tmp_path / "run"
@@ -83,7 +73,7 @@ def run_and_kill(role: str, tmp_path: Path, domain: int) -> Killed:
             assert time.monotonic() < deadline, "the plant never started"
             time.sleep(0.02)
         time.sleep(KILL_AFTER_S)
-        (pid,) = _pids_of(run_dir, role)
+        (pid,) = pids_of(run_dir, role)
         os.kill(pid, signal.SIGKILL)
         killed_at = time.monotonic()
         trip_seen = restart_seen = None
@@ -116,7 +106,7 @@ def run_and_kill(role: str, tmp_path: Path, domain: int) -> Killed:
 
 def _assert_reaped_and_readable(k: Killed) -> None:
     for role in ("plant", "feedback", "feedforward", "learning", "recorder"):
-        assert _pids_of(k.run_dir, role) == [], f"{role} left running"
+        assert pids_of(k.run_dir, role) == [], f"{role} left running"
     # The killed participant's Fast DDS shared-memory files are gone too.
     left = {p.name for p in Path("/dev/shm").iterdir()} - k.shm_before
     assert not left, left

@@ -31,42 +31,33 @@ from servo_axis.stop_signals import catch_stop_signals, restore_handlers
 #: not lapse it; measured: a SIGKILLed publisher is seen gone after 0.3-1 s).
 LIVELINESS_LEASE_S = 1.0
 
+
+def _reliable(depth: int, durability: DurabilityPolicy) -> QoSProfile:
+    """Reliable keep-last with AUTOMATIC liveliness (lease :data:`LIVELINESS_LEASE_S`)."""
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=depth,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=durability,
+        liveliness=LivelinessPolicy.AUTOMATIC,
+        liveliness_lease_duration=Duration(seconds=LIVELINESS_LEASE_S),
+    )
+
+
 #: Per-sample streams: reliable, deep enough for the preview window and the
 #: recorder's flow-control lag. Transient-local because a publisher that
 #: counts a reader as matched does not mean that the reader has matched it
 #: yet: a volatile reader that completes its side of discovery late drops
-#: what was sent before (measured: 1 of ~30 junk-flooded runs lost `state`
-#: steps 0-1 at the learning unit and stalled). A transient-local reader asks
-#: the writer's history (``depth`` samples) for them instead.
-STREAM_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=2000,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-    liveliness=LivelinessPolicy.AUTOMATIC,
-    liveliness_lease_duration=Duration(seconds=LIVELINESS_LEASE_S),
-)
+#: what was sent before, while a transient-local reader asks the writer's
+#: history (``depth`` samples) for it.
+STREAM_QOS = _reliable(2000, DurabilityPolicy.TRANSIENT_LOCAL)
 
 #: A reader that joins a running stream on purpose (a restarted learning
 #: unit) and wants only what comes from now on, not the writer's history.
-LATE_JOIN_QOS = QoSProfile(
-    history=STREAM_QOS.history,
-    depth=STREAM_QOS.depth,
-    reliability=STREAM_QOS.reliability,
-    durability=DurabilityPolicy.VOLATILE,
-    liveliness=STREAM_QOS.liveliness,
-    liveliness_lease_duration=STREAM_QOS.liveliness_lease_duration,
-)
+LATE_JOIN_QOS = _reliable(STREAM_QOS.depth, DurabilityPolicy.VOLATILE)
 
 #: Latched state (faults, recorder progress): a late subscriber gets the last one.
-LATCHED_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-    liveliness=LivelinessPolicy.AUTOMATIC,
-    liveliness_lease_duration=Duration(seconds=LIVELINESS_LEASE_S),
-)
+LATCHED_QOS = _reliable(1, DurabilityPolicy.TRANSIENT_LOCAL)
 
 #: What a reader of a latched topic asks for: the writer's last message
 #: when it joins, and then a deep queue. A depth-1 reader keeps only the
@@ -74,14 +65,7 @@ LATCHED_QOS = QoSProfile(
 #: topic replaced the recorder's one `steps_recorded: 0` before the plant
 #: took it, and the plant never started (measured: every run with a junk
 #: publisher already on the domain).
-LATCHED_READ_QOS = QoSProfile(
-    history=LATCHED_QOS.history,
-    depth=STREAM_QOS.depth,
-    reliability=LATCHED_QOS.reliability,
-    durability=LATCHED_QOS.durability,
-    liveliness=LATCHED_QOS.liveliness,
-    liveliness_lease_duration=LATCHED_QOS.liveliness_lease_duration,
-)
+LATCHED_READ_QOS = _reliable(STREAM_QOS.depth, DurabilityPolicy.TRANSIENT_LOCAL)
 
 #: Exit code of a node that refused its configuration.
 EXIT_BAD_CONFIG = 2

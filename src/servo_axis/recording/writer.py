@@ -212,17 +212,12 @@ class BagWriter:
             If the writer is closed, the topic is already registered, the name
             is empty, the type is unknown, or ``qos_text`` is not a YAML list.
         """
-        if self._closed:
-            raise BagError(f"name: cannot add topic {name!r}, the bag is closed")
-        if not isinstance(name, str) or not name:
-            raise BagError(f"name: expected a non-empty topic name, got {name!r}")
-        if name in self._topics:
-            raise BagError(f"name: topic {name!r} is already registered")
+        self._check_new_topic(name)
         package, tname = _split(type_name)
         full = f"{package}/msg/{tname}"
         definition = message_definition(full)
         message_class(full)
-        return self.add_recorded_topic(
+        return self._register(
             name, full, definition=definition, qos_text=qos_text, type_hash=rihs01_hash(full) or ""
         )
 
@@ -246,12 +241,22 @@ class BagWriter:
         BagError
             As :meth:`add_topic`, except for an unknown type.
         """
+        self._check_new_topic(name)
+        return self._register(
+            name, type_name, definition=definition, qos_text=qos_text, type_hash=type_hash
+        )
+
+    def _check_new_topic(self, name: str) -> None:
         if self._closed:
             raise BagError(f"name: cannot add topic {name!r}, the bag is closed")
         if not isinstance(name, str) or not name:
             raise BagError(f"name: expected a non-empty topic name, got {name!r}")
         if name in self._topics:
             raise BagError(f"name: topic {name!r} is already registered")
+
+    def _register(
+        self, name: str, type_name: str, *, definition: str, qos_text: str, type_hash: str
+    ) -> int:
         package, tname = _split(type_name)
         full = f"{package}/msg/{tname}"
         try:

@@ -11,14 +11,21 @@ import json
 
 import numpy as np
 import pytest
-import scipy.linalg
-import scipy.signal
+from ilc_support import (
+    KT,
+    LEAD,
+    PERIOD_S,
+    TRUE_PLANT,
+    loop_matrices,
+    min_jerk,
+    paper_params,
+    q_matrix,
+)
 from numpy.testing import assert_allclose
 
 from servo_axis.core.errors import ConfigError, SignalError, TableError
-from servo_axis.core.feedback.pid import DiscretePid, design_pid_pole_placement
+from servo_axis.core.feedback.pid import design_pid_pole_placement
 from servo_axis.core.learning.base import decode_memory, encode_memory
-from servo_axis.core.learning.filters import q_filter_taps
 from servo_axis.core.learning.ilc import (
     IlcParams,
     StandardIlc,
@@ -39,82 +46,13 @@ from servo_axis.core.learning.pilc import (
 )
 from servo_axis.core.models.base import NominalModel
 
-PERIOD_S = 1e-3
-LEAD = 1.91e-3
-KT = 0.715
-NOMINAL = NominalModel(inertia_kgm2=0.015, damping_Nms_per_rad=0.1, torque_constant_Nm_per_A=KT)
-TRUE_PLANT = NominalModel(
-    inertia_kgm2=0.8 * 0.015, damping_Nms_per_rad=1.2 * 0.1, torque_constant_Nm_per_A=KT
-)
-PID = design_pid_pole_placement(bandwidth_hz=30.0, **NOMINAL.as_kwargs())
 TC_NM = 3.2  # Coulomb friction of 001 Sect. II-B
 XS_M = 10e-6  # width of region 1 (Fig. 2)
 N = 1200
 
 
-def paper_params(samples: int = N, nq: int = 16) -> IlcParams:
-    return IlcParams(
-        samples_per_trial=samples,
-        nq=nq,
-        period_s=PERIOD_S,
-        lead_m_per_rad=LEAD,
-        nominal=NOMINAL,
-        pid=PID,
-    )
-
-
-def min_jerk(
-    rest: int, moves: list[tuple[float, int]], tail: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Position, velocity, acceleration of minimum-jerk moves (distance m, samples) with rests."""
-    pos, vel, acc = [np.zeros(rest)], [np.zeros(rest)], [np.zeros(rest)]
-    x0 = 0.0
-    for i, (dist, samples) in enumerate(moves):
-        duration = samples * PERIOD_S
-        tau = np.arange(samples) / samples
-        pos.append(x0 + dist * (10 * tau**3 - 15 * tau**4 + 6 * tau**5))
-        vel.append(dist / duration * (30 * tau**2 - 60 * tau**3 + 30 * tau**4))
-        acc.append(dist / duration**2 * (60 * tau - 180 * tau**2 + 120 * tau**3))
-        x0 += dist
-        gap = tail if i == len(moves) - 1 else rest
-        pos.append(np.full(gap, x0))
-        vel.append(np.zeros(gap))
-        acc.append(np.zeros(gap))
-    return np.concatenate(pos), np.concatenate(vel), np.concatenate(acc)
-
-
 REF1 = min_jerk(80, [(2e-3, 300), (-2e-3, 300)], 440)
 REF2 = min_jerk(80, [(1e-3, 200), (-3e-3, 400), (2e-3, 250)], 110)
-
-
-def loop_matrices(plant: NominalModel, samples: int) -> tuple[np.ndarray, np.ndarray]:
-    """Lifted ``S`` (r -> e) and ``S P`` (f -> x) from a sample-by-sample simulation."""
-    a = np.array([[0.0, 1.0], [0.0, -plant.damping_Nms_per_rad / plant.inertia_kgm2]])
-    b = np.array([[0.0], [plant.torque_constant_Nm_per_A / plant.inertia_kgm2]])
-    ad, bd, *_ = scipy.signal.cont2discrete((a, b, np.eye(2), np.zeros((2, 1))), PERIOD_S, "zoh")
-    out = []
-    for which in ("r", "f"):
-        ctl = DiscretePid(gains=PID, period_s=PERIOD_S)
-        state = np.zeros(2)
-        h = np.zeros(samples)
-        for k in range(samples):
-            x = LEAD * state[0]
-            e = (1.0 if (which == "r" and k == 0) else 0.0) - x
-            u = ctl.update(e / LEAD) + (1.0 if (which == "f" and k == 0) else 0.0)
-            h[k] = e if which == "r" else x
-            state = ad @ state + bd[:, 0] * u
-        out.append(scipy.linalg.toeplitz(h, np.zeros(samples)))
-    return out[0], out[1]
-
-
-def q_matrix(samples: int, nq: int) -> np.ndarray:
-    """Lifted Q of eq. (24) with end-value extension, built entry by entry."""
-    taps = q_filter_taps(nq)
-    m = np.zeros((samples, samples))
-    for i in range(samples):
-        for k, c in enumerate(taps):
-            m[i, min(max(i + k - nq, 0), samples - 1)] += c
-    return m
 
 
 def curve_Nm(x_r: np.ndarray) -> np.ndarray:
@@ -179,7 +117,7 @@ def test_w_zeroes_exactly_the_samples_within_the_threshold() -> None:
     theta = np.array([12.0, 80.0, 4.4])
     psi = basis(pos, vel, acc, x_mu_m=5e-6)
     f_np = psi @ theta + np.where(w == 0.0, 7.0 * np.cos(np.arange(N)), 0.0)
-    sens = process_sensitivity(paper_params())
+    sens = process_sensitivity(paper_params(N))
     assert_allclose(estimate_parameters(f_np, psi, sensitivity=sens, weights=w), theta, rtol=1e-8)
     # ... while eq. (19) without W sees it.
     assert not np.allclose(estimate_parameters(f_np, psi, sensitivity=sens), theta, rtol=1e-2)
@@ -193,7 +131,7 @@ def test_projection_recovers_theta_when_f_np_is_in_the_basis() -> None:
             TC_NM / KT,
         ]
     )
-    sens = process_sensitivity(paper_params())
+    sens = process_sensitivity(paper_params(N))
     for ref in (REF1, REF2):
         psi = basis(*ref, x_mu_m=5e-6)
         assert_allclose(estimate_parameters(psi @ theta, psi, sensitivity=sens), theta, rtol=1e-8)
@@ -255,7 +193,7 @@ def run_law(law: StandardIlc | ProjectionIlc, trials: int) -> list[float]:
     """RMS error per trial on the lifted true plant with rolling friction; checks eq. (3)."""
     s, sp = loop_matrices(TRUE_PLANT, N)
     q = q_matrix(N, 16)
-    zpetc = learning_filter(paper_params())
+    zpetc = learning_filter(paper_params(N))
     rms = []
     for j in range(1, trials + 1):
         pos, vel, _ = reference_of(j)
@@ -273,14 +211,14 @@ def test_projection_laws_carry_over_to_a_new_reference() -> None:
     projection = ProjectionParams()
     laws = {
         table: ProjectionIlc(
-            ilc=paper_params(),
+            ilc=paper_params(N),
             projection=projection,
             reference_of=reference_of,
             friction_table=table,
         )
         for table in (False, True)
     }
-    silc = run_law(StandardIlc(paper_params()), 5)
+    silc = run_law(StandardIlc(paper_params(N)), 5)
     bf, bfft = run_law(laws[False], 5), run_law(laws[True], 5)
     # Trial 5 is the first on Ref. 2: S-ILC starts over, the P-ILCs do not (Fig. 10).
     assert silc[4] > 0.8 * silc[0]
@@ -307,7 +245,7 @@ def test_projection_laws_carry_over_to_a_new_reference() -> None:
 
 def make(table: bool, ref: object = reference_of) -> ProjectionIlc:
     return ProjectionIlc(
-        ilc=paper_params(),
+        ilc=paper_params(N),
         projection=ProjectionParams(),
         reference_of=ref,  # type: ignore[arg-type]
         friction_table=table,
@@ -336,7 +274,7 @@ def test_bad_input_is_refused_with_its_name() -> None:
     with pytest.raises(ConfigError, match="threshold_m: expected a value > 0"):
         ProjectionParams(threshold_m=-1e-4)
     with pytest.raises(ConfigError, match=r"nq: Nq too large for the trial"):
-        paper_params(samples=60, nq=15)
+        paper_params(60, nq=15)
     undamped = NominalModel(
         inertia_kgm2=0.015, damping_Nms_per_rad=0.0, torque_constant_Nm_per_A=KT
     )
@@ -364,7 +302,7 @@ def test_bad_input_is_refused_with_its_name() -> None:
         estimate_parameters(
             np.ones(N),
             np.ones((N, 3)),
-            sensitivity=process_sensitivity(paper_params()),
+            sensitivity=process_sensitivity(paper_params(N)),
             weights=np.zeros(N),
         )
     law = make(False)

@@ -33,13 +33,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from servo_axis.core.errors import (
     ConfigError,
-    SignalError,
     require_finite,
     require_nonnegative,
     require_positive,
 )
 from servo_axis.core.friction.model import FrictionModel, FrictionParams
-from servo_axis.core.models.base import PlantOutput, whole_ratio, zoh
+from servo_axis.core.models.base import PlantOutput, clipped_current, whole_ratio, zoh
 from servo_axis.core.sensors import PositionSensor, SensorParams
 
 #: Resonance modes of DESIGN 7 (paper 000 Table I did not survive; our choice):
@@ -301,11 +300,8 @@ class BallScrewPlant:
         PlantOutput
             The state at the next control sample.
         """
-        if not math.isfinite(current_A):
-            raise SignalError(f"current_A: expected a finite current, got {current_A!r}")
         p = self.params
-        lim = p.current_limit_A
-        cmd = min(max(float(current_A), -lim), lim)
+        cmd = clipped_current(current_A, p.current_limit_A)
         pipe = self._pipe
         pipe.append(cmd)
         older, newer = pipe[0], pipe[1]

@@ -13,6 +13,7 @@ A new model is a module in this folder with a class that satisfies
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -20,7 +21,7 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
-from servo_axis.core.errors import ConfigError, require_nonnegative, require_positive
+from servo_axis.core.errors import ConfigError, SignalError, require_nonnegative, require_positive
 
 
 @dataclass(frozen=True)
@@ -118,6 +119,13 @@ class NominalModel:
             self.inertia_kgm2 * s**2 + self.damping_Nms_per_rad * s
         )
         return result
+
+
+def clipped_current(current_A: float, limit_A: float) -> float:
+    """``current_A`` saturated at ``+-limit_A`` (the amplifier), or SignalError if not finite."""
+    if not math.isfinite(current_A):
+        raise SignalError(f"current_A: expected a finite current, got {current_A!r}")
+    return min(max(float(current_A), -limit_A), limit_A)
 
 
 def whole_ratio(name: str, value: float, unit: float, unit_name: str) -> int:

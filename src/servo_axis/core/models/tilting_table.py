@@ -74,12 +74,11 @@ import numpy as np
 
 from servo_axis.core.errors import (
     ConfigError,
-    SignalError,
     require_finite,
     require_nonnegative,
     require_positive,
 )
-from servo_axis.core.models.base import NominalModel, PlantOutput, whole_ratio
+from servo_axis.core.models.base import NominalModel, PlantOutput, clipped_current, whole_ratio
 
 #: Newton iterations of the zero-velocity event location, at most.
 _EVENT_ITERATIONS = 40
@@ -259,11 +258,8 @@ class TiltingTablePlant:
         PlantOutput
             The state at the next control sample.
         """
-        if not math.isfinite(current_A):
-            raise SignalError(f"current_A: expected a finite current, got {current_A!r}")
         p = self.params
-        lim = p.current_limit_A
-        cmd = min(max(float(current_A), -lim), lim)
+        cmd = clipped_current(current_A, p.current_limit_A)
         torque = p.torque_constant_Nm_per_A * cmd
         self._applied_A = cmd
         self._torque_Nm = torque

@@ -1,7 +1,8 @@
-"""Shortened paper-001 scenarios for the integration tests (the scenario files stay as they are)."""
+"""Helpers of the integration tests: the processes of a run, shortened paper-001 scenarios."""
 
 from __future__ import annotations
 
+import subprocess
 from pathlib import Path
 
 import yaml
@@ -30,3 +31,14 @@ def short_trials(law: str, path: Path) -> Path:
     ff["learning"]["cycle_s"] = TRIAL_S
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     return path
+
+
+def pids_of(run_dir: Path, role: str) -> list[int]:
+    """Processes of ``role`` started for this run (their command line names its params file)."""
+    out = subprocess.run(
+        ["pgrep", "-f", f"servo_axis.nodes.{role} .*{run_dir}/params.yaml"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    return [int(p) for p in out.stdout.split()]
