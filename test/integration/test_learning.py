@@ -124,7 +124,12 @@ def test_killed_learning_unit_resumes_from_its_memory(ros_env: int, tmp_path: Pa
     from servo_axis.nodes.runtime import STREAM_QOS
     from servo_axis.params.scenario import load_scenario
     from servo_axis.run.plan import handshake_overrides, write_run_params
-    from servo_axis.run.processes import ros_environment, start_nodes, stop_nodes
+    from servo_axis.run.processes import (
+        clean_stale_shm,
+        ros_environment,
+        start_nodes,
+        stop_nodes,
+    )
     from servo_axis.run.progress import ProgressWatcher
 
     data = load_scenario(CONFIG / "rptc_detailed.yaml")
@@ -138,6 +143,7 @@ def test_killed_learning_unit_resumes_from_its_memory(ros_env: int, tmp_path: Pa
     params = write_run_params(
         data, handshake_overrides(data, roles, tmp_path / "bag", tmp_path), tmp_path / "params.yaml"
     )
+    started = time.time()
     procs = start_nodes(params, roles, [], env, log_dir, False)
     watcher = ProgressWatcher("/")
     ctx = Context()
@@ -171,6 +177,7 @@ def test_killed_learning_unit_resumes_from_its_memory(ros_env: int, tmp_path: Pa
         spin_until(lambda: watcher.steps > killed_at_step + 1500, 60)
         count_before_restart = len(stats)
         (log_dir / "restart").mkdir()
+        clean_stale_shm(since=started, dead_owners_only=True)  # as the runner does
         restarted = start_nodes(
             params, ["learning"], ["-p", "late_join:=true"], env, log_dir / "restart", False
         )

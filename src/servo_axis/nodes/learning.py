@@ -154,6 +154,7 @@ class LearningNode(ServoNode):
             "state", self._decode_state, self._on_state, raw=True, gate=self._gate, qos=qos
         )
         self.state_subscribed = True
+        self.get_logger().info("outputs matched; subscribed to state")
 
     def _resume_memory(self) -> None:
         if self._memory is None or not self._v["memory.resume"] or not self._memory.exists():

@@ -183,7 +183,9 @@ def _lock_held(path: Path) -> bool:
     return False
 
 
-def clean_stale_shm(*, since: float, shm_dir: Path = Path("/dev/shm")) -> list[str]:
+def clean_stale_shm(
+    *, since: float, shm_dir: Path = Path("/dev/shm"), dead_owners_only: bool = False
+) -> list[str]:
     """Remove Fast DDS shared-memory files a SIGKILLed node left behind.
 
     With localhost discovery rmw_fastrtps uses shared memory; a clean exit
@@ -193,6 +195,14 @@ def clean_stale_shm(*, since: float, shm_dir: Path = Path("/dev/shm")) -> list[s
     when the owner dies) or, for a port segment, when it has no ``_el`` at
     all. Only files touched since ``since`` (epoch seconds: the start of the
     run) are considered, so other users' files are left alone.
+
+    With ``dead_owners_only`` only segments whose lock file exists and is
+    free (their owner died) go, which is safe while other participants run:
+    a port segment without a lock file may be a live sender's. A restarted
+    node must not inherit the receive port of the participant it replaces
+    (Fast DDS gives it the same participant id, hence the same port): on the
+    dead one's segment it could send but, now and then, not receive
+    (observed: a restarted learning unit matched nothing for 90 s).
     """
     removed = []
     # A lock file whose segment is gone counts too: Fast DDS may remove a
@@ -206,6 +216,8 @@ def clean_stale_shm(*, since: float, shm_dir: Path = Path("/dev/shm")) -> list[s
         except (OSError, ValueError):
             continue
         if touched < since or (lock.exists() and _lock_held(lock)):
+            continue
+        if dead_owners_only and not lock.exists():
             continue
         for path in (seg, lock, shm_dir / f"sem.{name}_mutex"):
             path.unlink(missing_ok=True)

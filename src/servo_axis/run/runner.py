@@ -183,6 +183,7 @@ class _Watch:
 
     steps: int = -1  # the slowest axis's recorded steps
     t_start: float = field(default_factory=time.monotonic)
+    t_start_epoch: float = field(default_factory=time.time)  # for the shared-memory clean-up
     t_first: float | None = None  # the first recorded step
     t_end: float = 0.0
     failure: str | None = None
@@ -388,6 +389,7 @@ def _run_nodes(
                     steps=run_steps(node_values(run.scenario, "plant")),
                 )
         watch.t_start = time.monotonic()
+        watch.t_start_epoch = started
         previous_handlers = catch_stop_signals(watch.signals)
         try:
             for run in runs:
@@ -466,6 +468,8 @@ def _check_processes(runs: list[_AxisRun], watch: _Watch, respawn_limit: int) ->
             restarts = run.restarts.get(p.role, 0)
             if p.role in RESTARTED_ROLES and code != NODE_BAD_CONFIG and restarts < respawn_limit:
                 run.restarts[p.role] = restarts + 1
+                # Its receive port must not be the dead one's segment.
+                clean_stale_shm(since=watch.t_start_epoch, dead_owners_only=True)
                 new = start_node(
                     run.params_path,
                     p.role,

@@ -38,3 +38,25 @@ def test_only_stale_files_of_this_run_are_removed(tmp_path: Path) -> None:
         "fastrtps_old",
         "fastrtps_old_el",
     ]
+
+
+def test_while_a_run_goes_on_only_segments_of_dead_owners_are_removed(tmp_path: Path) -> None:
+    since = time.time() - 10
+    for name in ("fastrtps_live", "fastrtps_live_el", "fastrtps_port7413", "fastrtps_port7413_el"):
+        (tmp_path / name).write_bytes(b"x")
+    (tmp_path / "sem.fastrtps_port7413_mutex").write_bytes(b"x")
+    (tmp_path / "fastrtps_port7411").write_bytes(b"x")  # a live sender's: no lock file
+    owner = os.open(tmp_path / "fastrtps_live_el", os.O_RDWR)
+    fcntl.flock(owner, fcntl.LOCK_EX)
+    try:
+        removed = clean_stale_shm(since=since, shm_dir=tmp_path, dead_owners_only=True)
+    finally:
+        os.close(owner)
+    # The dead participant's receive port goes, so that the participant that
+    # replaces it (same id, same port) makes a fresh one.
+    assert removed == ["fastrtps_port7413"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "fastrtps_live",
+        "fastrtps_live_el",
+        "fastrtps_port7411",
+    ]
