@@ -94,9 +94,9 @@ def _summary(args: argparse.Namespace) -> int:
 
 
 def _compare(args: argparse.Namespace) -> int:
-    from servo_axis.analysis.plots import plot_cycles, plot_error_overlay
+    from servo_axis.analysis.plots import plot_cycles, plot_error_overlay, plot_rmsd_bars
     from servo_axis.analysis.summary import AxesSummary, RunSummary, load_summary
-    from servo_axis.analysis.text import compare_table
+    from servo_axis.analysis.text import compare_table, rmsd_applies, rmsd_table
 
     loaded = [load_summary(Path(d)) for d in args.run_dirs]
     summaries: list[RunSummary] = []
@@ -113,7 +113,16 @@ def _compare(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
-    print(compare_table(summaries, labels))
+    by_rmsd = args.rmsd or rmsd_applies(summaries)
+    try:
+        rmsd = rmsd_table(summaries, labels) if by_rmsd or args.bar_chart else ""
+    except ValueError as err:  # errors in m and in rad
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    print(rmsd if by_rmsd else compare_table(summaries, labels))
+    if args.bar_chart:
+        plot_rmsd_bars(summaries, labels, Path(args.bar_chart), title="RMSD of tracking error")
+        print(f"figure written to {args.bar_chart}")
     if args.out:
         plot_cycles(summaries, labels, Path(args.out), title=args.title)
         print(f"figure written to {args.out}")
@@ -183,7 +192,12 @@ def main(argv: list[str] | None = None) -> int:
     ls.add_argument("--config-dir", default=None, help="list this folder's scenarios instead")
     ls.set_defaults(func=_list)
     cmp = sub.add_parser(
-        "compare", help="max/RMS error per cycle of several runs (e.g. Q vs Q~n, 000 Fig. 15)"
+        "compare",
+        help="max/RMS error per cycle of several runs (e.g. Q vs Q~n, 000 Fig. 15); for "
+        "runs where cycles do not apply (a rotary table, an identifier, no periodic "
+        "reference) the RMSD of each run and its reduction against the run labelled pid "
+        "(else the scenario *_pid, else the first), with the final estimates / true values "
+        "(003 Fig. 9)",
     )
     cmp.add_argument("run_dirs", nargs="+")
     cmp.add_argument("--labels", help="comma-separated, one per run (default: directory names)")
@@ -191,6 +205,10 @@ def main(argv: list[str] | None = None) -> int:
     cmp.add_argument("--error-out", help="PNG to write: error against time, one cycle enlarged")
     cmp.add_argument("--zoom-cycle", type=int, default=3, help="the cycle enlarged (default 3)")
     cmp.add_argument("--title", default="tracking error per cycle")
+    cmp.add_argument(
+        "--rmsd", action="store_true", help="compare by RMSD of the whole run, not per cycle"
+    )
+    cmp.add_argument("--bar-chart", help="PNG to write: RMSD per run as bars (003 Fig. 9)")
     cmp.set_defaults(func=_compare)
     bag = sub.add_parser("bag", help="bag tools: recover")
     bag_sub = bag.add_subparsers(dest="bag_command", required=True)

@@ -119,3 +119,75 @@ def simulate_learning(scenario_path: Path, *, steps: int | None = None) -> Learn
             (current,) = law.next_correction(period=j + 2)
             gen.set_correction(j + 1, current)
     return LearningRun(Trajectory(*(out[:, i].copy() for i in range(5))), np.array(errors), law)
+
+
+@dataclass(frozen=True)
+class IdentificationRun:
+    """A core-only run with the online identifier (:func:`simulate_identification`).
+
+    ``estimates`` holds one row per estimate used (the values of an
+    ``identifier/estimates`` message, :data:`servo_axis.wire.cdr.ESTIMATE_LABELS`).
+    """
+
+    trajectory: Trajectory
+    estimates: np.ndarray
+    angle_rad: np.ndarray  #: the true table angle at each step (no noise)
+
+
+def simulate_identification(scenario_path: Path, *, steps: int | None = None) -> IdentificationRun:
+    """Run the loop of a scenario with its identifier (paper 003), as plain calls.
+
+    What the node graph does in lockstep, in the same order: ``state[k]``
+    (the encoder angle), ``command[k]``, the identifier takes both (the
+    torque ``K_T i[k]`` with the nominal ``K_T``), and an estimate from step
+    ``k`` is set in the generator, from ``k + 1 + latency``, before any
+    sample from there on is computed; estimates that would apply after the
+    run are not used (the node does not publish them). Without an
+    identifier section it is the plain loop, with the true angle.
+    """
+    scenario = load_scenario(scenario_path)
+    pv = factories.node_values(scenario, "plant")
+    fbv = factories.node_values(scenario, "feedback")
+    ffv = factories.feedforward_values(scenario, scenario_path)
+    identifier = None
+    if "identifier" in scenario:
+        iv = factories.node_values(scenario, "identifier")
+        identifier = factories.build_identifier(iv)
+        _, latency = factories.estimate_schedule(iv, "rls_period_s", "latency_s")
+        kt = iv["nominal.torque_constant_Nm_per_A"]
+    n = factories.run_steps(pv) if steps is None else steps
+    sim = factories.build_plant(pv)
+    loop = factories.build_loop(fbv)
+    gen = factories.build_generator(ffv)
+    lead = pv["lead_m_per_rad"]
+    sensor = fbv["sensor"]
+    out = np.empty((n, 5))
+    angle_true = np.empty(n)
+    rows: list[list[float]] = []
+    y = sim.output()
+    for k in range(n):
+        ((r, _, u_ff),) = gen.samples(k, k + 1)
+        angle = controlled_output(
+            sensor, encoder_rad=y.encoder_rad, scale_m=y.scale_m, lead_m_per_rad=lead
+        )
+        u = loop.update(angle_rad=angle, reference_rad=r, feedforward_A=u_ff).current_A
+        out[k] = (y.encoder_rad, y.scale_m, r, u_ff, u)
+        angle_true[k] = y.angle_rad
+        if identifier is not None:
+            e = identifier.update(k, y.encoder_rad, kt * u)
+            if e is not None and e.step + 1 + latency < n:
+                applies = e.step + 1 + latency
+                gen.set_estimate(
+                    applies,
+                    inertia_kgm2=e.J,
+                    damping_Nms_per_rad=e.D,
+                    unbalance_Nm=e.U,
+                    coulomb_Nm=e.C,
+                )
+                rows.append([e.step, applies, e.J, e.D, e.U, e.C, e.kappa, *map(float, e.updated)])
+        y = sim.step(u)
+    return IdentificationRun(
+        Trajectory(*(out[:, i].copy() for i in range(5))),
+        np.array(rows).reshape(-1, 11),
+        angle_true,
+    )

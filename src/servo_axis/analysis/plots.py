@@ -6,7 +6,14 @@
 * :func:`plot_error_overlay`: the error of several runs against time, one
   cycle enlarged (000 Fig. 13(b)-(c), Fig. 15(b)-(c));
 * :func:`plot_contour`: the path of a two-axis circle run with the radial
-  error magnified, and the circular deviation per cycle (000 Fig. 18).
+  error magnified, and the circular deviation per cycle (000 Fig. 18);
+* :func:`plot_identification`: a run's online estimates ``J, D, U, C``
+  against the true values (003 Fig. 7) and its PE index (003 Fig. 6), part
+  of :func:`plot` for a run with an identifier;
+* :func:`plot_rmsd_bars`: the RMSD of several runs as bars with their
+  reduction against the baseline (003 Fig. 9).
+
+Errors are in um, or urad (and positions in mrad) for a rotary table.
 """
 
 from __future__ import annotations
@@ -20,14 +27,28 @@ import numpy as np
 from servo_axis.analysis.summary import (
     SUMMARY_FILE,
     AxesSummary,
+    Identification,
     RunSummary,
     contour,
     cycle_errors,
     run_series,
 )
-from servo_axis.analysis.text import period_word
+from servo_axis.analysis.text import (
+    PARAMETER_ROWS,
+    baseline_index,
+    micro,
+    period_word,
+    reductions,
+)
 from servo_axis.core.errors import ConfigError
 from servo_axis.core.timing import SampleGrid
+from servo_axis.wire.cdr import EstimateData
+
+#: The figures :func:`plot_identification` writes into a run directory.
+IDENTIFICATION_FIGURES: tuple[str, str] = (
+    "identification_parameters.png",
+    "identification_pe_index.png",
+)
 
 
 def _pyplot() -> Any:
@@ -79,10 +100,11 @@ def plot_error_overlay(
     enlarged (000 Fig. 13(b)-(c), Fig. 15(b)-(c))."""
     plt = _pyplot()
     fig, (whole, zoom) = plt.subplots(2, 1, figsize=(9, 6))
-    word = "cycle"
+    word, unit = "cycle", "um"
     for run_dir, label in zip(run_dirs, labels, strict=True):
         series = run_series(Path(run_dir))
         word = series.summary.period_name or "cycle"
+        unit = micro(series.summary.unit)
         t = series.time_s
         err_um = series.error_m * 1e6
         whole.plot(t, err_um, lw=0.7, label=label)
@@ -94,7 +116,7 @@ def plot_error_overlay(
     zoom.set_title(f"{word} {zoom_cycle} enlarged")
     for ax in (whole, zoom):
         ax.set_xlabel("time (s)")
-        ax.set_ylabel("tracking error (um)")
+        ax.set_ylabel(f"tracking error ({unit})")
         ax.grid(True, lw=0.3)
         ax.legend(fontsize="small")
     fig.tight_layout()
@@ -104,19 +126,21 @@ def plot_error_overlay(
 
 
 def plot(run_dir: Path) -> list[Path]:
-    """Write ``reference_position.png``, ``error.png`` and, for a periodic
-    reference, ``cycle_errors.png`` into the run directory."""
+    """Write ``reference_position.png``, ``error.png``, for a periodic
+    reference ``cycle_errors.png`` and, for a run with an identifier, the
+    :data:`IDENTIFICATION_FIGURES` into the run directory."""
     plt = _pyplot()
     run_dir = Path(run_dir)
     series = run_series(run_dir)
     summary, sig, y, lead = series.summary, series.signals, series.y_rad, series.lead_m_per_rad
     t = series.time_s
     err = series.error_m * 1e6
+    rotary = summary.unit == "rad"
     even = SampleGrid(control_period_s=summary.control_period_s).reference_instants(sig.step)
     figures: list[tuple[str, str, str, list[tuple[Any, Any, str, str]]]] = [
         (
             "reference_position.png",
-            "table position (mm)",
+            "table angle (mrad)" if rotary else "table position (mm)",
             "reference and position",
             [
                 (t, sig.reference_rad * lead * 1e3, "-", "reference r"),
@@ -125,7 +149,7 @@ def plot(run_dir: Path) -> list[Path]:
         ),
         (
             "error.png",
-            "tracking error (um)",
+            f"tracking error ({micro(summary.unit)})",
             "tracking error e = R (r - y)",
             [(t, err, "-", "all samples"), (t[even], err[even], ".", "T_r instants")],
         ),
@@ -153,7 +177,99 @@ def plot(run_dir: Path) -> list[Path]:
                 title=f"{summary.scenario}: tracking error per {summary.period_name or 'cycle'}",
             )
         )
+    if summary.identification is not None:
+        paths += plot_identification(
+            sig.estimates,
+            summary.identification,
+            run_dir,
+            control_period_s=summary.control_period_s,
+            title=summary.scenario,
+        )
     return paths
+
+
+def plot_identification(
+    estimates: Sequence[EstimateData],
+    identification: Identification,
+    out_dir: Path,
+    *,
+    control_period_s: float,
+    title: str,
+) -> list[Path]:
+    """Write ``identification_parameters.png`` (``J, D, U, C`` against time, the
+    true values dashed: 003 Fig. 7) and ``identification_pe_index.png`` (the PE
+    index ``kappa`` against time, log scale when it has a value > 0: 003
+    Fig. 6) into ``out_dir``; an estimate's time is ``step * T_u``."""
+    plt = _pyplot()
+    out_dir = Path(out_dir)
+    ordered = sorted(estimates, key=lambda e: e.step)
+    t = np.array([e.step for e in ordered], dtype=float) * control_period_s
+    values = np.array(
+        [(e.inertia_kgm2, e.damping_Nms_per_rad, e.unbalance_Nm, e.coulomb_Nm) for e in ordered],
+        dtype=float,
+    ).reshape(-1, 4)
+    kappa = np.array([e.kappa for e in ordered], dtype=float)
+    fig, axes = plt.subplots(4, 1, figsize=(8, 8), sharex=True)
+    for i, (ax, label, true) in enumerate(
+        zip(axes, PARAMETER_ROWS, identification.true.values(), strict=True)
+    ):
+        ax.plot(t, values[:, i], "-", lw=0.9, label="estimate")
+        if np.isfinite(true):
+            ax.axhline(true, color="k", ls="--", lw=0.8, label="true")
+        ax.set_ylabel(label)
+        ax.grid(True, lw=0.3)
+        ax.legend(fontsize="small", loc="best")
+    axes[0].set_title(f"{title}: identified parameters")
+    axes[-1].set_xlabel("time (s)")
+    fig.tight_layout()
+    paths = [out_dir / IDENTIFICATION_FIGURES[0]]
+    fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
+    fig, ax = plt.subplots(figsize=(8, 3))
+    ax.plot(t, kappa, "-", lw=0.9)
+    if np.any(kappa > 0):
+        ax.set_yscale("log")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("PE index kappa")
+    ax.set_title(f"{title}: PE index (003 eq. (7))")
+    ax.grid(True, which="both", lw=0.3)
+    fig.tight_layout()
+    paths.append(out_dir / IDENTIFICATION_FIGURES[1])
+    fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
+    return paths
+
+
+def plot_rmsd_bars(
+    summaries: Sequence[RunSummary], labels: Sequence[str], path: Path, *, title: str
+) -> Path:
+    """The RMSD of each run's tracking error as a bar, its reduction against the
+    baseline (:func:`~servo_axis.analysis.text.baseline_index`) written above
+    it (003 Fig. 9)."""
+    plt = _pyplot()
+    base = baseline_index(summaries, labels)
+    cuts = reductions(summaries, base)
+    unit = micro(summaries[0].unit if summaries else "m")
+    heights = [1e6 * s.rmsd for s in summaries]
+    fig, ax = plt.subplots(figsize=(max(4.0, 1.2 * len(summaries) + 2), 4))
+    bars = ax.bar(range(len(summaries)), heights, color="tab:blue")
+    for i, (bar, cut) in enumerate(zip(bars, cuts, strict=True)):
+        text = "base" if i == base else f"{-cut:+.1f}%"
+        ax.annotate(
+            text,
+            (bar.get_x() + bar.get_width() / 2, bar.get_height()),
+            ha="center",
+            va="bottom",
+            fontsize="small",
+        )
+    ax.set_xticks(range(len(summaries)), list(labels))
+    ax.set_ylabel(f"RMSD of tracking error ({unit})")
+    ax.set_title(title)
+    ax.grid(True, axis="y", lw=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
 
 
 def plot_contour(run_dir: Path) -> Path:

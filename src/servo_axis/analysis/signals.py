@@ -37,6 +37,14 @@ changes no figure. The rules per topic (:class:`StreamRules`):
 * ``/clock``: the steps 0, ``clock_every_steps``, ...
 * ``recorder/progress`` (if recorded): a whole number of steps, never
   decreasing, at most the run's steps.
+* ``identifier/estimates`` (:data:`~servo_axis.wire.cdr.ESTIMATE_LABELS`,
+  checked by :func:`~servo_axis.wire.cdr.check_estimate_values`): a step of
+  the run; none in a run without an ``identifier`` section. Estimates carry
+  no stamp and a restarted identifier may publish again one that was already
+  recorded, so there is no gate: the first estimate of each step is kept, a
+  later one with the same values is a repeat (counted in
+  :attr:`BagStreams.repeated`, not junk) and one with other values is
+  dropped like junk. :attr:`Signals.estimates` are in order of step.
 
 The rules come from the run's parameters: the scenario if given, else the
 run's ``params.yaml`` next to the bag (what the nodes ran with), else the
@@ -72,6 +80,10 @@ from servo_axis.params.scenario import ROLES, SHARED_SECTION
 from servo_axis.recording.reader import RawMessage, read_raw
 from servo_axis.wire import cdr, topics
 from servo_axis.wire.streams import StreamGate, decode_joint_stream
+
+#: The scenario's section of the parameter identifier (paper 003), present
+#: only when one runs.
+IDENTIFIER_SECTION = "identifier"
 
 #: Name of each fault code of the ``fault`` topic (``following_error``, ...).
 FAULT_NAMES: dict[int, str] = {int(f): f.name.lower() for f in Fault}
@@ -139,6 +151,12 @@ class Signals:
         Recorded messages that failed validation or their stream's gate, per
         topic that has rules (:func:`read_streams`; 0 included), in order of
         first message.
+    estimates : tuple of EstimateData
+        The validated ``identifier/estimates`` (first of each step), in order
+        of step; empty without an identifier.
+    repeated : dict
+        Per topic, recorded messages that repeat one already kept (the same
+        step and values: a restarted identifier's), neither kept nor dropped.
     """
 
     step: NDArray[np.int_]
@@ -150,6 +168,8 @@ class Signals:
     faults: list[FaultRecord] = field(default_factory=list)
     counts: dict[str, int] = field(default_factory=dict)
     dropped: dict[str, int] = field(default_factory=dict)
+    estimates: tuple[cdr.EstimateData, ...] = ()
+    repeated: dict[str, int] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -173,6 +193,9 @@ class StreamRules:
         Control steps per learning cycle; None: no learning in the run.
     status_every_steps, clock_every_steps : int
         The plant's ``plant/status`` and ``/clock`` strides.
+    identifier : bool
+        Whether the run has an identifier (an ``identifier`` section): else
+        no ``identifier/estimates`` message is valid.
     """
 
     period_ns: int
@@ -183,6 +206,7 @@ class StreamRules:
     cycle_steps: int | None = None
     status_every_steps: int = 50
     clock_every_steps: int = 10
+    identifier: bool = False
 
     @property
     def window(self) -> int:
@@ -218,6 +242,7 @@ class StreamRules:
             cycle_steps=cycle,
             status_every_steps=plant["status_every_steps"],
             clock_every_steps=plant["clock_every_steps"],
+            identifier=IDENTIFIER_SECTION in scenario,
         )
 
     @classmethod
@@ -254,7 +279,7 @@ def run_parameters(path: Path) -> dict[str, Any] | None:
     out: dict[str, Any] = {}
     for key, section in data.items():
         name = key[len("/**/") :] if isinstance(key, str) and key.startswith("/**/") else key
-        if name == SHARED_SECTION or name in ROLES:
+        if name == SHARED_SECTION or name in ROLES or name == IDENTIFIER_SECTION:
             out[name] = section
     return out
 
@@ -264,7 +289,7 @@ class Kept(NamedTuple):
 
     step: int  #: control step (cycle number of cycle_stats, value of recorder/progress)
     data: bytes  #: the CDR payload as recorded
-    msg: Any  #: the decoded message (wire.cdr)
+    msg: Any  #: the decoded message (wire.cdr; an EstimateData for identifier/estimates)
 
 
 @dataclass(frozen=True, eq=False)
@@ -282,12 +307,16 @@ class BagStreams:
         Per topic with a dropped message, why the first one was dropped.
     counts : dict
         Messages per topic as recorded (every topic, in order of first message).
+    repeated : dict
+        Per topic with a message that repeats one already kept
+        (:class:`Repeated`), how many: neither kept nor dropped.
     """
 
     kept: dict[str, list[Kept]]
     dropped: dict[str, int]
     first_reason: dict[str, str]
     counts: dict[str, int]
+    repeated: dict[str, int] = field(default_factory=dict)
 
     def by_table_name(self, name: str) -> list[Kept]:
         """The kept messages of table topic ``name`` (``state``, ``/clock``, ...), every namespace."""
@@ -313,6 +342,10 @@ def table_name(topic: str) -> str | None:
 
 
 _Check = Callable[[bytes], tuple[int, Any, Callable[[], None] | None]]
+
+
+class Repeated(Exception):  # noqa: N818 - an outcome, not an error
+    """A message that repeats one already kept, value for value: skipped, not junk."""
 
 
 class _Stream:
@@ -429,6 +462,29 @@ def _progress_stream(rules: StreamRules) -> _Check:
     return check
 
 
+def _estimate_stream(rules: StreamRules) -> _Check:
+    seen: dict[int, list[float]] = {}
+
+    def check(data: bytes) -> tuple[int, Any, Callable[[], None]]:
+        msg = cdr.decode_float64_multi_array(data)
+        values = cdr.labelled_values(msg, cdr.ESTIMATE_LABELS)
+        estimate = cdr.check_estimate_values(values)
+        step = estimate.step
+        if rules.steps is not None and step >= rules.steps:
+            raise SignalError(f"step {step} beyond the run's last step {rules.steps - 1}")
+        if step in seen:
+            if seen[step] == values:
+                raise Repeated(f"estimate of step {step} again")
+            raise SignalError(f"step {step}: an estimate with other values was recorded first")
+
+        def commit() -> None:
+            seen[step] = values
+
+        return step, estimate, commit
+
+    return check
+
+
 def stream_for(name: str, rules: StreamRules) -> _Stream | None:
     """The rules of table topic ``name`` (a fresh gate), None for a topic without rules."""
     w, limit = rules.window, rules.steps
@@ -465,6 +521,10 @@ def stream_for(name: str, rules: StreamRules) -> _Stream | None:
         return _Stream(_clock_stream(rules), gate)
     if name == "recorder/progress":
         return _Stream(_progress_stream(rules), None)
+    if name == "identifier/estimates":
+        if not rules.identifier:
+            return _Stream(_never("no identifier in this run"), None)
+        return _Stream(_estimate_stream(rules), None)
     return None
 
 
@@ -497,10 +557,12 @@ def read_streams(bag_dir: Path, rules: StreamRules) -> BagStreams:
     Each message of a topic with rules (:func:`stream_for`) is decoded,
     checked and offered to its topic's gate in the order the recorder got
     them (:func:`recorded_by_topic`); what fails is dropped and counted.
-    Topics without rules are only counted.
+    Topics without rules are only counted; a message that repeats one
+    already kept (:class:`Repeated`) is counted in ``repeated``.
     """
     kept: dict[str, list[Kept]] = {}
     dropped: dict[str, int] = {}
+    repeated: dict[str, int] = {}
     reasons: dict[str, str] = {}
     counts: dict[str, int] = {}
     for topic, messages in recorded_by_topic(Path(bag_dir)).items():
@@ -516,12 +578,17 @@ def read_streams(bag_dir: Path, rules: StreamRules) -> BagStreams:
                 if m.type_name and m.type_name != expected:
                     raise SignalError(f"type: expected {expected}, got {m.type_name}")
                 step, msg = stream.take(m.data)
+            except Repeated:
+                repeated[topic] = repeated.get(topic, 0) + 1
+                continue
             except SignalError as err:
                 dropped[topic] += 1
                 reasons.setdefault(topic, str(err))
                 continue
             kept[topic].append(Kept(step, m.data, msg))
-    return BagStreams(kept=kept, dropped=dropped, first_reason=reasons, counts=counts)
+    return BagStreams(
+        kept=kept, dropped=dropped, first_reason=reasons, counts=counts, repeated=repeated
+    )
 
 
 def load_signals(
@@ -544,7 +611,8 @@ def load_signals(
     -------
     Signals
         The steps common to ``state`` and ``reference``, sorted, with the
-        signals at those steps; what was dropped per topic.
+        signals at those steps; the identifier's estimates in order of step;
+        what was dropped (and repeated) per topic.
     """
     rules = StreamRules.for_bag(Path(bag_dir), period_s, scenario)
     streams = read_streams(Path(bag_dir), rules)
@@ -558,6 +626,7 @@ def load_signals(
             FaultRecord(step=int(step), code=int(code), name=FAULT_NAMES[int(code)], value=value)
         )
     steps = sorted(set(state) & set(ref))
+    estimates = sorted((k.msg for k in streams.by_table_name("identifier/estimates")), key=_step)
     return Signals(
         step=np.array(steps, dtype=int),
         encoder_rad=np.array([state[s][0] for s in steps]),
@@ -568,7 +637,13 @@ def load_signals(
         faults=faults,
         counts=streams.counts,
         dropped=streams.dropped,
+        estimates=tuple(estimates),
+        repeated=streams.repeated,
     )
+
+
+def _step(estimate: cdr.EstimateData) -> int:
+    return estimate.step
 
 
 def learning_enabled(scenario: dict[str, Any]) -> bool:

@@ -10,6 +10,14 @@ and ``from_json()`` / :func:`load_summary` read it back.
 Every parameter (control period, lead, flags, names) is the checked value of
 the scenario (:func:`servo_axis.params.factories.node_values`), its default
 where the scenario does not set it.
+
+Units follow the plant model: the tracking error is the error of the table's
+position, ``R (r - y)`` in m for a table that moves along a line (a ball
+screw), ``r - y`` in rad for one that turns (:data:`ROTARY_MODELS`: the
+tilting table of paper 003, whose position is its angle); the keys keep
+their ``_m`` names and a rotary run's summary says ``"error_unit": "rad"``.
+The RMS over every sample of the run (``tracking_error.all_samples.rms_m``)
+is the RMSD paper 003 compares (Figs. 7, 9).
 """
 
 from __future__ import annotations
@@ -32,17 +40,29 @@ from servo_axis.analysis.metrics import (
     to_plain,
 )
 from servo_axis.analysis.signals import (
+    IDENTIFIER_SECTION,
     FaultRecord,
     Signals,
     learning_enabled,
     load_signals,
+    table_name,
     tracking,
 )
 from servo_axis.core.errors import ConfigError
 from servo_axis.params.factories import build_reference, feedforward_values, node_values
 from servo_axis.params.scenario import load_scenario
+from servo_axis.wire.cdr import EstimateData
 
 SUMMARY_FILE = "summary.json"
+
+#: Plant models whose table turns: their table position is the table angle,
+#: so the tracking error is ``r - y`` in rad (no lead). Every other model's
+#: table moves along a line, ``x = R theta``: the error ``R (r - y)`` is in m.
+ROTARY_MODELS: frozenset[str] = frozenset({"tilting_table"})
+
+#: The parameters an identifier estimates (003 eq. (2)): ``J, D, U, C``, as
+#: named in the plant's parameters and in ``identifier/estimates``.
+IDENTIFIED: tuple[str, ...] = ("inertia_kgm2", "damping_Nms_per_rad", "unbalance_Nm", "coulomb_Nm")
 
 
 def _dumps(data: dict[str, Any]) -> str:
@@ -172,6 +192,194 @@ class TrackingError:
 
 
 @dataclass(frozen=True)
+class ParameterValues:
+    """A value per identified parameter ``J, D, U, C`` of 003 eq. (2).
+
+    Their values in SI units (kg m^2, N m s/rad, N m, N m), or ratios to the
+    true values (no unit), by use.
+    """
+
+    inertia_kgm2: float
+    damping_Nms_per_rad: float
+    unbalance_Nm: float
+    coulomb_Nm: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """As in ``summary.json``, keys in field order."""
+        plain: dict[str, Any] = to_plain(self)
+        return plain
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> ParameterValues:
+        """Inverse of :meth:`to_dict`."""
+        return cls(**{name: data[name] for name in IDENTIFIED})
+
+    def values(self) -> tuple[float, float, float, float]:
+        """``(J, D, U, C)``."""
+        return (self.inertia_kgm2, self.damping_Nms_per_rad, self.unbalance_Nm, self.coulomb_Nm)
+
+
+@dataclass(frozen=True)
+class UpdateCounts:
+    """How many estimates updated each parameter (eq. (16) for ``J, D, U``, eq. (8) for ``C``)."""
+
+    inertia_kgm2: int
+    damping_Nms_per_rad: int
+    unbalance_Nm: int
+    coulomb_Nm: int
+
+    def to_dict(self) -> dict[str, Any]:
+        """As in ``summary.json``, keys in field order."""
+        plain: dict[str, Any] = to_plain(self)
+        return plain
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> UpdateCounts:
+        """Inverse of :meth:`to_dict`."""
+        return cls(**{name: data[name] for name in IDENTIFIED})
+
+
+@dataclass(frozen=True)
+class Identification:
+    """The online parameter identification of a run (paper 003, topic ``identifier/estimates``).
+
+    Attributes
+    ----------
+    estimates : int
+        Estimates kept: validated, the first of each step.
+    repeated : int
+        Recorded estimates that repeat a kept one value for value (a
+        restarted identifier's): not counted as junk.
+    dropped : int
+        Recorded estimates dropped as junk (failed the checks, or a second
+        estimate of a step with other values).
+    first_step, last_step : int or None
+        The first and last estimate's ``step`` (None without estimates).
+    final : ParameterValues
+        ``J, D, U, C`` of the last estimate (by step); NaN without estimates.
+    true : ParameterValues
+        The plant's values (its parameters, defaults filled in); NaN for a
+        parameter the plant model does not have.
+    final_ratio : ParameterValues
+        ``final / true`` (NaN where the true value is 0 or unknown).
+    last_period_s : float or None
+        The window of ``last_period_p2p``: the reference's period
+        (``1 / reference.frequency_hz`` for a sine); None: not periodic, the
+        whole run.
+    last_period_p2p : ParameterValues
+        Largest minus smallest estimate of each parameter over the estimates
+        of the last ``last_period_s / T_u`` control steps up to the last
+        estimate's (``step > last_step - round(last_period_s / T_u)``).
+    final_kappa : float
+        The PE index of eq. (7) of the last estimate.
+    updates : UpdateCounts
+        Per parameter, how many kept estimates updated it.
+    """
+
+    estimates: int
+    repeated: int
+    dropped: int
+    first_step: int | None
+    last_step: int | None
+    final: ParameterValues
+    true: ParameterValues
+    final_ratio: ParameterValues
+    last_period_s: float | None
+    last_period_p2p: ParameterValues
+    final_kappa: float
+    updates: UpdateCounts
+
+    def to_dict(self) -> dict[str, Any]:
+        """As in ``summary.json``, keys in field order."""
+        plain: dict[str, Any] = to_plain(self)
+        return plain
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> Identification:
+        """Inverse of :meth:`to_dict`."""
+        return cls(
+            estimates=data["estimates"],
+            repeated=data["repeated"],
+            dropped=data["dropped"],
+            first_step=data["first_step"],
+            last_step=data["last_step"],
+            final=ParameterValues.from_dict(data["final"]),
+            true=ParameterValues.from_dict(data["true"]),
+            final_ratio=ParameterValues.from_dict(data["final_ratio"]),
+            last_period_s=data["last_period_s"],
+            last_period_p2p=ParameterValues.from_dict(data["last_period_p2p"]),
+            final_kappa=data["final_kappa"],
+            updates=UpdateCounts.from_dict(data["updates"]),
+        )
+
+
+def _ratio(value: float, true: float) -> float:
+    return value / true if true != 0.0 and math.isfinite(true) else math.nan
+
+
+def summarise_estimates(
+    estimates: list[EstimateData] | tuple[EstimateData, ...],
+    *,
+    true: ParameterValues,
+    control_period_s: float,
+    period_s: float | None,
+    repeated: int = 0,
+    dropped: int = 0,
+) -> Identification:
+    """The :class:`Identification` of validated estimates (any order; one per step).
+
+    Parameters
+    ----------
+    estimates : sequence of EstimateData
+        The kept estimates (:attr:`~servo_axis.analysis.signals.Signals.estimates`).
+    true : ParameterValues
+        The plant's true ``J, D, U, C``.
+    control_period_s : float
+        ``T_u``, s: an estimate's time is ``step * T_u``.
+    period_s : float or None
+        The reference's period, s: the window of the peak-to-peak values
+        (None: every estimate).
+    repeated, dropped : int
+        Recorded estimates repeated and dropped (reported as they are).
+    """
+    ordered = sorted(estimates, key=lambda e: e.step)
+    table = np.array(
+        [(e.inertia_kgm2, e.damping_Nms_per_rad, e.unbalance_Nm, e.coulomb_Nm) for e in ordered],
+        dtype=float,
+    ).reshape(-1, 4)
+    steps = np.array([e.step for e in ordered], dtype=int)
+    nan4 = ParameterValues(math.nan, math.nan, math.nan, math.nan)
+    if not ordered:
+        final = p2p = nan4
+        kappa = math.nan
+    else:
+        final = ParameterValues(*(float(v) for v in table[-1]))
+        inside = np.ones(steps.size, dtype=bool)
+        if period_s:
+            inside = steps > steps[-1] - round(period_s / control_period_s)
+        window = table[inside]
+        p2p = ParameterValues(*(float(v) for v in window.max(axis=0) - window.min(axis=0)))
+        kappa = ordered[-1].kappa
+    counts = [sum(1 for e in ordered if e.updated[i]) for i in range(4)]
+    return Identification(
+        estimates=len(ordered),
+        repeated=repeated,
+        dropped=dropped,
+        first_step=ordered[0].step if ordered else None,
+        last_step=ordered[-1].step if ordered else None,
+        final=final,
+        true=true,
+        final_ratio=ParameterValues(
+            *(_ratio(v, t) for v, t in zip(final.values(), true.values(), strict=True))
+        ),
+        last_period_s=period_s,
+        last_period_p2p=p2p,
+        final_kappa=kappa,
+        updates=UpdateCounts(*counts),
+    )
+
+
+@dataclass(frozen=True)
 class RunSummary:
     """Summary of a single-axis run (``summary.json``).
 
@@ -214,6 +422,12 @@ class RunSummary:
         eq. (7) on the nominal model (``nominal``; the law refuses to start
         at 1 or above) and on the rigid-body part of the scenario's plant
         (``plant``); None (not written) otherwise.
+    error_unit : str or None
+        ``rad`` for a plant whose table turns (:data:`ROTARY_MODELS`): every
+        ``*_m`` error is then in rad of table angle; None (not written): m.
+    identification : Identification or None
+        With an identifier whose estimates the bag holds (paper 003); None
+        (not written) otherwise.
     """
 
     scenario: str
@@ -236,6 +450,18 @@ class RunSummary:
     health: RunHealth | None = field(default=None, metadata={"omit_none": True})
     period_name: str | None = field(default=None, metadata={"omit_none": True})
     ilc_convergence: dict[str, float] | None = field(default=None, metadata={"omit_none": True})
+    error_unit: str | None = field(default=None, metadata={"omit_none": True})
+    identification: Identification | None = field(default=None, metadata={"omit_none": True})
+
+    @property
+    def unit(self) -> str:
+        """The unit of the tracking error: ``m``, or ``rad`` for a rotary table."""
+        return self.error_unit or "m"
+
+    @property
+    def rmsd(self) -> float:
+        """RMS of the tracking error over every sample of the run (003's RMSD), in :attr:`unit`."""
+        return self.tracking_error.all_samples.rms_m
 
     def to_dict(self) -> dict[str, Any]:
         """The mapping of ``summary.json``, keys in file order."""
@@ -270,6 +496,12 @@ class RunSummary:
             health=RunHealth.from_dict(data["health"]) if "health" in data else None,
             period_name=data.get("period_name"),
             ilc_convergence=data.get("ilc_convergence"),
+            error_unit=data.get("error_unit"),
+            identification=(
+                Identification.from_dict(data["identification"])
+                if "identification" in data
+                else None
+            ),
         )
 
     @classmethod
@@ -407,6 +639,43 @@ def _axis_values(scenario: dict[str, Any]) -> dict[str, Any]:
     return node_values(scenario, "plant")
 
 
+def error_unit(plant_values: dict[str, Any]) -> str:
+    """``rad`` for a plant model whose table turns (:data:`ROTARY_MODELS`), else ``m``."""
+    return "rad" if plant_values["model"] in ROTARY_MODELS else "m"
+
+
+def position_scale(plant_values: dict[str, Any]) -> float:
+    """Table position per rad of controlled output: ``R`` (m/rad), 1 for a rotary table."""
+    return 1.0 if error_unit(plant_values) == "rad" else float(plant_values["lead_m_per_rad"])
+
+
+def true_parameters(plant_values: dict[str, Any]) -> ParameterValues:
+    """The plant's ``J, D, U, C`` (NaN for one its model does not have)."""
+    return ParameterValues(*(float(plant_values.get(name, math.nan)) for name in IDENTIFIED))
+
+
+def identification(
+    scenario: dict[str, Any], sig: Signals, *, period_s: float | None
+) -> Identification | None:
+    """The identification of a run with an identifier whose estimates the bag has, else None.
+
+    Estimates are the validated ones of :attr:`Signals.estimates`; the
+    repeats and the junk are those of the ``identifier/estimates`` topics.
+    """
+    topics = [t for t in sig.counts if table_name(t) == "identifier/estimates"]
+    if IDENTIFIER_SECTION not in scenario or not topics:
+        return None
+    plant = _axis_values(scenario)
+    return summarise_estimates(
+        sig.estimates,
+        true=true_parameters(plant),
+        control_period_s=plant["control_period_s"],
+        period_s=period_s,
+        repeated=sum(sig.repeated.get(t, 0) for t in topics),
+        dropped=sum(sig.dropped.get(t, 0) for t in topics),
+    )
+
+
 def summarise(
     run_dir: Path,
     *,
@@ -436,18 +705,16 @@ def summarise(
     run_dir = Path(run_dir)
     common = _axis_values(scenario)
     period = common["control_period_s"]
-    lead = common["lead_m_per_rad"]
+    unit = error_unit(common)
     ff = node_values(scenario, "feedforward")
     sig = load_signals(run_dir / "bag", period, scenario=scenario)
     target, y = tracking(scenario, scenario_path, sig)
-    error = lead * (target - y)
-    cycle: float | None
-    if learning_enabled(scenario):
-        cycle = ff["learning.cycle_s"]
-    elif "feedforward" in scenario:
-        cycle = build_reference(feedforward_values(scenario, scenario_path)).period_s
-    else:
-        cycle = None
+    error = position_scale(common) * (target - y)
+    learning = learning_enabled(scenario)
+    reference_period: float | None = None
+    if "feedforward" in scenario and (not learning or IDENTIFIER_SECTION in scenario):
+        reference_period = build_reference(feedforward_values(scenario, scenario_path)).period_s
+    cycle = ff["learning.cycle_s"] if learning else reference_period
     steps = int(sig.step.size)
     sim_time = steps * period
     summary = RunSummary(
@@ -473,6 +740,8 @@ def summarise(
         health=health,
         period_name="trial" if ff["reference.kind"] == "trials" else None,
         ilc_convergence=ilc_convergence(scenario, scenario_path),
+        error_unit=None if unit == "m" else unit,
+        identification=identification(scenario, sig, period_s=reference_period),
     )
     (run_dir / SUMMARY_FILE).write_text(summary.to_json())
     return summary
@@ -522,7 +791,8 @@ class RunSeries:
         Target and controlled output per recorded step (rad), from
         :func:`~servo_axis.analysis.signals.tracking`.
     lead_m_per_rad : float
-        ``R`` of the axis.
+        Table position per rad: ``R`` of the axis, 1 for a rotary table
+        (:func:`position_scale`; the position is then the angle, rad).
     """
 
     summary: RunSummary
@@ -539,7 +809,7 @@ class RunSeries:
 
     @property
     def error_m(self) -> NDArray[np.floating[Any]]:
-        """Tracking error ``R (r - y)`` per recorded step, m."""
+        """Tracking error ``R (r - y)`` per recorded step, m (rad for a rotary table)."""
         e: NDArray[np.floating[Any]] = self.lead_m_per_rad * (self.target_rad - self.y_rad)
         return e
 
@@ -550,7 +820,7 @@ def run_series(run_dir: Path) -> RunSeries:
     summary = RunSummary.from_json(run_dir / SUMMARY_FILE)
     scenario_path = Path(summary.scenario_file)
     scenario = load_scenario(scenario_path)
-    lead = _axis_values(scenario)["lead_m_per_rad"]
+    lead = position_scale(_axis_values(scenario))
     sig = load_signals(run_dir / "bag", summary.control_period_s, scenario=scenario)
     target, y = tracking(scenario, scenario_path, sig)
     return RunSeries(summary, sig, target, y, lead)

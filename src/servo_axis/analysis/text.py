@@ -1,4 +1,11 @@
-"""Summaries and per-cycle comparisons of runs as plain-text tables (errors in um)."""
+"""Summaries and comparisons of runs as plain-text tables.
+
+Errors are shown in um, or in urad for a rotary table (a summary with
+``error_unit: rad``, :data:`~servo_axis.analysis.summary.ROTARY_MODELS`).
+Runs are compared per cycle (:func:`compare_table`, 000 Fig. 15) or, when
+cycles do not apply (a rotary table, an identifier, no periodic reference),
+by the RMSD of the whole run (:func:`rmsd_table`, 003 Fig. 9).
+"""
 
 from __future__ import annotations
 
@@ -6,7 +13,21 @@ import math
 from collections.abc import Sequence
 
 from servo_axis.analysis.health import RunHealth
-from servo_axis.analysis.summary import AxesSummary, ErrorStats, RunSummary, cycle_errors
+from servo_axis.analysis.summary import (
+    AxesSummary,
+    ErrorStats,
+    Identification,
+    RunSummary,
+    cycle_errors,
+)
+
+#: The unit errors are shown in, per unit of the summary (both scaled by 1e6).
+MICRO: dict[str, str] = {"m": "um", "rad": "urad"}
+
+
+def micro(unit: str) -> str:
+    """The micro unit errors in ``unit`` are shown in: ``um`` for m, ``urad`` for rad."""
+    return MICRO.get(unit, f"u{unit}")
 
 
 def _um(x: float) -> str:
@@ -15,6 +36,48 @@ def _um(x: float) -> str:
 
 def _row(label: str, stats: ErrorStats) -> str:
     return f"  {label:<21}{_um(stats.rms_m):>12} {_um(stats.max_m):>14}"
+
+
+def _g(x: float | None, spec: str = ".6g") -> str:
+    return "-" if x is None or not math.isfinite(x) else format(x, spec)
+
+
+#: Row labels of the identified parameters, in :data:`~servo_axis.analysis.summary.IDENTIFIED` order.
+PARAMETER_ROWS: tuple[str, ...] = ("J (kg m^2)", "D (N m s/rad)", "U (N m)", "C (N m)")
+
+
+def identification_lines(ident: Identification) -> list[str]:
+    """The identification of a run (003): counts, then a row per parameter."""
+    steps = (
+        f" (steps {ident.first_step} to {ident.last_step})" if ident.first_step is not None else ""
+    )
+    window = "run" if ident.last_period_s is None else f"last {ident.last_period_s:g} s"
+    lines = [
+        f"identification    {ident.estimates} estimates{steps}, {ident.repeated} repeated, "
+        f"{ident.dropped} dropped; final kappa {_g(ident.final_kappa, '.4g')}",
+        f"  {'parameter':<15}{'final':>13}{'true':>13}{'final/true':>12}"
+        f"{'p2p, ' + window:>20}{'updates':>9}",
+    ]
+    columns = zip(
+        PARAMETER_ROWS,
+        ident.final.values(),
+        ident.true.values(),
+        ident.final_ratio.values(),
+        ident.last_period_p2p.values(),
+        (
+            ident.updates.inertia_kgm2,
+            ident.updates.damping_Nms_per_rad,
+            ident.updates.unbalance_Nm,
+            ident.updates.coulomb_Nm,
+        ),
+        strict=True,
+    )
+    for label, final, true, ratio, p2p, updates in columns:
+        lines.append(
+            f"  {label:<15}{_g(final):>13}{_g(true):>13}{_g(ratio, '.5g'):>12}"
+            f"{_g(p2p, '.4g'):>20}{updates:>9}"
+        )
+    return lines
 
 
 def _health_lines(health: RunHealth | None) -> list[str]:
@@ -36,9 +99,10 @@ def _health_lines(health: RunHealth | None) -> list[str]:
 
 
 def format_summary(summary: RunSummary) -> str:
-    """A single-axis summary as a plain-text table (errors in um)."""
+    """A single-axis summary as a plain-text table (errors in um, urad for a rotary table)."""
     s = summary
     te = s.tracking_error
+    mu = micro(s.unit)
     lines = [
         f"scenario          {s.scenario}  ({s.processes}, {s.time_mode})",
         f"steps             {s.steps}  ({s.sim_time_s:.3f} s simulated)",
@@ -57,8 +121,16 @@ def format_summary(summary: RunSummary) -> str:
             if s.ilc_convergence
             else []
         ),
+        *(
+            [
+                f"error unit        rad of table angle (rotary table), shown in {mu}; "
+                "RMSD = RMS over all samples"
+            ]
+            if s.unit == "rad"
+            else []
+        ),
         "",
-        "tracking error (um)          RMS            max",
+        f"{'tracking error (' + mu + ')':<29}RMS            max",
         _row("all samples", te.all_samples),
         _row("at T_r instants", te.reference_instants),
     ]
@@ -69,13 +141,15 @@ def format_summary(summary: RunSummary) -> str:
             _row(f"after {name} 1", a.all_samples),
             _row("... at T_r instants", a.reference_instants),
             "",
-            f"{name:<5}   RMS (um)       max (um)       max at T_r (um)",
+            f"{name:<5}   {'RMS (' + mu + ')':<15}{'max (' + mu + ')':<15}max at T_r ({mu})",
         ]
         for c in te.cycles:
             lines.append(
                 f"{c.cycle:>5} {_um(c.rms_m):>12} {_um(c.max_m):>14} "
                 f"{_um(c.reference_instants.max_m):>18}"
             )
+    if s.identification is not None:
+        lines += ["", *identification_lines(s.identification)]
     return "\n".join(lines)
 
 
@@ -140,4 +214,72 @@ def compare_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> str
                 for c in per_run
             ]
             lines.append(f"{k + 1:>5}" + "".join(cells))
+    return "\n".join(lines)
+
+
+def rmsd_applies(summaries: Sequence[RunSummary]) -> bool:
+    """Whether runs compare by RMSD (:func:`rmsd_table`) rather than per cycle.
+
+    True when a run is on a rotary table or has an identifier (paper 003),
+    or when no run has a complete cycle (cycles do not apply).
+    """
+    return any(s.unit != "m" or s.identification is not None for s in summaries) or not any(
+        s.tracking_error.cycles for s in summaries
+    )
+
+
+def baseline_index(summaries: Sequence[RunSummary], labels: Sequence[str]) -> int:
+    """The run the others are compared with: the one labelled ``pid``, else the
+    first whose scenario is ``pid`` or ends in ``_pid``, else the first."""
+    for i, label in enumerate(labels):
+        if label == "pid":
+            return i
+    for i, s in enumerate(summaries):
+        if s.scenario == "pid" or s.scenario.endswith("_pid"):
+            return i
+    return 0
+
+
+def reductions(summaries: Sequence[RunSummary], base: int) -> list[float]:
+    """Per run, ``100 (1 - RMSD / RMSD_base)``: how much lower its RMSD is, %."""
+    ref = summaries[base].rmsd
+    return [100.0 * (1.0 - s.rmsd / ref) if ref > 0 else math.nan for s in summaries]
+
+
+def rmsd_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> str:
+    """RMSD of the tracking error over each whole run and its reduction against the
+    baseline (:func:`baseline_index`), plus the final estimate / true value of
+    each identified parameter when a run has them (003 Figs. 7, 9).
+
+    One row per run: label, RMSD (um or urad, 6 significant digits), reduction
+    (%, 2 decimals; ``base`` for the baseline) and, if any run identified
+    parameters, ``J/true``, ``D/true``, ``U/true``, ``C/true`` (``-`` for a
+    run without).
+
+    Raises
+    ------
+    ValueError
+        When the runs' errors are in different units (m and rad).
+    """
+    units = {s.unit for s in summaries}
+    if len(units) > 1:
+        raise ValueError(f"runs with errors in different units ({', '.join(sorted(units))})")
+    mu = micro(units.pop() if units else "m")
+    base = baseline_index(summaries, labels)
+    width = max(14, *(len(label) + 2 for label in labels))
+    ident = any(s.identification is not None for s in summaries)
+    names = ("J", "D", "U", "C")
+    lines = [
+        f"RMSD of the tracking error over the whole run ({mu}); reduction against {labels[base]}",
+        f"{'run':<{width}}{'RMSD (' + mu + ')':>16}{'reduction (%)':>15}"
+        + ("".join(f"{n + '/true':>10}" for n in names) if ident else ""),
+    ]
+    for i, (s, label, cut) in enumerate(
+        zip(summaries, labels, reductions(summaries, base), strict=True)
+    ):
+        row = f"{label:<{width}}{_um(s.rmsd):>16}{'base' if i == base else _g(cut, '.2f'):>15}"
+        if ident:
+            ratios = s.identification.final_ratio.values() if s.identification else (None,) * 4
+            row += "".join(f"{_g(r, '.5g'):>10}" for r in ratios)
+        lines.append(row)
     return "\n".join(lines)

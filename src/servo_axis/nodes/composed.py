@@ -17,12 +17,13 @@ from rclpy.node import Node
 
 from servo_axis.nodes.feedback import FeedbackNode
 from servo_axis.nodes.feedforward import FeedforwardNode
+from servo_axis.nodes.identifier import IdentifierNode
 from servo_axis.nodes.learning import LearningNode
 from servo_axis.nodes.plant import PlantNode
 from servo_axis.nodes.recorder import RecorderNode
 from servo_axis.nodes.runtime import run_main
 
-ROLES = ("plant", "feedback", "feedforward", "learning", "recorder")
+ROLES = ("plant", "feedback", "feedforward", "learning", "identifier", "recorder")
 
 
 def factories(roles: list[str]) -> list[Callable[[], Node]]:
@@ -30,6 +31,7 @@ def factories(roles: list[str]) -> list[Callable[[], Node]]:
     table: dict[str, Callable[[], Node]] = {
         "recorder": RecorderNode,
         "learning": LearningNode,
+        "identifier": IdentifierNode,
         "feedforward": FeedforwardNode,
         "feedback": FeedbackNode,
         "plant": PlantNode,

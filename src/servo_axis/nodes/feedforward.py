@@ -7,7 +7,17 @@ Topics (relative to the namespace):
 * subscribes ``plant/status`` (Float64MultiArray, every ``status_every_steps``
   of the plant) to know how far the plant is, without a callback per sample;
 * with learning, subscribes ``learning/correction`` and applies each
-  period's correction from the period it is stamped for.
+  period's correction from the period it is stamped for;
+* with ``adaptive.enabled`` (paper 003), subscribes ``identifier/estimates``
+  and applies each estimate from its ``applies_from_step``: the PTC's model
+  is rebuilt from ``J``, ``D`` (eq. (11)) and the MNC gets ``U``, ``C``; no
+  sample from there on is published before the estimate is in. Estimates
+  must come in order, each the next one expected (its step and application
+  step on the schedule of ``adaptive.rls_period_s`` and
+  ``adaptive.latency_s``); an exact repeat of the last one (a restarted
+  identifier sends its last estimate again) is taken silently; anything else
+  (NaN, out of order, another schedule) is rejected and counted, and the
+  model in force stays.
 
 It publishes the first window as soon as its ``reference`` publisher is
 matched with its ``wait_for_reference_subscribers`` consumers (the feedback
@@ -27,6 +37,11 @@ end it owed a correction for) and the plant has then stood still for
 ``learning.timeout_s``. In realtime: once the plant has stood still at the
 boundary for ``learning.timeout_s``.
 
+Identifier fallback (``adaptive.timeout_s``): the same rule with the
+identifier as the peer (liveliness of ``identifier/estimates``); on it the
+generator keeps the estimates in force for the rest of the run and takes no
+later one (:meth:`~servo_axis.core.feedforward.generator.FeedforwardGenerator.stop_estimates`).
+
 Run: ``python -m servo_axis.nodes.feedforward --ros-args --params-file config/<scenario>.yaml``
 """
 
@@ -37,11 +52,17 @@ from typing import Any
 
 import numpy as np
 
-from servo_axis.core.errors import SignalError
+from servo_axis.core.errors import ServoAxisError, SignalError
 from servo_axis.nodes.base import ServoNode
 from servo_axis.nodes.lockstep import PeerWatch
 from servo_axis.nodes.runtime import run_main, steady_clock
-from servo_axis.params.factories import build_generator, grid, learning_period_steps, run_steps
+from servo_axis.params.factories import (
+    build_generator,
+    estimate_schedule,
+    grid,
+    learning_period_steps,
+    run_steps,
+)
 from servo_axis.wire import messages as msgs
 
 
@@ -58,6 +79,11 @@ class FeedforwardNode(ServoNode):
         self._period_ns = msgs.period_ns(values["control_period_s"])
         self._steps = run_steps(values)
         self._window = values["preview_steps"]
+        self._estimate_lag = (
+            estimate_schedule(values, "adaptive.rls_period_s", "adaptive.latency_s")[1] + 1
+            if values["adaptive.enabled"]
+            else 0
+        )
 
         self._pub = self.publisher("reference")
         self._learning = values["learning.enabled"]
@@ -97,6 +123,16 @@ class FeedforwardNode(ServoNode):
             self.create_timer(
                 values["learning.timeout_s"] / 5.0, self._learning_watchdog, clock=steady_clock()
             )
+        self._adaptive = values["adaptive.enabled"]
+        self._identifier = PeerWatch()
+        self.last_estimate: msgs.EstimateData | None = None
+        self.estimates_taken = 0
+        self._estimate_wait_since: float | None = None
+        if self._adaptive:
+            self.subscribe("identifier/estimates", self._estimate_gate, self._on_estimate)
+            self.create_timer(
+                values["adaptive.timeout_s"] / 5.0, self._identifier_watchdog, clock=steady_clock()
+            )
         self.subscribe(
             "plant/status",
             lambda m: self._plausible_status(msgs.labelled_array_values(m, msgs.STATUS_LABELS)[0]),
@@ -130,6 +166,8 @@ class FeedforwardNode(ServoNode):
         self._plant_step = step
         if self._waiting_since is not None:
             self._waiting_since = time.monotonic()  # the plant still moves: not stalled yet
+        if self._estimate_wait_since is not None:
+            self._estimate_wait_since = time.monotonic()
         if self.started and self.published - self._plant_step <= self._window // 2:
             self._fill(self._plant_step + self._window)
 
@@ -166,6 +204,98 @@ class FeedforwardNode(ServoNode):
             self._learner.forget()
             self._fill(self._plant_step + self._window)
 
+    def _estimate_gate(self, msg: Any) -> msgs.EstimateData | None:
+        """The next estimate expected; None for an exact repeat of the last one (or once stopped)."""
+        e = msgs.estimate_from_msg(msg)
+        if e == self.last_estimate:
+            return None  # a restarted identifier sends its last estimate again
+        expected = self.generator.next_estimate_step
+        if expected is None:
+            return None  # estimates stopped (fallback): the model in force stays
+        if e.applies_from_step != expected:
+            raise SignalError(
+                f"applies_from_step {e.applies_from_step}: expected the next estimate's {expected}"
+            )
+        if e.applies_from_step - e.step != self._estimate_lag:
+            raise SignalError(
+                f"step {e.step}: expected {expected - self._estimate_lag} for an estimate "
+                f"applying from {expected} (latency {self._estimate_lag - 1} steps)"
+            )
+        return e
+
+    def _on_estimate(self, e: msgs.EstimateData | None) -> None:
+        if e is None:
+            return
+        try:
+            self.generator.set_estimate(
+                e.applies_from_step,
+                inertia_kgm2=e.inertia_kgm2,
+                damping_Nms_per_rad=e.damping_Nms_per_rad,
+                unbalance_Nm=e.unbalance_Nm,
+                coulomb_Nm=e.coulomb_Nm,
+            )
+        except ServoAxisError as err:
+            # A value the model refuses (the PTC's discretisation, say): the
+            # model in force stays and the estimate is counted as rejected.
+            self.reject("identifier/estimates", f"identifier/estimates rejected: {err}")
+            return
+        self.last_estimate = e
+        self.estimates_taken += 1
+        self._estimate_wait_since = None
+        self._identifier.forget()
+        if self.started:
+            self._fill(self._plant_step + self._window)
+
+    def _identifier_watchdog(self) -> None:
+        now = time.monotonic()
+        self._identifier.look(self.peer_alive("identifier/estimates"), now)
+        expected = self.generator.next_estimate_step
+        if expected is None or self.published < expected or expected >= self._steps:
+            self._estimate_wait_since = None
+            return
+        if self._estimate_wait_since is None:
+            self._estimate_wait_since = now
+            return
+        timeout = self._v["adaptive.timeout_s"]
+        why = self._too_late(
+            self._identifier, self._estimate_wait_since, timeout, now, "identifier"
+        )
+        if why is None:
+            return
+        self.generator.stop_estimates()
+        self.fallback(
+            "identifier_timeout",
+            expected,
+            f"no estimate applying from step {expected} within {timeout} s ({why}): keeping "
+            f"the estimates in force for the rest of the run ({self.estimates_taken} taken)",
+        )
+        self._estimate_wait_since = None
+        self._fill(self._plant_step + self._window)
+
+    def _too_late(
+        self, peer: PeerWatch, waiting_since: float, timeout: float, now: float, name: str
+    ) -> str | None:
+        """Why a wait for ``peer`` has lasted too long, or None to go on waiting.
+
+        Realtime: the plant stood still for ``timeout``. Lockstep: the peer has
+        been gone for ``timeout``, or it went away during the wait (a
+        respawned peer may not deliver what the dead one owed) and the plant
+        has then stood still for ``timeout``; while it lives, never.
+        """
+        if not self._lockstep:
+            still = now - waiting_since
+            return f"the plant stood still for {still:.3g} s" if still > timeout else None
+        if peer.gone_for(now) > timeout:
+            return f"the {name} has been gone for {peer.gone_for(now):.3g} s"
+        if peer.lost_at is not None:
+            still = now - max(waiting_since, peer.lost_at)
+            if still > timeout:
+                return (
+                    f"the {name} went away during the wait and the plant stood still "
+                    f"for {still:.3g} s"
+                )
+        return None
+
     def _learning_watchdog(self) -> None:
         # A dead learning unit must not stop the axis; a live one is waited
         # for (see the module docstring). The plant stands still at the
@@ -173,30 +303,21 @@ class FeedforwardNode(ServoNode):
         now = time.monotonic()
         self._learner.look(self.peer_alive(self._correction_topic), now)
         ready = self.generator.ready_until()
-        if ready is None or self.published < ready or ready >= self._steps:
+        if (
+            ready is None
+            or self.published < ready
+            or ready >= self._steps
+            or ready == self.generator.next_estimate_step  # a wait for the identifier
+        ):
             self._waiting_since = None
             return
         if self._waiting_since is None:
             self._waiting_since = now
             return
         timeout = self._v["learning.timeout_s"]
-        if not self._lockstep:
-            why = f"the plant stood still for {now - self._waiting_since:.3g} s"
-            late = now - self._waiting_since > timeout
-        elif self._learner.gone_for(now) > timeout:
-            why = f"the learning unit has been gone for {self._learner.gone_for(now):.3g} s"
-            late = True
-        elif self._learner.lost_at is not None:
-            still = now - max(self._waiting_since, self._learner.lost_at)
-            why = (
-                f"the learning unit went away during the wait and the plant stood still "
-                f"for {still:.3g} s"
-            )
-            late = still > timeout
-        else:
-            return  # it lives: wait however long it takes
-        if not late:
-            return
+        why = self._too_late(self._learner, self._waiting_since, timeout, now, "learning unit")
+        if why is None:
+            return  # it lives, or not for long enough: wait
         cycle = (ready + self._grid.ratio) // self._cycle_steps
         self.generator.repeat_correction(cycle)
         self._corrections.pop(cycle, None)

@@ -9,7 +9,8 @@ from a registry; adding an implementation is one module plus one
 * plant models (``plant.model``): :func:`register_plant_model`;
 * feedforward terms (``feedforward`` keys of their own, e.g.
   ``friction_table.*``): :func:`register_feedforward_term`;
-* learning laws (``learning.law``): :func:`register_learning_law`.
+* learning laws (``learning.law``): :func:`register_learning_law`;
+* online identifiers (``identifier.method``): :func:`register_identifier`.
 
 Nothing here imports rclpy.
 """
@@ -28,8 +29,12 @@ from servo_axis.core.feedback.dob import DisturbanceObserver
 from servo_axis.core.feedback.loop import FeedbackLoop, SafetyLimits
 from servo_axis.core.feedback.pid import DiscretePid, design_pid_pole_placement
 from servo_axis.core.feedforward.generator import FeedforwardGenerator
+from servo_axis.core.feedforward.mnc import MncParams, NonlinearityCompensator
 from servo_axis.core.feedforward.terms import FeedforwardTerm, FrictionTableTerm
 from servo_axis.core.friction.model import FrictionParams
+from servo_axis.core.identification.base import OnlineIdentifier
+from servo_axis.core.identification.dlpid import Dlpid, DlpidParams
+from servo_axis.core.identification.rls import RlsParams
 from servo_axis.core.learning.base import LearningLaw
 from servo_axis.core.learning.rptc import LearningParams, PeriodicSignalGenerator
 from servo_axis.core.models.ball_screw import BallScrewParams, BallScrewPlant, DisturbanceParams
@@ -340,6 +345,75 @@ def _friction_table_term(values: Values) -> FeedforwardTerm | None:
 register_feedforward_term("friction_table", _friction_table_term)
 
 
+def _mnc_term(values: Values) -> FeedforwardTerm | None:
+    """The multirate nonlinearity compensator of 003 eqs. (12)-(15) / (17), if on."""
+    if not values["mnc.enabled"]:
+        return None
+    params = build(
+        "mnc.",
+        MncParams,
+        keys={
+            "alpha": "mnc.alpha_s_per_rad",
+            "torque_constant_Nm_per_A": "nominal.torque_constant_Nm_per_A",
+            "lead_m_per_rad": "lead_m_per_rad",
+            "ratio": "control_period_s",
+            "control_period_s": "control_period_s",
+        },
+        unbalance_Nm=values["mnc.unbalance_Nm"],
+        coulomb_Nm=values["mnc.coulomb_Nm"],
+        friction=values["mnc.friction"],
+        alpha=values["mnc.alpha_s_per_rad"],
+        omega_th_rad_s=values["mnc.omega_th_rad_s"],
+        torque_constant_Nm_per_A=values["nominal.torque_constant_Nm_per_A"],
+        lead_m_per_rad=values["lead_m_per_rad"],
+        ratio=grid(values).ratio,
+        control_period_s=values["control_period_s"],
+    )
+    # A feedforward term (registered like the friction table); its U and C
+    # follow the online estimates when adaptive.enabled.
+    return NonlinearityCompensator(params, reference=build_reference(values))
+
+
+register_feedforward_term("mnc", _mnc_term)
+
+
+def estimate_schedule(values: Values, period_key: str, latency_key: str) -> tuple[int, int]:
+    """``(period, latency)`` in control samples of an online estimate (003, DESIGN 4).
+
+    Both are whole numbers of reference periods and the latency is at least
+    one period: an estimate computed from the samples up to ``k`` applies
+    from ``k + 1 + latency``, and the feedforward's preview never runs
+    ahead of the estimates it depends on.
+    """
+    g = grid(values)
+    period = (
+        build(
+            "",
+            g.instants_per,
+            keys={period_key: period_key},
+            period_s=values[period_key],
+            name=period_key,
+        )
+        * g.ratio
+    )
+    latency = (
+        build(
+            "",
+            g.instants_per,
+            keys={latency_key: latency_key},
+            period_s=values[latency_key],
+            name=latency_key,
+        )
+        * g.ratio
+    )
+    if latency < period:
+        raise ParameterFileError(
+            f"parameter '{latency_key}': expected at least one estimate period "
+            f"({values[period_key]!r} s), got {values[latency_key]!r}"
+        )
+    return period, latency
+
+
 def build_terms(values: Values) -> list[FeedforwardTerm]:
     """The feedforward terms the values switch on, in registration order."""
     return [t for b in FEEDFORWARD_TERMS.values() if (t := b(values)) is not None]
@@ -399,10 +473,20 @@ def build_generator(
             f"parameter 'ptc.enabled': learning law {values['learning.law']!r} corrects the "
             "target, which needs PTC, got false"
         )
+    period, latency = (
+        estimate_schedule(values, "adaptive.rls_period_s", "adaptive.latency_s")
+        if values["adaptive.enabled"]
+        else (None, 0)
+    )
     return build(
         "",
         FeedforwardGenerator,
-        keys={**NOMINAL_KEYS, "learning_period_steps": "learning.cycle_s"},
+        keys={
+            **NOMINAL_KEYS,
+            "learning_period_steps": "learning.cycle_s",
+            "estimate_period_steps": "adaptive.rls_period_s",
+            "estimate_latency_steps": "adaptive.latency_s",
+        },
         reference=build_reference(values),
         grid=grid(values),
         lead_m_per_rad=values["lead_m_per_rad"],
@@ -411,6 +495,8 @@ def build_generator(
         terms=build_terms(values) if terms is None else terms,
         learning_period_steps=period_steps,
         learning_side=side,
+        estimate_period_steps=period,
+        estimate_latency_steps=latency,
     )
 
 
@@ -611,6 +697,177 @@ def build_learning_law(values: Values) -> LearningLaw:
     return learning_law(values["law"]).build(values)
 
 
+# --------------------------------------------------------------------------- identifiers
+
+
+@dataclass(frozen=True)
+class IdentifierEntry:
+    """A registered online identification method.
+
+    Attributes
+    ----------
+    schema : mapping of str to Param
+        The method's own keys in the ``identifier`` section (beside :data:`schemas.IDENTIFIER`).
+    build : callable
+        ``build(values) -> OnlineIdentifier`` from checked identifier values.
+    estimates_friction : bool
+        Whether its ``C`` is an estimate (the feedforward then compensates
+        friction with it, ``mnc.friction``) or always 0.
+    """
+
+    schema: Mapping[str, Param]
+    build: Callable[[Values], OnlineIdentifier]
+    estimates_friction: bool
+
+
+IDENTIFIERS: dict[str, IdentifierEntry] = {}
+
+
+def register_identifier(
+    name: str,
+    *,
+    schema: Mapping[str, Param],
+    build: Callable[[Values], OnlineIdentifier],
+    estimates_friction: bool,
+) -> None:
+    """Make an online identifier selectable as ``identifier.method: <name>``."""
+    IDENTIFIERS[name] = IdentifierEntry(
+        schema=schema, build=build, estimates_friction=estimates_friction
+    )
+
+
+def identifier_method(name: object, key: str = "method") -> IdentifierEntry:
+    """The registered method ``name`` (ParameterFileError naming ``key`` otherwise)."""
+    if not isinstance(name, str) or name not in IDENTIFIERS:
+        raise ParameterFileError(
+            f"parameter '{key}': expected one of {sorted(IDENTIFIERS)}, got {name!r}"
+        )
+    return IDENTIFIERS[name]
+
+
+def _bounds(values: Values, key: str) -> tuple[float, float]:
+    pair = values[key]
+    if len(pair) != 2 or not pair[0] < pair[1]:
+        raise ParameterFileError(
+            f"parameter '{key}': expected [min, max] with min < max, got {pair!r}"
+        )
+    return float(pair[0]), float(pair[1])
+
+
+def _dlpid(mode: str) -> Callable[[Values], OnlineIdentifier]:
+    def make(values: Values) -> OnlineIdentifier:
+        estimate_schedule(values, "rls_period_s", "latency_s")
+        names = ("inertia_kgm2", "damping_Nms_per_rad", "unbalance_Nm")
+        bounds = [_bounds(values, f"bounds.{n}") for n in names]
+        forgetting = values["forgetting"]
+        if len(forgetting) != 3:
+            raise ParameterFileError(
+                f"parameter 'forgetting': expected 3 factors (J, D, U), got {forgetting!r}"
+            )
+        initial = (
+            values["nominal.inertia_kgm2"],
+            values["nominal.damping_Nms_per_rad"],
+            values["initial.unbalance_Nm"],
+        )
+        for name, key, (lo, hi), v in zip(
+            names,
+            ("nominal.inertia_kgm2", "nominal.damping_Nms_per_rad", "initial.unbalance_Nm"),
+            bounds,
+            initial,
+            strict=True,
+        ):
+            if not lo <= v <= hi:
+                raise ParameterFileError(
+                    f"parameter '{key}': the initial estimate must lie inside bounds.{name} "
+                    f"[{lo!r}, {hi!r}], got {v!r}"
+                )
+        rls = build(
+            "",
+            RlsParams,
+            keys={"initial_covariance": "initial_covariance", "forgetting": "forgetting"},
+            initial=initial,
+            lower=tuple(b[0] for b in bounds),
+            upper=tuple(b[1] for b in bounds),
+            forgetting=tuple(forgetting),
+            initial_covariance=values["initial_covariance"],
+            names=("J", "D", "U"),
+        )
+        friction: dict[str, Any] = {}
+        if mode == "double_layer":
+            friction = {
+                "friction_cutoff_hz": values["friction.cutoff_hz"],
+                "initial_friction_Nm": values["initial.coulomb_Nm"],
+                "friction_bounds": _bounds(values, "bounds.coulomb_Nm"),
+                "friction_velocity_min_rad_s": values["friction.velocity_min_rad_s"],
+            }
+        params = build(
+            "",
+            DlpidParams,
+            keys={
+                "period_s": "control_period_s",
+                "friction_cutoff_hz": "friction.cutoff_hz",
+                "initial_friction_Nm": "initial.coulomb_Nm",
+                "friction_bounds": "bounds.coulomb_Nm",
+                "friction_velocity_min_rad_s": "friction.velocity_min_rad_s",
+                "angle_min_rad": "conditions.angle_min_rad",
+                "velocity_min_rad_s": "conditions.velocity_min_rad_s",
+                "acceleration_min_rad_s2": "conditions.acceleration_min_rad_s2",
+            },
+            rls=rls,
+            period_s=values["control_period_s"],
+            rls_period_s=values["rls_period_s"],
+            pd_cutoff_hz=values["pd_cutoff_hz"],
+            angle_min_rad=values["conditions.angle_min_rad"],
+            velocity_min_rad_s=values["conditions.velocity_min_rad_s"],
+            acceleration_min_rad_s2=values["conditions.acceleration_min_rad_s2"],
+            pe_window=values["pe_window"],
+            mode=mode,
+            **friction,
+        )
+        return Dlpid(params)
+
+    return make
+
+
+register_identifier(
+    "dlpid", schema=schemas.DLPID_FRICTION, build=_dlpid("double_layer"), estimates_friction=True
+)
+register_identifier("marc", schema={}, build=_dlpid("single_layer"), estimates_friction=False)
+
+
+def build_identifier(values: Values) -> OnlineIdentifier:
+    """The online identifier of checked identifier values."""
+    return identifier_method(values["method"]).build(values)
+
+
+def adaptive_overrides(scenario: dict[str, Any]) -> dict[str, Any]:
+    """What the feedforward generator copies from the identifier section (one source each).
+
+    The estimates' schedule (``adaptive.rls_period_s``, ``adaptive.latency_s``),
+    the initial ``U``, ``C`` of the MNC until the first estimate applies, and
+    whether it compensates friction (``mnc.friction``: the method estimates
+    ``C``, DLPID, or not, the previous MARC, eq. (17)).
+    """
+    ident = node_params(scenario, "identifier")
+    schema = schemas.IDENTIFIER
+    method = ident.get("method", schema["method"].default)
+    entry = identifier_method(method, "identifier.method")
+
+    def value(key: str) -> Any:
+        return ident.get(key, {**schema, **entry.schema}[key].default)
+
+    out: dict[str, Any] = {
+        "adaptive.enabled": True,
+        "adaptive.rls_period_s": value("rls_period_s"),
+        "adaptive.latency_s": value("latency_s"),
+        "mnc.unbalance_Nm": value("initial.unbalance_Nm"),
+        "mnc.friction": entry.estimates_friction,
+    }
+    if entry.estimates_friction:
+        out["mnc.coulomb_Nm"] = value("initial.coulomb_Nm")
+    return out
+
+
 # --------------------------------------------------------------------------- schemas and values
 
 #: Schema of each node (shared keys included); the plant's adds its model's keys.
@@ -620,6 +877,7 @@ NODE_SCHEMAS: dict[str, Mapping[str, Param]] = {
     "feedforward": {**schemas.SHARED, **schemas.FEEDFORWARD},
     "learning": {**schemas.SHARED, **schemas.LEARNING},
     "recorder": {**schemas.SHARED, **schemas.RECORDER},
+    "identifier": {**schemas.SHARED, **schemas.IDENTIFIER},
 }
 
 
@@ -632,6 +890,9 @@ def node_schema(role: str, given: Values) -> dict[str, Param]:
     elif role == "learning":
         law = given.get("law", schema["law"].default)
         schema.update(learning_law(law).schema)
+    elif role == "identifier":
+        method = given.get("method", schema["method"].default)
+        schema.update(identifier_method(method).schema)
     return schema
 
 
@@ -682,6 +943,8 @@ def check_consistency(role: str, values: Values) -> None:
         build_reference(values)
     elif role == "recorder":
         check_recorder_topics(values)
+    elif role == "identifier":
+        build_identifier(values)
 
 
 def check_recorder_topics(values: Values) -> None:
@@ -702,13 +965,17 @@ def node_values(scenario: dict[str, Any], role: str) -> dict[str, Any]:
     """Checked parameter values of one node of a scenario (no ROS).
 
     The feedforward generator's ``learning.law`` is the learning section's
-    ``law`` (one source; the runner passes it on the same way).
+    ``law`` and, with an identifier, its ``adaptive.*`` and initial
+    ``mnc.*`` come from the identifier section (:func:`adaptive_overrides`;
+    one source, the runner passes them on the same way).
     """
     given = node_params(scenario, role)
     if role == "feedforward" and "learning.law" not in given:
         law = node_params(scenario, "learning").get("law")
         if law is not None:
             given = {**given, "learning.law": law}
+    if role == "feedforward" and "identifier" in scenario:
+        given = {**given, **adaptive_overrides(scenario)}
     return checked_values(role, given)
 
 

@@ -20,9 +20,9 @@ import yaml
 from servo_axis.core.errors import ConfigError
 
 #: Node roles, in the order of the sections of a scenario file.
-ROLES = ("plant", "feedback", "feedforward", "learning", "recorder")
+ROLES = ("plant", "feedback", "feedforward", "learning", "identifier", "recorder")
 #: The order in which the runner starts them (recorder first, plant last).
-START_ORDER = ("recorder", "learning", "feedforward", "feedback", "plant")
+START_ORDER = ("recorder", "learning", "identifier", "feedforward", "feedback", "plant")
 SHARED_SECTION = "/**"
 
 

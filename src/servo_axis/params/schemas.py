@@ -576,6 +576,65 @@ FEEDFORWARD: dict[str, Param] = {
         "(a fallback); while it lives the cycle waits. Realtime: wall time the plant may stand "
         "still at the cycle boundary; keep below the feedback's input_timeout_s",
     ),
+    "mnc.enabled": Param(
+        False,
+        meaning="multirate nonlinearity compensator (003 eqs. (12)-(15)): unbalance U sin(theta_d) "
+        "and, with mnc.friction, the arctan friction model of eq. (14), at T_r",
+    ),
+    "mnc.friction": Param(
+        True,
+        meaning="compensate friction with eq. (14) (the proposal); false = unbalance only, the "
+        "previous MARC of eq. (17) (with an identifier the runner sets it from its method)",
+    ),
+    "mnc.unbalance_Nm": Param(
+        0.1,
+        unit="N m",
+        minimum=0.0,
+        meaning="U until the first online estimate applies (003 Table I initial estimate 0.1; "
+        "with an identifier the runner copies its initial.unbalance_Nm)",
+    ),
+    "mnc.coulomb_Nm": Param(
+        0.01,
+        unit="N m",
+        minimum=0.0,
+        meaning="C until the first online estimate applies (003 Table I initial estimate 0.01; "
+        "with an identifier the runner copies its initial.coulomb_Nm)",
+    ),
+    "mnc.alpha_s_per_rad": Param(
+        1e4, unit="s/rad", above=0.0, meaning="alpha of the friction model, eq. (14) (003: 1e4)"
+    ),
+    "mnc.omega_th_rad_s": Param(
+        0.05, unit="rad/s", minimum=0.0, meaning="w_th, the dead zone of eq. (14) (003: 0.05)"
+    ),
+    "adaptive.enabled": Param(
+        False,
+        meaning="take online estimates from identifier/estimates: the PTC model is rebuilt from "
+        "J, D (003 eq. (11)) and the MNC gets U, C, each from the step the estimate applies "
+        "from; samples from there on wait for it (the runner sets it when an identifier runs)",
+    ),
+    "adaptive.rls_period_s": Param(
+        4e-3,
+        unit="s",
+        above=0.0,
+        meaning="T_RLS, one estimate per this period (the runner copies the identifier's "
+        "rls_period_s)",
+    ),
+    "adaptive.latency_s": Param(
+        4e-3,
+        unit="s",
+        above=0.0,
+        meaning="an estimate computed from the samples up to step k applies from step "
+        "k + 1 + latency / T_u (the runner copies the identifier's latency_s)",
+    ),
+    "adaptive.timeout_s": Param(
+        5.0,
+        unit="s",
+        above=0.0,
+        meaning="lockstep: how long a gone identifier (liveliness of identifier/estimates) gets "
+        "to come back before the feedforward keeps its last estimates for the rest of the run "
+        "(a fallback); while it lives the axis waits. Realtime: wall time the plant may stand "
+        "still waiting for an estimate",
+    ),
 }
 
 LEARNING: dict[str, Param] = {
@@ -673,6 +732,110 @@ PILC: dict[str, Param] = {
     ),
 }
 
+#: The identifier node's keys (paper 003 Sect. III-B, IV-A; Table I). The
+#: initial J and D are the shared nominal.inertia_kgm2 / nominal.damping_Nms_per_rad:
+#: the PID, the PTC and the RLS start from the same model.
+IDENTIFIER: dict[str, Param] = {
+    "method": Param(
+        "dlpid",
+        meaning="identification method (registered name): dlpid = double-layer parameter "
+        "identification, RLS of J, D, U plus the friction layer of eq. (8) (003); marc = the "
+        "previous MARC, RLS of J, D, U only, friction unmodelled (003 [11])",
+    ),
+    "rls_period_s": Param(
+        4e-3,
+        unit="s",
+        above=0.0,
+        meaning="T_RLS: the layers run once per this period, a whole number of reference "
+        "periods T_r (003: 4 ms)",
+    ),
+    "latency_s": Param(
+        4e-3,
+        unit="s",
+        above=0.0,
+        meaning="an estimate computed from the samples up to step k applies from step "
+        "k + 1 + latency_s / T_u; at least rls_period_s, a whole number of T_r",
+    ),
+    "pd_cutoff_hz": Param(
+        20.0,
+        unit="Hz",
+        above=0.0,
+        meaning="double pole of G_LPF / G_PD (003 Fig. 3; not given in the paper), below the "
+        "Nyquist frequency of T_u",
+    ),
+    "initial.unbalance_Nm": Param(
+        0.1, unit="N m", minimum=0.0, meaning="U_hat[0] (003 Table I: 0.1)"
+    ),
+    "bounds.inertia_kgm2": Param(
+        [1e-4, 0.1], unit="kg m^2", above=0.0, meaning="[min, max] of J_hat, eq. (6)"
+    ),
+    "bounds.damping_Nms_per_rad": Param(
+        [1e-4, 0.1], unit="N m s/rad", minimum=0.0, meaning="[min, max] of D_hat, eq. (6)"
+    ),
+    "bounds.unbalance_Nm": Param(
+        [0.0, 2.0], unit="N m", minimum=0.0, meaning="[min, max] of U_hat, eq. (6)"
+    ),
+    "forgetting": Param(
+        [0.999, 0.999, 0.995],
+        above=0.0,
+        maximum=1.0,
+        meaning="forgetting factor of J, D, U, each in (0, 1] (003 Table I: 0.999, 0.999, "
+        "0.995; per parameter: forget, then update)",
+    ),
+    "initial_covariance": Param(1e3, above=0.0, meaning="P[0] = p0 I of the RLS"),
+    "conditions.angle_min_rad": Param(
+        0.1, unit="rad", minimum=0.0, meaning="U is updated only when theta > this (eq. (16))"
+    ),
+    "conditions.velocity_min_rad_s": Param(
+        0.2, unit="rad/s", minimum=0.0, meaning="D only when |theta'| > this (eq. (16))"
+    ),
+    "conditions.acceleration_min_rad_s2": Param(
+        0.5, unit="rad/s^2", minimum=0.0, meaning="J only when |theta''| > this (eq. (16))"
+    ),
+    "pe_window": Param(
+        100, minimum=3, meaning="W of the PE index of eq. (7), in RLS periods (003: 100)"
+    ),
+    "memory.file": Param(
+        "",
+        meaning="JSON file the identifier's whole state is saved to after every estimate and "
+        "resumed from; '' = not persisted (the runner puts it in the run directory)",
+    ),
+    "memory.resume": Param(True, meaning="resume from memory.file when the file exists"),
+    "wait_for_estimate_subscribers": Param(
+        0,
+        minimum=0,
+        meaning="subscribe to `state` and `command` only once this many subscribers of "
+        "identifier/estimates have matched (the runner sets it)",
+    ),
+    "late_join": Param(
+        False,
+        meaning="a restarted identifier (the runner sets it): resume after the last sample of "
+        "its memory file, from the streams' history, instead of expecting step 0",
+    ),
+}
+
+#: The keys of method ``dlpid`` only: the friction layer of 003 eq. (8).
+DLPID_FRICTION: dict[str, Param] = {
+    "initial.coulomb_Nm": Param(
+        0.01, unit="N m", minimum=0.0, meaning="C_hat[0] (003 Table I: 0.01; dlpid only)"
+    ),
+    "bounds.coulomb_Nm": Param(
+        [0.0, 1.0], unit="N m", minimum=0.0, meaning="[min, max] of C_hat (dlpid)"
+    ),
+    "friction.cutoff_hz": Param(
+        2.0,
+        unit="Hz",
+        above=0.0,
+        meaning="q of the friction layer's low-pass, eq. (8) (003: 2 or 100 Hz); dlpid only",
+    ),
+    "friction.velocity_min_rad_s": Param(
+        0.2,
+        unit="rad/s",
+        above=0.0,
+        meaning="C_hat is held while |theta'| is at or below this (dlpid)",
+    ),
+}
+
 #: What the recorder records by default: the topics of the loop's three nodes.
 _DEFAULT_RECORDED = topics.recorded_topics(("plant", "feedback", "feedforward"))
 
@@ -731,5 +894,7 @@ SECTIONS: dict[str, Mapping[str, Param]] = {
     "learning": LEARNING,
     "learning (laws silc, pilc_bf, pilc_bfft)": ILC,
     "learning (laws pilc_bf, pilc_bfft)": PILC,
+    "identifier": IDENTIFIER,
+    "identifier (method dlpid)": DLPID_FRICTION,
     "recorder": RECORDER,
 }

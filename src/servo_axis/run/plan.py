@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from servo_axis.params import schemas
-from servo_axis.params.factories import checked_values, learning_law
+from servo_axis.params.factories import adaptive_overrides, checked_values, learning_law
 from servo_axis.params.scenario import (
     ROLES,
     SHARED_SECTION,
@@ -89,7 +89,11 @@ def handshake_overrides(
         unless its section lists them, the topics recorded by default; the
         learning unit gets ``reference.*`` and ``cycle_s`` of the
         feedforward section and ``sensor`` of the feedback section, the
-        feedforward generator the learning section's ``law``;
+        feedforward generator the learning section's ``law`` and, with an
+        identifier, its schedule and initial ``U``, ``C``
+        (:func:`~servo_axis.params.factories.adaptive_overrides`); the
+        identifier waits for the subscribers of ``identifier/estimates``
+        and keeps its memory in ``<run>/identifier_memory.json``;
         feedback, feedforward and learning get ``use_sim_time: true``;
         every node gets ``report_dir`` (``<run>/logs``, where it writes its
         health report).
@@ -106,6 +110,15 @@ def handshake_overrides(
         rec["output_dir"] = str(bag_dir)
         out["recorder"] = rec
         out["plant"]["flow_control"] = True
+    if "identifier" in roles:
+        ident = node_params(scenario, "identifier")
+        out["identifier"] = {
+            "wait_for_estimate_subscribers": subscriber_count(
+                "identifier/estimates", roles, recorded
+            )
+        }
+        if "memory.file" not in ident:
+            out["identifier"]["memory.file"] = str(bag_dir.parent / "identifier_memory.json")
     if "learning" in roles:
         out["learning"].update(
             wait_for_correction_subscribers=subscriber_count(
@@ -132,6 +145,8 @@ def handshake_overrides(
         law = node_params(scenario, "learning").get("law")
         if "learning" in roles and law is not None:
             ff["learning.law"] = law  # one source: the learning section
+        if "identifier" in roles:
+            ff.update(adaptive_overrides(scenario))
         out["feedforward"] = ff
     for role in sim_time_roles():
         if role in roles:

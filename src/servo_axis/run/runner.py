@@ -16,6 +16,11 @@ A node that dies during the run (node-death policy, README):
   correction once the unit's liveliness has lapsed) and the runner starts
   it again (``late_join``), up to ``respawn_limit`` times; it resumes from
   its memory file;
+* identifier: the axis waits for it (the feedforward publishes no sample
+  an estimate not yet in applies to) while the runner starts it again
+  (``late_join``), up to ``respawn_limit`` times; it resumes from its memory
+  file and the streams' history, bit-identically; gone for longer than
+  ``adaptive.timeout_s``, the feedforward keeps its last estimates;
 * feedforward generator: the feedback loop trips to zero current (its
   reference's publisher is gone), the plant runs to the end, the bag closes;
 * plant, feedback or recorder: the run stops, every process is reaped, the
@@ -71,7 +76,7 @@ if TYPE_CHECKING:
 #: The roles whose clean exit means "the run is complete".
 PLANT_ROLES = ("plant", "composed")
 #: Roles the runner starts again when they die (the axis runs on meanwhile).
-RESTARTED_ROLES = ("learning",)
+RESTARTED_ROLES = ("learning", "identifier")
 #: Roles whose death the axis survives without a restart (the feedback trips).
 RUN_ON_ROLES = ("feedforward",)
 #: Restarts per role and axis by default.

@@ -38,14 +38,17 @@ from typing import Any
 from servo_axis.core.errors import SignalError
 
 __all__ = [
+    "ESTIMATE_LABELS",
     "FAULT_LABELS",
     "PROGRESS_LABELS",
     "STATS_LABELS",
     "STATUS_LABELS",
     "SUPPORTED_TYPES",
     "ClockData",
+    "EstimateData",
     "JointStateData",
     "MultiArrayData",
+    "check_estimate_values",
     "clock_ns_from_cdr",
     "decode",
     "decode_clock",
@@ -393,6 +396,105 @@ FAULT_LABELS: tuple[str, ...] = (
     "value(m_or_A_or_s)",
 )
 STATS_LABELS: tuple[str, ...] = ("cycle", "rms_m", "max_m", "cycles_learned")
+#: ``identifier/estimates``: the last control sample the estimate was computed
+#: from, the first it applies to, ``J, D, U, C`` (003 eq. (2)), the PE index
+#: of eq. (7) and whether each parameter was updated at this RLS step (1/0).
+ESTIMATE_LABELS: tuple[str, ...] = (
+    "step",
+    "applies_from_step",
+    "inertia_kgm2",
+    "damping_Nms_per_rad",
+    "unbalance_Nm",
+    "coulomb_Nm",
+    "kappa",
+    "updated_inertia",
+    "updated_damping",
+    "updated_unbalance",
+    "updated_coulomb",
+)
+
+
+@dataclass(frozen=True)
+class EstimateData:
+    """One online estimate of the identifier (topic ``identifier/estimates``).
+
+    Attributes
+    ----------
+    step : int
+        The last control sample the estimate was computed from (>= 0).
+    applies_from_step : int
+        The first control sample whose feedforward uses it (> ``step``).
+    inertia_kgm2, damping_Nms_per_rad, unbalance_Nm, coulomb_Nm : float
+        ``J`` (> 0), ``D``, ``U``, ``C`` (>= 0) of 003 eq. (2).
+    kappa : float
+        PE index of 003 eq. (7) (0 until its window is full).
+    updated : tuple of 4 bool
+        Whether ``J``, ``D``, ``U`` (eq. (16)) and ``C`` (eq. (8)) were updated.
+    """
+
+    step: int
+    applies_from_step: int
+    inertia_kgm2: float
+    damping_Nms_per_rad: float
+    unbalance_Nm: float
+    coulomb_Nm: float
+    kappa: float
+    updated: tuple[bool, bool, bool, bool]
+
+    def values(self) -> list[float]:
+        """The message's data, in :data:`ESTIMATE_LABELS` order."""
+        return [
+            float(self.step),
+            float(self.applies_from_step),
+            self.inertia_kgm2,
+            self.damping_Nms_per_rad,
+            self.unbalance_Nm,
+            self.coulomb_Nm,
+            self.kappa,
+            *(1.0 if u else 0.0 for u in self.updated),
+        ]
+
+
+def check_estimate_values(values: Sequence[float]) -> EstimateData:
+    """An :class:`EstimateData` of the values of an ``identifier/estimates`` message.
+
+    The values must already be finite and in :data:`ESTIMATE_LABELS` order
+    (:func:`check_labelled_values`).
+
+    Raises
+    ------
+    SignalError
+        A step that is not whole and >= 0, an application step not after it,
+        ``J <= 0``, a negative ``D``, ``U`` or ``C``, or a flag not 0 or 1.
+    """
+    if len(values) != len(ESTIMATE_LABELS):
+        raise SignalError(f"data: expected {len(ESTIMATE_LABELS)} values, got {len(values)}")
+    step, applies, j, d, u, c, kappa = (float(v) for v in values[:7])
+    if step != int(step) or step < 0:
+        raise SignalError(f"step: expected a whole number >= 0, got {step!r}")
+    if applies != int(applies) or applies <= step:
+        raise SignalError(
+            f"applies_from_step: expected a whole number after step {int(step)}, got {applies!r}"
+        )
+    if not j > 0.0:
+        raise SignalError(f"inertia_kgm2: expected a value > 0, got {j!r}")
+    for name, v in (("damping_Nms_per_rad", d), ("unbalance_Nm", u), ("coulomb_Nm", c)):
+        if v < 0.0:
+            raise SignalError(f"{name}: expected a value >= 0, got {v!r}")
+    flags = [float(v) for v in values[7:]]
+    for label, f in zip(ESTIMATE_LABELS[7:], flags, strict=True):
+        if f not in (0.0, 1.0):
+            raise SignalError(f"{label}: expected 0 or 1, got {f!r}")
+    return EstimateData(
+        step=int(step),
+        applies_from_step=int(applies),
+        inertia_kgm2=j,
+        damping_Nms_per_rad=d,
+        unbalance_Nm=u,
+        coulomb_Nm=c,
+        kappa=kappa,
+        updated=(flags[0] == 1.0, flags[1] == 1.0, flags[2] == 1.0, flags[3] == 1.0),
+    )
 
 
 def state_names(axis: str) -> list[str]:

@@ -30,11 +30,14 @@ from servo_axis.core.errors import SignalError
 
 # The labels and joint names are defined beside the pure checks (wire.cdr) and
 # re-exported here, where the nodes take them from.
+from servo_axis.wire.cdr import ESTIMATE_LABELS as ESTIMATE_LABELS
 from servo_axis.wire.cdr import FAULT_LABELS as FAULT_LABELS
 from servo_axis.wire.cdr import PROGRESS_LABELS as PROGRESS_LABELS
 from servo_axis.wire.cdr import STATS_LABELS as STATS_LABELS
 from servo_axis.wire.cdr import STATUS_LABELS as STATUS_LABELS
+from servo_axis.wire.cdr import EstimateData as EstimateData
 from servo_axis.wire.cdr import (
+    check_estimate_values,
     check_finite,
     check_joint_arrays,
     check_labelled_values,
@@ -336,6 +339,16 @@ def input_correction_from_msg(
     """Decode and validate a ``learning/input_correction`` message."""
     step = _check_joint_state(msg, motor_names(axis), ("effort",), period_ns_)
     return InputCorrectionSample(step=step, current_A=msg.effort[0])
+
+
+def estimate_to_msg(estimate: EstimateData) -> Float64MultiArray:
+    """Encode an online estimate (topic ``identifier/estimates``, :data:`ESTIMATE_LABELS`)."""
+    return labelled_array(ESTIMATE_LABELS, estimate.values())
+
+
+def estimate_from_msg(msg: Float64MultiArray) -> EstimateData:
+    """Decode and validate an ``identifier/estimates`` message (:func:`check_estimate_values`)."""
+    return check_estimate_values(labelled_array_values(msg, ESTIMATE_LABELS))
 
 
 #: ``learning/parameters``: the trial whose data gave them, then what a

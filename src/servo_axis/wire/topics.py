@@ -59,9 +59,10 @@ class Topic:
 
 
 TOPICS: tuple[Topic, ...] = (
-    Topic("state", JOINT_STATE, "stream", "plant", ("feedback", "learning"), True, True,
+    Topic("state", JOINT_STATE, "stream", "plant", ("feedback", "learning", "identifier"), True,
+          True,
           "sensor readings and true motion at every sample"),
-    Topic("command", JOINT_STATE, "stream", "feedback", ("plant",), True, True,
+    Topic("command", JOINT_STATE, "stream", "feedback", ("plant", "identifier"), True, True,
           "current reference, the answer to state[k]"),
     Topic("reference", JOINT_STATE, "stream", "feedforward", ("feedback",), True, True,
           "feedback reference and feedforward current, published ahead"),
@@ -81,6 +82,8 @@ TOPICS: tuple[Topic, ...] = (
           "plant parameters a projection-based law identified, per trial"),
     Topic("learning/friction_table", FLOAT64_MULTI_ARRAY, "stream", "learning", (), True, False,
           "the data-based friction table a law built, per trial"),
+    Topic("identifier/estimates", FLOAT64_MULTI_ARRAY, "stream", "identifier", ("feedforward",),
+          True, False, "online estimates J, D, U, C, the PE index and the updates, per RLS period"),
     Topic("recorder/progress", FLOAT64_MULTI_ARRAY, "latched", "recorder", ("plant",), False, False,
           "steps fully recorded (flow control)"),
 )  # fmt: skip

@@ -23,6 +23,7 @@ from servo_axis.core.errors import ConfigError, ParameterFileError
 from servo_axis.core.feedback.pid import PidGains
 from servo_axis.params import factories
 from servo_axis.params.factories import (
+    IDENTIFIERS,
     LEARNING_LAWS,
     PLANT_MODELS,
     build_generator,
@@ -41,6 +42,8 @@ def bases(role: str) -> list[dict[str, Any]]:
         return [{"model": name} for name in PLANT_MODELS]
     if role == "learning":
         return [{"law": name} for name in LEARNING_LAWS]
+    if role == "identifier":
+        return [{"method": name} for name in IDENTIFIERS]
     return [{}]
 
 

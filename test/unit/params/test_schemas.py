@@ -16,8 +16,10 @@ from servo_axis.params.scenario import flatten
 from servo_axis.params.schema import Param
 from servo_axis.params.schemas import (
     BALL_SCREW,
+    DLPID_FRICTION,
     FEEDBACK,
     FEEDFORWARD,
+    IDENTIFIER,
     ILC,
     LEARNING,
     PILC,
@@ -36,10 +38,11 @@ CONFIGS = sorted((REPO / "config").glob("*.yaml"))
 #: The schema of each section of a scenario file (by its last path component).
 NODE_SCHEMAS: dict[str, Mapping[str, Param]] = {
     "**": SHARED,
-    "plant": {**PLANT, **BALL_SCREW},
+    "plant": {**PLANT, **BALL_SCREW, **TILTING_TABLE},
     "feedback": FEEDBACK,
     "feedforward": FEEDFORWARD,
     "learning": {**LEARNING, **ILC, **PILC},
+    "identifier": {**IDENTIFIER, **DLPID_FRICTION},
     "recorder": RECORDER,
 }
 
@@ -125,9 +128,12 @@ def test_sections_cover_every_schema() -> None:
         LEARNING,
         ILC,
         PILC,
+        IDENTIFIER,
+        DLPID_FRICTION,
         RECORDER,
     ]
     assert list(SECTIONS.values()) == expected
+    assert not set(IDENTIFIER) & set(DLPID_FRICTION)
     assert not set(PLANT) & set(BALL_SCREW) and not set(PLANT) & set(TILTING_TABLE)
     assert not set(LEARNING) & (set(ILC) | set(PILC)) and not set(ILC) & set(PILC)
     assert not set(SHARED) & {k for s in NODE_SCHEMAS.values() if s is not SHARED for k in s}

@@ -229,6 +229,15 @@ class FeedforwardGenerator:
                     forget(self._next)
         self._next_estimate = from_step + self._estimate_period
 
+    def stop_estimates(self) -> None:
+        """Keep the model and the terms' ``U``, ``C`` in force for the rest of the run.
+
+        No sample waits for an online estimate any more and none is taken
+        (:meth:`set_estimate` raises): what a feedforward does once its
+        identifier is gone (a fallback, not the deterministic protocol).
+        """
+        self._next_estimate = None
+
     def ready_until(self) -> int | None:
         """First control sample that waits for a learning correction not yet set (None: none waits).
 

@@ -8,5 +8,6 @@ identifier is a module here (numerics: regression, RLS, PE index) plus its
 registration in :mod:`servo_axis.params.factories`, and its node under
 :mod:`servo_axis.nodes`. Built: the numerics of DLPID (``rls``: conditional RLS
 with per-parameter forgetting and projection; ``pe``: the PE index;
-``dlpid``: the two layers and the signal chain). Not yet: its node.
+``dlpid``: the two layers and the signal chain; ``base``: what the node asks
+of an identifier). The node is :mod:`servo_axis.nodes.identifier`.
 """

@@ -281,6 +281,16 @@ class Dlpid:
         return self.params.mode == "double_layer"
 
     @property
+    def ratio(self) -> int:
+        """Control samples per RLS period (``T_RLS / T_y``)."""
+        return self.params.ratio
+
+    @property
+    def last_step(self) -> int | None:
+        """The last control sample taken (None before the first)."""
+        return self._last_step
+
+    @property
     def signals(self) -> tuple[float, float, float, float]:
         """Filtered ``(y, y', y'', ubar)`` of the last sample (rad, rad/s, rad/s^2, N m)."""
         return self._signals

@@ -1,0 +1,196 @@
+"""Parameter identifier node: online identification of J, D, U, C (paper 003, Figs. 3-4).
+
+Topics (relative to the namespace):
+
+* subscribes ``state`` (JointState, every sample: the measured angle
+  ``y_m[k]`` is the encoder reading) and ``command`` (JointState, every
+  sample: the current ``i[k]`` the feedback answered ``state[k]`` with; the
+  torque is ``T_m[k] = K_T i[k]`` with the nominal ``K_T``);
+* publishes ``identifier/estimates`` (Float64MultiArray,
+  :data:`~servo_axis.wire.cdr.ESTIMATE_LABELS`) once per RLS period.
+
+Convention (one for the whole suite): the estimate computed from the
+samples up to step ``k`` (``k = (n + 1) R - 1`` for the ``n``-th, ``R =
+rls_period_s / T_u``) is stamped ``step = k`` and ``applies_from_step = k +
+1 + latency_s / T_u``; the feedforward generator uses it for every sample
+from there on, and publishes no sample from there on before it has it. An
+estimate that would apply only after the run's last step is not published
+(nothing would use it, and a message sent as the run stops may or may not be
+recorded).
+
+Both streams are taken exactly in order (:class:`~servo_axis.wire.streams.StreamGate`),
+each sample validated whole; step ``k`` is identified once both ``state[k]``
+and ``command[k]`` are in.
+
+Memory: after every estimate the identifier's whole state (filters, RLS,
+covariance, PE window, ``C``) and the estimate are written atomically to
+``memory.file`` before the estimate is published. A restarted identifier
+(``late_join``) loads it, publishes the last estimate again (the feedforward
+takes an identical repeat silently) and takes the streams from the sample
+after the last one it had, out of their history (transient-local, 2000
+samples deep: the plant cannot be further ahead while the feedforward waits
+for the next estimate), so that it resumes bit-identically. Samples of that
+history up to the memory's last step are skipped, not counted as rejected.
+
+Run: ``python -m servo_axis.nodes.identifier --ros-args --params-file config/<scenario>.yaml``
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+from servo_axis.core.errors import ParameterFileError, ServoAxisError
+from servo_axis.core.identification.dlpid import Estimate
+from servo_axis.nodes.base import ServoNode
+from servo_axis.nodes.lockstep import stream_window
+from servo_axis.nodes.runtime import run_main
+from servo_axis.params.factories import build_identifier, estimate_schedule, run_steps
+from servo_axis.storage import load_identifier_memory, save_identifier_memory
+from servo_axis.wire import messages as msgs
+from servo_axis.wire.streams import StreamGate
+
+
+class IdentifierNode(ServoNode):
+    """Online identifier; see the module docstring for its protocol."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("identifier", **kwargs)
+        values = self.values
+        self.identifier = build_identifier(values)
+        _, self._latency = estimate_schedule(values, "rls_period_s", "latency_s")
+        self._v = values
+        self._axis = values["axis"]
+        self._period_ns = msgs.period_ns(values["control_period_s"])
+        self._kt = values["nominal.torque_constant_Nm_per_A"]
+        self._steps = run_steps(values)
+        self._scenario = values["scenario.name"] or "unnamed"
+        self._memory = Path(values["memory.file"]) if values["memory.file"] else None
+        self.last_estimate: msgs.EstimateData | None = None
+        self.published = 0
+        self._resume_memory()
+
+        self._pub = self.publisher("identifier/estimates")
+        # A restarted identifier continues after its memory's last step;
+        # one without memory joins at the first step it gets.
+        resumed = self.identifier.last_step
+        first: int | None = 0
+        if values["late_join"]:
+            first = None if resumed is None else resumed + 1
+        self._skip_through = -1 if resumed is None else resumed
+        window = stream_window(values["mode"] == "lockstep")
+        self._state_gate = StreamGate(window=window, first=first, limit=self._steps)
+        self._command_gate = StreamGate(window=window, first=first, limit=self._steps)
+        self._angles: dict[int, float] = {}
+        self._currents: dict[int, float] = {}
+        self.inputs_subscribed = False
+        self.after_consumers_matched(
+            [(self._pub, "identifier/estimates", values["wait_for_estimate_subscribers"])],
+            self._subscribe_inputs,
+        )
+
+    def _resume_memory(self) -> None:
+        if self._memory is None or not self._v["memory.resume"] or not self._memory.exists():
+            return
+        try:
+            state, last = load_identifier_memory(
+                self._memory, method=self._v["method"], scenario=self._scenario
+            )
+            self.identifier.load_state(state)
+            self.last_estimate = None if last is None else msgs.check_estimate_values(last)
+        except (OSError, ServoAxisError) as err:
+            raise ParameterFileError(f"parameter 'memory.file': {err}") from err
+        self.get_logger().info(
+            f"resumed after step {self.identifier.last_step} from {self._memory}"
+        )
+
+    def _subscribe_inputs(self) -> None:
+        period_ns, axis = self._period_ns, self._axis
+        if self.last_estimate is not None:
+            # The dead identifier may have saved it without publishing it.
+            self._pub.publish(msgs.estimate_to_msg(self.last_estimate))
+        self.subscribe(
+            "state",
+            lambda m: self._fresh(msgs.state_from_msg(m, axis=axis, period_ns_=period_ns)),
+            lambda s: self._take(s.step, angle=s.encoder_rad) if s is not None else None,
+            gate=self._state_gate,
+        )
+        self.subscribe(
+            "command",
+            lambda m: self._fresh(msgs.command_from_msg(m, axis=axis, period_ns_=period_ns)),
+            lambda c: self._take(c.step, current=c.current_A) if c is not None else None,
+            gate=self._command_gate,
+        )
+        self.inputs_subscribed = True
+
+    def _fresh(self, sample: Any) -> Any:
+        """The sample, or None for history a resumed identifier already had."""
+        return None if sample.step <= self._skip_through else sample
+
+    def _take(self, step: int, *, angle: float | None = None, current: float | None = None) -> None:
+        if angle is not None:
+            self._angles[step] = angle
+        if current is not None:
+            self._currents[step] = current
+        while True:
+            last = self.identifier.last_step
+            if last is not None:
+                nxt = last + 1
+            elif self._angles and self._currents:
+                # A late joiner without memory starts where both streams are in.
+                nxt = max(min(self._angles), min(self._currents))
+            else:
+                return
+            if nxt not in self._angles or nxt not in self._currents:
+                return
+            for buffer in (self._angles, self._currents):
+                for old in [k for k in buffer if k < nxt]:
+                    del buffer[old]
+            y = self._angles.pop(nxt)
+            u = self._currents.pop(nxt)
+            estimate = self.identifier.update(nxt, y, self._kt * u)
+            if estimate is not None:
+                self._publish(estimate)
+
+    def _publish(self, e: Estimate) -> None:
+        applies = e.step + 1 + self._latency
+        if applies >= self._steps:
+            return  # nothing would use it
+        values = (e.J, e.D, e.U, e.C, e.kappa)
+        if not all(math.isfinite(v) for v in values):
+            # Cannot happen inside the projection's bounds; never put NaN on the wire.
+            self.get_logger().error(f"estimate at step {e.step} not finite {values}: not published")
+            return
+        data = msgs.EstimateData(
+            step=e.step,
+            applies_from_step=applies,
+            inertia_kgm2=e.J,
+            damping_Nms_per_rad=e.D,
+            unbalance_Nm=e.U,
+            coulomb_Nm=e.C,
+            kappa=e.kappa,
+            updated=e.updated,
+        )
+        # Persist before publishing: whatever the feedforward has used is on
+        # disk if the identifier dies now.
+        if self._memory is not None:
+            save_identifier_memory(
+                self._memory,
+                self.identifier.state(),
+                data.values(),
+                method=self._v["method"],
+                scenario=self._scenario,
+            )
+        self.last_estimate = data
+        self._pub.publish(msgs.estimate_to_msg(data))
+        self.published += 1
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point of ``python -m servo_axis.nodes.identifier``."""
+    return run_main("identifier", [IdentifierNode], args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
