@@ -554,6 +554,7 @@ SCENARIOS = sorted(CONFIG.glob("*.yaml"))
 def test_every_scenario_is_accepted_by_each_of_its_nodes(
     context: Context, scenario: Path, tmp_path: Path
 ) -> None:
+    from servo_axis.nodes.identifier import IdentifierNode
     from servo_axis.nodes.learning import LearningNode
 
     data = load_scenario(scenario)
@@ -564,6 +565,7 @@ def test_every_scenario_is_accepted_by_each_of_its_nodes(
         "feedback": FeedbackNode,
         "feedforward": FeedforwardNode,
         "learning": LearningNode,
+        "identifier": IdentifierNode,
         "recorder": RecorderNode,
     }
     # A multi-axis scenario: each axis's merged view, as the bringup runs it.

@@ -627,12 +627,13 @@ FEEDFORWARD: dict[str, Param] = {
         "k + 1 + latency / T_u (the runner copies the identifier's latency_s)",
     ),
     "adaptive.timeout_s": Param(
-        5.0,
+        10.0,
         unit="s",
         above=0.0,
         meaning="lockstep: how long a gone identifier (liveliness of identifier/estimates) gets "
         "to come back before the feedforward keeps its last estimates for the rest of the run "
-        "(a fallback); while it lives the axis waits. Realtime: wall time the plant may stand "
+        "(a fallback; a restarted identifier resumes well within it); while it lives the axis "
+        "waits. Realtime: wall time the plant may stand "
         "still waiting for an estimate",
     ),
 }
