@@ -87,7 +87,9 @@ def tails(run_dir: Path, lines: int = 4) -> str:
 class JunkPublisher:
     """A stranger on every subscribed topic, cycling through the junk kinds at 200 Hz."""
 
-    def __init__(self, domain: int) -> None:
+    def __init__(
+        self, domain: int, *, period_ns: int = PERIOD_NS, axis: str = "x", steps: int = 1500
+    ) -> None:
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
         from rosgraph_msgs.msg import Clock
@@ -98,6 +100,7 @@ class JunkPublisher:
         from servo_axis.wire.topics import TOPICS
 
         self._rclpy = rclpy
+        self.period_ns, self.axis, self.steps = period_ns, axis, steps
         self.context = rclpy.context.Context()
         rclpy.init(args=[], context=self.context, domain_id=domain)
         self.node = rclpy.create_node("junk", context=self.context, enable_rosout=False)
@@ -127,7 +130,7 @@ class JunkPublisher:
         if len(dims) != 1 or dims[0].label != "steps_recorded" or len(msg.data) != 1:
             return
         value = msg.data[0]
-        if math.isfinite(value) and value.is_integer() and 0 <= value <= 1500:
+        if math.isfinite(value) and value.is_integer() and 0 <= value <= self.steps:
             if value not in self._mine:
                 self.recorded = max(self.recorded, int(value))
 
@@ -136,6 +139,11 @@ class JunkPublisher:
         stamps = ["past_0", "past_5", "ahead_1000", "ahead_1e9s", "off_grid"]
         if topic == "/clock":
             return stamps
+        if topic == "identifier/estimates":
+            # Well-formed apart from the one thing each breaks; "past" and
+            # "future" are off the estimates' schedule (never the next one).
+            return ["nan", "inf", "short", "empty", "wrong_labels", "past", "future", "half",
+                    "applies_now", "zero_inertia"]  # fmt: skip
         if topic in ("plant/status", "recorder/progress"):
             return [
                 "nan",
@@ -167,20 +175,23 @@ class JunkPublisher:
         from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
         now = max(self.recorded, 0)
-        ns = (now + 1) * PERIOD_NS
+        period = self.period_ns
+        ns = (now + 1) * period
         if kind == "past_0":
-            ns = 0 if topic != "learning/correction" else 2 * PERIOD_NS
+            ns = 0 if topic != "learning/correction" else 2 * period
         elif kind == "past_5":
-            ns = max(now - 5, 0) * PERIOD_NS
+            ns = max(now - 5, 0) * period
         elif kind == "ahead_1000":
-            ns = (now + 1000) * PERIOD_NS
+            ns = (now + 1000) * period
         elif kind == "ahead_1e9s":
             ns = 10**18
         elif kind == "off_grid":
-            ns = (now + 1) * PERIOD_NS + PERIOD_NS // 2
+            ns = (now + 1) * period + period // 2
         stamp = Time(sec=ns // 10**9, nanosec=ns % 10**9)
         if topic == "/clock":
             return Clock(clock=stamp)
+        if topic == "identifier/estimates":
+            return self.estimate(now, kind)
         if topic in ("plant/status", "recorder/progress"):
             labels = (
                 "step,deadline_misses,rejected_commands,command_timeouts"
@@ -207,12 +218,13 @@ class JunkPublisher:
                 msg.layout.dim = [MultiArrayDimension(label=label, size=size, stride=size)]
                 msg.data = data
             return msg
+        motor, table = f"{self.axis}_motor", f"{self.axis}_table"
         names, fields = {
-            "state": (["x_motor", "x_table"], ("position", "velocity", "effort")),
-            "command": (["x_motor"], ("effort",)),
-            "reference": (["x_motor"], ("position", "velocity", "effort")),
-            "learning/correction": (["x_motor"], ("position", "velocity")),
-            "learning/input_correction": (["x_motor"], ("effort",)),
+            "state": ([motor, table], ("position", "velocity", "effort")),
+            "command": ([motor], ("effort",)),
+            "reference": ([motor], ("position", "velocity", "effort")),
+            "learning/correction": ([motor], ("position", "velocity")),
+            "learning/input_correction": ([motor], ("effort",)),
         }[topic]
         msg = JointState()
         if kind == "empty":
@@ -223,6 +235,35 @@ class JunkPublisher:
         for f in fields:
             n = len(names) - 1 if kind == "short" else len(names)
             setattr(msg, f, [fill] * n)
+        return msg
+
+    @staticmethod
+    def estimate(now: int, kind: str) -> Any:
+        """Junk on identifier/estimates: each kind breaks one rule of the layout or schedule."""
+        from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+
+        from servo_axis.wire.cdr import ESTIMATE_LABELS
+
+        # The real schedule (R = L = 10) has applies_from = 0 mod 10; these are 1 mod 10.
+        step = float(10 * (now // 10))
+        step = {"past": max(step - 50.0, 0.0), "future": step + 1000.0}.get(kind, step)
+        applies = step + 11.0
+        data = [step, applies, 5e-3, 1.3e-2, 0.3, 0.02, 1e-3, 1.0, 1.0, 1.0, 1.0]
+        if kind in ("nan", "inf"):
+            data[2] = math.nan if kind == "nan" else math.inf
+        elif kind == "half":
+            data[0] += 0.5
+        elif kind == "applies_now":
+            data[1] = step
+        elif kind == "zero_inertia":
+            data[2] = 0.0
+        msg = Float64MultiArray()
+        if kind == "empty":
+            return msg
+        size = len(ESTIMATE_LABELS)
+        label = "junk" if kind == "wrong_labels" else ",".join(ESTIMATE_LABELS)
+        msg.layout.dim = [MultiArrayDimension(label=label, size=size, stride=size)]
+        msg.data = data[:-1] if kind == "short" else data
         return msg
 
     def spin_while(self, running: Callable[[], bool], timeout_s: float) -> None:
@@ -305,3 +346,49 @@ def test_junk_on_every_topic_changes_no_stream_and_no_figure(ros_env: int, tmp_p
     )
     assert b.tracking_error == a.tracking_error
     assert b.faults == a.faults == ()
+
+
+def test_junk_on_every_topic_of_an_identifier_run_changes_no_stream_and_no_estimate(
+    ros_env: int, tmp_path: Path
+) -> None:
+    """The same attack on a short ``dlpid_tilt_lpf2`` (paper 003): the estimates
+    the feedforward uses, and so every stream, are the clean run's."""
+    domain = 101 + ros_env % 100
+    data = yaml.safe_load((CONFIG / "dlpid_tilt_lpf2.yaml").read_text())
+    data["/**"]["ros__parameters"]["duration_s"] = 1.0
+    scenario_path = tmp_path / "short.yaml"
+    scenario_path.write_text(yaml.safe_dump(data))
+    rules = StreamRules.from_scenario(load_scenario(scenario_path), 4e-4)
+    assert rules.identifier and rules.steps == 2500
+
+    clean_code = finish(start_run(scenario_path, tmp_path / "clean", domain), RUN_TIMEOUT_S)
+    assert clean_code == 0, tails(tmp_path / "clean")
+    junk = JunkPublisher(domain, period_ns=400_000, axis="tilt", steps=2500)
+    try:
+        proc = start_run(scenario_path, tmp_path / "junk", domain)
+        try:
+            junk.spin_while(lambda: proc.poll() is None, RUN_TIMEOUT_S)
+        finally:
+            junk_code = finish(proc, 10.0)
+    finally:
+        junk.close()
+    assert junk_code in (0, 3), tails(tmp_path / "junk")
+    sent = {kind: n for (topic, kind), n in junk.sent.items() if topic == "identifier/estimates"}
+    print("junk estimates sent per kind:", sent)
+    assert set(sent) == set(JunkPublisher.kinds("identifier/estimates"))
+    clean = read_streams(tmp_path / "clean" / "bag", rules)
+    dirty = read_streams(tmp_path / "junk" / "bag", rules)
+    assert sum(clean.dropped.values()) == 0, clean.first_reason
+    for topic in ("/state", "/command", "/reference", "/identifier/estimates"):
+        got = [(k.step, k.data) for k in dirty.kept[topic]]
+        want = [(k.step, k.data) for k in clean.kept[topic]]
+        assert got == want, (topic, len(got), len(want), dirty.first_reason.get(topic))
+    assert dirty.dropped["/identifier/estimates"] > 0
+    # The feedforward refused the junk estimates and said so in its report.
+    report = (tmp_path / "junk" / "logs" / "feedforward.health.json").read_text()
+    assert "identifier/estimates" in report
+    a = RunSummary.from_json(tmp_path / "clean" / "summary.json")
+    b = RunSummary.from_json(tmp_path / "junk" / "summary.json")
+    assert b.tracking_error == a.tracking_error
+    assert a.identification is not None and b.identification is not None
+    assert b.identification.final == a.identification.final

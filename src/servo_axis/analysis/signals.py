@@ -70,6 +70,7 @@ from servo_axis.core.feedback.output import controlled_output
 from servo_axis.params.factories import (
     build_generator,
     checked_values,
+    estimate_schedule,
     feedforward_values,
     grid,
     learning_period_steps,
@@ -196,6 +197,10 @@ class StreamRules:
     identifier : bool
         Whether the run has an identifier (an ``identifier`` section): else
         no ``identifier/estimates`` message is valid.
+    estimate_period_steps, estimate_latency_steps : int
+        The identifier's schedule (``rls_period_s``, ``latency_s`` in control
+        samples): a valid estimate has ``step = (n + 1) R - 1`` and applies
+        from ``step + 1 + latency``, the feedforward's own rule.
     """
 
     period_ns: int
@@ -207,6 +212,8 @@ class StreamRules:
     status_every_steps: int = 50
     clock_every_steps: int = 10
     identifier: bool = False
+    estimate_period_steps: int = 1
+    estimate_latency_steps: int = 0
 
     @property
     def window(self) -> int:
@@ -233,6 +240,11 @@ class StreamRules:
         cycle = None
         if "feedforward" in scenario:
             cycle = learning_period_steps(node_values(scenario, "feedforward"))
+        period, latency = 1, 0
+        if IDENTIFIER_SECTION in scenario:
+            period, latency = estimate_schedule(
+                node_values(scenario, IDENTIFIER_SECTION), "rls_period_s", "latency_s"
+            )
         return cls(
             period_ns=_period_ns(period_s),
             axis=plant["axis"],
@@ -243,6 +255,8 @@ class StreamRules:
             status_every_steps=plant["status_every_steps"],
             clock_every_steps=plant["clock_every_steps"],
             identifier=IDENTIFIER_SECTION in scenario,
+            estimate_period_steps=period,
+            estimate_latency_steps=latency,
         )
 
     @classmethod
@@ -472,6 +486,12 @@ def _estimate_stream(rules: StreamRules) -> _Check:
         step = estimate.step
         if rules.steps is not None and step >= rules.steps:
             raise SignalError(f"step {step} beyond the run's last step {rules.steps - 1}")
+        period, latency = rules.estimate_period_steps, rules.estimate_latency_steps
+        if (step + 1) % period or estimate.applies_from_step != step + 1 + latency:
+            raise SignalError(
+                f"step {step}, applies_from_step {estimate.applies_from_step}: not on the "
+                f"identifier's schedule (every {period} steps, applying {latency + 1} later)"
+            )
         if step in seen:
             if seen[step] == values:
                 raise Repeated(f"estimate of step {step} again")
