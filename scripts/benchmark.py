@@ -29,6 +29,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import yaml
 
@@ -141,8 +142,6 @@ def learning_cost(
     period: float,
 ) -> int:
     """Steps/s with and without the learning unit as its own process (issue 3's < 15 % budget)."""
-    from servo_axis.run.runner import run_scenario
-
     if "learning" not in data:
         raise SystemExit("--learning-cost needs a scenario with a learning section")
     plain = copy.deepcopy(data)
@@ -150,15 +149,12 @@ def learning_cost(
     plain["feedforward"]["ros__parameters"]["learning"]["enabled"] = False
     without = tmp / f"without_{scenario.name}"
     without.write_text(yaml.safe_dump(plain))
-    # The host is noisy: alternate the two cases and take medians.
-    samples: dict[str, list[float]] = {"without learning unit": [], "with learning unit": []}
-    for rep in range(args.repeat):
-        for name, path in (("without learning unit", without), ("with learning unit", scenario)):
-            print(f"{name}, run {rep + 1} of {args.repeat} ...", flush=True)
-            out_dir = tmp / f"{name.replace(' ', '_')}_{rep}"
-            r = run_scenario(path, out_dir=out_dir, domain_id=domain, progress=None, plots=False)
-            samples[name].append(r.summary.steps_per_s)
-    rates = {name: float(sorted(v)[len(v) // 2]) for name, v in samples.items()}
+    rates, samples, r = alternate(
+        [("without learning unit", without), ("with learning unit", scenario)],
+        args.repeat,
+        tmp,
+        domain,
+    )
     base = rates["without learning unit"]
     with_ = rates["with learning unit"]
     table_text = "\n".join(
@@ -198,6 +194,98 @@ def learning_cost(
     return 0
 
 
+def alternate(
+    cases: list[tuple[str, Path]], repeat: int, tmp: Path, domain: int
+) -> tuple[dict[str, float], dict[str, list[float]], Any]:
+    """Median steps/s of each case, run alternately ``repeat`` times (the host is noisy)."""
+    from servo_axis.run.runner import run_scenario
+
+    samples: dict[str, list[float]] = {name: [] for name, _ in cases}
+    last = None
+    for rep in range(repeat):
+        for name, path in cases:
+            print(f"{name}, run {rep + 1} of {repeat} ...", flush=True)
+            out_dir = tmp / f"{name.replace(' ', '_').replace(',', '')}_{rep}"
+            last = run_scenario(path, out_dir=out_dir, domain_id=domain, progress=None, plots=False)
+            samples[name].append(last.summary.steps_per_s)
+    rates = {name: float(sorted(v)[len(v) // 2]) for name, v in samples.items()}
+    return rates, samples, last
+
+
+def identifier_cost(
+    args: argparse.Namespace, data: dict, scenario: Path, tmp: Path, domain: int, steps: int,
+    period: float,
+) -> int:  # fmt: skip
+    """Steps/s of an identifier scenario with and without its identifier (issue 9)."""
+    from servo_axis.run.processes import ros_environment
+    from servo_axis.simulate import simulate, simulate_identification
+
+    if "identifier" not in data:
+        raise SystemExit("--identifier-cost needs a scenario with an identifier section")
+    # Without: the same PTC + MNC on the initial estimates, no identifier.
+    plain = copy.deepcopy(data)
+    del plain["identifier"]
+    without = tmp / f"without_{scenario.name}"
+    without.write_text(yaml.safe_dump(plain))
+    no_memory = copy.deepcopy(data)
+    no_memory["identifier"]["ros__parameters"].setdefault("memory", {})["file"] = ""
+    unpersisted = tmp / f"no_memory_{scenario.name}"
+    unpersisted.write_text(yaml.safe_dump(no_memory))
+    print("ping-pong baseline (2 processes) ...", flush=True)
+    baseline = ping_pong(ros_environment(domain, tmp))
+    cases = [
+        ("without identifier", without),
+        ("with identifier", scenario),
+        ("with identifier, no memory file", unpersisted),
+    ]
+    rates, samples, last = alternate(cases, args.repeat, tmp, domain)
+    t0 = time.perf_counter()
+    simulate(without, steps=steps)
+    core_without = steps / (time.perf_counter() - t0)
+    t0 = time.perf_counter()
+    simulate_identification(scenario, steps=steps)
+    core_with = steps / (time.perf_counter() - t0)
+    rows = [
+        ("baseline: 2-process ping-pong", baseline),
+        *((f"{n} (separate, recorder on)", v) for n, v in rates.items()),
+        ("core only, without identifier", core_without),
+        ("core only, with identifier", core_with),
+    ]
+    table_text = "\n".join(
+        [
+            f"| {'case':<45} | {'steps/s':>10} | {'x real time':>11} | {'x baseline':>10} |",
+            f"|{'-' * 47}|{'-' * 12}|{'-' * 13}|{'-' * 12}|",
+            *(
+                f"| {n:<45} | {v:>10,.0f} | {v * period:>10.2f}x | {v / baseline:>9.2f}x |"
+                for n, v in rows
+            ),
+        ]
+    )
+    spread = "; ".join(
+        f"{n}: " + ", ".join(f"{v:,.0f}" for v in vals) for n, vals in samples.items()
+    )
+    base, with_ = rates["without identifier"], rates["with identifier"]
+    estimates = last.summary.message_counts.get("/identifier/estimates", 0)
+    text = (
+        f"{table_text}\n\nMedians of {args.repeat} alternating runs ({spread} steps/s).\n"
+        f"Cost of the identifier: {100 * (1 - with_ / base):.1f} % of the steps/s "
+        f"({estimates} estimates per run, one per {steps // max(estimates, 1)} steps); "
+        f"persisting its state after every estimate: "
+        f"{100 * (1 - with_ / rates['with identifier, no memory file']):.1f} %.\n"
+    )
+    print()
+    print(text)
+    command = (
+        f"`.venv/bin/python scripts/benchmark.py --scenario config/{scenario.name} "
+        f"--duration {args.duration:g} --identifier-cost --repeat {args.repeat}`"
+    )
+    when = time.strftime("%Y-%m-%d %H:%M")
+    title = f"## identifier cost ({scenario.stem})\n"
+    section = f"{title}\n{steps} steps per run, measured {when}.\nCommand: {command}\n\n{text}"
+    write_section(Path(args.out), title, section)
+    return 0
+
+
 def law_cost_ms(data: dict, scenario: Path) -> float:
     """Median wall time (ms) of one ``learn`` + ``next_correction`` of the scenario's law, in-process."""
     import numpy as np
@@ -229,7 +317,12 @@ def main() -> int:
         action="store_true",
         help="instead: steps/s of a learning scenario with and without its learning unit",
     )
-    parser.add_argument("--repeat", type=int, default=3, help="runs per case for --learning-cost")
+    parser.add_argument(
+        "--identifier-cost",
+        action="store_true",
+        help="instead: steps/s of an identifier scenario with and without its identifier",
+    )
+    parser.add_argument("--repeat", type=int, default=3, help="runs per case for the costs")
     parser.add_argument("--pong", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.pong:
@@ -256,6 +349,8 @@ def main() -> int:
 
     if args.learning_cost:
         return learning_cost(args, data, scenario, tmp, domain, steps, period)
+    if args.identifier_cost:
+        return identifier_cost(args, data, scenario, tmp, domain, steps, period)
 
     results: list[tuple[str, float]] = []
     env = ros_environment(domain, tmp)

@@ -1,23 +1,14 @@
 #!/usr/bin/env python3
-"""Paper 003's four schemes as plain calls of the core objects (no ROS, no scenario files yet).
+"""Paper 003's four scenarios as plain calls of the core objects (no ROS).
 
-PID alone, the previous MARC (single-layer RLS of J, D, U; adaptive PTC +
-unbalance compensation, eq. (17)) and the proposal (DLPID: RLS + the
-friction layer of eq. (8); adaptive PTC + MNC, eq. (12)-(15)) with the
-friction low-pass at 2 Hz and at 100 Hz, on the tilting table of Table I
-(noise +-1e-5 rad, seeded). PID by pole placement at -10 pi rad/s on the
-nominal model of the initial estimates; T_u = T_y = 0.4 ms, T_r = 0.8 ms,
-T_RLS = 4 ms; an estimate computed from the samples up to step k applies
-from step k + 1 + 10 (one RLS period of latency).
-
-The reference (003 Fig. 6 is not given numerically; our choice): a tilt
-0.6 + 0.5 sin(2 pi 0.5 t - pi / 2) rad with a 0.5 s smooth start: it
-passes every condition of eq. (16) in every period (angle up to 1.1 rad,
-speed up to 1.57 rad/s, acceleration up to 4.9 rad/s^2).
-
-Prints the RMSD of the tracking error, its reduction against PID, the final
-estimates against the plant's and the peak-to-peak of J, D, U over the last
-period. This is the reference the identifier node will be held to.
+``dlpid_tilt_pid``, ``dlpid_tilt_marc`` (previous MARC), ``dlpid_tilt_lpf100``
+and ``dlpid_tilt_lpf2`` (the proposal) through
+:func:`servo_axis.simulate.simulate_identification`: the loop the node graph
+reproduces bit for bit (``test/integration/test_dlpid_runs.py``). Prints the
+RMSD of theta_d - theta (true angle and measured angle), its reduction
+against PID, the final estimates against the plant's and the peak-to-peak of
+J, D, U over the last reference period: the table of the README and of
+003 Fig. 9.
 
     .venv/bin/python scripts/dlpid_core_only.py [--seconds 20]
 """
@@ -25,148 +16,72 @@ period. This is the reference the identifier node will be held to.
 from __future__ import annotations
 
 import argparse
-import math
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
+import yaml
 
-from servo_axis.core.feedback.loop import FeedbackLoop, SafetyLimits
-from servo_axis.core.feedback.pid import DiscretePid, design_pid_pole_placement
-from servo_axis.core.feedforward.generator import FeedforwardGenerator
-from servo_axis.core.feedforward.mnc import MncParams, NonlinearityCompensator
-from servo_axis.core.identification.dlpid import Dlpid, DlpidParams
-from servo_axis.core.identification.rls import RlsParams
-from servo_axis.core.models.base import NominalModel
-from servo_axis.core.models.tilting_table import TiltingTableParams, TiltingTablePlant
-from servo_axis.core.reference import SineReference
-from servo_axis.core.timing import SampleGrid
+from servo_axis.params.factories import build_reference, node_values
+from servo_axis.params.scenario import load_scenario
+from servo_axis.simulate import simulate_identification
 
-TU = 4e-4
-R_STEPS = 10  # T_RLS / T_u
-LATENCY_STEPS = 10
-TRUE = {"J": 50e-4, "D": 130e-4, "U": 0.3, "C": 0.02}
-INITIAL = {"J": 20e-4, "D": 100e-4, "U": 0.1, "C": 0.01}
-TILT = SineReference(
-    amplitude_m=0.5, frequency_hz=0.5, offset_m=0.6, phase_rad=-math.pi / 2, ramp_s=0.5
-)
+CONFIG = Path(__file__).resolve().parents[1] / "config"
+SCHEMES = ("pid", "marc", "lpf100", "lpf2")
+KEYS = ("inertia_kgm2", "damping_Nms_per_rad", "unbalance_Nm", "coulomb_Nm")
 
 
-def run(scheme: str, seconds: float, q_hz: float = 2.0) -> dict[str, object]:
-    plant = TiltingTablePlant(
-        TiltingTableParams(initial_angle_rad=0.1), rng=np.random.default_rng(1)
-    )
-    nominal = NominalModel(
-        inertia_kgm2=INITIAL["J"], damping_Nms_per_rad=INITIAL["D"], torque_constant_Nm_per_A=1.0
-    )
-    gains = design_pid_pole_placement(bandwidth_hz=5.0, **nominal.as_kwargs())  # -10 pi rad/s
-    loop = FeedbackLoop(
-        pid=DiscretePid(gains=gains, period_s=TU),
-        dob=None,
-        lead_m_per_rad=1.0,
-        limits=SafetyLimits(following_error_m=10.0, travel_m=10.0, current_A=100.0),
-    )
-    adaptive = scheme != "pid"
-    proposal = scheme.startswith("proposal")
-    terms = []
-    if adaptive:
-        terms.append(
-            NonlinearityCompensator(
-                MncParams(
-                    unbalance_Nm=INITIAL["U"],
-                    coulomb_Nm=INITIAL["C"] if proposal else 0.0,
-                    friction=proposal,
-                    control_period_s=TU,
-                ),
-                reference=TILT,
-            )
-        )
-    gen = FeedforwardGenerator(
-        reference=TILT,
-        grid=SampleGrid(control_period_s=TU),
-        lead_m_per_rad=1.0,
-        nominal=nominal,
-        ptc_enabled=adaptive,
-        terms=terms,
-        estimate_period_steps=R_STEPS if adaptive else None,
-        estimate_latency_steps=LATENCY_STEPS,
-    )
-    dlpid = None
-    if adaptive:
-        rls = RlsParams(
-            initial=(INITIAL["J"], INITIAL["D"], INITIAL["U"]),
-            lower=(1e-4, 1e-4, 0.0),
-            upper=(1e-1, 1e-1, 2.0),
-            forgetting=(0.999, 0.999, 0.995),
-            initial_covariance=1e3,
-            names=("J", "D", "U"),
-        )
-        dlpid = Dlpid(
-            DlpidParams(
-                rls=rls,
-                friction_cutoff_hz=q_hz,
-                initial_friction_Nm=INITIAL["C"],
-                mode="double_layer" if proposal else "single_layer",
-            )
-        )
-    n = round(seconds / TU)
-    refs = TILT.sample(np.arange(n) * TU)[0]
-    error = np.empty(n)
-    estimates = []
-    for k in range(n):
-        y = plant.output().encoder_rad
-        if adaptive:
-            ((r, _, u_ff),) = gen.samples(k, k + 1)
-        else:
-            r, u_ff = float(refs[k]), 0.0
-        u = loop.update(angle_rad=y, reference_rad=r, feedforward_A=u_ff).current_A
-        error[k] = refs[k] - plant.output().angle_rad
-        if dlpid is not None:
-            e = dlpid.update(k, y, u)
-            if e is not None:
-                estimates.append((k, e.J, e.D, e.U, e.C))
-                gen.set_estimate(
-                    k + 1 + LATENCY_STEPS,
-                    inertia_kgm2=e.J,
-                    damping_Nms_per_rad=e.D,
-                    unbalance_Nm=e.U,
-                    coulomb_Nm=e.C if proposal else 0.0,
-                )
-        plant.step(u)
-    out: dict[str, object] = {"rmsd": float(np.sqrt(np.mean(error**2)))}
-    if estimates:
-        e = np.array(estimates)
-        out["final"] = dict(zip("JDUC", e[-1, 1:], strict=True))
-        last = e[e[:, 0] * TU > seconds - 1.0 / TILT.frequency_hz]
-        out["p2p"] = dict(zip("JDU", np.ptp(last[:, 1:4], axis=0), strict=True))
+def run(path: Path) -> dict[str, object]:
+    scenario = load_scenario(path)
+    ff = node_values(scenario, "feedforward")
+    plant = node_values(scenario, "plant")
+    tu = plant["control_period_s"]
+    result = simulate_identification(path)
+    n = result.angle_rad.size
+    target = build_reference(ff).sample(np.arange(n) * tu)[0]
+    out: dict[str, object] = {
+        "rmsd": float(np.sqrt(np.mean((target - result.angle_rad) ** 2))),
+        "rmsd_measured": float(np.sqrt(np.mean((target - result.trajectory.encoder_rad) ** 2))),
+    }
+    e = result.estimates
+    if len(e):
+        true = np.array([plant[k] for k in KEYS])
+        out["ratio"] = e[-1, 2:6] / np.where(true > 0, true, np.nan)
+        last = e[e[:, 0] * tu > n * tu - 1.0 / ff["reference.frequency_hz"]]
+        out["p2p"] = np.ptp(last[:, 2:5], axis=0)
     return out
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--seconds", type=float, default=20.0)
+    parser.add_argument("--seconds", type=float, default=None, help="shorten the runs")
     args = parser.parse_args()
     rows = {}
-    for scheme, q in (
-        ("pid", 2.0),
-        ("previous_marc", 2.0),
-        ("proposal_lpf100", 100.0),
-        ("proposal_lpf2", 2.0),
-    ):
-        t0 = time.perf_counter()
-        rows[scheme] = run(scheme, args.seconds, q)
-        print(f"{scheme}: {time.perf_counter() - t0:.1f} s wall", flush=True)
-    base = rows["pid"]["rmsd"]
-    print(
-        f"\n{args.seconds:g} s; RMSD of theta_d - theta (rad); final estimate / true; p2p over the last period"
-    )
+    with tempfile.TemporaryDirectory() as tmp:
+        for scheme in SCHEMES:
+            path = CONFIG / f"dlpid_tilt_{scheme}.yaml"
+            if args.seconds is not None:
+                data = load_scenario(path)
+                data["/**"]["ros__parameters"]["duration_s"] = args.seconds
+                path = Path(tmp) / path.name
+                path.write_text(yaml.safe_dump(data, sort_keys=False))
+            t0 = time.perf_counter()
+            rows[scheme] = run(path)
+            print(f"{scheme}: {time.perf_counter() - t0:.1f} s wall", flush=True)
+    base = float(rows["pid"]["rmsd"])  # type: ignore[arg-type]
+    print("\nRMSD of theta_d - theta (rad; true angle, measured angle); final estimate / true;")
+    print("peak-to-peak of J, D, U over the last reference period")
     for scheme, row in rows.items():
         rmsd = float(row["rmsd"])  # type: ignore[arg-type]
-        line = f"{scheme:<16} RMSD {rmsd:.3e} ({100 * (1 - rmsd / float(base)):5.1f} % below PID)"  # type: ignore[arg-type]
-        if "final" in row:
-            final = row["final"]
-            p2p = row["p2p"]
-            line += "  " + " ".join(f"{k} {final[k] / TRUE[k]:.3f}" for k in "JDUC")  # type: ignore[index]
-            line += "  p2p " + " ".join(f"{k} {p2p[k]:.2e}" for k in "JDU")  # type: ignore[index]
+        line = (
+            f"{scheme:<7} RMSD {rmsd:.4e} ({float(row['rmsd_measured']):.4e}) "  # type: ignore[arg-type]
+            f"{100 * (1 - rmsd / base):5.1f} % below PID"
+        )
+        if "ratio" in row:
+            ratio, p2p = row["ratio"], row["p2p"]
+            line += "  J D U C " + " ".join(f"{r:.3f}" for r in ratio)  # type: ignore[attr-defined]
+            line += "  p2p " + " ".join(f"{v:.2e}" for v in p2p)  # type: ignore[attr-defined]
         print(line)
     return 0
 

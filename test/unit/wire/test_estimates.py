@@ -40,7 +40,8 @@ def wire(data: EstimateData) -> Float64MultiArray:
 
 
 def good_values() -> list[float]:
-    return estimate().values()
+    values: list[float] = estimate().values()
+    return values
 
 
 @pytest.mark.parametrize("flags", list(itertools.product((False, True), repeat=4)))

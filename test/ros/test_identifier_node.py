@@ -1,0 +1,528 @@
+"""Paper 003's identifier node and the feedforward's adaptive side, in one process.
+
+What the nodes compute is compared with plain calls: the node graph of a
+shortened ``dlpid_tilt_lpf2`` with :func:`servo_axis.simulate.simulate_identification`,
+a lone :class:`IdentifierNode` with a core :class:`~servo_axis.core.identification.dlpid.Dlpid`
+(:func:`~servo_axis.params.factories.build_identifier`) fed the same numbers,
+a lone :class:`FeedforwardNode` with a core generator
+(:func:`~servo_axis.params.factories.build_generator`).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import rclpy
+import yaml
+from numpy.testing import assert_array_equal
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+
+from servo_axis.core.errors import ParameterFileError
+from servo_axis.core.identification.dlpid import Estimate
+from servo_axis.nodes.feedback import FeedbackNode
+from servo_axis.nodes.feedforward import FeedforwardNode
+from servo_axis.nodes.identifier import IdentifierNode
+from servo_axis.nodes.plant import PlantNode
+from servo_axis.nodes.recorder import RecorderNode
+from servo_axis.nodes.runtime import STREAM_QOS
+from servo_axis.params.factories import (
+    build_generator,
+    build_identifier,
+    checked_values,
+    node_values,
+)
+from servo_axis.params.scenario import load_scenario, node_params, roles_of
+from servo_axis.recording.deserialize import read_messages
+from servo_axis.run.plan import handshake_overrides
+from servo_axis.simulate import simulate_identification
+from servo_axis.storage import load_identifier_memory
+from servo_axis.wire import messages as msgs
+
+pytestmark = pytest.mark.ros
+
+CONFIG = Path(__file__).resolve().parents[2] / "config"
+SCENARIO = CONFIG / "dlpid_tilt_lpf2.yaml"
+AXIS = "tilt"
+TU = 4e-4
+PERIOD_NS = 400_000  # T_u = 0.4 ms
+R = 10  # T_RLS / T_u = 4 ms / 0.4 ms
+LATENCY = 10  # latency_s / T_u
+STEPS = 1000  # the shortened run: 0.4 s
+#: The PD filters' double pole for the lone identifier: at the scenario's
+#: 20 Hz the layers wait 239 samples (warm-up) and every estimate of the
+#: first few RLS periods would be the initial one whatever came in; at
+#: 600 Hz they run from step 8 on, so each estimate depends on the input.
+FAST_PD_HZ = 600.0
+
+
+@pytest.fixture
+def context(ros_env: int) -> Iterator[Context]:
+    ctx = Context()
+    rclpy.init(args=[], context=ctx)
+    yield ctx
+    rclpy.try_shutdown(context=ctx)
+
+
+def spin_until(
+    ctx: Context, nodes: list[Node], cond: Callable[[], bool], timeout_s: float = 20.0
+) -> None:
+    ex = SingleThreadedExecutor(context=ctx)
+    for n in nodes:
+        ex.add_node(n)
+    deadline = time.monotonic() + timeout_s
+    try:
+        while not cond():
+            assert time.monotonic() < deadline, "timed out"
+            ex.spin_once(timeout_sec=0.05)
+    finally:
+        ex.shutdown()
+
+
+def spin_for(ctx: Context, nodes: list[Node], seconds: float) -> None:
+    deadline = time.monotonic() + seconds
+    spin_until(ctx, nodes, lambda: time.monotonic() > deadline)
+
+
+def destroy(nodes: list[Node]) -> None:
+    for n in nodes:
+        n.destroy_node()
+
+
+def short_lpf2(tmp_path: Path, seconds: float = STEPS * TU) -> tuple[dict[str, Any], Path]:
+    """``dlpid_tilt_lpf2`` cut to ``seconds``, as data and as a file in ``tmp_path``."""
+    data = load_scenario(SCENARIO)
+    data["/**"]["ros__parameters"]["duration_s"] = seconds
+    path = tmp_path / "dlpid_tilt_lpf2_short.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return data, path
+
+
+NODE_CLASSES: dict[str, Callable[..., Node]] = {
+    "plant": PlantNode,
+    "feedback": FeedbackNode,
+    "feedforward": FeedforwardNode,
+    "identifier": IdentifierNode,
+    "recorder": RecorderNode,
+}
+
+
+def graph_nodes(
+    context: Context, data: dict[str, Any], bag: Path, scenario_dir: Path
+) -> list[Node]:
+    """The nodes of a scenario in this process, with the run plan's parameters (recorder first)."""
+    roles = [r for r in roles_of(data) if r in NODE_CLASSES]
+    extra = handshake_overrides(data, roles, bag, scenario_dir)
+    return [
+        NODE_CLASSES[role](
+            context=context,
+            parameter_overrides=[
+                Parameter(k, value=v)
+                for k, v in {**node_params(data, role), **extra.get(role, {})}.items()
+            ],
+        )
+        for role in roles
+    ]
+
+
+def parameters(values: dict[str, Any]) -> list[Parameter]:
+    # An empty list has no ROS parameter type; the node leaves those at their default.
+    return [
+        Parameter(k, value=v) for k, v in values.items() if not (isinstance(v, list) and not v)
+    ]
+
+
+# -- 1. the node graph against the plain calls -------------------------------------------
+
+
+def test_identification_graph_equals_the_plain_call_loop(context: Context, tmp_path: Path) -> None:
+    """Plant, feedback, adaptive feedforward, identifier and recorder in one process
+    record the state, command and estimates of :func:`simulate_identification`, bit for bit."""
+    data, path = short_lpf2(tmp_path)
+    roles = roles_of(data)
+    assert roles == ["recorder", "identifier", "feedforward", "feedback", "plant"]
+    bag = tmp_path / "bag"
+    nodes = graph_nodes(context, data, bag, path.parent)
+    recorder, identifier, ff, plant = nodes[0], nodes[1], nodes[2], nodes[-1]
+    assert isinstance(recorder, RecorderNode) and isinstance(plant, PlantNode)
+    assert isinstance(identifier, IdentifierNode) and isinstance(ff, FeedforwardNode)
+    try:
+        spin_until(context, nodes, lambda: plant.done, timeout_s=60)
+        counts = recorder.message_counts
+    finally:
+        recorder.close()
+        destroy(nodes)
+    core = simulate_identification(path)
+    n_estimates = (STEPS - 1 - LATENCY) // R  # those applying inside the run: steps 9 .. 979
+    assert core.estimates.shape == (n_estimates, 11)
+    for topic in ("/state", "/command", "/reference"):
+        assert counts[topic] == STEPS, topic
+    state: dict[int, float] = {}
+    command: dict[int, float] = {}
+    reference: dict[int, float] = {}
+    estimates: list[list[float]] = []
+    for m in read_messages(bag):
+        if m.topic == "/identifier/estimates":
+            estimates.append(msgs.estimate_from_msg(m.message).values())
+            continue
+        if m.topic not in ("/state", "/command", "/reference"):
+            continue
+        k = msgs.step_from_stamp(m.message.header.stamp, PERIOD_NS)
+        if m.topic == "/state":
+            state[k] = m.message.position[0]
+        elif m.topic == "/command":
+            command[k] = m.message.effort[0]
+        else:
+            reference[k] = m.message.position[0]
+    assert sorted(state) == sorted(command) == sorted(reference) == list(range(STEPS))
+    assert_array_equal([state[k] for k in range(STEPS)], core.trajectory.encoder_rad)
+    assert_array_equal([command[k] for k in range(STEPS)], core.trajectory.command_A)
+    assert_array_equal([reference[k] for k in range(STEPS)], core.trajectory.reference_rad)
+    # Every estimate, in the order published, with its schedule and flags.
+    assert_array_equal(np.array(estimates).reshape(-1, 11), core.estimates)
+    assert identifier.published == n_estimates and ff.estimates_taken == n_estimates
+    assert identifier.rejected == 0 and ff.rejected == 0 and plant.rejected == 0
+    assert not ff.health.fallbacks and not plant.health.fallbacks
+    # The run is not trivial: J, D, U and C were updated along it and moved.
+    assert core.estimates[:, 7:].sum(axis=0).min() > 0
+    assert abs(core.estimates[-1, 2] - 0.002) > 1e-3  # J from the nominal 0.002 kg m^2
+    # The runner's memory file holds the last estimate.
+    state_saved, last = load_identifier_memory(
+        tmp_path / "identifier_memory.json", method="dlpid", scenario="dlpid_tilt_lpf2"
+    )
+    assert_array_equal(last, core.estimates[-1])
+    assert state_saved["last_step"] == core.estimates[-1, 0]
+
+
+# -- 2. the feedforward refuses bad estimates ---------------------------------------------
+
+
+def estimate_msg(
+    step: int, applies: int, *, j: float = 4e-3, d: float = 1.2e-2, u: float = 0.25, c: float = 0.02
+) -> Float64MultiArray:
+    return msgs.estimate_to_msg(
+        msgs.EstimateData(
+            step=step,
+            applies_from_step=applies,
+            inertia_kgm2=j,
+            damping_Nms_per_rad=d,
+            unbalance_Nm=u,
+            coulomb_Nm=c,
+            kappa=0.5,
+            updated=(True, True, False, True),
+        )
+    )
+
+
+def test_feedforward_rejects_bad_estimates_and_takes_a_repeat_silently(
+    context: Context, tmp_path: Path
+) -> None:
+    data, _ = short_lpf2(tmp_path)
+    values = node_values(data, "feedforward")
+    assert values["adaptive.enabled"] and values["preview_steps"] == 200
+    ff = FeedforwardNode(context=context, parameter_overrides=parameters(values))
+    probe = Node("identifier", context=context)  # the producer, by name
+    pub = probe.create_publisher(Float64MultiArray, "identifier/estimates", STREAM_QOS)
+    refs: list[msgs.ReferenceSample] = []
+    probe.create_subscription(
+        JointState,
+        "reference",
+        lambda m: refs.append(msgs.reference_from_msg(m, axis=AXIS, period_ns_=PERIOD_NS)),
+        STREAM_QOS,
+    )
+    nodes = [ff, probe]
+    first = R + LATENCY  # the first estimate (from step R - 1) applies from 20
+    try:
+        assert ff.generator.next_estimate_step == first
+        spin_until(
+            context,
+            nodes,
+            lambda: pub.get_subscription_count() >= 1 and ff.published == first and len(refs) == first,
+        )
+        # NaN (the encoder refuses it: by hand), a short array, wrong labels
+        nan = estimate_msg(R - 1, first)
+        nan.data = [math.nan if i == 2 else v for i, v in enumerate(nan.data)]
+        short = estimate_msg(R - 1, first)
+        short.data = list(short.data)[:-1]
+        labels = list(msgs.ESTIMATE_LABELS)
+        labels[2], labels[3] = labels[3], labels[2]
+        wrong_labels = msgs.labelled_array(labels, estimate_msg(R - 1, first).data)
+        bad = [
+            nan,
+            short,
+            wrong_labels,
+            estimate_msg(first, first),  # applies_from_step <= step
+            estimate_msg(R - 2, first),  # the next application step, but not on the schedule
+            estimate_msg(2 * R - 1, first + R),  # the period after the next: out of order
+            estimate_msg(R - 1, first, j=0.0),  # J = 0
+        ]
+        for m in bad:
+            pub.publish(m)
+        spin_until(context, nodes, lambda: ff.rejected >= len(bad))
+        spin_for(context, nodes, 0.2)  # nothing may still come of them
+        assert ff.rejected == len(bad)
+        assert ff.health.rejected == {"identifier/estimates": len(bad)}
+        assert ff.estimates_taken == 0 and ff.last_estimate is None
+        assert ff.generator.next_estimate_step == first
+        assert ff.published == first and max(r.step for r in refs) == first - 1
+        # The next estimate, valid: taken, and the preview moves on to the next one.
+        good = estimate_msg(R - 1, first)
+        pub.publish(good)
+        spin_until(context, nodes, lambda: ff.estimates_taken == 1 and len(refs) == first + R)
+        assert ff.generator.next_estimate_step == first + R
+        assert ff.last_estimate == msgs.estimate_from_msg(good)
+        assert ff.published == first + R and ff.rejected == len(bad)
+        assert [r.step for r in refs] == list(range(first + R))
+        # The samples from step 20 on are computed with the estimate: those of a
+        # core generator given it.
+        core = build_generator(values)
+        core.set_estimate(
+            first, inertia_kgm2=4e-3, damping_Nms_per_rad=1.2e-2, unbalance_Nm=0.25, coulomb_Nm=0.02
+        )
+        expected = np.array(core.samples(0, first + R))
+        got = np.array([(r.position_rad, r.velocity_rad_s, r.current_A) for r in refs])
+        assert_array_equal(got, expected)
+        before = build_generator(values)
+        before.set_estimate(
+            first, inertia_kgm2=2e-3, damping_Nms_per_rad=1e-2, unbalance_Nm=0.1, coulomb_Nm=0.01
+        )
+        assert not np.array_equal(np.array(before.samples(0, first + R))[first:], expected[first:])
+        # An exact repeat (a restarted identifier's) is taken silently; the J = 0
+        # sent after it tells, in order, that it has been handled.
+        pub.publish(good)
+        pub.publish(estimate_msg(2 * R - 1, first + R, j=0.0))
+        spin_until(context, nodes, lambda: ff.rejected >= len(bad) + 1)
+        assert ff.rejected == len(bad) + 1 and ff.estimates_taken == 1
+        assert ff.generator.next_estimate_step == first + R and ff.published == first + R
+    finally:
+        destroy(nodes)
+
+
+# -- the lone identifier against a core Dlpid ----------------------------------------------
+
+
+def identifier_values(data: dict[str, Any], **extra: Any) -> dict[str, Any]:
+    """The identifier section of the scenario, with the fast PD filters and ``extra``.
+
+    The nominal ``K_T`` is not 1 here, so that a current taken for the torque shows.
+    """
+    return {
+        **node_params(data, "identifier"),
+        "pd_cutoff_hz": FAST_PD_HZ,
+        "nominal.torque_constant_Nm_per_A": 0.8,
+        **extra,
+    }
+
+
+def sample(k: int) -> tuple[float, float]:
+    """Angle (rad) and current (A) of step ``k``: above every condition of eq. (16)."""
+    phase = 2 * math.pi * 25 * k * TU
+    return 0.5 + 0.2 * math.sin(phase), 0.1 + 0.3 * math.cos(phase)
+
+
+class Feeder(Node):
+    """Publishes state and command as the plant and the feedback would; collects estimates."""
+
+    def __init__(self, context: Context) -> None:
+        super().__init__("feeder", context=context)
+        self.state_pub = self.create_publisher(JointState, "state", STREAM_QOS)
+        self.command_pub = self.create_publisher(JointState, "command", STREAM_QOS)
+        self.estimates: list[msgs.EstimateData] = []
+        self.create_subscription(
+            Float64MultiArray,
+            "identifier/estimates",
+            lambda m: self.estimates.append(msgs.estimate_from_msg(m)),
+            STREAM_QOS,
+        )
+
+    def matched(self) -> bool:
+        return (
+            self.state_pub.get_subscription_count() >= 1
+            and self.command_pub.get_subscription_count() >= 1
+        )
+
+    def state(self, k: int, angle: float | None = None) -> JointState:
+        y = sample(k)[0] if angle is None else angle
+        return msgs.state_to_msg(
+            msgs.StateSample(k, y, y, 0.0, 0.0, 0.0, 0.0), axis=AXIS, period_ns_=PERIOD_NS
+        )
+
+    def command(self, k: int, current: float | None = None) -> JointState:
+        i = sample(k)[1] if current is None else current
+        return msgs.command_to_msg(msgs.CommandSample(k, i), axis=AXIS, period_ns_=PERIOD_NS)
+
+    def send(self, steps: range) -> None:
+        for k in steps:
+            self.state_pub.publish(self.state(k))
+            self.command_pub.publish(self.command(k))
+
+
+def core_estimates(values: dict[str, Any], steps: range) -> tuple[list[Estimate], Any]:
+    """A core identifier of ``values`` fed :func:`sample` at ``steps``: its estimates, itself."""
+    core = build_identifier(checked_values("identifier", values))
+    kt = values["nominal.torque_constant_Nm_per_A"]
+    out = []
+    for k in steps:
+        y, i = sample(k)
+        e = core.update(k, y, kt * i)
+        if e is not None:
+            out.append(e)
+    return out, core
+
+
+def as_message_values(e: Estimate) -> list[float]:
+    applies = e.step + 1 + LATENCY
+    return [e.step, applies, e.J, e.D, e.U, e.C, e.kappa, *map(float, e.updated)]
+
+
+# -- 3. input validation -------------------------------------------------------------------
+
+
+def test_identifier_rejects_bad_samples_and_estimates_from_the_valid_ones(
+    context: Context, tmp_path: Path
+) -> None:
+    data, _ = short_lpf2(tmp_path)
+    values = identifier_values(data)
+    node = IdentifierNode(context=context, parameter_overrides=parameters(values))
+    feeder = Feeder(context)
+    nodes = [node, feeder]
+    try:
+        spin_until(context, nodes, lambda: node.inputs_subscribed and feeder.matched())
+        feeder.send(range(5))
+        spin_until(context, nodes, lambda: node.identifier.last_step == 4)
+        nan = feeder.state(5)
+        nan.position = [math.nan, 0.5]
+        short = feeder.command(5)
+        short.effort = []
+        bad_states = [
+            nan,
+            feeder.state(3, angle=0.9),  # stale: behind the stream
+            feeder.state(7, angle=0.9),  # stamped ahead of the stream
+            feeder.state(10**9, angle=0.9),  # beyond the run
+        ]
+        bad_commands = [
+            short,
+            feeder.command(4, current=5.0),  # stale
+            feeder.command(6, current=5.0),  # ahead
+        ]
+        for m in bad_states:
+            feeder.state_pub.publish(m)
+        for m in bad_commands:
+            feeder.command_pub.publish(m)
+        n_bad = len(bad_states) + len(bad_commands)
+        spin_until(context, nodes, lambda: node.rejected >= n_bad)
+        spin_for(context, nodes, 0.1)
+        assert node.rejected == n_bad
+        assert node.health.rejected == {"state": len(bad_states), "command": len(bad_commands)}
+        assert node.identifier.last_step == 4 and node.published == 0 and not feeder.estimates
+        feeder.send(range(5, R))
+        spin_until(context, nodes, lambda: len(feeder.estimates) >= 1)
+        spin_for(context, nodes, 0.2)  # one estimate, no other
+        (got,) = feeder.estimates
+        expected, core = core_estimates(values, range(R))
+        (e,) = expected
+        assert e.step == R - 1 and e.updated == (True, True, True, True)
+        assert_array_equal(got.values(), as_message_values(e))
+        assert node.last_estimate == got and node.published == 1 and node.rejected == n_bad
+        assert node.identifier.state() == core.state()
+        # The estimate depends on the samples: U moved off its initial 0.1.
+        assert e.U != values["initial.unbalance_Nm"]
+    finally:
+        destroy(nodes)
+
+
+# -- 4. bad parameters --------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("key", "value"),
+    [("forgetting", [1.5, 0.9, 0.9]), ("latency_s", 0.0008), ("pe_window", 2)],
+)
+def test_identifier_refuses_a_bad_parameter_before_it_publishes(
+    context: Context, tmp_path: Path, key: str, value: Any
+) -> None:
+    data, _ = short_lpf2(tmp_path)
+    observer = Node("observer", context=context)
+    try:
+        good = IdentifierNode(
+            context=context, parameter_overrides=parameters(node_params(data, "identifier"))
+        )
+        spin_until(context, [observer], lambda: observer.count_publishers("identifier/estimates") == 1)
+        good.destroy_node()
+        spin_until(context, [observer], lambda: observer.count_publishers("identifier/estimates") == 0)
+        with pytest.raises(ParameterFileError, match=rf"parameter '{key}'"):
+            IdentifierNode(
+                context=context,
+                parameter_overrides=parameters({**node_params(data, "identifier"), key: value}),
+            )
+        spin_for(context, [observer], 0.2)
+        assert observer.count_publishers("identifier/estimates") == 0
+    finally:
+        observer.destroy_node()
+
+
+# -- 5. resume from the memory file ---------------------------------------------------------
+
+
+def test_a_restarted_identifier_resumes_bit_identically_from_its_memory(
+    context: Context, tmp_path: Path
+) -> None:
+    data, _ = short_lpf2(tmp_path)
+    memory = tmp_path / "identifier_memory.json"
+    values = identifier_values(data, **{"memory.file": str(memory)})
+    expected, core = core_estimates(values, range(3 * R))
+    assert [e.step for e in expected] == [R - 1, 2 * R - 1, 3 * R - 1]
+    # Each one differs from the one before: a resume from the wrong point shows.
+    assert len({(e.J, e.U, e.C) for e in expected}) == 3
+    feeder = Feeder(context)
+    first = IdentifierNode(context=context, parameter_overrides=parameters(values))
+    try:
+        spin_until(context, [first, feeder], lambda: first.inputs_subscribed and feeder.matched())
+        feeder.send(range(2 * R))
+        spin_until(context, [first, feeder], lambda: len(feeder.estimates) >= 2)
+        assert first.identifier.last_step == 2 * R - 1
+    finally:
+        first.destroy_node()
+    assert_array_equal(
+        [e.values() for e in feeder.estimates], [as_message_values(e) for e in expected[:2]]
+    )
+    saved_state, saved_last = load_identifier_memory(
+        memory, method="dlpid", scenario="dlpid_tilt_lpf2"
+    )
+    assert saved_state["last_step"] == 2 * R - 1
+    assert_array_equal(saved_last, as_message_values(expected[1]))
+    # While it is down the stream goes on (into the feeder's history, which
+    # also holds samples 0 .. 2R-1 the restarted one must skip).
+    feeder.send(range(2 * R, 2 * R + 5))
+    second = IdentifierNode(
+        context=context, parameter_overrides=parameters({**values, "late_join": True})
+    )
+    nodes = [second, feeder]
+    try:
+        assert second.identifier.last_step == 2 * R - 1
+        assert second.last_estimate is not None
+        assert_array_equal(second.last_estimate.values(), as_message_values(expected[1]))
+        # It publishes its last estimate again on start.
+        spin_until(context, nodes, lambda: len(feeder.estimates) >= 3)
+        assert feeder.estimates[2] == feeder.estimates[1]
+        spin_until(context, nodes, lambda: second.identifier.last_step == 2 * R + 4)
+        feeder.send(range(2 * R + 5, 3 * R))
+        spin_until(context, nodes, lambda: len(feeder.estimates) >= 4)
+        spin_for(context, nodes, 0.1)
+        assert len(feeder.estimates) == 4
+        assert_array_equal(feeder.estimates[3].values(), as_message_values(expected[2]))
+        assert second.identifier.state() == core.state()
+        # The history it already had is skipped, not rejected.
+        assert second.rejected == 0 and second.published == 1
+    finally:
+        destroy(nodes)
