@@ -102,7 +102,8 @@ def load_identifier_memory(
     if not isinstance(state, dict):
         raise SignalError(f"{source}: state: expected a mapping")
     if last is not None and (
-        not isinstance(last, list) or not all(isinstance(v, int | float) for v in last)
+        not isinstance(last, list)
+        or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in last)
     ):
         raise SignalError(f"{source}: last_estimate: expected a list of numbers or null")
     return state, last

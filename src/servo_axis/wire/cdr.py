@@ -458,17 +458,19 @@ class EstimateData:
 def check_estimate_values(values: Sequence[float]) -> EstimateData:
     """An :class:`EstimateData` of the values of an ``identifier/estimates`` message.
 
-    The values must already be finite and in :data:`ESTIMATE_LABELS` order
-    (:func:`check_labelled_values`).
+    The values are in :data:`ESTIMATE_LABELS` order (:func:`check_labelled_values`
+    checks the layout); ``kappa``, an eigenvalue, may be a rounding below 0.
 
     Raises
     ------
     SignalError
-        A step that is not whole and >= 0, an application step not after it,
+        A value that is not finite, a step that is not whole and >= 0, an
+        application step not after it,
         ``J <= 0``, a negative ``D``, ``U`` or ``C``, or a flag not 0 or 1.
     """
     if len(values) != len(ESTIMATE_LABELS):
         raise SignalError(f"data: expected {len(ESTIMATE_LABELS)} values, got {len(values)}")
+    check_finite("data", values)
     step, applies, j, d, u, c, kappa = (float(v) for v in values[:7])
     if step != int(step) or step < 0:
         raise SignalError(f"step: expected a whole number >= 0, got {step!r}")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import re
 from typing import Any
 
 import pytest
@@ -201,3 +202,14 @@ def test_check_accepts_the_edges() -> None:
     assert (got.damping_Nms_per_rad, got.unbalance_Nm, got.coulomb_Nm) == (0.0, 0.0, 0.0)
     assert got.updated == (False, True, False, True)
     assert got.values() == values
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
+@pytest.mark.parametrize("index", [0, 1, 4, 6])
+def test_check_refuses_non_finite_values_by_name(bad: float, index: int) -> None:
+    """A memory file's last estimate goes through the check without a message:
+    a NaN step must be a SignalError, not a crash converting it to int."""
+    values = [9.0, 20.0, 5e-3, 1.3e-2, 0.3, 0.02, 1e-3, 1.0, 1.0, 1.0, 1.0]
+    values[index] = bad
+    with pytest.raises(SignalError, match=re.escape(f"data[{index}]")):
+        check_estimate_values(values)
