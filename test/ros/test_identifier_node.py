@@ -453,28 +453,29 @@ def test_identifier_rejects_bad_samples_and_estimates_from_the_valid_ones(
 def test_identifier_refuses_a_bad_parameter_before_it_publishes(
     context: Context, tmp_path: Path, key: str, value: Any
 ) -> None:
+    """The constructor raises naming the key, and no identifier/estimates publisher is
+    left in the graph (a valid node's shows at once: the check can see one)."""
     data, _ = short_lpf2(tmp_path)
+    given = node_params(data, "identifier")
     observer = Node("observer", context=context)
+    nodes: list[Node] = [observer]
+
+    def publishers() -> int:
+        return observer.count_publishers("identifier/estimates")
+
     try:
-        good = IdentifierNode(
-            context=context, parameter_overrides=parameters(node_params(data, "identifier"))
-        )
-        spin_until(
-            context, [observer], lambda: observer.count_publishers("identifier/estimates") == 1
-        )
+        good = IdentifierNode(context=context, parameter_overrides=parameters(given))
+        nodes.append(good)
+        spin_until(context, [observer], lambda: publishers() == 1)
+        nodes.remove(good)
         good.destroy_node()
-        spin_until(
-            context, [observer], lambda: observer.count_publishers("identifier/estimates") == 0
-        )
-        with pytest.raises(ParameterFileError, match=rf"parameter '{key}'"):
-            IdentifierNode(
-                context=context,
-                parameter_overrides=parameters({**node_params(data, "identifier"), key: value}),
-            )
+        spin_until(context, [observer], lambda: publishers() == 0)
+        with pytest.raises(ParameterFileError, match=rf"^parameter '{key}': "):
+            IdentifierNode(context=context, parameter_overrides=parameters({**given, key: value}))
         spin_for(context, [observer], 0.2)
-        assert observer.count_publishers("identifier/estimates") == 0
+        assert publishers() == 0
     finally:
-        observer.destroy_node()
+        destroy(nodes)
 
 
 # -- 5. resume from the memory file ---------------------------------------------------------
@@ -532,3 +533,10 @@ def test_a_restarted_identifier_resumes_bit_identically_from_its_memory(
         assert second.rejected == 0 and second.published == 1
     finally:
         destroy(nodes)
+    # A fresh start (not late_join) with that memory on disk starts at step 0
+    # and ignores it: a state is the middle of a run.
+    fresh = IdentifierNode(context=context, parameter_overrides=parameters(values))
+    try:
+        assert fresh.identifier.last_step is None and fresh.last_estimate is None
+    finally:
+        fresh.destroy_node()

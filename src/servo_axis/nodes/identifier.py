@@ -93,6 +93,11 @@ class IdentifierNode(ServoNode):
     def _resume_memory(self) -> None:
         if self._memory is None or not self._v["memory.resume"] or not self._memory.exists():
             return
+        if not self._v["late_join"]:
+            # A state is the middle of a run: a fresh start (step 0) cannot
+            # continue it, and overwrites it at its first estimate.
+            self.get_logger().info(f"fresh start: {self._memory} not resumed (not late_join)")
+            return
         try:
             state, last = load_identifier_memory(
                 self._memory, method=self._v["method"], scenario=self._scenario

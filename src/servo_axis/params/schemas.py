@@ -801,7 +801,11 @@ IDENTIFIER: dict[str, Param] = {
         meaning="JSON file the identifier's whole state is saved to after every estimate and "
         "resumed from; '' = not persisted (the runner puts it in the run directory)",
     ),
-    "memory.resume": Param(True, meaning="resume from memory.file when the file exists"),
+    "memory.resume": Param(
+        True,
+        meaning="a restarted identifier (late_join) resumes from memory.file when it exists; "
+        "a fresh start never does (a state is the middle of a run) and overwrites it",
+    ),
     "wait_for_estimate_subscribers": Param(
         0,
         minimum=0,
