@@ -2,8 +2,15 @@
 
 from __future__ import annotations
 
+import json
+import os
+import signal
 import subprocess
+import sys
+import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import yaml
 
@@ -42,3 +49,47 @@ def pids_of(run_dir: Path, role: str) -> list[int]:
         check=False,
     )
     return [int(p) for p in out.stdout.split()]
+
+
+def run_and_kill(
+    path: Path,
+    run_dir: Path,
+    domain: int,
+    role: str,
+    memory: Path,
+    ready: Callable[[dict[str, Any]], bool],
+    what: str,
+    timeout_s: float = 60.0,
+) -> tuple[int, str]:
+    """``python -m servo_axis run`` with ``role`` SIGKILLed once its ``memory`` file says ``ready``.
+
+    Returns the run's exit code and its standard error; the run is always
+    reaped. ``what`` names what never happened if the kill never came.
+    """
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "servo_axis", "run", str(path), "--out", str(run_dir),
+         "--domain-id", str(domain), "--no-plots"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "ROS_DOMAIN_ID": str(domain)},
+    )  # fmt: skip
+    try:
+        deadline = time.monotonic() + timeout_s
+        while True:
+            assert proc.poll() is None, proc.stderr.read() if proc.stderr else ""
+            assert time.monotonic() < deadline, what
+            try:
+                if ready(json.loads(memory.read_text())):
+                    break
+            except (OSError, ValueError, KeyError, TypeError):
+                pass  # not written yet, or being replaced
+            time.sleep(0.005)
+        (pid,) = pids_of(run_dir, role)
+        os.kill(pid, signal.SIGKILL)
+        _, stderr = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    return proc.returncode, stderr

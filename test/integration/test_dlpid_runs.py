@@ -9,12 +9,6 @@ reproduce exactly, estimate by estimate.
 
 from __future__ import annotations
 
-import json
-import os
-import signal
-import subprocess
-import sys
-import time
 from pathlib import Path
 from typing import Any
 
@@ -22,7 +16,7 @@ import numpy as np
 import pytest
 import yaml
 from numpy.testing import assert_allclose, assert_array_equal
-from run_support import CONFIG, pids_of
+from run_support import CONFIG, pids_of, run_and_kill
 
 from servo_axis.analysis.health import EXIT_NOT_DETERMINISTIC
 from servo_axis.analysis.summary import RunSummary
@@ -143,36 +137,14 @@ def test_a_killed_identifier_resumes_bit_identically(ros_env: int, tmp_path: Pat
     path = short("lpf2", tmp_path / "lpf2.yaml", seconds=3.0)
     run_dir = tmp_path / "run"
     memory = run_dir / "identifier_memory.json"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "servo_axis", "run", str(path), "--out", str(run_dir),
-         "--domain-id", str(ros_env), "--no-plots"],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
-        env={**os.environ, "ROS_DOMAIN_ID": str(ros_env)},
+    # Kill once the identifier has persisted a third of the run.
+    code, stderr = run_and_kill(
+        path, run_dir, ros_env, "identifier", memory,
+        lambda m: m["state"]["last_step"] >= 2500, "the identifier never got to step 2500",
     )  # fmt: skip
-    try:
-        # Kill once the identifier has persisted a third of the run.
-        deadline = time.monotonic() + 60
-        while True:
-            assert proc.poll() is None, proc.stderr.read() if proc.stderr else ""
-            assert time.monotonic() < deadline, "the identifier never got to step 2500"
-            try:
-                if json.loads(memory.read_text())["state"]["last_step"] >= 2500:
-                    break
-            except (OSError, ValueError, KeyError, TypeError):
-                pass
-            time.sleep(0.005)
-        (pid,) = pids_of(run_dir, "identifier")
-        os.kill(pid, signal.SIGKILL)
-        _, stderr = proc.communicate(timeout=120)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
     # A death is reported (exit 3), but nothing fell back: the feedforward
     # waited for the restarted identifier, which went on from its memory.
-    assert proc.returncode == EXIT_NOT_DETERMINISTIC, stderr
+    assert code == EXIT_NOT_DETERMINISTIC, stderr
     for role in ("plant", "feedback", "feedforward", "identifier", "recorder"):
         assert pids_of(run_dir, role) == [], f"{role} left running"
     summary = RunSummary.from_json(run_dir / "summary.json")

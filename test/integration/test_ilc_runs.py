@@ -10,18 +10,13 @@ calls, no ROS), which the node graph must reproduce exactly.
 from __future__ import annotations
 
 import json
-import os
-import signal
-import subprocess
-import sys
-import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
-from run_support import SWITCH, TRIAL_S, TRIALS, pids_of, short_trials
+from run_support import SWITCH, TRIAL_S, TRIALS, pids_of, run_and_kill, short_trials
 
 from servo_axis.analysis.health import EXIT_NOT_DETERMINISTIC
 from servo_axis.analysis.summary import RunSummary
@@ -103,34 +98,12 @@ def test_killed_learning_unit_resumes_and_still_carries_over(ros_env: int, tmp_p
     path = short_trials("bfft", tmp_path / "bfft.yaml")
     run_dir = tmp_path / "run"
     memory = run_dir / "learning_memory.json"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "servo_axis", "run", str(path), "--out", str(run_dir),
-         "--domain-id", str(ros_env), "--no-plots"],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
-        env={**os.environ, "ROS_DOMAIN_ID": str(ros_env)},
+    # Trial 2 is learned (the memory says so) while trial 3 runs: kill then.
+    code, stderr = run_and_kill(
+        path, run_dir, ros_env, "learning", memory,
+        lambda m: m["periods_learned"] >= 2, "trial 2 was never learned",
     )  # fmt: skip
-    try:
-        # Trial 2 is learned (the memory says so) while trial 3 runs: kill then.
-        deadline = time.monotonic() + 60
-        while True:
-            assert proc.poll() is None, proc.stderr.read() if proc.stderr else ""
-            assert time.monotonic() < deadline, "trial 2 was never learned"
-            try:
-                if json.loads(memory.read_text())["periods_learned"] >= 2:
-                    break
-            except (OSError, ValueError, KeyError):
-                pass
-            time.sleep(0.005)
-        (pid,) = pids_of(run_dir, "learning")
-        os.kill(pid, signal.SIGKILL)
-        _, stderr = proc.communicate(timeout=120)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-    assert proc.returncode == EXIT_NOT_DETERMINISTIC, stderr
+    assert code == EXIT_NOT_DETERMINISTIC, stderr
     for role in ("plant", "feedback", "feedforward", "learning", "recorder"):
         assert pids_of(run_dir, role) == [], f"{role} left running"
     summary = RunSummary.from_json(run_dir / "summary.json")

@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 import rclpy
 import yaml
+from graph_support import graph_nodes
 from numpy.testing import assert_array_equal
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
@@ -30,7 +31,6 @@ from std_msgs.msg import Float64MultiArray
 
 from servo_axis.core.errors import ParameterFileError
 from servo_axis.core.identification.dlpid import Estimate
-from servo_axis.nodes.feedback import FeedbackNode
 from servo_axis.nodes.feedforward import FeedforwardNode
 from servo_axis.nodes.identifier import IdentifierNode
 from servo_axis.nodes.plant import PlantNode
@@ -44,7 +44,6 @@ from servo_axis.params.factories import (
 )
 from servo_axis.params.scenario import load_scenario, node_params, roles_of
 from servo_axis.recording.deserialize import read_messages
-from servo_axis.run.plan import handshake_overrides
 from servo_axis.simulate import simulate_identification
 from servo_axis.storage import load_identifier_memory
 from servo_axis.wire import messages as msgs
@@ -106,33 +105,6 @@ def short_lpf2(tmp_path: Path, seconds: float = STEPS * TU) -> tuple[dict[str, A
     path = tmp_path / "dlpid_tilt_lpf2_short.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     return data, path
-
-
-NODE_CLASSES: dict[str, Callable[..., Node]] = {
-    "plant": PlantNode,
-    "feedback": FeedbackNode,
-    "feedforward": FeedforwardNode,
-    "identifier": IdentifierNode,
-    "recorder": RecorderNode,
-}
-
-
-def graph_nodes(
-    context: Context, data: dict[str, Any], bag: Path, scenario_dir: Path
-) -> list[Node]:
-    """The nodes of a scenario in this process, with the run plan's parameters (recorder first)."""
-    roles = [r for r in roles_of(data) if r in NODE_CLASSES]
-    extra = handshake_overrides(data, roles, bag, scenario_dir)
-    return [
-        NODE_CLASSES[role](
-            context=context,
-            parameter_overrides=[
-                Parameter(k, value=v)
-                for k, v in {**node_params(data, role), **extra.get(role, {})}.items()
-            ],
-        )
-        for role in roles
-    ]
 
 
 def parameters(values: dict[str, Any]) -> list[Parameter]:

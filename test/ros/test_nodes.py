@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 import rclpy
 import yaml
+from graph_support import graph_nodes
 from numpy.testing import assert_allclose, assert_array_equal
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
@@ -72,33 +73,6 @@ def spin_until(
             ex.spin_once(timeout_sec=0.05)
     finally:
         ex.shutdown()
-
-
-NODE_CLASSES: dict[str, Callable[..., Node]] = {
-    "plant": PlantNode,
-    "feedback": FeedbackNode,
-    "feedforward": FeedforwardNode,
-    "recorder": RecorderNode,
-    "learning": LearningNode,
-}
-
-
-def graph_nodes(
-    context: Context, data: dict[str, Any], bag: Path, scenario_dir: Path
-) -> list[Node]:
-    """The nodes of a scenario in this process, with the run plan's parameters (recorder first)."""
-    roles = [r for r in roles_of(data) if r in NODE_CLASSES]
-    extra = handshake_overrides(data, roles, bag, scenario_dir)
-    return [
-        NODE_CLASSES[role](
-            context=context,
-            parameter_overrides=[
-                Parameter(k, value=v)
-                for k, v in {**node_params(data, role), **extra.get(role, {})}.items()
-            ],
-        )
-        for role in roles
-    ]
 
 
 def test_composed_lockstep_equals_core_only_loop(context: Context, tmp_path: Path) -> None:

@@ -1,0 +1,47 @@
+"""The node graph of a scenario in one process, as the runner would start it (ROS tests)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from rclpy.context import Context
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from servo_axis.nodes.feedback import FeedbackNode
+from servo_axis.nodes.feedforward import FeedforwardNode
+from servo_axis.nodes.identifier import IdentifierNode
+from servo_axis.nodes.learning import LearningNode
+from servo_axis.nodes.plant import PlantNode
+from servo_axis.nodes.recorder import RecorderNode
+from servo_axis.params.scenario import node_params, roles_of
+from servo_axis.run.plan import handshake_overrides
+
+NODE_CLASSES: dict[str, Callable[..., Node]] = {
+    "plant": PlantNode,
+    "feedback": FeedbackNode,
+    "feedforward": FeedforwardNode,
+    "recorder": RecorderNode,
+    "learning": LearningNode,
+    "identifier": IdentifierNode,
+}
+
+
+def graph_nodes(
+    context: Context, data: dict[str, Any], bag: Path, scenario_dir: Path
+) -> list[Node]:
+    """The nodes of a scenario in this process, with the run plan's parameters (recorder first)."""
+    roles = [r for r in roles_of(data) if r in NODE_CLASSES]
+    extra = handshake_overrides(data, roles, bag, scenario_dir)
+    return [
+        NODE_CLASSES[role](
+            context=context,
+            parameter_overrides=[
+                Parameter(k, value=v)
+                for k, v in {**node_params(data, role), **extra.get(role, {})}.items()
+            ],
+        )
+        for role in roles
+    ]
