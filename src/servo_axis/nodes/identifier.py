@@ -143,15 +143,16 @@ class IdentifierNode(ServoNode):
             if last is not None:
                 nxt = last + 1
             elif self._angles and self._currents:
-                # A late joiner without memory starts where both streams are in.
+                # A late joiner without memory starts where both streams are
+                # in; what one stream has before that is never used.
                 nxt = max(min(self._angles), min(self._currents))
+                for buffer in (self._angles, self._currents):
+                    for old in [k for k in buffer if k < nxt]:
+                        del buffer[old]
             else:
                 return
             if nxt not in self._angles or nxt not in self._currents:
                 return
-            for buffer in (self._angles, self._currents):
-                for old in [k for k in buffer if k < nxt]:
-                    del buffer[old]
             y = self._angles.pop(nxt)
             u = self._currents.pop(nxt)
             estimate = self.identifier.update(nxt, y, self._kt * u)

@@ -386,25 +386,9 @@ def estimate_schedule(values: Values, period_key: str, latency_key: str) -> tupl
     ahead of the estimates it depends on.
     """
     g = grid(values)
-    period = (
-        build(
-            "",
-            g.instants_per,
-            keys={period_key: period_key},
-            period_s=values[period_key],
-            name=period_key,
-        )
-        * g.ratio
-    )
-    latency = (
-        build(
-            "",
-            g.instants_per,
-            keys={latency_key: latency_key},
-            period_s=values[latency_key],
-            name=latency_key,
-        )
-        * g.ratio
+    period, latency = (
+        build("", g.instants_per, keys={key: key}, period_s=values[key], name=key) * g.ratio
+        for key in (period_key, latency_key)
     )
     if latency < period:
         raise ParameterFileError(

@@ -38,7 +38,7 @@ from servo_axis.core.errors import (
     require_positive,
 )
 from servo_axis.core.friction.model import FrictionModel, FrictionParams
-from servo_axis.core.models.base import PlantOutput, clipped_current, whole_ratio, zoh
+from servo_axis.core.models.base import PlantOutput, clipped_current, sim_steps, whole_ratio, zoh
 from servo_axis.core.sensors import PositionSensor, SensorParams
 
 #: Resonance modes of DESIGN 7 (paper 000 Table I did not survive; our choice):
@@ -142,14 +142,7 @@ class BallScrewParams:
             require_positive(f"modes[{i}].zeta", mode[1])
             require_finite(f"modes[{i}].a", mode[2])
         require_nonnegative("dead_time_s", self.dead_time_s)
-        require_positive("control_period_s", self.control_period_s)
-        require_positive("sim_step_s", self.sim_step_s)
-        if self.sim_step_s > self.control_period_s:
-            raise ConfigError(
-                f"sim_step_s: expected <= control_period_s = {self.control_period_s!r}, "
-                f"got {self.sim_step_s!r}"
-            )
-        whole_ratio("control_period_s", self.control_period_s, self.sim_step_s, "sim_step_s")
+        sim_steps(self.control_period_s, self.sim_step_s)
         whole_ratio("dead_time_s", self.dead_time_s, self.sim_step_s, "sim_step_s")
         require_positive("current_limit_A", self.current_limit_A)
         require_finite("initial_angle_rad", self.initial_angle_rad)

@@ -139,6 +139,20 @@ def whole_ratio(name: str, value: float, unit: float, unit_name: str) -> int:
     return int(n)
 
 
+def sim_steps(control_period_s: float, sim_step_s: float) -> int:
+    """Integration sub-steps per control period; ConfigError naming the argument at fault.
+
+    Both periods > 0, ``sim_step_s <= control_period_s`` and a whole divisor of it.
+    """
+    require_positive("control_period_s", control_period_s)
+    require_positive("sim_step_s", sim_step_s)
+    if sim_step_s > control_period_s:
+        raise ConfigError(
+            f"sim_step_s: expected <= control_period_s = {control_period_s!r}, got {sim_step_s!r}"
+        )
+    return whole_ratio("control_period_s", control_period_s, sim_step_s, "sim_step_s")
+
+
 def zoh(a: np.ndarray, b: np.ndarray, step_s: float) -> tuple[np.ndarray, np.ndarray]:
     """Exact zero-order-hold discretisation ``(e^{A h}, int_0^h e^{A t} dt B)``."""
     n = a.shape[0]

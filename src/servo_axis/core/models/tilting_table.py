@@ -78,7 +78,13 @@ from servo_axis.core.errors import (
     require_nonnegative,
     require_positive,
 )
-from servo_axis.core.models.base import NominalModel, PlantOutput, clipped_current, whole_ratio
+from servo_axis.core.models.base import (
+    NominalModel,
+    PlantOutput,
+    clipped_current,
+    sim_steps,
+    whole_ratio,
+)
 
 #: Newton iterations of the zero-velocity event location, at most.
 _EVENT_ITERATIONS = 40
@@ -143,14 +149,7 @@ class TiltingTableParams:
         require_nonnegative("unbalance_Nm", self.unbalance_Nm)
         require_nonnegative("coulomb_Nm", self.coulomb_Nm)
         require_positive("torque_constant_Nm_per_A", self.torque_constant_Nm_per_A)
-        require_positive("control_period_s", self.control_period_s)
-        require_positive("sim_step_s", self.sim_step_s)
-        if self.sim_step_s > self.control_period_s:
-            raise ConfigError(
-                f"sim_step_s: expected <= control_period_s = {self.control_period_s!r}, "
-                f"got {self.sim_step_s!r}"
-            )
-        whole_ratio("control_period_s", self.control_period_s, self.sim_step_s, "sim_step_s")
+        sim_steps(self.control_period_s, self.sim_step_s)
         require_positive("current_limit_A", self.current_limit_A)
         require_finite("initial_angle_rad", self.initial_angle_rad)
         require_finite("initial_velocity_rad_s", self.initial_velocity_rad_s)
