@@ -121,4 +121,16 @@ def test_killed_learning_unit_resumes_and_still_carries_over(ros_env: int, tmp_p
     rms_silc, peak_silc = core_only(short_trials("silc", tmp_path / "silc.yaml"))
     print("killed bfft", rms * 1e6, "bf", rms_bf * 1e6, "silc", rms_silc * 1e6)
     assert rms[s] < rms_bf[s] < rms_silc[s]
-    assert peak[s] < peak_bf[s] < peak_silc[s]
+    assert peak[s] < peak_silc[s]
+    # Which trial the restarted unit missed (the feedforward ran it on the
+    # previous correction) depends on how long the restart took, and the
+    # trial after it runs on a correction learned from that trial (RMS 2.1-2.7
+    # um instead of ~0.8). When that trial is trial 5, trial 6 (the first of
+    # Ref. 2) is learned from it, and its peak can exceed B.F.'s: seen once in
+    # a loaded full suite (3.78 against 2.66 um, RMS 0.58 against 0.80 um).
+    fallbacks = summary.health.nodes["feedforward"]["fallbacks"]
+    missed = [f["step"] // N + 1 for f in fallbacks]
+    print("trials run on the previous correction:", missed)
+    assert len(missed) == 1 and 2 < missed[0] < SWITCH
+    if missed[0] + 1 < SWITCH - 1:
+        assert peak[s] < peak_bf[s]
