@@ -43,16 +43,13 @@ def simulate(scenario_path: Path, *, steps: int | None = None) -> Trajectory:
     loop = factories.build_loop(fbv)
     gen = factories.build_generator(ffv)
     refs = gen.samples(0, n)
-    lead = pv["lead_m_per_rad"]
-    sensor = fbv["sensor"]
     out = np.empty((n, 5))
     y = sim.output()
     for k in range(n):
         r, _, u_ff = refs[k]
-        angle = controlled_output(
-            sensor, encoder_rad=y.encoder_rad, scale_m=y.scale_m, lead_m_per_rad=lead
-        )
-        u = loop.update(angle_rad=angle, reference_rad=r, feedforward_A=u_ff).current_A
+        u = loop.step(
+            encoder_rad=y.encoder_rad, scale_m=y.scale_m, reference_rad=r, feedforward_A=u_ff
+        ).current_A
         out[k] = (y.encoder_rad, y.scale_m, r, u_ff, u)
         y = sim.step(u)
     return Trajectory(*(out[:, i].copy() for i in range(5)))
@@ -99,10 +96,9 @@ def simulate_learning(scenario_path: Path, *, steps: int | None = None) -> Learn
     y = sim.output()
     for k in range(n):
         ((r, _, u_ff),) = gen.samples(k, k + 1)
-        angle = controlled_output(
-            sensor, encoder_rad=y.encoder_rad, scale_m=y.scale_m, lead_m_per_rad=lead
-        )
-        u = loop.update(angle_rad=angle, reference_rad=r, feedforward_A=u_ff).current_A
+        u = loop.step(
+            encoder_rad=y.encoder_rad, scale_m=y.scale_m, reference_rad=r, feedforward_A=u_ff
+        ).current_A
         out[k] = (y.encoder_rad, y.scale_m, r, u_ff, u)
         y = sim.step(u)
         j, idx = divmod(k, period)
@@ -159,18 +155,15 @@ def simulate_identification(scenario_path: Path, *, steps: int | None = None) ->
     sim = factories.build_plant(pv)
     loop = factories.build_loop(fbv)
     gen = factories.build_generator(ffv)
-    lead = pv["lead_m_per_rad"]
-    sensor = fbv["sensor"]
     out = np.empty((n, 5))
     angle_true = np.empty(n)
     rows: list[list[float]] = []
     y = sim.output()
     for k in range(n):
         ((r, _, u_ff),) = gen.samples(k, k + 1)
-        angle = controlled_output(
-            sensor, encoder_rad=y.encoder_rad, scale_m=y.scale_m, lead_m_per_rad=lead
-        )
-        u = loop.update(angle_rad=angle, reference_rad=r, feedforward_A=u_ff).current_A
+        u = loop.step(
+            encoder_rad=y.encoder_rad, scale_m=y.scale_m, reference_rad=r, feedforward_A=u_ff
+        ).current_A
         out[k] = (y.encoder_rad, y.scale_m, r, u_ff, u)
         angle_true[k] = y.angle_rad
         if identifier is not None:

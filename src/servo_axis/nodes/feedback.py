@@ -46,7 +46,6 @@ from typing import Any
 
 from servo_axis.core.errors import SignalError
 from servo_axis.core.feedback.loop import Fault, LoopOutput
-from servo_axis.core.feedback.output import controlled_output
 from servo_axis.nodes.base import ServoNode
 from servo_axis.nodes.lockstep import PeerWatch, SampleBuffer, stream_window
 from servo_axis.nodes.runtime import run_main, steady_clock
@@ -138,17 +137,14 @@ class FeedbackNode(ServoNode):
         self._pending = None
         if state.step % 1000 == 0:  # drop references of samples that never came
             self._references.drop_before(state.step)
-        angle = controlled_output(
-            self._v["sensor"],
-            encoder_rad=state.encoder_rad,
-            scale_m=state.scale_m,
-            lead_m_per_rad=self._lead,
-        )
         if ref is None:
             out = LoopOutput(0.0, 0.0, 0.0, 0.0)
         else:
-            out = self.loop.update(
-                angle_rad=angle, reference_rad=ref.position_rad, feedforward_A=ref.current_A
+            out = self.loop.step(
+                encoder_rad=state.encoder_rad,
+                scale_m=state.scale_m,
+                reference_rad=ref.position_rad,
+                feedforward_A=ref.current_A,
             )
         if out.fault is not None:
             self._publish_fault(state.step, out.fault, out.fault_value)

@@ -46,7 +46,7 @@ from servo_axis.core.models.base import PlantOutput
 from servo_axis.nodes.base import ServoNode
 from servo_axis.nodes.lockstep import FlowControl, PeerWatch
 from servo_axis.nodes.runtime import run_main, steady_clock
-from servo_axis.params.factories import build_plant, run_steps
+from servo_axis.params.factories import build_plant, plant_model, run_steps
 from servo_axis.wire import messages as msgs
 
 #: Wall time the plant waits at the end for the recorder to acknowledge
@@ -83,6 +83,8 @@ class PlantNode(ServoNode):
                 "parameter 'use_sim_time': the plant owns the clock; set it false"
             )
         self.plant = build_plant(values)
+        for warning in plant_model(values["model"]).warnings(values):
+            self.get_logger().warning(f"parameter check: {warning}")
         self._axis = values["axis"]
         self._period_ns = msgs.period_ns(values["control_period_s"])
         self._steps = run_steps(values)

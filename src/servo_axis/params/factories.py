@@ -39,6 +39,11 @@ from servo_axis.core.learning.base import LearningLaw
 from servo_axis.core.learning.rptc import LearningParams, PeriodicSignalGenerator
 from servo_axis.core.models.ball_screw import BallScrewParams, BallScrewPlant, DisturbanceParams
 from servo_axis.core.models.base import NominalModel, Plant
+from servo_axis.core.models.elastic_ball_screw import (
+    ElasticBallScrewParams,
+    ElasticBallScrewPlant,
+    mode_warning,
+)
 from servo_axis.core.models.tilting_table import TiltingTableParams, TiltingTablePlant
 from servo_axis.core.reference import Reference, make_reference
 from servo_axis.core.sensors import SensorParams
@@ -124,10 +129,13 @@ class PlantModelEntry:
         The model's keys in the ``plant`` section (beside :data:`schemas.PLANT`).
     build : callable
         ``build(values, rng) -> Plant`` from the checked plant values.
+    warnings : callable
+        ``warnings(values) -> list of str``: what is allowed but unusual.
     """
 
     schema: Mapping[str, Param]
     build: Callable[[Values, np.random.Generator], Plant]
+    warnings: Callable[[Values], list[str]]
 
 
 PLANT_MODELS: dict[str, PlantModelEntry] = {}
@@ -138,12 +146,19 @@ def register_plant_model(
     *,
     schema: Mapping[str, Param],
     build: Callable[[Values, np.random.Generator], Plant],
+    warnings: Callable[[Values], list[str]] | None = None,
 ) -> None:
-    """Make a plant model selectable as ``plant.model: <name>``."""
+    """Make a plant model selectable as ``plant.model: <name>``.
+
+    ``warnings(values)`` lists what is allowed but unusual in checked values
+    (the plant node logs each at start).
+    """
     clash = set(schema) & (set(schemas.PLANT) | set(schemas.SHARED))
     if clash:
         raise ValueError(f"schema: keys {sorted(clash)} are the plant node's own")
-    PLANT_MODELS[name] = PlantModelEntry(schema=schema, build=build)
+    PLANT_MODELS[name] = PlantModelEntry(
+        schema=schema, build=build, warnings=warnings or (lambda values: [])
+    )
 
 
 def plant_model(name: object) -> PlantModelEntry:
@@ -242,6 +257,33 @@ register_plant_model(
     build=lambda values, rng: TiltingTablePlant(tilting_table_params(values), rng=rng),
 )
 
+
+def elastic_ball_screw_params(values: Values) -> ElasticBallScrewParams:
+    """:class:`ElasticBallScrewParams` from checked plant values (paper 004)."""
+    own = {k: values[k] for k in schemas.ELASTIC_BALL_SCREW if "." not in k}
+    return build(
+        "",
+        ElasticBallScrewParams,
+        **own,
+        lead_m_per_rad=values["lead_m_per_rad"],
+        control_period_s=values["control_period_s"],
+        encoder=build("encoder.", SensorParams, **section(values, "encoder")),
+        scale=build("scale.", SensorParams, **section(values, "scale")),
+    )
+
+
+def _elastic_warnings(values: Values) -> list[str]:
+    warning = mode_warning(elastic_ball_screw_params(values))
+    return [] if warning is None else [warning]
+
+
+register_plant_model(
+    "elastic_ball_screw",
+    schema=schemas.ELASTIC_BALL_SCREW,
+    build=lambda values, rng: ElasticBallScrewPlant(elastic_ball_screw_params(values), rng=rng),
+    warnings=_elastic_warnings,
+)
+
 register_plant_model(
     "ball_screw",
     schema=schemas.BALL_SCREW,
@@ -296,6 +338,8 @@ def build_loop(values: Values) -> FeedbackLoop:
         lead_m_per_rad=values["lead_m_per_rad"],
         limits=limits,
         use_feedforward=values["use_feedforward"],
+        sensor=values["sensor"],
+        dob_sensor=values["dob.sensor"],
     )
 
 

@@ -12,8 +12,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import IntEnum
 
-from servo_axis.core.errors import require_positive
+from servo_axis.core.errors import ConfigError, require_positive
 from servo_axis.core.feedback.dob import DisturbanceObserver
+from servo_axis.core.feedback.output import SENSORS, controlled_output
 from servo_axis.core.feedback.pid import DiscretePid
 
 
@@ -91,6 +92,13 @@ class FeedbackLoop:
         Trip levels.
     use_feedforward : bool
         False ignores ``feedforward_A`` (PID alone).
+    sensor : str
+        The controlled output of :meth:`step` (``encoder`` or ``scale``,
+        :func:`~servo_axis.core.feedback.output.controlled_output`).
+    dob_sensor : str
+        The angle the DOB observes in :meth:`step`: paper 004 closes the PID
+        on the table (``scale``) and the DOB on the motor (``encoder``), for
+        the DOB's bandwidth.
     """
 
     def __init__(
@@ -101,6 +109,8 @@ class FeedbackLoop:
         lead_m_per_rad: float,
         limits: SafetyLimits,
         use_feedforward: bool = True,
+        sensor: str = "encoder",
+        dob_sensor: str = "encoder",
     ) -> None:
         self._pid = pid
         self._dob = dob
@@ -109,6 +119,11 @@ class FeedbackLoop:
         self._use_ff = use_feedforward
         self._previous_A = 0.0
         self.fault: Fault | None = None
+        for name, value in (("sensor", sensor), ("dob_sensor", dob_sensor)):
+            if value not in SENSORS:
+                raise ConfigError(f"{name}: expected one of {SENSORS}, got {value!r}")
+        self._sensor = sensor
+        self._dob_sensor = dob_sensor
 
     @property
     def tripped(self) -> bool:
@@ -121,23 +136,65 @@ class FeedbackLoop:
             self.fault = fault
         self._previous_A = 0.0
 
-    def update(self, *, angle_rad: float, reference_rad: float, feedforward_A: float) -> LoopOutput:
+    def step(
+        self, *, encoder_rad: float, scale_m: float, reference_rad: float, feedforward_A: float
+    ) -> LoopOutput:
+        """:meth:`update` from the sensor readings: the PID on ``sensor``, the DOB on ``dob_sensor``.
+
+        Parameters
+        ----------
+        encoder_rad, scale_m : float
+            Rotary encoder (rad) and linear scale (m) readings.
+        reference_rad, feedforward_A : float
+            As in :meth:`update`.
+        """
+        y = controlled_output(
+            self._sensor, encoder_rad=encoder_rad, scale_m=scale_m, lead_m_per_rad=self._lead
+        )
+        observed = (
+            y
+            if self._dob_sensor == self._sensor
+            else controlled_output(
+                self._dob_sensor,
+                encoder_rad=encoder_rad,
+                scale_m=scale_m,
+                lead_m_per_rad=self._lead,
+            )
+        )
+        return self.update(
+            angle_rad=y,
+            reference_rad=reference_rad,
+            feedforward_A=feedforward_A,
+            observer_angle_rad=observed,
+        )
+
+    def update(
+        self,
+        *,
+        angle_rad: float,
+        reference_rad: float,
+        feedforward_A: float,
+        observer_angle_rad: float | None = None,
+    ) -> LoopOutput:
         """Compute the current command of this sample.
 
         Parameters
         ----------
         angle_rad : float
-            Measured motor angle ``y``, rad.
+            Measured controlled output ``y`` (rad of motor angle).
         reference_rad : float
             Reference ``r``, rad.
         feedforward_A : float
             Feedforward current ``u_ff``, A.
+        observer_angle_rad : float or None
+            The angle the DOB observes, rad (None: ``angle_rad``).
         """
         error = reference_rad - angle_rad
         if self.tripped:
             return LoopOutput(0.0, 0.0, 0.0, error)
         fb = self._pid.update(error)
-        d_hat = self._dob.update(angle_rad, self._previous_A) if self._dob is not None else 0.0
+        observed = angle_rad if observer_angle_rad is None else observer_angle_rad
+        d_hat = self._dob.update(observed, self._previous_A) if self._dob is not None else 0.0
         u = (feedforward_A if self._use_ff else 0.0) + fb - d_hat
         fault, value = None, 0.0
         lim = self._limits
