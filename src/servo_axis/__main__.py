@@ -7,6 +7,8 @@
     the shipped scenarios and what each runs;
 ``python -m servo_axis summary RUN_DIR`` / ``compare RUN_DIR...`` / ``friction-table RUN_DIR``
     a run's summary again, runs side by side, a friction table from a run;
+``python -m servo_axis gms-fit RUN_DIR --out FILE [--elements N] [--plot PNG]``
+    a GMS friction model fitted to a friction_id run (paper 004 Fig. 4(b));
 ``python -m servo_axis bag recover BAG_DIR``
     make a bag whose recorder died readable again (a complete bag is left as it is).
 
@@ -82,6 +84,31 @@ def _friction_table(args: argparse.Namespace) -> int:
     )
     save_friction_table(Path(args.out), table)
     print(f"friction table with {len(table.displacement_m)} points written to {args.out}")
+    return 0
+
+
+def _gms_fit(args: argparse.Namespace) -> int:
+    from servo_axis.gms_fit import fit_run_data, load_fit_data, plot_fit
+    from servo_axis.storage import save_gms_parameters
+
+    data = load_fit_data(Path(args.run_dir))
+    fit = fit_run_data(data, elements=args.elements)
+    p = fit.params
+    save_gms_parameters(
+        Path(args.out),
+        p,
+        plant_model=data.plant_model,
+        plant_fingerprint=data.plant_fingerprint,
+    )
+    print(f"GMS model with {p.elements} elements written to {args.out} ({data.plant_fingerprint})")
+    print(f"  F_c = {p.coulomb_Nm:.6g} N m")
+    print(f"  {'element':>7}  {'k_i (N m/m)':>12}  {'alpha_i':>8}  {'break-away (um)':>15}")
+    for i, (k, a, b) in enumerate(zip(p.stiffness_Nm_per_m, p.weights, p.breakaway_m, strict=True)):
+        print(f"  {i + 1:>7}  {k:>12.6g}  {a:>8.4f}  {b * 1e6:>15.4g}")
+    print(f"  RMS residual = {fit.rms_residual_Nm:.4g} N m (samples from the first reversal on)")
+    if args.plot:
+        plot_fit(fit, data.position_m, data.torque_Nm, Path(args.plot))
+        print(f"figure written to {args.plot}")
     return 0
 
 
@@ -185,6 +212,16 @@ def main(argv: list[str] | None = None) -> int:
     ft.add_argument("--bin-width-m", type=float, default=0.5e-6)
     ft.add_argument("--max-displacement-m", type=float, default=40e-6)
     ft.set_defaults(func=_friction_table)
+    gms = sub.add_parser(
+        "gms-fit",
+        help="fit a GMS friction model (Al-Bender et al. 2005; paper 004 Fig. 4(b)) to a "
+        "friction_id run",
+    )
+    gms.add_argument("run_dir")
+    gms.add_argument("--out", required=True, help="GMS parameter file to write")
+    gms.add_argument("--elements", type=int, default=4, help="number of elements (default 4)")
+    gms.add_argument("--plot", help="PNG to write: measured and model torque against displacement")
+    gms.set_defaults(func=_gms_fit)
     sm = sub.add_parser("summary", help="print the summary of a run directory")
     sm.add_argument("run_dir")
     sm.set_defaults(func=_summary)

@@ -3,7 +3,8 @@
 Core formats the text (:meth:`FrictionTable.to_text`,
 :func:`servo_axis.core.learning.base.encode_memory`); this module does the
 I/O: a memory is written atomically (temporary file, then rename), so that a
-unit killed mid-write leaves the previous memory.
+unit killed mid-write leaves the previous memory. GMS friction parameters
+(:meth:`GmsParams.to_text`, paper 004 Fig. 4(b)) are written the same way.
 """
 
 from __future__ import annotations
@@ -13,8 +14,9 @@ import os
 from pathlib import Path
 from typing import Any
 
-from servo_axis.core.errors import SignalError
+from servo_axis.core.errors import SignalError, TableError
 from servo_axis.core.feedforward.friction_table import FrictionTable
+from servo_axis.core.friction.gms import GmsParams, gms_from_text
 from servo_axis.core.learning.base import LearningLaw, decode_memory, encode_memory
 
 
@@ -26,6 +28,31 @@ def load_friction_table(path: Path | str) -> FrictionTable:
 def save_friction_table(path: Path | str, table: FrictionTable) -> None:
     """Write a friction table file."""
     Path(path).write_text(table.to_text())
+
+
+def save_gms_parameters(
+    path: Path | str, params: GmsParams, *, plant_model: str, plant_fingerprint: str
+) -> None:
+    """Write a GMS parameter file atomically (:meth:`GmsParams.to_text`)."""
+    text = params.to_text(plant_model=plant_model, plant_fingerprint=plant_fingerprint)
+    _write_atomically(Path(path), text)
+
+
+def load_gms_parameters(path: Path | str) -> tuple[GmsParams, str, str]:
+    """``(params, plant_model, plant_fingerprint)`` of a GMS parameter file.
+
+    Raises
+    ------
+    TableError
+        Naming the file, when it cannot be read or is malformed
+        (:func:`~servo_axis.core.friction.gms.gms_from_text`).
+    """
+    source = str(path)
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as err:
+        raise TableError(f"{source}: cannot read it: {err}") from err
+    return gms_from_text(text, source=source)
 
 
 def save_memory(path: Path | str, law: LearningLaw, *, scenario: str) -> None:

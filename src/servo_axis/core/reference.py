@@ -306,17 +306,85 @@ class TrialReference:
         )
 
 
+@dataclass(frozen=True, kw_only=True)
+class SegmentsReference:
+    """Half-cosine moves one after the other, each from rest to rest (paper 004 Fig. 11).
+
+    Move ``i`` covers ``d_i`` in ``T_i``: ``x = x_i + d_i (1 - cos(pi tau / T_i)) / 2``,
+    ``tau`` the time into it, so its velocity is zero at both ends and its
+    deceleration into the stop is ``|d_i| (pi / T_i)^2 / 2`` (the
+    25 (1 - cos 2 pi t) mm of 004 Sect. V is moves of +-50 mm in 0.5 s, at
+    ``100 pi^2`` mm/s^2). Two moves of opposite sign meet at a reversal, two of
+    the same sign at a stop without one (a non-reversal motion); the motion
+    starts after ``delay_s`` at rest and stays at the end.
+
+    Parameters
+    ----------
+    distances_m : tuple of float
+        ``d_i``, m, each finite and non-zero (at least one).
+    durations_s : tuple of float
+        ``T_i``, s, each > 0, one per move.
+    delay_s : float
+        Rest before the first move, s, >= 0.
+    offset_m : float
+        Start position, m.
+    """
+
+    distances_m: tuple[float, ...]
+    durations_s: tuple[float, ...]
+    delay_s: float = 0.0
+    offset_m: float = 0.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "distances_m", tuple(float(d) for d in self.distances_m))
+        object.__setattr__(self, "durations_s", tuple(float(t) for t in self.durations_s))
+        if not self.distances_m or len(self.distances_m) != len(self.durations_s):
+            raise ConfigError(
+                "durations_s: expected one duration per distance (at least one move), got "
+                f"{len(self.durations_s)} for {len(self.distances_m)}"
+            )
+        for i, (d, t) in enumerate(zip(self.distances_m, self.durations_s, strict=True)):
+            if require_finite(f"distances_m[{i}]", d) == 0.0:
+                raise ConfigError(f"distances_m[{i}]: expected a non-zero distance, got 0.0")
+            require_positive(f"durations_s[{i}]", t)
+        require_nonnegative("delay_s", self.delay_s)
+        require_finite("offset_m", self.offset_m)
+
+    @property
+    def period_s(self) -> None:
+        """None: not periodic."""
+        return None
+
+    def sample(self, t_s: ArrayLike) -> Arrays:
+        t = np.asarray(t_s, dtype=float)
+        pos = np.full(t.shape, self.offset_m)
+        vel = np.zeros(t.shape)
+        acc = np.zeros(t.shape)
+        start = self.delay_s
+        for d, big_t in zip(self.distances_m, self.durations_s, strict=True):
+            tau = t - start
+            w = math.pi / big_t
+            inside = (tau >= 0.0) & (tau < big_t)
+            phase = w * np.clip(tau, 0.0, big_t)
+            pos += np.where(tau >= 0.0, 0.5 * d * (1.0 - np.cos(phase)), 0.0)
+            vel += np.where(inside, 0.5 * d * w * np.sin(phase), 0.0)
+            acc += np.where(inside, 0.5 * d * w * w * np.cos(phase), 0.0)
+            start += big_t
+        return pos, vel, acc
+
+
 #: Reference kinds by name, for parameter files.
 KINDS: dict[str, Any] = {
     "sine": SineReference,
     "one_minus_cos": OneMinusCosReference,
     "point_to_point": PointToPointReference,
     "trials": TrialReference,
+    "segments": SegmentsReference,
 }
 
 
 def make_reference(kind: str, **params: Any) -> Reference:
-    """Build a reference by name (``sine``, ``one_minus_cos``, ``point_to_point``, ``trials``).
+    """Build a reference by name (``sine``, ``one_minus_cos``, ``point_to_point``, ``trials``, ``segments``).
 
     Raises
     ------

@@ -4,8 +4,12 @@ Topics (relative to the namespace):
 
 * subscribes ``state`` (JointState, every sample) and ``reference``
   (JointState, published ahead by the feedforward generator);
-* publishes ``command`` (JointState, every sample) and ``fault``
-  (Float64MultiArray ``[step, code, value]``, latched, once on a trip).
+* publishes ``command`` (JointState, every sample), ``fault``
+  (Float64MultiArray ``[step, code, value]``, latched, once on a trip) and,
+  with ``deformation.enabled``, ``deformation`` (JointState, every sample:
+  the deformation ratio ``d_r`` of paper 004 eqs. (5)-(7) from the scale and
+  the encoder, :mod:`servo_axis.core.deformation`), published just before
+  the command of the same sample.
 
 For ``state[k]`` the node answers ``command[k]`` as soon as
 ``reference[k]`` is here. The controlled output is
@@ -41,6 +45,7 @@ Run: ``python -m servo_axis.nodes.feedback --ros-args --params-file config/<scen
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from typing import Any
 
@@ -49,7 +54,7 @@ from servo_axis.core.feedback.loop import Fault, LoopOutput
 from servo_axis.nodes.base import ServoNode
 from servo_axis.nodes.lockstep import PeerWatch, SampleBuffer, stream_window
 from servo_axis.nodes.runtime import run_main, steady_clock
-from servo_axis.params.factories import build_loop
+from servo_axis.params.factories import build_deformation, build_loop
 from servo_axis.wire import messages as msgs
 from servo_axis.wire.streams import StreamGate
 
@@ -70,6 +75,12 @@ class FeedbackNode(ServoNode):
         self._command_msg = msgs.joint_state_template(msgs.motor_names(self._axis), ("effort",))
         self._command_pub = self.publisher("command")
         self._fault_pub = self.publisher("fault")
+        self._deformation = build_deformation(values)
+        if self._deformation is not None:
+            self._deformation_msg = msgs.joint_state_template(
+                msgs.deformation_names(self._axis), ("position",)
+            )
+            self._deformation_pub = self.publisher("deformation")
 
         self._references: SampleBuffer[msgs.ReferenceSample] = SampleBuffer()
         self._states = StreamGate(window=stream_window(self._lockstep), first=0)
@@ -148,6 +159,15 @@ class FeedbackNode(ServoNode):
             )
         if out.fault is not None:
             self._publish_fault(state.step, out.fault, out.fault_value)
+        if self._deformation is not None:
+            d = self._deformation.update(state.encoder_rad, state.scale_m)
+            self._deformation_pub.publish(
+                msgs.write_deformation(
+                    self._deformation_msg,
+                    msgs.DeformationSample(state.step, *dataclasses.astuple(d)),
+                    period_ns_=self._period_ns,
+                )
+            )
         self._command_pub.publish(
             msgs.write_command(
                 self._command_msg,

@@ -17,6 +17,8 @@ Nothing here imports rclpy.
 
 from __future__ import annotations
 
+import hashlib
+import json
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,13 +26,16 @@ from typing import Any
 
 import numpy as np
 
+from servo_axis.core.deformation import DeformationRatio
 from servo_axis.core.errors import ParameterFileError, ServoAxisError
 from servo_axis.core.feedback.dob import DisturbanceObserver
 from servo_axis.core.feedback.loop import FeedbackLoop, SafetyLimits
 from servo_axis.core.feedback.pid import DiscretePid, design_pid_pole_placement
 from servo_axis.core.feedforward.generator import FeedforwardGenerator
+from servo_axis.core.feedforward.gms import GmsTerm
 from servo_axis.core.feedforward.mnc import MncParams, NonlinearityCompensator
-from servo_axis.core.feedforward.terms import FeedforwardTerm, FrictionTableTerm
+from servo_axis.core.feedforward.sigmoid import SigmoidParams, SigmoidTerm
+from servo_axis.core.feedforward.terms import FeedforwardTerm, FrictionTableTerm, OutsideObserver
 from servo_axis.core.friction.model import FrictionParams
 from servo_axis.core.identification.base import OnlineIdentifier
 from servo_axis.core.identification.dlpid import Dlpid, DlpidParams
@@ -51,7 +56,7 @@ from servo_axis.core.timing import SampleGrid
 from servo_axis.params import schemas
 from servo_axis.params.scenario import node_params, resolve_table
 from servo_axis.params.schema import Param, build, check_values, section
-from servo_axis.storage import load_friction_table
+from servo_axis.storage import load_friction_table, load_gms_parameters
 
 Values = Mapping[str, Any]
 
@@ -100,6 +105,7 @@ REFERENCE_KEYS = {
         "first_trials",
         "offset_m",
     ),
+    "segments": ("distances_m", "durations_s", "delay_s", "offset_m"),
 }
 
 
@@ -111,8 +117,20 @@ def build_reference(values: Values) -> Reference:
         raise ParameterFileError(
             f"parameter 'reference.kind': expected one of {sorted(REFERENCE_KEYS)}, got {kind!r}"
         )
+    keys = {k: ref[k] for k in REFERENCE_KEYS[kind]}
+    if kind == "segments":
+        keys = {
+            "distances_m": ref["segment_distances_m"],
+            "durations_s": ref["segment_durations_s"],
+            "delay_s": ref["segment_delay_s"],
+            "offset_m": ref["offset_m"],
+        }
     return build(
-        "reference.", make_reference, kind=kind, **{k: ref[k] for k in REFERENCE_KEYS[kind]}
+        "reference.",
+        make_reference,
+        keys={f: f"reference.segment_{f}" for f in ("distances_m", "durations_s", "delay_s")},
+        kind=kind,
+        **keys,
     )
 
 
@@ -258,6 +276,20 @@ register_plant_model(
 )
 
 
+def plant_fingerprint(scenario: dict[str, Any]) -> str:
+    """``<model>:<16 hex>``: which plant a file identified on it belongs to.
+
+    The SHA-256 of the checked values of the plant model's own keys (its
+    physics, not the node's run settings) and the lead, as sorted JSON with
+    floats in ``repr``; a GMS parameter file carries it, and the feedforward
+    refuses a file of another plant.
+    """
+    values = node_values(scenario, "plant")
+    keys = [*sorted(plant_model(values["model"]).schema), "lead_m_per_rad"]
+    text = json.dumps({k: values[k] for k in keys}, sort_keys=True)
+    return f"{values['model']}:{hashlib.sha256(text.encode()).hexdigest()[:16]}"
+
+
 def elastic_ball_screw_params(values: Values) -> ElasticBallScrewParams:
     """:class:`ElasticBallScrewParams` from checked plant values (paper 004)."""
     own = {k: values[k] for k in schemas.ELASTIC_BALL_SCREW if "." not in k}
@@ -343,6 +375,20 @@ def build_loop(values: Values) -> FeedbackLoop:
     )
 
 
+def build_deformation(values: Values) -> DeformationRatio | None:
+    """The deformation ratio of 004 eqs. (5)-(7) the feedback publishes, if on."""
+    if not values["deformation.enabled"]:
+        return None
+    return build(
+        "deformation.",
+        DeformationRatio,
+        keys={"lead_m_per_rad": "lead_m_per_rad"},
+        window_samples=values["deformation.window_samples"],
+        lead_m_per_rad=values["lead_m_per_rad"],
+        min_rotation_rad=values["deformation.min_rotation_rad"],
+    )
+
+
 # --------------------------------------------------------------------------- feedforward
 
 TermBuilder = Callable[[Values], FeedforwardTerm | None]
@@ -357,16 +403,19 @@ def register_feedforward_term(name: str, build: TermBuilder) -> None:
     FEEDFORWARD_TERMS[name] = build
 
 
+def _term_file(values: Values, term: str) -> str | None:
+    """``<term>.file`` when ``<term>.enabled`` (None when off), not read."""
+    if not values[f"{term}.enabled"]:
+        return None
+    path = str(values[f"{term}.file"])
+    if not path:
+        raise ParameterFileError(f"parameter '{term}.file': required when {term}.enabled is true")
+    return path
+
+
 def _friction_table_path(values: Values) -> str | None:
     """The friction table file when the term is on (None when off), not read."""
-    if not values["friction_table.enabled"]:
-        return None
-    path = str(values["friction_table.file"])
-    if not path:
-        raise ParameterFileError(
-            "parameter 'friction_table.file': required when friction_table.enabled is true"
-        )
-    return path
+    return _term_file(values, "friction_table")
 
 
 def _friction_table_term(values: Values) -> FeedforwardTerm | None:
@@ -421,6 +470,60 @@ def _mnc_term(values: Values) -> FeedforwardTerm | None:
 register_feedforward_term("mnc", _mnc_term)
 
 
+def _gms_term(values: Values) -> FeedforwardTerm | None:
+    """The GMS-model compensation (004 Sect. II-C), if on: its file read and checked."""
+    path = _term_file(values, "gms")
+    if path is None:
+        return None
+    try:
+        params, _, fingerprint = load_gms_parameters(path)
+    except (OSError, ServoAxisError) as err:
+        raise ParameterFileError(f"parameter 'gms.file': {err}") from err
+    expected = values["gms.plant"]
+    if expected and fingerprint != expected:
+        raise ParameterFileError(
+            f"parameter 'gms.file': {path} was identified on plant {fingerprint!r}, "
+            f"this run's plant is {expected!r}: fit it again on a friction_id run of this plant"
+        )
+    return build(
+        "",
+        GmsTerm,
+        keys={**NOMINAL_KEYS, **PERIOD_KEYS},
+        params=params,
+        torque_constant_Nm_per_A=values["nominal.torque_constant_Nm_per_A"],
+        control_period_s=values["control_period_s"],
+    )
+
+
+register_feedforward_term("gms", _gms_term)
+
+
+def _sigmoid_term(values: Values) -> FeedforwardTerm | None:
+    """The sigmoid law of 004 eq. (9), if on."""
+    if not values["sigmoid.enabled"]:
+        return None
+    params = build(
+        "sigmoid.",
+        SigmoidParams,
+        sigma_m2_per_rad=values["sigmoid.sigma_m2_per_rad"],
+        gamma_m_per_rad=values["sigmoid.gamma_m_per_rad"],
+        coulomb_Nm=values["sigmoid.coulomb_Nm"],
+    )
+    return build(
+        "sigmoid.",
+        SigmoidTerm,
+        keys={**NOMINAL_KEYS, "control_period_s": "control_period_s"},
+        params=params,
+        reference=build_reference(values),
+        control_period_s=values["control_period_s"],
+        torque_constant_Nm_per_A=values["nominal.torque_constant_Nm_per_A"],
+        search_horizon_s=values["sigmoid.search_horizon_s"],
+    )
+
+
+register_feedforward_term("sigmoid", _sigmoid_term)
+
+
 def estimate_schedule(values: Values, period_key: str, latency_key: str) -> tuple[int, int]:
     """``(period, latency)`` in control samples of an online estimate (003, DESIGN 4).
 
@@ -443,8 +546,23 @@ def estimate_schedule(values: Values, period_key: str, latency_key: str) -> tupl
 
 
 def build_terms(values: Values) -> list[FeedforwardTerm]:
-    """The feedforward terms the values switch on, in registration order."""
-    return [t for b in FEEDFORWARD_TERMS.values() if (t := b(values)) is not None]
+    """The feedforward terms the values switch on, in registration order.
+
+    With the feedback's DOB on (``dob.*``, copied from the feedback section),
+    their sum enters outside the DOB (:class:`OutsideObserver`, 004 Fig. 5).
+    """
+    terms = [t for b in FEEDFORWARD_TERMS.values() if (t := b(values)) is not None]
+    if terms and values["dob.enabled"]:
+        outside: FeedforwardTerm = build(
+            "dob.",
+            OutsideObserver,
+            keys=PERIOD_KEYS,
+            terms=terms,
+            cutoff_hz=values["dob.cutoff_hz"],
+            period_s=values["control_period_s"],
+        )
+        return [outside]
+    return terms
 
 
 def learning_period_steps(values: Values) -> int | None:
@@ -963,8 +1081,12 @@ def check_consistency(role: str, values: Values) -> None:
         build_plant(values)
     elif role == "feedback":
         build_loop(values)
+        build_deformation(values)
     elif role == "feedforward":
         _friction_table_path(values)
+        _term_file(values, "gms")
+        if values["sigmoid.enabled"]:
+            _sigmoid_term(values)
         build_generator(values, terms=[])
     elif role == "learning":
         build_learning_law(values)
@@ -1004,13 +1126,31 @@ def node_values(scenario: dict[str, Any], role: str) -> dict[str, Any]:
             given = {**given, "learning.law": law}
     if role == "feedforward" and "identifier" in scenario:
         given = {**given, **adaptive_overrides(scenario)}
+    if role == "feedforward":
+        given = {**given, **plant_overrides(scenario, given)}
     return checked_values(role, given)
+
+
+def plant_overrides(scenario: dict[str, Any], given: Values) -> dict[str, Any]:
+    """What the feedforward copies from the other sections: one source for each value.
+
+    ``gms.plant``, the plant a GMS file must come from, when the GMS term is
+    on; ``dob.enabled`` and ``dob.cutoff_hz`` of the feedback, which the
+    compensation terms bypass (:func:`build_terms`).
+    """
+    feedback = node_params(scenario, "feedback")
+    out = {
+        key: feedback.get(key, schemas.FEEDBACK[key].default)
+        for key in ("dob.enabled", "dob.cutoff_hz")
+    }
+    if given.get("gms.enabled", False) and "gms.plant" not in given:
+        out["gms.plant"] = plant_fingerprint(scenario)
+    return out
 
 
 def feedforward_values(scenario: dict[str, Any], scenario_path: Path) -> dict[str, Any]:
     """Checked feedforward values, the friction-table path made absolute."""
     values = node_values(scenario, "feedforward")
-    values["friction_table.file"] = resolve_table(
-        values["friction_table.file"], Path(scenario_path).resolve().parent
-    )
+    for key in ("friction_table.file", "gms.file"):
+        values[key] = resolve_table(values[key], Path(scenario_path).resolve().parent)
     return values

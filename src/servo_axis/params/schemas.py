@@ -22,6 +22,11 @@ import math
 from collections.abc import Mapping
 
 from servo_axis.core.feedback.loop import SafetyLimits
+from servo_axis.core.feedforward.sigmoid import (
+    PAPER_PRESLIDING_M,
+    PAPER_SIGMA_M2_PER_RAD,
+    gamma_for_width,
+)
 from servo_axis.core.friction.model import FrictionParams
 from servo_axis.core.models.ball_screw import BallScrewParams, DisturbanceParams
 from servo_axis.core.models.elastic_ball_screw import ElasticBallScrewParams
@@ -42,6 +47,9 @@ _FRICTION = _dataclass_defaults(FrictionParams)
 _DISTURBANCE = _dataclass_defaults(DisturbanceParams)
 _LIMITS = _dataclass_defaults(SafetyLimits)
 _ELASTIC = _dataclass_defaults(ElasticBallScrewParams)
+_SIGMOID_GAMMA = gamma_for_width(
+    sigma_m2_per_rad=PAPER_SIGMA_M2_PER_RAD, half_width_m=PAPER_PRESLIDING_M / 2
+)
 
 #: Keys every node accepts (the ``/**`` block of a scenario file).
 SHARED: dict[str, Param] = {
@@ -603,9 +611,10 @@ FEEDBACK: dict[str, Param] = {
 REFERENCE: dict[str, Param] = {
     "reference.kind": Param(
         "sine",
-        choices=("sine", "one_minus_cos", "point_to_point", "trials"),
+        choices=("sine", "one_minus_cos", "point_to_point", "trials", "segments"),
         meaning="trajectory: offset + A sin(2 pi f t + phase); A (1 - cos 2 pi f t); "
-        "minimum-jerk moves back and forth; trials of out-and-back moves (001)",
+        "minimum-jerk moves back and forth; trials of out-and-back moves (001); "
+        "half-cosine moves one after the other (004 Fig. 11)",
     ),
     "reference.amplitude_m": Param(
         0.01,
@@ -678,6 +687,22 @@ REFERENCE: dict[str, Param] = {
         meaning="trials: the trial (1-based) from which each trajectory is run; 1 first, "
         "increasing (001 Fig. 9a: Ref. 1 for trials 1-5, Ref. 2 from trial 6)",
     ),
+    "reference.segment_distances_m": Param(
+        [0.05, -0.05],
+        unit="m",
+        meaning="segments: distance d_i of each half-cosine move, non-zero; opposite signs "
+        "meet at a reversal, equal signs at a stop without one",
+    ),
+    "reference.segment_durations_s": Param(
+        [0.5, 0.5],
+        unit="s",
+        above=0.0,
+        meaning="segments: duration T_i of each move (deceleration into its stop "
+        "|d_i| (pi / T_i)^2 / 2)",
+    ),
+    "reference.segment_delay_s": Param(
+        0.1, unit="s", minimum=0.0, meaning="segments: rest before the first move"
+    ),
 }
 
 FEEDFORWARD: dict[str, Param] = {
@@ -732,6 +757,63 @@ FEEDFORWARD: dict[str, Param] = {
         "gets to come back before a cycle waiting for its correction runs with the last one "
         "(a fallback); while it lives the cycle waits. Realtime: wall time the plant may stand "
         "still at the cycle boundary; keep below the feedback's input_timeout_s",
+    ),
+    "dob.enabled": Param(
+        False,
+        meaning="the feedback's DOB is on (the runner copies it from the feedback section): the "
+        "compensation terms then enter outside it, as 004 Fig. 5 adds F_c",
+    ),
+    "dob.cutoff_hz": Param(
+        80.0,
+        unit="Hz",
+        above=0.0,
+        meaning="the feedback's DOB cut-off (copied from the feedback section)",
+    ),
+    "gms.enabled": Param(
+        False,
+        meaning="GMS-model friction compensation (Al-Bender et al. 2005; the conventional "
+        "method of 004 Sect. II-C) on the reference's motion",
+    ),
+    "gms.file": Param(
+        "",
+        meaning="GMS parameter file (`servo_axis gms-fit` of a friction_id run); a relative "
+        "path is relative to the scenario file",
+    ),
+    "gms.plant": Param(
+        "",
+        meaning="the plant the file must have been identified on (`<model>:<hash>` of the "
+        "plant section); the runner sets it from the scenario; empty: not checked",
+    ),
+    "sigmoid.enabled": Param(
+        False,
+        meaning="sigmoid friction compensation of 004 eq. (9) with d_r^ = sigma / z of eq. (8), "
+        "z the distance to the nearest reversal of the reference (before and after it)",
+    ),
+    "sigmoid.sigma_m2_per_rad": Param(
+        PAPER_SIGMA_M2_PER_RAD,
+        unit="m^2/rad",
+        above=0.0,
+        meaning="sigma of 004 eq. (8) (0.04 with z in mm and d_r in mm/rad)",
+    ),
+    "sigmoid.gamma_m_per_rad": Param(
+        _SIGMOID_GAMMA,
+        unit="m/rad",
+        above=0.0,
+        meaning="gamma of 004 eq. (9); the default makes |F_c| reach 0.9 F_0 at z = x_s / 2 "
+        "= 7.5 um (gamma = 0.9 sigma / (x_s / 2 sqrt(1 - 0.81)))",
+    ),
+    "sigmoid.coulomb_Nm": Param(
+        0.43,
+        unit="N m",
+        above=0.0,
+        meaning="F_0 of 004 eq. (9): the Coulomb level of the friction at the motor "
+        "(the sliding level of the friction_id run)",
+    ),
+    "sigmoid.search_horizon_s": Param(
+        1.0,
+        unit="s",
+        above=0.0,
+        meaning="how far ahead the next reversal of the reference is looked for",
     ),
     "mnc.enabled": Param(
         False,

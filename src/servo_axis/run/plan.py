@@ -14,7 +14,13 @@ from pathlib import Path
 from typing import Any
 
 from servo_axis.params import schemas
-from servo_axis.params.factories import adaptive_overrides, checked_values, learning_law
+from servo_axis.params.factories import (
+    NODE_SCHEMAS,
+    adaptive_overrides,
+    checked_values,
+    learning_law,
+    plant_overrides,
+)
 from servo_axis.params.scenario import (
     ROLES,
     SHARED_SECTION,
@@ -24,7 +30,7 @@ from servo_axis.params.scenario import (
     resolve_table,
     shared,
 )
-from servo_axis.wire.topics import recorded_topics, subscriber_count, topic
+from servo_axis.wire.topics import TOPICS, recorded_topics, subscriber_count, topic
 
 
 def sim_time_roles() -> tuple[str, ...]:
@@ -49,8 +55,24 @@ def recorder_topics(scenario: dict[str, Any], roles: list[str]) -> tuple[list[st
     if "topics" in rec:
         return list(rec["topics"]), list(rec.get("types", []))
     outputs = set(law_outputs(scenario)) if "learning" in roles else set()
-    default = [t for t in recorded_topics(roles) if t.producer != "learning" or t.name in outputs]
+    default = [
+        t
+        for t in recorded_topics(roles, switched_on(scenario))
+        if t.producer != "learning" or t.name in outputs
+    ]
     return [t.name for t in default], [t.type_name for t in default]
+
+
+def switched_on(scenario: dict[str, Any]) -> list[str]:
+    """The topics with an ``enabled_by`` switch that the scenario turns on."""
+    return [
+        t.name
+        for t in TOPICS
+        if t.enabled_by
+        and node_params(scenario, t.producer).get(
+            t.enabled_by, NODE_SCHEMAS[t.producer][t.enabled_by].default
+        )
+    ]
 
 
 def law_outputs(scenario: dict[str, Any]) -> tuple[str, ...]:
@@ -106,7 +128,11 @@ def handshake_overrides(
         recorded, types = recorder_topics(scenario, roles)
         rec: dict[str, Any] = {}
         if "topics" not in node_params(scenario, "recorder"):
-            rec.update(topics=recorded, types=types)
+            rec.update(
+                topics=recorded,
+                types=types,
+                counted_topics=[name for name in recorded if topic(name).counted],
+            )
         rec["output_dir"] = str(bag_dir)
         out["recorder"] = rec
         out["plant"]["flow_control"] = True
@@ -139,9 +165,11 @@ def handshake_overrides(
         ff: dict[str, Any] = {
             "wait_for_reference_subscribers": subscriber_count("reference", roles, recorded)
         }
-        table = node_params(scenario, "feedforward").get("friction_table.file", "")
-        if table:
-            ff["friction_table.file"] = resolve_table(table, scenario_dir)
+        given = node_params(scenario, "feedforward")
+        for key in ("friction_table.file", "gms.file"):
+            if given.get(key, ""):
+                ff[key] = resolve_table(given[key], scenario_dir)
+        ff.update(plant_overrides(scenario, given))
         law = node_params(scenario, "learning").get("law")
         if "learning" in roles and law is not None:
             ff["learning.law"] = law  # one source: the learning section

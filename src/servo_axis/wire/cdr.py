@@ -509,6 +509,16 @@ def motor_names(axis: str) -> list[str]:
     return [f"{axis}_motor"]
 
 
+def deformation_names(axis: str) -> list[str]:
+    """Joint names of the ``deformation`` topic (its ``position`` carries the values)."""
+    return [
+        f"{axis}_deformation_ratio",
+        f"{axis}_scale_increment",
+        f"{axis}_encoder_increment",
+        f"{axis}_deformation_valid",
+    ]
+
+
 def check_finite(name: str, values: Sequence[float]) -> Sequence[float]:
     """``values`` if every one is finite, else :class:`SignalError` naming ``name[i]``.
 

@@ -43,6 +43,7 @@ from servo_axis.wire.cdr import (
     check_labelled_values,
     step_of_stamp_ns,
 )
+from servo_axis.wire.cdr import deformation_names as deformation_names
 from servo_axis.wire.cdr import motor_names as motor_names
 from servo_axis.wire.cdr import state_names as state_names
 
@@ -197,6 +198,59 @@ def command_from_msg(msg: JointState, *, axis: str, period_ns_: int) -> CommandS
     """Decode and validate a ``command`` message."""
     step = _check_joint_state(msg, motor_names(axis), ("effort",), period_ns_)
     return CommandSample(step=step, current_A=msg.effort[0])
+
+
+@dataclass(frozen=True)
+class DeformationSample:
+    """The deformation ratio at control sample ``step`` (topic ``deformation``, 004 eqs. (5)-(7)).
+
+    JointState names :func:`deformation_names`, all in ``position``: ``d_r``
+    (m/rad; 0 where not defined), the scale's increment ``x_t[k] - x_t[k-p]``
+    (m), the encoder's ``th_m[k] - th_m[k-p]`` (rad) and ``valid`` (1.0 where
+    ``d_r`` is defined, else 0.0).
+    """
+
+    step: int
+    d_r_m_per_rad: float
+    scale_increment_m: float
+    encoder_increment_rad: float
+    valid: bool
+
+
+def deformation_to_msg(sample: DeformationSample, *, axis: str, period_ns_: int) -> JointState:
+    """Encode a :class:`DeformationSample`."""
+    template = joint_state_template(deformation_names(axis), ("position",))
+    return write_deformation(template, sample, period_ns_=period_ns_)
+
+
+def write_deformation(msg: JointState, sample: DeformationSample, *, period_ns_: int) -> JointState:
+    """Fill a template from :func:`deformation_to_msg` with ``sample`` (publisher reuse)."""
+    return _fill(
+        msg,
+        sample.step,
+        period_ns_,
+        position=(
+            sample.d_r_m_per_rad,
+            sample.scale_increment_m,
+            sample.encoder_increment_rad,
+            1.0 if sample.valid else 0.0,
+        ),
+    )
+
+
+def deformation_from_msg(msg: JointState, *, axis: str, period_ns_: int) -> DeformationSample:
+    """Decode and validate a ``deformation`` message."""
+    step = _check_joint_state(msg, deformation_names(axis), ("position",), period_ns_)
+    valid = msg.position[3]
+    if valid not in (0.0, 1.0):
+        raise SignalError(f"position[3] (valid): expected 0.0 or 1.0, got {valid!r}")
+    return DeformationSample(
+        step=step,
+        d_r_m_per_rad=msg.position[0],
+        scale_increment_m=msg.position[1],
+        encoder_increment_rad=msg.position[2],
+        valid=valid == 1.0,
+    )
 
 
 @dataclass(frozen=True)

@@ -111,6 +111,7 @@ JOINT_STREAMS: dict[str, tuple[Callable[[str], list[str]], tuple[str, ...]]] = {
     "reference": (cdr.motor_names, ("position", "velocity", "effort")),
     "learning/correction": (cdr.motor_names, ("position", "velocity")),
     "learning/input_correction": (cdr.motor_names, ("effort",)),
+    "deformation": (cdr.deformation_names, ("position",)),
 }
 
 

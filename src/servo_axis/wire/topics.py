@@ -46,6 +46,9 @@ class Topic:
         smallest count of these.
     meaning : str
         One line for the README's table.
+    enabled_by : str
+        The producer's bool parameter that switches the topic on ("" when
+        it always runs): a switched-off topic is neither recorded nor counted.
     """
 
     name: str
@@ -56,6 +59,7 @@ class Topic:
     recorded: bool
     counted: bool
     meaning: str
+    enabled_by: str = ""
 
 
 TOPICS: tuple[Topic, ...] = (
@@ -84,6 +88,9 @@ TOPICS: tuple[Topic, ...] = (
           "the data-based friction table a law built, per trial"),
     Topic("identifier/estimates", FLOAT64_MULTI_ARRAY, "stream", "identifier", ("feedforward",),
           True, False, "online estimates J, D, U, C, the PE index and the updates, per RLS period"),
+    Topic("deformation", JOINT_STATE, "stream", "feedback", (), True, True,
+          "deformation ratio d_r of 004 eqs. (5)-(7) and its increments, every sample",
+          enabled_by="deformation.enabled"),
     Topic("recorder/progress", FLOAT64_MULTI_ARRAY, "latched", "recorder", ("plant",), False, False,
           "steps fully recorded (flow control)"),
 )  # fmt: skip
@@ -99,10 +106,19 @@ def topic(name: str) -> Topic:
         raise KeyError(f"topic {name!r} is not in the topic table") from None
 
 
-def recorded_topics(roles: Iterable[str]) -> list[Topic]:
-    """The topics recorded by default in a run of ``roles``, in table order."""
+def recorded_topics(roles: Iterable[str], enabled: Iterable[str] = ()) -> list[Topic]:
+    """The topics recorded by default in a run of ``roles``, in table order.
+
+    A topic with an ``enabled_by`` switch is among them only when its name is
+    in ``enabled`` (the switch is on in its producer's section).
+    """
     present = set(roles)
-    return [t for t in TOPICS if t.recorded and t.producer in present]
+    on = set(enabled)
+    return [
+        t
+        for t in TOPICS
+        if t.recorded and t.producer in present and (not t.enabled_by or t.name in on)
+    ]
 
 
 def subscriber_count(name: str, roles: Iterable[str], recorded: Iterable[str] = ()) -> int:

@@ -82,8 +82,10 @@ def test_steady_deflection_under_the_guide_viscosity() -> None:
     for _ in range(4000):  # 2 s, 50 time constants J_n / B_n
         plant.step(current)
     r = p.lead_m_per_rad
-    w = p.torque_constant_Nm_per_A * current / (
-        p.motor_damping_Nms_per_rad + p.table_damping_Ns_per_m * r * r
+    w = (
+        p.torque_constant_Nm_per_A
+        * current
+        / (p.motor_damping_Nms_per_rad + p.table_damping_Ns_per_m * r * r)
     )
     force = p.table_damping_Ns_per_m * r * w
     expected = brentq(lambda d: spring_law(d, p) - force, -1e-3, 1e-3, xtol=1e-18)

@@ -17,6 +17,7 @@ from servo_axis.params.schema import Param
 from servo_axis.params.schemas import (
     BALL_SCREW,
     DLPID_FRICTION,
+    ELASTIC_BALL_SCREW,
     FEEDBACK,
     FEEDFORWARD,
     IDENTIFIER,
@@ -123,6 +124,7 @@ def test_sections_cover_every_schema() -> None:
         PLANT,
         BALL_SCREW,
         TILTING_TABLE,
+        ELASTIC_BALL_SCREW,
         FEEDBACK,
         FEEDFORWARD,
         LEARNING,
@@ -135,6 +137,7 @@ def test_sections_cover_every_schema() -> None:
     assert list(SECTIONS.values()) == expected
     assert not set(IDENTIFIER) & set(DLPID_FRICTION)
     assert not set(PLANT) & set(BALL_SCREW) and not set(PLANT) & set(TILTING_TABLE)
+    assert not set(PLANT) & set(ELASTIC_BALL_SCREW)
     assert not set(LEARNING) & (set(ILC) | set(PILC)) and not set(ILC) & set(PILC)
     assert not set(SHARED) & {k for s in NODE_SCHEMAS.values() if s is not SHARED for k in s}
 

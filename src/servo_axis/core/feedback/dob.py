@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from servo_axis.core.errors import ConfigError, require_nonnegative, require_positive
-from servo_axis.core.feedback.discrete import tustin
+from servo_axis.core.feedback.discrete import DiscreteFilter, tustin
 
 
 class DisturbanceObserver:
@@ -48,7 +48,7 @@ class DisturbanceObserver:
         if cutoff_hz >= 0.5 / period_s:
             raise ConfigError(f"cutoff_hz: expected below the Nyquist frequency, got {cutoff_hz!r}")
         self._inverse = tustin(np.array([wq * j / kt, wq * d / kt]), np.array([1.0, wq]), period_s)
-        self._lpf = tustin(np.array([wq]), np.array([1.0, wq]), period_s)
+        self._lpf = observer_lowpass(cutoff_hz, period_s)
         self._last_angle: float | None = None
 
     def reset(self) -> None:
@@ -63,3 +63,47 @@ class DisturbanceObserver:
         self._last_angle = angle_rad
         velocity = (angle_rad - last) / self.period_s
         return self._inverse.update(velocity) - self._lpf.update(previous_current_A)
+
+
+def observer_lowpass(cutoff_hz: float, period_s: float) -> DiscreteFilter:
+    """The observer's ``Q(s) = w_q / (s + w_q)``, Tustin-discretised: one definition."""
+    wq = 2.0 * math.pi * require_positive("cutoff_hz", cutoff_hz)
+    return tustin(np.array([wq]), np.array([1.0, wq]), require_positive("period_s", period_s))
+
+
+class ObserverBypass:
+    """What a current added outside the observer's view must be when the loop adds it inside.
+
+    Paper 004 Fig. 5 adds the friction compensation ``F_c`` after the point
+    where the DOB reads the current: the DOB then sees ``F_c`` as part of the
+    disturbance and leaves it alone above its bandwidth. The loop's DOB reads
+    the whole current ``u[k-1]`` (which must include the PTC feedforward, the
+    nominal input); a current ``c`` added there would be cancelled twice below
+    the cut-off. Adding instead ``c'[k] = c[k] - Q(c)[k-1]`` (``Q`` the DOB's
+    own discrete low-pass, fed one sample late as the DOB feeds ``u``) gives
+    the same current command sample for sample as adding ``c`` outside the
+    DOB: the DOB's estimate differs by exactly ``Q(c)[k-1]``, which ``c'``
+    returns (linearity of ``Q``).
+
+    Parameters
+    ----------
+    cutoff_hz, period_s : float
+        The DOB's cut-off (Hz, > 0) and control period (s, > 0).
+    """
+
+    def __init__(self, *, cutoff_hz: float, period_s: float) -> None:
+        if cutoff_hz >= 0.5 / require_positive("period_s", period_s):
+            raise ConfigError(f"cutoff_hz: expected below the Nyquist frequency, got {cutoff_hz!r}")
+        self._lpf = observer_lowpass(cutoff_hz, period_s)
+        self._filtered_previous = 0.0
+
+    def reset(self) -> None:
+        """Zero the filter state."""
+        self._lpf.reset()
+        self._filtered_previous = 0.0
+
+    def update(self, current_A: float) -> float:
+        """``c'[k]`` for ``c[k] = current_A`` (A); call once per sample, in order."""
+        out = current_A - self._filtered_previous
+        self._filtered_previous = self._lpf.update(current_A)
+        return out

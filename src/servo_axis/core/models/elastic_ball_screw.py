@@ -167,9 +167,9 @@ class ElasticBallScrewParams:
     contact_zone_m: float = 1.0e-6
     contact_stiffness_ratio: float = 0.1
     nut_friction_Nm: float = 0.2
-    nut_presliding_m: float = 15e-6
+    nut_presliding_m: float = 7.5e-6
     guide_friction_N: float = 120.0
-    guide_presliding_m: float = 15e-6
+    guide_presliding_m: float = 7.5e-6
     friction_elements: int = 8
     current_bandwidth_hz: float = 1000.0
     control_period_s: float = 0.5e-3
