@@ -123,7 +123,12 @@ def _summary(args: argparse.Namespace) -> int:
 def _compare(args: argparse.Namespace) -> int:
     from servo_axis.analysis.plots import plot_cycles, plot_error_overlay, plot_rmsd_bars
     from servo_axis.analysis.summary import AxesSummary, RunSummary, load_summary
-    from servo_axis.analysis.text import compare_table, rmsd_applies, rmsd_table
+    from servo_axis.analysis.text import (
+        compare_table,
+        max_error_table,
+        rmsd_applies,
+        rmsd_table,
+    )
 
     loaded = [load_summary(Path(d)) for d in args.run_dirs]
     summaries: list[RunSummary] = []
@@ -147,6 +152,9 @@ def _compare(args: argparse.Namespace) -> int:
         print(f"error: {err}", file=sys.stderr)
         return 2
     print(rmsd if by_rmsd else compare_table(summaries, labels))
+    if not by_rmsd:
+        print()
+        print(max_error_table(summaries, labels))
     if args.bar_chart:
         plot_rmsd_bars(summaries, labels, Path(args.bar_chart), title="RMSD of tracking error")
         print(f"figure written to {args.bar_chart}")

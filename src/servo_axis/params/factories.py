@@ -105,7 +105,7 @@ REFERENCE_KEYS = {
         "first_trials",
         "offset_m",
     ),
-    "segments": ("distances_m", "durations_s", "delay_s", "offset_m"),
+    "segments": ("segment_distances_m", "segment_durations_s", "segment_delay_s", "offset_m"),
 }
 
 
@@ -117,14 +117,8 @@ def build_reference(values: Values) -> Reference:
         raise ParameterFileError(
             f"parameter 'reference.kind': expected one of {sorted(REFERENCE_KEYS)}, got {kind!r}"
         )
-    keys = {k: ref[k] for k in REFERENCE_KEYS[kind]}
-    if kind == "segments":
-        keys = {
-            "distances_m": ref["segment_distances_m"],
-            "durations_s": ref["segment_durations_s"],
-            "delay_s": ref["segment_delay_s"],
-            "offset_m": ref["offset_m"],
-        }
+    # The segments' keys carry a prefix of their own; the reference's fields do not.
+    keys = {k.removeprefix("segment_"): ref[k] for k in REFERENCE_KEYS[kind]}
     return build(
         "reference.",
         make_reference,

@@ -56,6 +56,16 @@ def test_period_ns_requires_whole_nanoseconds() -> None:
             msgs.input_correction_to_msg,
             msgs.input_correction_from_msg,
         ),
+        (
+            msgs.DeformationSample(812, 3.7e-5, 2.1e-6, 1.1e-3, True),
+            msgs.deformation_to_msg,
+            msgs.deformation_from_msg,
+        ),
+        (
+            msgs.DeformationSample(9, 0.0, 1e-7, 2e-5, False),
+            msgs.deformation_to_msg,
+            msgs.deformation_from_msg,
+        ),
     ],
 )
 def test_round_trip_through_cdr(sample: object, encode: object, decode: object) -> None:
@@ -162,3 +172,22 @@ def test_friction_table_round_trip_and_checks() -> None:
     zero_trial = msgs.friction_table_to_msg(0, x_r, torque)
     with pytest.raises(SignalError, match="trial"):
         msgs.friction_table_from_msg(zero_trial)
+
+
+def test_deformation_rejects_a_valid_flag_that_is_not_0_or_1_and_nan() -> None:
+    msg = msgs.deformation_to_msg(
+        msgs.DeformationSample(5, 1e-5, 1e-6, 1e-3, True), axis="x", period_ns_=PERIOD_NS
+    )
+    msg.position[3] = 0.5
+    with pytest.raises(SignalError, match=r"position\[3\] \(valid\)"):
+        msgs.deformation_from_msg(msg, axis="x", period_ns_=PERIOD_NS)
+    msg.position[3] = 1.0
+    msg.position[0] = float("nan")
+    with pytest.raises(SignalError):
+        msgs.deformation_from_msg(msg, axis="x", period_ns_=PERIOD_NS)
+    short = msgs.deformation_to_msg(
+        msgs.DeformationSample(5, 1e-5, 1e-6, 1e-3, True), axis="x", period_ns_=PERIOD_NS
+    )
+    short.name = short.name[:3]
+    with pytest.raises(SignalError):
+        msgs.deformation_from_msg(short, axis="x", period_ns_=PERIOD_NS)
