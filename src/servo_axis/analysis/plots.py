@@ -11,7 +11,12 @@
   against the true values (003 Fig. 7) and its PE index (003 Fig. 6), part
   of :func:`plot` for a run with an identifier;
 * :func:`plot_rmsd_bars`: the RMSD of several runs as bars with their
-  reduction against the baseline (003 Fig. 9).
+  reduction against the baseline (003 Fig. 9);
+* :func:`plot_deformation`: the table position and the deformation ratio
+  ``d_r`` before each stop of the reference, a column per stop (004 Fig. 11),
+  part of :func:`plot` for a run with the ``deformation`` topic;
+* :func:`plot_reversal_detail`: position, ``d_r``, control input and
+  tracking error around one stop (004 Fig. 12).
 
 Errors are in um, or urad (and positions in mrad) for a rotary table.
 """
@@ -27,7 +32,9 @@ import numpy as np
 from servo_axis.analysis.summary import (
     SUMMARY_FILE,
     AxesSummary,
+    Deformation,
     Identification,
+    RunSeries,
     RunSummary,
     contour,
     cycle_errors,
@@ -49,6 +56,13 @@ IDENTIFICATION_FIGURES: tuple[str, str] = (
     "identification_parameters.png",
     "identification_pe_index.png",
 )
+
+
+#: The figure :func:`plot_deformation` writes into a run directory.
+DEFORMATION_FIGURE = "deformation.png"
+
+#: Stops :func:`plot_deformation` shows at most (the first ones), a column each.
+DEFORMATION_COLUMNS = 6
 
 
 def _pyplot() -> Any:
@@ -127,8 +141,9 @@ def plot_error_overlay(
 
 def plot(run_dir: Path) -> list[Path]:
     """Write ``reference_position.png``, ``error.png``, for a periodic
-    reference ``cycle_errors.png`` and, for a run with an identifier, the
-    :data:`IDENTIFICATION_FIGURES` into the run directory."""
+    reference ``cycle_errors.png``, for a run with an identifier the
+    :data:`IDENTIFICATION_FIGURES` and, for a run with the ``deformation``
+    topic, :data:`DEFORMATION_FIGURE` into the run directory."""
     plt = _pyplot()
     run_dir = Path(run_dir)
     series = run_series(run_dir)
@@ -185,7 +200,169 @@ def plot(run_dir: Path) -> list[Path]:
             control_period_s=summary.control_period_s,
             title=summary.scenario,
         )
+    if summary.deformation is not None and sig.deformation is not None:
+        paths.append(plot_deformation(series, summary.deformation, run_dir / DEFORMATION_FIGURE))
     return paths
+
+
+def _stop_kind(kind: str) -> str:
+    return kind.replace("_", "-")
+
+
+def _valid_d_r(series: RunSeries) -> Any:
+    """``d_r`` per recorded step, NaN where not valid (a line breaks there)."""
+    trace = series.signals.deformation
+    if trace is None:
+        raise ConfigError("run: its bag has no deformation topic")
+    return np.where(trace.valid, trace.d_r_m_per_rad, np.nan)
+
+
+def plot_deformation(
+    series: RunSeries,
+    deformation: Deformation,
+    path: Path,
+    *,
+    before_s: float = 0.1,
+    after_s: float = 0.05,
+) -> Path:
+    """The table position and ``d_r`` before each stop of the reference (004 Fig. 11).
+
+    One column per stop (the first :data:`DEFORMATION_COLUMNS`), over
+    ``[t_stop - before_s, t_stop + after_s]``: above, the scale ``x_t``
+    (mm, dashed) relative to its value at the stop; below, ``d_r`` (mm/rad,
+    solid) at its valid samples only, with the windows of the summary
+    shaded. Each column is titled with the kind of stop and the reference's
+    deceleration into it (m/s^2).
+
+    Parameters
+    ----------
+    series : RunSeries
+        The run (:func:`~servo_axis.analysis.summary.run_series`), with its
+        ``deformation`` signals.
+    deformation : Deformation
+        Its summary block (the stops).
+    path : Path
+        The PNG to write.
+    before_s, after_s : float
+        The span shown around each stop, s.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    plt = _pyplot()
+    t = series.time_s
+    scale_mm = 1e3 * series.signals.scale_m
+    d_r = 1e3 * _valid_d_r(series)
+    stops = deformation.stops[:DEFORMATION_COLUMNS]
+    columns = max(1, len(stops))
+    fig, axes = plt.subplots(
+        2, columns, figsize=(2.6 * columns + 1.0, 5), sharex="col", squeeze=False
+    )
+    for col, stop in enumerate(stops):
+        top, bottom = axes[0, col], axes[1, col]
+        inside = (t >= stop.time_s - before_s) & (t <= stop.time_s + after_s)
+        rel_ms = 1e3 * (t[inside] - stop.time_s)
+        # Relative to the stop: the columns' moves are of different sizes.
+        x_stop = float(np.interp(stop.time_s, t, scale_mm)) if t.size else 0.0
+        top.plot(rel_ms, scale_mm[inside] - x_stop, "--", lw=0.9)
+        bottom.plot(rel_ms, d_r[inside], "-", lw=0.9)
+        for w in stop.windows:
+            bottom.axvspan(1e3 * w.start_s, 1e3 * w.end_s, color="0.85", lw=0)
+        for ax in (top, bottom):
+            ax.axvline(0.0, color="k", lw=0.5)
+            ax.grid(True, lw=0.3)
+        top.set_title(
+            f"{_stop_kind(stop.kind)} at {stop.time_s:.3g} s\n{stop.deceleration_m_s2:.3g} m/s^2",
+            fontsize="small",
+        )
+        bottom.set_xlabel("t - t_stop (ms)")
+    if not stops:
+        axes[0, 0].set_title("no stop of the reference", fontsize="small")
+    axes[0, 0].set_ylabel("x_t - x_t(stop) (mm)")
+    axes[1, 0].set_ylabel("d_r (mm/rad)")
+    more = len(deformation.stops) - len(stops)
+    shown = f" (first {len(stops)} of {len(deformation.stops)} stops)" if more > 0 else ""
+    fig.suptitle(
+        f"{series.summary.scenario}: deformation ratio d_r before the stops (p = "
+        f"{deformation.window_samples}){shown}",
+        fontsize="medium",
+    )
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
+
+
+def plot_reversal_detail(
+    run_dir: Path, t_stop: float, path: Path, *, before_s: float = 0.15, after_s: float = 0.1
+) -> Path:
+    """Position, ``d_r``, control input and tracking error around one stop (004 Fig. 12).
+
+    A 2 x 2 figure over ``[t_stop - before_s, t_stop + after_s]``: the
+    reference ``R r`` and the scale ``x_t`` (mm); ``d_r`` at its valid
+    samples (mm/rad); the current reference ``u`` of the feedback and the
+    feedforward current ``u_ff`` (A); the tracking error ``R (r - y)`` (um).
+    A dotted line marks ``t_stop``.
+
+    Parameters
+    ----------
+    run_dir : Path
+        A single-axis run directory whose bag has the ``deformation`` topic.
+    t_stop : float
+        The stop, s (e.g. a ``time_s`` of the summary's ``deformation.stops``).
+    path : Path
+        The PNG to write.
+    before_s, after_s : float
+        The span shown, s.
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    ConfigError
+        When the bag has no ``deformation`` topic, or no recorded sample lies
+        in the span.
+    """
+    series = run_series(Path(run_dir))
+    d_r = 1e3 * _valid_d_r(series)
+    t = series.time_s
+    inside = (t >= t_stop - before_s) & (t <= t_stop + after_s)
+    if not np.any(inside):
+        raise ConfigError(
+            f"t_stop: no recorded sample within {t_stop!r} s - {before_s} s + {after_s} s"
+        )
+    sig, lead = series.signals, series.lead_m_per_rad
+    ts = t[inside]
+    plt = _pyplot()
+    fig, axes = plt.subplots(2, 2, figsize=(10, 6), sharex=True)
+    (pos, current), (ratio, error) = axes
+    pos.plot(ts, 1e3 * lead * sig.reference_rad[inside], "-", lw=0.9, label="reference R r")
+    pos.plot(ts, 1e3 * sig.scale_m[inside], "--", lw=0.9, label="scale x_t")
+    pos.set_ylabel("position (mm)")
+    pos.legend(fontsize="small")
+    ratio.plot(ts, d_r[inside], "-", lw=0.9)
+    ratio.set_ylabel("d_r (mm/rad)")
+    current.plot(ts, sig.command_A[inside], "-", lw=0.9, label="u (command)")
+    current.plot(ts, sig.feedforward_A[inside], ":", lw=0.9, label="u_ff (feedforward)")
+    current.set_ylabel("control input (A)")
+    current.legend(fontsize="small")
+    error.plot(ts, 1e6 * series.error_m[inside], "-", lw=0.9)
+    error.set_ylabel(f"tracking error ({micro(series.summary.unit)})")
+    for ax in axes.flat:
+        ax.axvline(t_stop, color="k", ls=":", lw=0.8)
+        ax.grid(True, lw=0.3)
+    for ax in axes[1]:
+        ax.set_xlabel("time (s)")
+    fig.suptitle(f"{series.summary.scenario}: around the stop at {t_stop:.4g} s", fontsize="medium")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
 
 
 def plot_identification(

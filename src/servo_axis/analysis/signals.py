@@ -22,6 +22,11 @@ changes no figure. The rules per topic (:class:`StreamRules`):
 * ``reference`` (JointState ``[<axis>_motor]``: ``position[0]`` = feedback
   reference (rad), ``velocity``, ``effort[0]`` = feedforward current (A)): steps 0, 1, ...
 * ``command`` (JointState ``[<axis>_motor]``, ``effort[0]`` = current (A)): steps 0, 1, ...
+* ``deformation`` (JointState :func:`~servo_axis.wire.cdr.deformation_names`,
+  ``position`` = [``d_r`` (m/rad), scale increment (m), encoder increment
+  (rad), valid (1.0 or 0.0, as the nodes' decoder requires)]): steps 0, 1,
+  ... like ``state``; none in a run whose feedback has ``deformation.enabled``
+  false.
 * ``learning/correction`` (JointState ``[<axis>_motor]``, ``position``,
   ``velocity``): the reference instants from the second cycle on, one after
   the other; none in a run without learning.
@@ -64,6 +69,7 @@ import yaml
 from numpy.typing import NDArray
 
 from servo_axis.analysis.metrics import to_plain
+from servo_axis.core.deformation import DeformationTrace
 from servo_axis.core.errors import ServoAxisError, SignalError
 from servo_axis.core.feedback.loop import Fault
 from servo_axis.core.feedback.output import controlled_output
@@ -158,6 +164,13 @@ class Signals:
     repeated : dict
         Per topic, recorded messages that repeat one already kept (the same
         step and values: a restarted identifier's), neither kept nor dropped.
+    deformation : DeformationTrace or None
+        The ``deformation`` topic (004 eqs. (6)-(7)) at each of :attr:`step`:
+        ``d_r`` (m/rad), the scale's and the encoder's increments over ``p``
+        samples (m, rad) and ``valid``, as the feedback published them. At a
+        step without a validated message ``d_r`` is 0.0, the increments are
+        NaN and ``valid`` is False. None when the bag has no ``deformation``
+        topic.
     """
 
     step: NDArray[np.int_]
@@ -171,6 +184,7 @@ class Signals:
     dropped: dict[str, int] = field(default_factory=dict)
     estimates: tuple[cdr.EstimateData, ...] = ()
     repeated: dict[str, int] = field(default_factory=dict)
+    deformation: DeformationTrace | None = None
 
 
 @dataclass(frozen=True)
@@ -201,6 +215,9 @@ class StreamRules:
         The identifier's schedule (``rls_period_s``, ``latency_s`` in control
         samples): a valid estimate has ``step = (n + 1) R - 1`` and applies
         from ``step + 1 + latency``, the feedforward's own rule.
+    deformation : bool
+        Whether the feedback publishes the deformation ratio
+        (``deformation.enabled``): else no ``deformation`` message is valid.
     """
 
     period_ns: int
@@ -214,6 +231,7 @@ class StreamRules:
     identifier: bool = False
     estimate_period_steps: int = 1
     estimate_latency_steps: int = 0
+    deformation: bool = False
 
     @property
     def window(self) -> int:
@@ -257,6 +275,7 @@ class StreamRules:
             identifier=IDENTIFIER_SECTION in scenario,
             estimate_period_steps=period,
             estimate_latency_steps=latency,
+            deformation=bool(node_values(scenario, "feedback")["deformation.enabled"]),
         )
 
     @classmethod
@@ -392,6 +411,21 @@ def _joint_stream(rules: StreamRules, name: str) -> _Check:
     return check
 
 
+def _deformation_stream(rules: StreamRules) -> _Check:
+    joint = _joint_stream(rules, "deformation")
+
+    def check(data: bytes) -> tuple[int, Any, None]:
+        step, msg, _ = joint(data)
+        # The subscribers' own check (wire.messages.deformation_from_msg): a
+        # flag that is neither 0 nor 1 is no sample of the feedback's.
+        valid = msg.position[3]
+        if valid not in (0.0, 1.0):
+            raise SignalError(f"position[3] (valid): expected 0.0 or 1.0, got {valid!r}")
+        return step, msg, None
+
+    return check
+
+
 def _never(reason: str) -> _Check:
     def check(data: bytes) -> tuple[int, Any, None]:
         raise SignalError(reason)
@@ -510,6 +544,12 @@ def stream_for(name: str, rules: StreamRules) -> _Stream | None:
     w, limit = rules.window, rules.steps
     if name in ("state", "command", "reference"):
         return _Stream(_joint_stream(rules, name), StreamGate(window=w, first=0, limit=limit))
+    if name == "deformation":
+        if not rules.deformation:
+            return _Stream(_never("no deformation ratio in this run"), None)
+        # One per step from step 0, like state: the feedback publishes it with
+        # each state it answers.
+        return _Stream(_deformation_stream(rules), StreamGate(window=w, first=0, limit=limit))
     if name == "learning/correction":
         if rules.cycle_steps is None:
             return _Stream(_never("no learning in this run"), None)
@@ -614,7 +654,7 @@ def read_streams(bag_dir: Path, rules: StreamRules) -> BagStreams:
 def load_signals(
     bag_dir: Path, period_s: float, *, scenario: dict[str, Any] | None = None
 ) -> Signals:
-    """Arrays per step from a bag's validated samples: state, reference and command, plus faults and counts.
+    """Arrays per step from a bag's validated samples (state, reference, command, deformation), faults, counts.
 
     Parameters
     ----------
@@ -631,8 +671,9 @@ def load_signals(
     -------
     Signals
         The steps common to ``state`` and ``reference``, sorted, with the
-        signals at those steps; the identifier's estimates in order of step;
-        what was dropped (and repeated) per topic.
+        signals at those steps (the deformation ratio too, when the bag has
+        its topic); the identifier's estimates in order of step; what was
+        dropped (and repeated) per topic.
     """
     rules = StreamRules.for_bag(Path(bag_dir), period_s, scenario)
     streams = read_streams(Path(bag_dir), rules)
@@ -647,6 +688,9 @@ def load_signals(
         )
     steps = sorted(set(state) & set(ref))
     estimates = sorted((k.msg for k in streams.by_table_name("identifier/estimates")), key=_step)
+    deformation = None
+    if any(table_name(topic) == "deformation" for topic in streams.counts):
+        deformation = _deformation_trace(streams.by_table_name("deformation"), steps)
     return Signals(
         step=np.array(steps, dtype=int),
         encoder_rad=np.array([state[s][0] for s in steps]),
@@ -659,6 +703,20 @@ def load_signals(
         dropped=streams.dropped,
         estimates=tuple(estimates),
         repeated=streams.repeated,
+        deformation=deformation,
+    )
+
+
+def _deformation_trace(kept: list[Kept], steps: list[int]) -> DeformationTrace:
+    """The kept ``deformation`` samples at ``steps`` (missing ones: 0.0, NaN, NaN, invalid)."""
+    by_step = {k.step: k.msg.position for k in kept}
+    missing = (0.0, math.nan, math.nan, 0.0)
+    rows = np.array([by_step.get(s, missing)[:4] for s in steps], dtype=float).reshape(-1, 4)
+    return DeformationTrace(
+        d_r_m_per_rad=rows[:, 0].copy(),
+        scale_increment_m=rows[:, 1].copy(),
+        encoder_increment_rad=rows[:, 2].copy(),
+        valid=rows[:, 3] == 1.0,
     )
 
 

@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from servo_axis.analysis.health import RunHealth
 from servo_axis.analysis.summary import (
     AxesSummary,
+    Deformation,
     ErrorStats,
     Identification,
     RunSummary,
@@ -76,6 +77,38 @@ def identification_lines(ident: Identification) -> list[str]:
         lines.append(
             f"  {label:<15}{_g(final):>13}{_g(true):>13}{_g(ratio, '.5g'):>12}"
             f"{_g(p2p, '.4g'):>20}{updates:>9}"
+        )
+    return lines
+
+
+def deformation_lines(deformation: Deformation) -> list[str]:
+    """The deformation ratio of a run (004 Sect. III-C): settings, counts, then a row per stop.
+
+    Each row: the stop's time (s), kind, deceleration into it (m/s^2) and,
+    per window before it, the mean ``d_r`` in um/rad (``-`` without a valid
+    sample) and its number of valid samples.
+    """
+    d = deformation
+    lines = [
+        f"deformation d_r   p = {d.window_samples} samples, min rotation "
+        f"{d.min_rotation_rad:g} rad; {d.samples} samples, {d.valid_samples} valid, "
+        f"{d.dropped} dropped",
+    ]
+    if not d.stops:
+        return [*lines, "  no stop of the reference"]
+    heads = [
+        f"{f'[{1e3 * w.start_s:g}, {1e3 * w.end_s:g}] ms (um/rad, n)':>30}"
+        for w in d.stops[0].windows
+    ]
+    lines.append(f"  {'stop (s)':>9}  {'kind':<13}{'decel (m/s^2)':>14}" + "".join(heads))
+    for stop in d.stops:
+        cells = "".join(
+            f"{_g(None if w.mean_d_r_m_per_rad is None else 1e6 * w.mean_d_r_m_per_rad, '.4g'):>24}"
+            f" ({w.valid_samples:>3})"
+            for w in stop.windows
+        )
+        lines.append(
+            f"  {stop.time_s:>9.4f}  {stop.kind:<13}{_g(stop.deceleration_m_s2, '.4g'):>14}{cells}"
         )
     return lines
 
@@ -150,6 +183,8 @@ def format_summary(summary: RunSummary) -> str:
             )
     if s.identification is not None:
         lines += ["", *identification_lines(s.identification)]
+    if s.deformation is not None:
+        lines += ["", *deformation_lines(s.deformation)]
     return "\n".join(lines)
 
 
@@ -214,6 +249,30 @@ def compare_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> str
                 for c in per_run
             ]
             lines.append(f"{k + 1:>5}" + "".join(cells))
+    return "\n".join(lines)
+
+
+def max_error_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> str:
+    """The max tracking error after the first cycle of each run and its reduction (004 Sect. V).
+
+    After the first cycle, so that the start from rest does not count: what
+    is left are the periodic reversals. The reduction is
+    ``100 (1 - max / max_base)`` against the first run (the conventional
+    method: ``compare runs/fast_reversal_gms runs/fast_reversal_sigmoid``).
+    Runs without a complete first cycle use all their samples.
+    """
+    maxima = [
+        (s.tracking_error.after_first_cycle or s.tracking_error).all_samples.max_m
+        for s in summaries
+    ]
+    width = max(14, *(len(label) + 2 for label in labels))
+    lines = [
+        f"max tracking error after cycle 1 (um); reduction against {labels[0]}",
+        f"{'run':<{width}}{'max (um)':>14}{'reduction (%)':>15}",
+    ]
+    for i, (label, peak) in enumerate(zip(labels, maxima, strict=True)):
+        cut = "base" if i == 0 else _g(100.0 * (1.0 - peak / maxima[0]), ".2f")
+        lines.append(f"{label:<{width}}{_um(peak):>14}{cut:>15}")
     return "\n".join(lines)
 
 

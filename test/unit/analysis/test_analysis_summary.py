@@ -98,13 +98,14 @@ def test_run_summary_fields_are_typed() -> None:
         "ilc_convergence",
         "error_unit",
         "identification",
+        "deformation",
     }
     assert summary.ilc_convergence is None and "ilc_convergence" not in summary.to_dict()
     assert summary.period_name is None and "period_name" not in summary.to_dict()
     # error_unit (rad for a rotary table) and identification (paper 003) likewise
     assert summary.error_unit is None and summary.unit == "m"
-    assert summary.identification is None
-    assert not {"error_unit", "identification"} & set(summary.to_dict())
+    assert summary.identification is None and summary.deformation is None
+    assert not {"error_unit", "identification", "deformation"} & set(summary.to_dict())
     trials = dataclasses.replace(
         summary,
         period_name="trial",
