@@ -338,9 +338,10 @@ def main() -> int:
     data = load_scenario(Path(args.scenario))
     data["/**"]["ros__parameters"]["duration_s"] = args.duration
     ff = data.get("feedforward", {}).get("ros__parameters", {})
-    table = ff.get("friction_table", {}).get("file")
-    if table and not Path(table).is_absolute():
-        ff["friction_table"]["file"] = str(Path(args.scenario).resolve().parent / table)
+    for term in ("friction_table", "gms"):  # files relative to the scenario
+        table = ff.get(term, {}).get("file")
+        if table and not Path(table).is_absolute():
+            ff[term]["file"] = str(Path(args.scenario).resolve().parent / table)
     scenario = tmp / Path(args.scenario).name
     scenario.write_text(yaml.safe_dump(data))
     period = float(data["/**"]["ros__parameters"].get("control_period_s", 1e-3))
