@@ -12,12 +12,15 @@ table of paper 001) that the feedforward generator reads.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from servo_axis.analysis.signals import load_signals
 from servo_axis.analysis.summary import SUMMARY_FILE, RunSummary
+from servo_axis.core.errors import SignalError
 from servo_axis.core.feedforward.friction_table import FrictionTable, build_friction_table
 from servo_axis.params.factories import node_values
 from servo_axis.params.scenario import load_scenario
@@ -38,20 +41,45 @@ def estimate_friction_torque(
     return torque_constant_Nm_per_A * current_A - inertia_kgm2 * acc - damping_Nms_per_rad * vel
 
 
-def table_from_run(
-    run_dir: Path, *, bin_width_m: float = 0.5e-6, max_displacement_m: float = 40e-6
-) -> FrictionTable:
-    """Build the friction table from a recorded ``friction_id`` run directory.
+@dataclass(frozen=True)
+class MeasuredFriction:
+    """The friction a slow-reversal run measured, per sample.
+
+    Attributes
+    ----------
+    scenario : dict
+        The run's scenario.
+    period_s : float
+        ``T_u``, s.
+    position_m : ndarray
+        The reference at the table, m.
+    torque_Nm : ndarray
+        ``K_T i - J_n a_r - D_n v_r`` (:func:`estimate_friction_torque`), N m.
+    """
+
+    scenario: dict[str, Any]
+    period_s: float
+    position_m: np.ndarray
+    torque_Nm: np.ndarray
+
+
+def measured_friction(run_dir: Path) -> MeasuredFriction:
+    """The friction of a recorded slow-reversal run directory, with the run's own values.
 
     The control period, the lead and the nominal model are the checked
     feedforward parameters of the run's scenario (their defaults where it
-    does not set them).
+    does not set them). SignalError for a bag with fewer than 3 samples.
     """
     summary = RunSummary.from_json(Path(run_dir) / SUMMARY_FILE)
     scenario = load_scenario(Path(summary.scenario_file))
     values = node_values(scenario, "feedforward")
-    period = values["control_period_s"]
+    period = float(values["control_period_s"])
     sig = load_signals(Path(run_dir) / "bag", period, scenario=scenario)
+    if sig.step.size < 3:
+        raise SignalError(
+            f"{Path(run_dir) / 'bag'}: expected a recorded run, got {sig.step.size} samples "
+            "with both state and reference"
+        )
     torque = estimate_friction_torque(
         reference_rad=sig.reference_rad,
         current_A=sig.command_A,
@@ -60,9 +88,22 @@ def table_from_run(
         inertia_kgm2=values["nominal.inertia_kgm2"],
         damping_Nms_per_rad=values["nominal.damping_Nms_per_rad"],
     )
-    return build_friction_table(
+    return MeasuredFriction(
+        scenario=scenario,
+        period_s=period,
         position_m=sig.reference_rad * values["lead_m_per_rad"],
         torque_Nm=torque,
+    )
+
+
+def table_from_run(
+    run_dir: Path, *, bin_width_m: float = 0.5e-6, max_displacement_m: float = 40e-6
+) -> FrictionTable:
+    """Build the friction table from a recorded ``friction_id`` run directory."""
+    measured = measured_friction(run_dir)
+    return build_friction_table(
+        position_m=measured.position_m,
+        torque_Nm=measured.torque_Nm,
         bin_width_m=bin_width_m,
         max_displacement_m=max_displacement_m,
     )

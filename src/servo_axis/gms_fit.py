@@ -27,14 +27,11 @@ from typing import Any
 
 import numpy as np
 
-from servo_axis.analysis.signals import load_signals
-from servo_axis.analysis.summary import SUMMARY_FILE, RunSummary
 from servo_axis.core.errors import SignalError
 from servo_axis.core.friction.gms import GmsFit, fit_gms
-from servo_axis.friction_id import estimate_friction_torque
+from servo_axis.friction_id import measured_friction
 from servo_axis.params import factories
 from servo_axis.params.factories import node_values
-from servo_axis.params.scenario import load_scenario
 
 
 @dataclass(frozen=True)
@@ -79,30 +76,13 @@ def load_fit_data(run_dir: Path) -> RunFitData:
     feedforward parameters of the run's scenario (their defaults where it
     does not set them), as for :func:`servo_axis.friction_id.table_from_run`.
     """
-    summary = RunSummary.from_json(Path(run_dir) / SUMMARY_FILE)
-    scenario = load_scenario(Path(summary.scenario_file))
-    values = node_values(scenario, "feedforward")
-    period = float(values["control_period_s"])
-    sig = load_signals(Path(run_dir) / "bag", period, scenario=scenario)
-    if sig.step.size < 3:
-        raise SignalError(
-            f"{Path(run_dir) / 'bag'}: expected a recorded run, got {sig.step.size} samples "
-            "with both state and reference"
-        )
-    torque = estimate_friction_torque(
-        reference_rad=sig.reference_rad,
-        current_A=sig.command_A,
-        period_s=period,
-        torque_constant_Nm_per_A=values["nominal.torque_constant_Nm_per_A"],
-        inertia_kgm2=values["nominal.inertia_kgm2"],
-        damping_Nms_per_rad=values["nominal.damping_Nms_per_rad"],
-    )
+    measured = measured_friction(run_dir)
     return RunFitData(
-        position_m=sig.reference_rad * values["lead_m_per_rad"],
-        torque_Nm=torque,
-        period_s=period,
-        plant_model=str(node_values(scenario, "plant")["model"]),
-        plant_fingerprint=plant_fingerprint(scenario),
+        position_m=measured.position_m,
+        torque_Nm=measured.torque_Nm,
+        period_s=measured.period_s,
+        plant_model=str(node_values(measured.scenario, "plant")["model"]),
+        plant_fingerprint=plant_fingerprint(measured.scenario),
     )
 
 

@@ -22,15 +22,28 @@ pytestmark = pytest.mark.integration
 REPO = Path(__file__).resolve().parents[2]
 
 
-def test_repeated_learning_runs_are_identical_with_a_stranger_and_cpu_load(ros_env: int) -> None:
+@pytest.mark.parametrize(
+    ("scenario", "runs"),
+    [
+        ("rptc_friction_table", 4),
+        # paper 004: four per-sample streams at T_u = 0.5 ms; a stranger once
+        # made the plant's last /clock and plant/status die with its process
+        ("config/fast_reversal_sigmoid.yaml", 3),
+    ],
+)
+def test_repeated_runs_are_identical_with_a_stranger_and_cpu_load(
+    ros_env: int, scenario: str, runs: int
+) -> None:
     out = subprocess.run(
-        [sys.executable, str(REPO / "scripts" / "determinism.py"), "--runs", "4",
-         "--extra-participant", "--cpu-load", "2", "--domain-id", str(ros_env)],
+        [sys.executable, str(REPO / "scripts" / "determinism.py"), "--runs", str(runs),
+         "--extra-participant", "--cpu-load", "2", "--domain-id", str(ros_env),
+         "--scenario", scenario],
         capture_output=True,
         text=True,
         timeout=600,
         check=False,
     )  # fmt: skip
     print(out.stdout)
-    assert "identical: 4 of 4 runs (exit codes {0: 4})" in out.stdout, out.stdout + out.stderr
+    expected = f"identical: {runs} of {runs} runs (exit codes {{0: {runs}}})"
+    assert expected in out.stdout, out.stdout + out.stderr
     assert out.returncode == 0

@@ -202,6 +202,22 @@ class RecorderNode(ServoNode):
 
         return on_message
 
+    def drained(self) -> bool:
+        """Whether every one of ``final_topics`` has its ``final_counts`` messages.
+
+        The runner stops the nodes once the per-sample topics are acknowledged;
+        the plant's /clock and plant/status, which the flow control does not
+        count, can lag behind them (measured: the last 5-20 % of /clock with a
+        stranger subscribed on the domain), so after a stop the recorder goes
+        on until they are in (:func:`servo_axis.nodes.runtime.run_main`).
+        """
+        finals = zip(self._v["final_topics"], self._v["final_counts"], strict=False)
+        return all(
+            self._counts.get(self.resolve_topic_name(topic), count) >= count
+            for topic, count in finals
+            if topic
+        )
+
     def _check_ready(self) -> None:
         if self._v["wait_for_publishers"] and any(s.get_publisher_count() < 1 for s in self._subs):
             return

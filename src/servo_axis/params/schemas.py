@@ -1110,6 +1110,17 @@ RECORDER: dict[str, Param] = {
         meaning="those of `topics` whose smallest message count is the steps acknowledged "
         "on recorder/progress",
     ),
+    "final_topics": Param(
+        [""],
+        meaning="lockstep: topics the plant publishes on a schedule but the flow control does "
+        "not count (/clock, plant/status); after a stop the recorder goes on taking messages "
+        "until each has final_counts (or 3 s passed); the runner sets both; [''] = none",
+    ),
+    "final_counts": Param(
+        [0],
+        minimum=0,
+        meaning="the message count of each of final_topics at the end of the run",
+    ),
     "compression": Param(
         "zstd",
         choices=("zstd", "lz4", "none"),

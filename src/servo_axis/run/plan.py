@@ -20,6 +20,7 @@ from servo_axis.params.factories import (
     checked_values,
     learning_law,
     plant_overrides,
+    run_steps,
 )
 from servo_axis.params.scenario import (
     ROLES,
@@ -61,6 +62,26 @@ def recorder_topics(scenario: dict[str, Any], roles: list[str]) -> tuple[list[st
         if t.producer != "learning" or t.name in outputs
     ]
     return [t.name for t in default], [t.type_name for t in default]
+
+
+def final_counts(scenario: dict[str, Any], recorded: list[str]) -> dict[str, list[Any]]:
+    """What the plant publishes on a schedule, uncounted, and how many of each (lockstep).
+
+    ``/clock`` every ``clock_every_steps`` and ``plant/status`` every
+    ``status_every_steps`` samples from step 0: the recorder takes them all
+    before it closes the bag (:meth:`RecorderNode.drained`).
+    """
+    plant = checked_values("plant", node_params(scenario, "plant"))
+    if plant["mode"] != "lockstep":
+        return {}
+    steps = run_steps(plant)
+    every = {"/clock": plant["clock_every_steps"], "plant/status": plant["status_every_steps"]}
+    if not plant["publish_clock"]:
+        every.pop("/clock")
+    topics = [t for t in every if t in recorded]
+    if not topics:
+        return {}
+    return {"final_topics": topics, "final_counts": [-(-steps // every[t]) for t in topics]}
 
 
 def switched_on(scenario: dict[str, Any]) -> list[str]:
@@ -134,6 +155,7 @@ def handshake_overrides(
                 counted_topics=[name for name in recorded if topic(name).counted],
             )
         rec["output_dir"] = str(bag_dir)
+        rec.update(final_counts(scenario, recorded))
         out["recorder"] = rec
         out["plant"]["flow_control"] = True
     if "identifier" in roles:
