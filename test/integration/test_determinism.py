@@ -28,7 +28,7 @@ REPO = Path(__file__).resolve().parents[2]
         ("rptc_friction_table", 4),
         # paper 004: four per-sample streams at T_u = 0.5 ms; a stranger once
         # made the plant's last /clock and plant/status die with its process
-        ("config/fast_reversal_sigmoid.yaml", 3),
+        ("fast_reversal_sigmoid", 3),
     ],
 )
 def test_repeated_runs_are_identical_with_a_stranger_and_cpu_load(
