@@ -41,8 +41,6 @@ from __future__ import annotations
 import time
 from typing import Any
 
-from rclpy.duration import Duration
-
 from servo_axis.core.errors import ParameterFileError, SignalError
 from servo_axis.core.models.base import PlantOutput
 from servo_axis.nodes.base import ServoNode
@@ -55,9 +53,6 @@ from servo_axis.wire import messages as msgs
 #: everything, in realtime or after a fallback (in lockstep it waits while
 #: the recorder lives, and says so every this many seconds).
 FINISH_TIMEOUT_S = 10.0
-#: Wall time (s) the plant waits at the end for the readers of /clock and
-#: plant/status to acknowledge everything.
-ACK_TIMEOUT_S = 3.0
 #: Steps applied with zero current per watchdog look (every 50 ms) while
 #: the feedback is gone: the executor stays free for the recorder and for a
 #: feedback that comes back.
@@ -303,7 +298,6 @@ class PlantNode(ServoNode):
         """Lockstep: integrate once the command is here and the recorder keeps up."""
         if self._finishing:
             if self._flow.complete:
-                self._wait_for_acknowledgements()
                 self.done = True
             return
         if self._command is None or self._awaiting is None:
@@ -336,21 +330,6 @@ class PlantNode(ServoNode):
             self._finish()
             return
         self._publish(out)
-
-    def _wait_for_acknowledgements(self) -> None:
-        """Before the process ends: every /clock and plant/status received by every reader.
-
-        The flow control counts the per-sample topics only; the plant's other
-        writers can still hold samples their readers have not acknowledged
-        (measured: the last 5-40 % of /clock with a stranger subscribed), which
-        would die with the process and leave the bag short.
-        """
-        for name, pub in (("/clock", self._clock_pub), ("plant/status", self._status_pub)):
-            if pub is not None and not pub.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT_S)):
-                self.get_logger().warning(
-                    f"{name}: not every reader acknowledged every message within "
-                    f"{ACK_TIMEOUT_S} s of the end"
-                )
 
     def _finish(self) -> None:
         """After the last step: wait for the recorder to have everything.

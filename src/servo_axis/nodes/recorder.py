@@ -112,6 +112,13 @@ class RecorderNode(ServoNode):
         except (OSError, ValueError) as err:
             raise ParameterFileError(f"parameter 'output_dir': {err}") from err
 
+        self._finals = {
+            self.resolve_topic_name(topic): every
+            for topic, every in zip(
+                values["final_topics"], values["final_every_steps"], strict=False
+            )
+            if topic
+        }
         self._progress_pub = self.publisher("recorder/progress")
         self._counts: dict[str, int] = {}
         self._counted: list[str] = []
@@ -171,6 +178,7 @@ class RecorderNode(ServoNode):
         counts = self._counts
         log_time = self.timeline.log_time
         counted = name in self._counted
+        final = name in self._finals
 
         def on_message(data: bytes) -> None:
             stamp_ns = None
@@ -182,6 +190,8 @@ class RecorderNode(ServoNode):
             t = log_time(stamp_ns, clock=clock)
             writer.write(name, data, log_time_ns=t, publish_time_ns=t)
             counts[name] += 1
+            if final:
+                self._update_progress()
             if counted:
                 # Only a sample its subscribers would take counts: a stranger's
                 # NaN or short message stamped with the next step must not
@@ -202,22 +212,6 @@ class RecorderNode(ServoNode):
 
         return on_message
 
-    def drained(self) -> bool:
-        """Whether every one of ``final_topics`` has its ``final_counts`` messages.
-
-        The runner stops the nodes once the per-sample topics are acknowledged;
-        the plant's /clock and plant/status, which the flow control does not
-        count, can lag behind them (measured: the last 5-20 % of /clock with a
-        stranger subscribed on the domain), so after a stop the recorder goes
-        on until they are in (:func:`servo_axis.nodes.runtime.run_main`).
-        """
-        finals = zip(self._v["final_topics"], self._v["final_counts"], strict=False)
-        return all(
-            self._counts.get(self.resolve_topic_name(topic), count) >= count
-            for topic, count in finals
-            if topic
-        )
-
     def _check_ready(self) -> None:
         if self._v["wait_for_publishers"] and any(s.get_publisher_count() < 1 for s in self._subs):
             return
@@ -230,6 +224,12 @@ class RecorderNode(ServoNode):
             return
         counted = [n for n in self._counted if n not in self._gone] or self._counted
         done = min(self._recorded_steps(n) for n in counted) if counted else 0
+        for name, every in self._finals.items():
+            # A step counts only once the plant's scheduled messages up to it
+            # are written too: they are not on the flow control otherwise,
+            # and the last of them could die with the plant's process
+            # (measured with a stranger subscribed on the domain).
+            done = min(done, self._counts[name] * every)
         if done == self.recorded and not force:
             return
         self.recorded = done

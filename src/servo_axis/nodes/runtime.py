@@ -100,11 +100,6 @@ class Throttle:
         return False
 
 
-#: Longest wall time (s) a node takes after a stop to receive what was sent
-#: before it (below the runner's 5 s between SIGINT and SIGKILL).
-DRAIN_TIMEOUT_S = 3.0
-
-
 def spin_nodes(nodes: Sequence[Node], done: Callable[[], bool]) -> None:
     """Spin ``nodes`` on one executor until ``done()`` or shutdown.
 
@@ -196,13 +191,6 @@ def run_main(
             if stop_requested:
                 return code
         spin_nodes(nodes, lambda: bool(stop_requested) or (done is not None and done(nodes)))
-        drains = [d for node in nodes if (d := getattr(node, "drained", None)) is not None]
-        if stop_requested and drains and rclpy.ok():
-            # Messages sent before the stop that have not been taken yet (the
-            # recorder's /clock behind its acknowledged steps) are taken before
-            # the node closes; bounded, so that a stop always ends.
-            deadline = time.monotonic() + DRAIN_TIMEOUT_S
-            spin_nodes(nodes, lambda: all(d() for d in drains) or time.monotonic() > deadline)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except ServoAxisError as err:

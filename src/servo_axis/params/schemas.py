@@ -1112,14 +1112,14 @@ RECORDER: dict[str, Param] = {
     ),
     "final_topics": Param(
         [""],
-        meaning="lockstep: topics the plant publishes on a schedule but the flow control does "
-        "not count (/clock, plant/status); after a stop the recorder goes on taking messages "
-        "until each has final_counts (or 3 s passed); the runner sets both; [''] = none",
+        meaning="lockstep: topics the plant publishes every final_every_steps samples from "
+        "step 0 (/clock, plant/status); a step is acknowledged only once those up to it are "
+        "written too; the runner sets both; [''] = none",
     ),
-    "final_counts": Param(
-        [0],
-        minimum=0,
-        meaning="the message count of each of final_topics at the end of the run",
+    "final_every_steps": Param(
+        [1],
+        minimum=1,
+        meaning="the publishing period (samples) of each of final_topics",
     ),
     "compression": Param(
         "zstd",

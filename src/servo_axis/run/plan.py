@@ -20,7 +20,6 @@ from servo_axis.params.factories import (
     checked_values,
     learning_law,
     plant_overrides,
-    run_steps,
 )
 from servo_axis.params.scenario import (
     ROLES,
@@ -65,23 +64,23 @@ def recorder_topics(scenario: dict[str, Any], roles: list[str]) -> tuple[list[st
 
 
 def final_counts(scenario: dict[str, Any], recorded: list[str]) -> dict[str, list[Any]]:
-    """What the plant publishes on a schedule, uncounted, and how many of each (lockstep).
+    """The plant's scheduled topics outside the per-sample streams, and their periods (lockstep).
 
     ``/clock`` every ``clock_every_steps`` and ``plant/status`` every
-    ``status_every_steps`` samples from step 0: the recorder takes them all
-    before it closes the bag (:meth:`RecorderNode.drained`).
+    ``status_every_steps`` samples from step 0: the recorder acknowledges a
+    step only once those up to it are written (``final_topics``,
+    ``final_every_steps``).
     """
     plant = checked_values("plant", node_params(scenario, "plant"))
     if plant["mode"] != "lockstep":
         return {}
-    steps = run_steps(plant)
     every = {"/clock": plant["clock_every_steps"], "plant/status": plant["status_every_steps"]}
     if not plant["publish_clock"]:
         every.pop("/clock")
     topics = [t for t in every if t in recorded]
     if not topics:
         return {}
-    return {"final_topics": topics, "final_counts": [-(-steps // every[t]) for t in topics]}
+    return {"final_topics": topics, "final_every_steps": [every[t] for t in topics]}
 
 
 def switched_on(scenario: dict[str, Any]) -> list[str]:
