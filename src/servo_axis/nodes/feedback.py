@@ -45,7 +45,6 @@ Run: ``python -m servo_axis.nodes.feedback --ros-args --params-file config/<scen
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from typing import Any
 
@@ -161,12 +160,15 @@ class FeedbackNode(ServoNode):
             self._publish_fault(state.step, out.fault, out.fault_value)
         if self._deformation is not None:
             d = self._deformation.update(state.encoder_rad, state.scale_m)
+            sample = msgs.DeformationSample(
+                state.step,
+                d.d_r_m_per_rad,
+                d.scale_increment_m,
+                d.encoder_increment_rad,
+                d.valid,
+            )
             self._deformation_pub.publish(
-                msgs.write_deformation(
-                    self._deformation_msg,
-                    msgs.DeformationSample(state.step, *dataclasses.astuple(d)),
-                    period_ns_=self._period_ns,
-                )
+                msgs.write_deformation(self._deformation_msg, sample, period_ns_=self._period_ns)
             )
         self._command_pub.publish(
             msgs.write_command(

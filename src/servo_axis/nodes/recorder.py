@@ -91,15 +91,9 @@ class RecorderNode(ServoNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("recorder", **kwargs)
         values = self.values
+        # One type per topic, the latched and counted ones among them, one period
+        # per scheduled topic: checked with the values (factories.check_recorder_topics).
         topics, types = values["topics"], values["types"]
-        if len(topics) != len(types) or not topics:
-            raise ParameterFileError(
-                f"parameter 'types': expected one type per topic ({len(topics)} topics), got {len(types)}"
-            )
-        for key in ("latched_topics", "counted_topics"):
-            extra = set(values[key]) - set(topics)
-            if extra:
-                raise ParameterFileError(f"parameter '{key}': {sorted(extra)} not in 'topics'")
         if not values["output_dir"]:
             raise ParameterFileError(
                 "parameter 'output_dir': required (the bag directory to create)"

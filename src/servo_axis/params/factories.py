@@ -1092,7 +1092,7 @@ def check_consistency(role: str, values: Values) -> None:
 
 
 def check_recorder_topics(values: Values) -> None:
-    """One type per topic; the latched and counted topics among them."""
+    """One type per topic; the latched and counted topics among them; a period per final topic."""
     topics, types = values["topics"], values["types"]
     if len(topics) != len(types) or not topics:
         raise ParameterFileError(
@@ -1103,6 +1103,12 @@ def check_recorder_topics(values: Values) -> None:
         extra = set(values[key]) - set(topics)
         if extra:
             raise ParameterFileError(f"parameter '{key}': {sorted(extra)} not in 'topics'")
+    finals, every = values["final_topics"], values["final_every_steps"]
+    if len(finals) != len(every):
+        raise ParameterFileError(
+            f"parameter 'final_every_steps': expected one period per final topic "
+            f"({len(finals)} topics), got {len(every)}"
+        )
 
 
 def node_values(scenario: dict[str, Any], role: str) -> dict[str, Any]:
@@ -1121,11 +1127,11 @@ def node_values(scenario: dict[str, Any], role: str) -> dict[str, Any]:
     if role == "feedforward" and "identifier" in scenario:
         given = {**given, **adaptive_overrides(scenario)}
     if role == "feedforward":
-        given = {**given, **plant_overrides(scenario, given)}
+        given = {**given, **feedforward_overrides(scenario, given)}
     return checked_values(role, given)
 
 
-def plant_overrides(scenario: dict[str, Any], given: Values) -> dict[str, Any]:
+def feedforward_overrides(scenario: dict[str, Any], given: Values) -> dict[str, Any]:
     """What the feedforward copies from the other sections: one source for each value.
 
     ``gms.plant``, the plant a GMS file must come from, when the GMS term is

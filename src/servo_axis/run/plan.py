@@ -18,8 +18,8 @@ from servo_axis.params.factories import (
     NODE_SCHEMAS,
     adaptive_overrides,
     checked_values,
+    feedforward_overrides,
     learning_law,
-    plant_overrides,
 )
 from servo_axis.params.scenario import (
     ROLES,
@@ -63,7 +63,7 @@ def recorder_topics(scenario: dict[str, Any], roles: list[str]) -> tuple[list[st
     return [t.name for t in default], [t.type_name for t in default]
 
 
-def final_counts(scenario: dict[str, Any], recorded: list[str]) -> dict[str, list[Any]]:
+def scheduled_topics(scenario: dict[str, Any], recorded: list[str]) -> dict[str, list[Any]]:
     """The plant's scheduled topics outside the per-sample streams, and their periods (lockstep).
 
     ``/clock`` every ``clock_every_steps`` and ``plant/status`` every
@@ -154,7 +154,7 @@ def handshake_overrides(
                 counted_topics=[name for name in recorded if topic(name).counted],
             )
         rec["output_dir"] = str(bag_dir)
-        rec.update(final_counts(scenario, recorded))
+        rec.update(scheduled_topics(scenario, recorded))
         out["recorder"] = rec
         out["plant"]["flow_control"] = True
     if "identifier" in roles:
@@ -190,7 +190,7 @@ def handshake_overrides(
         for key in ("friction_table.file", "gms.file"):
             if given.get(key, ""):
                 ff[key] = resolve_table(given[key], scenario_dir)
-        ff.update(plant_overrides(scenario, given))
+        ff.update(feedforward_overrides(scenario, given))
         law = node_params(scenario, "learning").get("law")
         if "learning" in roles and law is not None:
             ff["learning.law"] = law  # one source: the learning section

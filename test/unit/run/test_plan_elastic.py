@@ -131,3 +131,15 @@ def test_the_recorder_is_told_the_plants_scheduled_topics() -> None:
     assert rec["final_topics"] == ["plant/status"] and rec["final_every_steps"] == [50]
     data["/**"]["ros__parameters"]["mode"] = "realtime"  # a last status of its own: not counted
     assert "final_topics" not in handshake_overrides(data, roles_of(data), BAG, CONFIG)["recorder"]
+
+
+def test_a_scheduled_topic_without_its_period_is_refused_by_name() -> None:
+    from servo_axis.params.factories import checked_values
+
+    given = {"output_dir": "/tmp/bag", "final_topics": ["/clock", "plant/status"],
+             "final_every_steps": [10]}  # fmt: skip
+    with pytest.raises(ParameterFileError, match=r"parameter 'final_every_steps': expected one"):
+        checked_values("recorder", given)
+    given["final_every_steps"] = [10, 0]
+    with pytest.raises(ParameterFileError, match=r"parameter 'final_every_steps'"):
+        checked_values("recorder", given)
