@@ -682,6 +682,8 @@ def test_the_learning_unit_listens_only_once_its_outputs_are_heard(context: Cont
     probe.create_subscription(JointState, "learning/correction", lambda m: None, STREAM_QOS)
     spin_until(context, nodes, lambda: learning.state_subscribed)
     assert learning._correction_pub.get_subscription_count() >= 1
+    # A subscription is made once its topic has a publisher (with the profile that matches it).
+    probe.create_publisher(JointState, "state", STREAM_QOS)
     spin_until(context, nodes, lambda: probe.count_subscribers("state") == 1)
     learning.destroy_node()
     probe.destroy_node()
@@ -899,19 +901,21 @@ def test_feedforward_keeps_the_last_correction_only_once_the_learning_unit_is_go
 
 
 def test_feedback_listens_only_once_its_command_is_heard(context: Context) -> None:
+    """Its `command` consumers are counted by topic, whatever their node is called: an
+    outside plant with rclpy's default profile (volatile, no lease) counts once it has held
+    for the settle time; before anyone listens, the feedback does not subscribe to state."""
     fb = FeedbackNode(
         context=context, parameter_overrides=[Parameter("wait_for_command_subscribers", value=1)]
     )
-    stranger = Node("someone", context=context)
-    stranger.create_subscription(JointState, "command", lambda m: None, STREAM_QOS)
-    nodes = [fb, stranger]
+    plant_side = Node("my_axis_driver", context=context)  # not called `plant`
+    state_pub = plant_side.create_publisher(JointState, "state", 10)
+    nodes = [fb, plant_side]
     deadline = time.monotonic() + 0.7
     spin_until(context, nodes, lambda: time.monotonic() > deadline)
-    # A stranger's subscription does not stand in for the plant's.
-    assert not fb.inputs_subscribed and stranger.count_subscribers("state") == 0
-    plant = Node("plant", context=context)
-    plant.create_subscription(JointState, "command", lambda m: None, STREAM_QOS)
-    spin_until(context, [*nodes, plant], lambda: fb.inputs_subscribed)
-    spin_until(context, [*nodes, plant], lambda: stranger.count_subscribers("state") == 1)
-    for n in [*nodes, plant]:
+    assert not fb.inputs_subscribed and state_pub.get_subscription_count() == 0
+    plant_side.create_subscription(JointState, "command", lambda m: None, 10)
+    spin_until(context, nodes, lambda: fb.inputs_subscribed)
+    # Its state subscription matches the default-QoS publisher.
+    spin_until(context, nodes, lambda: state_pub.get_subscription_count() == 1)
+    for n in nodes:
         n.destroy_node()

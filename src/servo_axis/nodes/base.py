@@ -17,19 +17,28 @@
   :class:`~servo_axis.wire.streams.StreamGate`; its stamp is checked after
   the payload is validated and before the handler sees it, so a message
   ahead of or behind the stream never displaces it.
-* Peers: every subscription follows its publishers' liveliness
-  (:data:`~servo_axis.nodes.runtime.LIVELINESS_LEASE_S`);
-  :meth:`ServoNode.peer_alive` is what a lockstep node asks before it falls
-  back (it never does on a wall-clock timeout while its peer lives), and
-  :meth:`ServoNode.fallback` records that it did.
+* QoS: a subscription is made once the topic has a publisher in the ROS
+  graph, with the profile that matches it
+  (:func:`~servo_axis.nodes.runtime.matching_reader_qos`): the suite's own
+  publishers (reliable, transient-local, lease 1 s) get a reader just as
+  strong, an outside node with rclpy's or rclcpp's default profile
+  (reliable, volatile, no lease) or best effort is matched too.
+* Peers: where the publisher offers a liveliness lease the subscription
+  follows it (:data:`~servo_axis.nodes.runtime.LIVELINESS_LEASE_S` for the
+  suite's own); where it offers none, the ROS graph says when it left (its
+  participant's lease ended). :meth:`ServoNode.peer_alive` is what a
+  lockstep node asks before it falls back (it never does on a wall-clock
+  timeout while its peer lives), and :meth:`ServoNode.fallback` records
+  that it did.
 * Strangers: twice a second each subscribed topic's publishers are compared,
-  through the ROS graph, with the one the run started (the table's
-  producer, in this node's namespace); any other is logged and reported.
-* Handshake: :meth:`ServoNode.consumers_matched` tells whether a
-  publisher's expected consumers (the table's consumers and the recorder)
-  are matched, not only how many subscribers there are, so that a stranger
-  subscribed to the topic does not stand in for a peer that is still being
-  discovered.
+  through the ROS graph, with the declared one: the node the run started
+  for the table's producer role (in this node's namespace) or, for a role
+  in ``external_roles``, the first publisher seen on the topic, whatever
+  its name; any other is logged and reported.
+* Handshake: :meth:`ServoNode.consumers_matched` counts the subscriptions
+  on the topic, whatever their node is called; when there are more than
+  expected (a stranger subscribed too), the count must hold for
+  :data:`MATCH_SETTLE_S` before it is believed.
 * Report: :mod:`servo_axis.wire.health`, written to ``report_dir`` on each
   fallback, on each new stranger and when the node closes.
 * QoS and message types come from the topic table (:mod:`servo_axis.wire.topics`).
@@ -45,7 +54,7 @@ from typing import Any, Protocol, TypeVar
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.publisher import Publisher
-from rclpy.qos import QoSProfile
+from rclpy.qos import DurabilityPolicy, QoSProfile
 from rclpy.subscription import Subscription
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -57,9 +66,10 @@ from servo_axis.nodes.runtime import (
     LATCHED_READ_QOS,
     STREAM_QOS,
     Throttle,
+    matching_reader_qos,
     steady_clock,
 )
-from servo_axis.params.factories import checked_values
+from servo_axis.params.factories import checked_values, external_roles
 from servo_axis.params.schema import BUILTIN
 from servo_axis.wire import topics
 from servo_axis.wire.health import Fallback, NodeHealth, write_health
@@ -144,6 +154,10 @@ class ServoNode(Node):
         self._twin_looks: dict[str, dict[str, int]] = {}
         self._matched_since: dict[str, float] = {}
         self._prefix: bytes | None = None
+        self.external_roles = external_roles(self.values)
+        self._declared: dict[str, str] = {}  # topic -> gid of an external role's publisher
+        self._unpublished: list[tuple[str, QoSProfile, Callable[[QoSProfile], None]]] = []
+        self._unpublished_timer: Any = None
         self.create_timer(STRANGER_CHECK_S, self._check_strangers, clock=steady_clock())
 
     def publisher(self, name: str) -> Publisher:
@@ -160,7 +174,7 @@ class ServoNode(Node):
         raw: bool = False,
         gate: StreamGate | None = None,
         qos: QoSProfile | None = None,
-    ) -> Subscription:
+    ) -> None:
         """Subscribe to table topic ``name``: ``handle(decode(msg))`` for the valid ones.
 
         ``decode`` raises :class:`SignalError` for a message that must not be
@@ -168,8 +182,10 @@ class ServoNode(Node):
         With a ``gate``, the decoded sample's ``step`` must be one the gate
         takes (it is checked after decoding, so a junk message never moves
         the gate); a ``decode`` that returns None for a message it skips
-        leaves the gate alone. ``qos`` replaces the table's profile (a late
-        joiner that wants no history).
+        leaves the gate alone. The subscription is made once the topic has a
+        publisher (:meth:`when_published`), with the profile that matches
+        it; ``qos`` replaces the table's profile as the strongest one asked
+        for (a late joiner that wants no history).
         """
         entry = topics.topic(name)
 
@@ -187,20 +203,75 @@ class ServoNode(Node):
             self._alive[name] = info.alive_count
             self._lapsed[name] = info.not_alive_count
 
+        def create(profile: QoSProfile) -> None:
+            self._subscriptions_by_topic[name] = self.create_subscription(
+                MESSAGE_CLASSES[entry.type_name],
+                name,
+                on_message,
+                profile,
+                raw=raw,
+                event_callbacks=SubscriptionEventCallbacks(liveliness=on_liveliness),
+            )
+
         self._alive.setdefault(name, 0)
         self._lapsed.setdefault(name, 0)
         if name not in self._watched:
             self._watched.append(name)
-        subscription = self.create_subscription(
-            MESSAGE_CLASSES[entry.type_name],
-            name,
-            on_message,
-            READER_QOS[entry.qos] if qos is None else qos,
-            raw=raw,
-            event_callbacks=SubscriptionEventCallbacks(liveliness=on_liveliness),
-        )
-        self._subscriptions_by_topic[name] = subscription
-        return subscription
+        self.when_published(name, READER_QOS[entry.qos] if qos is None else qos, create)
+
+    def when_published(
+        self, name: str, wanted: QoSProfile, create: Callable[[QoSProfile], None]
+    ) -> None:
+        """Call ``create(profile)`` once topic ``name`` has a publisher in the ROS graph.
+
+        ``profile`` is ``wanted`` weakened just as far as the publishers there
+        need (:func:`~servo_axis.nodes.runtime.matching_reader_qos`); at once
+        if the topic already has one, else from a 10 ms poll of the graph.
+        """
+        if self._create_if_published(name, wanted, create):
+            return
+        self._unpublished.append((name, wanted, create))
+        if self._unpublished_timer is None:
+            self._unpublished_timer = self.create_timer(
+                0.01, self._create_pending, clock=steady_clock()
+            )
+
+    def _create_if_published(
+        self, name: str, wanted: QoSProfile, create: Callable[[QoSProfile], None]
+    ) -> bool:
+        infos = self.get_publishers_info_by_topic(self.resolve_topic_name(name))
+        profile = matching_reader_qos(wanted, [i.qos_profile for i in infos])
+        if profile is None:
+            return False
+        create(profile)
+        return True
+
+    def _create_pending(self) -> None:
+        self._unpublished = [p for p in self._unpublished if not self._create_if_published(*p)]
+        if not self._unpublished and self._unpublished_timer is not None:
+            self._unpublished_timer.cancel()
+            self.destroy_timer(self._unpublished_timer)
+            self._unpublished_timer = None
+
+    def input_matched(self, name: str, subscription: Subscription | None = None) -> bool:
+        """Whether the subscription to ``name`` exists and is matched with a publisher.
+
+        A volatile publisher among the topic's (an outside node with the
+        default profile) sends a reader nothing from before it matched that
+        reader on its own side: then the match must have held for
+        :data:`MATCH_SETTLE_S` (as in :meth:`consumers_matched`).
+        ``subscription`` is one the node made itself (the recorder's).
+        """
+        sub = subscription or self._subscriptions_by_topic.get(name)
+        key = f"input:{name}"
+        if sub is None or sub.get_publisher_count() < 1:
+            self._matched_since.pop(key, None)
+            return False
+        infos = self.get_publishers_info_by_topic(self.resolve_topic_name(name))
+        if all(i.qos_profile.durability != DurabilityPolicy.VOLATILE for i in infos):
+            return True
+        since = self._matched_since.setdefault(key, time.monotonic())
+        return time.monotonic() - since >= MATCH_SETTLE_S
 
     def reject(self, topic_name: str, text: str) -> None:
         """Count a dropped message of ``topic_name`` and log it (at most once a second)."""
@@ -256,27 +327,27 @@ class ServoNode(Node):
     def consumers_matched(self, publisher: Publisher, name: str, count: int) -> bool:
         """Whether the ``count`` subscribers ``publisher`` waits for are matched.
 
-        The graph must show ``count`` subscriptions on the topic from the
-        table's consumers or the recorder (in this namespace), and the
-        publisher must be matched with at least ``count``. With a stranger
-        subscribed as well, the matched count alone cannot tell who is
-        matched: then the expected ones must have been in the graph, and the
-        count reached, for :data:`MATCH_SETTLE_S` (discovery puts an
-        endpoint in the graph and matches it from the same announcement).
+        The graph must show at least ``count`` subscriptions on the topic,
+        whatever their node is called (an outside node plays a role by its
+        topics, not its name), and the publisher must be matched with at
+        least ``count``. Two cases cannot be told from the counts alone and
+        must hold for :data:`MATCH_SETTLE_S` first: more subscriptions than
+        expected (a stranger, such as a ``ros2 topic echo``, may stand in for
+        a peer still being discovered), and a volatile reader among them (an
+        outside node with the default profile gets nothing of what was sent
+        before it matched on its own side; discovery puts an endpoint in the
+        graph and matches it from the same announcement, within
+        milliseconds on one machine).
         """
         if count <= 0:
             return True
-        resolved = self.resolve_topic_name(name)
-        entry = topics.topic(name)
-        expected = set(entry.consumers) | {"recorder"}
-        ns = self.get_namespace()
-        infos = self.get_subscriptions_info_by_topic(resolved)
-        ours = [i for i in infos if i.node_name in expected and i.node_namespace == ns]
+        infos = self.get_subscriptions_info_by_topic(self.resolve_topic_name(name))
         matched = publisher.get_subscription_count()
-        if len(ours) < count or matched < count:
+        if len(infos) < count or matched < count:
             self._matched_since.pop(name, None)
             return False
-        if matched >= len(infos):
+        volatile = any(i.qos_profile.durability == DurabilityPolicy.VOLATILE for i in infos)
+        if len(infos) == count and not volatile:
             return True
         since = self._matched_since.setdefault(name, time.monotonic())
         return time.monotonic() - since >= MATCH_SETTLE_S
@@ -318,18 +389,11 @@ class ServoNode(Node):
                 for i in self.get_publishers_info_by_topic(self.resolve_topic_name(name))
                 if i.node_name != UNKNOWN_NODE_NAME
             ]
-            is_ours = [i.node_name == entry.producer and i.node_namespace == ns for i in infos]
-            ours = [i for i, mine in zip(infos, is_ours, strict=True) if mine]
-            others = [i for i, mine in zip(infos, is_ours, strict=True) if not mine]
-            # Two endpoints of the producer's own name: a restarted node and
-            # the dead one, whose endpoint stays in the graph until its
-            # participant's lease (5 s) ends; a duplicate that outlives that
-            # is a stranger.
-            twins = {bytes(i.endpoint_gid).hex() for i in ours[1:]}
-            seen = self._twin_looks.get(name, {})
-            self._twin_looks[name] = looks = {g: seen.get(g, 0) + 1 for g in twins}
-            lasting = {g for g, n in looks.items() if n * STRANGER_CHECK_S > TWIN_GRACE_S}
-            strangers = others + [i for i in ours[1:] if bytes(i.endpoint_gid).hex() in lasting]
+            if entry.producer in self.external_roles:
+                strangers, declared = self._outside_strangers(name, infos)
+            else:
+                strangers = self._own_strangers(name, infos, entry.producer)
+                declared = f"{ns.rstrip('/')}/{entry.producer}"
             for info in strangers:
                 gid = bytes(info.endpoint_gid).hex()
                 if gid in self._stranger_gids:
@@ -338,12 +402,48 @@ class ServoNode(Node):
                 who = f"{info.node_namespace.rstrip('/')}/{info.node_name} {gid[:16]}"
                 self.health.strangers.setdefault(name, []).append(who)
                 self.get_logger().warning(
-                    f"stranger publishing on {name}: {who} (the run started only "
-                    f"{ns.rstrip('/')}/{entry.producer}); its messages are validated like any other"
+                    f"stranger publishing on {name}: {who} (the run declared only {declared}); "
+                    "its messages are validated like any other"
                 )
                 new = True
         if new:
             self.write_report()
+
+    def _outside_strangers(self, name: str, infos: list[Any]) -> tuple[list[Any], str]:
+        """An outside role's topic: the first publisher seen is declared, any other a stranger.
+
+        When the declared one leaves the graph, the first of the others
+        takes its place (an outside node restarted by its user).
+        """
+        gids = [bytes(i.endpoint_gid).hex() for i in infos]
+        if self._declared.get(name) not in gids and gids:
+            self._declared[name] = gids[0]
+        declared = self._declared.get(name, "")
+        who = next(
+            (
+                f"{i.node_namespace.rstrip('/')}/{i.node_name}"
+                for i, g in zip(infos, gids, strict=True)
+                if g == declared
+            ),
+            "its outside node",
+        )
+        return [i for i, g in zip(infos, gids, strict=True) if g != declared], who
+
+    def _own_strangers(self, name: str, infos: list[Any], producer: str) -> list[Any]:
+        """A role the run started: its node (by the name the run gave it) is declared."""
+        ns = self.get_namespace()
+        is_ours = [i.node_name == producer and i.node_namespace == ns for i in infos]
+        ours = [i for i, mine in zip(infos, is_ours, strict=True) if mine]
+        others = [i for i, mine in zip(infos, is_ours, strict=True) if not mine]
+        # Two endpoints of the producer's own name: a restarted node and
+        # the dead one, whose endpoint stays in the graph until its
+        # participant's lease (5 s) ends; a duplicate that outlives that
+        # is a stranger.
+        twins = {bytes(i.endpoint_gid).hex() for i in ours[1:]}
+        seen = self._twin_looks.get(name, {})
+        self._twin_looks[name] = looks = {g: seen.get(g, 0) + 1 for g in twins}
+        lasting = {g for g, n in looks.items() if n * STRANGER_CHECK_S > TWIN_GRACE_S}
+        return others + [i for i in ours[1:] if bytes(i.endpoint_gid).hex() in lasting]
 
     # -- report -------------------------------------------------------------------
     def write_report(self) -> None:

@@ -152,6 +152,11 @@ class PlantNode(ServoNode):
             self._clock_pub, "/clock", v["wait_for_clock_subscribers"]
         ):
             return False
+        if self._lockstep and not self.input_matched("command"):
+            # Whoever answers state[k] must be there before step 0: a stranger
+            # subscribed to state must not stand in for an outside feedback
+            # node that would miss what was sent before it matched.
+            return False
         return self._flow.ready
 
     def _try_start(self) -> None:

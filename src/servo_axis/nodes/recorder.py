@@ -29,6 +29,7 @@ Run::
 
 from __future__ import annotations
 
+import functools
 import re
 from collections.abc import Callable
 from pathlib import Path
@@ -124,7 +125,8 @@ class RecorderNode(ServoNode):
         window = 1 if values["mode"] == "lockstep" else 100
         self._period_ns = msgs.period_ns(values["control_period_s"])
         self._axis = values["axis"]
-        self._subs = []
+        self._subs: dict[str, Any] = {}
+        self._topics = list(topics)
         self.timeline = SimTimeline()
         for topic, type_name, cls in zip(topics, types, classes, strict=True):
             name = self.resolve_topic_name(topic)
@@ -150,21 +152,19 @@ class RecorderNode(ServoNode):
                 if name in self._gates
                 else None
             )
-            self._subs.append(
-                self.create_subscription(
-                    cls,
-                    topic,
-                    self._callback(name, stamp, clock=clock),
-                    qos,
-                    raw=True,
-                    event_callbacks=events,
-                )
+
+            # Made once the topic has a publisher, with the profile that matches
+            # it (an outside node's default QoS too: ServoNode.when_published).
+            callback = self._callback(name, stamp, clock=clock)
+            self.when_published(
+                topic, qos, functools.partial(self._subscribe_raw, topic, cls, callback, events)
             )
         self.recorded = -1
         self._ready_timer = self.create_timer(0.01, self._check_ready, clock=steady_clock())
         self._flush_timer = self.create_timer(
             FLUSH_PERIOD_S, self.writer.flush, clock=steady_clock()
         )
+        self.create_timer(0.5, self._check_gone, clock=steady_clock())
         self._closed = False
 
     def _callback(self, name: str, stamp: Callable[[bytes], int] | None, *, clock: bool) -> Any:
@@ -206,8 +206,18 @@ class RecorderNode(ServoNode):
 
         return on_message
 
+    def _subscribe_raw(
+        self, topic: str, cls: Any, callback: Any, events: Any, profile: Any
+    ) -> None:
+        self._subs[topic] = self.create_subscription(
+            cls, topic, callback, profile, raw=True, event_callbacks=events
+        )
+
     def _check_ready(self) -> None:
-        if self._v["wait_for_publishers"] and any(s.get_publisher_count() < 1 for s in self._subs):
+        if self._v["wait_for_publishers"] and not all(
+            self.input_matched(t, self._subs.get(t)) if t in self._subs else False
+            for t in self._topics
+        ):
             return
         self._ready_timer.cancel()
         self.recorded = 0
@@ -232,20 +242,33 @@ class RecorderNode(ServoNode):
 
     def _liveliness(self, name: str) -> Any:
         def on_liveliness(info: Any) -> None:
-            if info.alive_count == 0 and info.not_alive_count > 0 and name not in self._gone:
-                # The producer is gone: its stream stops being counted (what
-                # it published is on disk), so the rest of the run is recorded.
-                self._gone.add(name)
-                self.fallback(
-                    "publisher_gone",
-                    self._recorded_steps(name),
-                    f"the publisher of {name} is gone; its stream is no longer counted",
-                )
-                self._update_progress()
+            if info.alive_count == 0 and info.not_alive_count > 0:
+                self._publisher_gone(name)
             elif info.alive_count > 0:
                 self._gone.discard(name)
 
         return on_liveliness
+
+    def _check_gone(self) -> None:
+        """A counted stream's publisher that offers no lease is gone when it left the graph."""
+        for topic, sub in self._subs.items():
+            name = self.resolve_topic_name(topic)
+            running = 0 <= self.recorded < self._steps  # not after the end: the plant exits
+            if name in self._gates and running and sub.get_publisher_count() == 0:
+                self._publisher_gone(name)
+
+    def _publisher_gone(self, name: str) -> None:
+        if name in self._gone:
+            return
+        # The producer is gone: its stream stops being counted (what it
+        # published is on disk), so the rest of the run is recorded.
+        self._gone.add(name)
+        self.fallback(
+            "publisher_gone",
+            self._recorded_steps(name),
+            f"the publisher of {name} is gone; its stream is no longer counted",
+        )
+        self._update_progress()
 
     def _recorded_steps(self, name: str) -> int:
         """Steps of counted stream ``name`` written in order (the next expected step)."""

@@ -9,7 +9,7 @@ from collections.abc import Callable, Sequence
 
 import rclpy
 from rclpy.clock import Clock, ClockType
-from rclpy.duration import Duration
+from rclpy.duration import Duration, Infinite
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import (
@@ -66,6 +66,77 @@ LATCHED_QOS = _reliable(1, DurabilityPolicy.TRANSIENT_LOCAL)
 #: took it, and the plant never started (measured: every run with a junk
 #: publisher already on the domain).
 LATCHED_READ_QOS = _reliable(STREAM_QOS.depth, DurabilityPolicy.TRANSIENT_LOCAL)
+
+#: Seconds of lease above which an offered liveliness lease counts as none
+#: (rmw reports "infinite" as about 9.2e9 s).
+_NO_LEASE_S = 1e9
+
+
+def _lease_s(profile: QoSProfile) -> float:
+    lease = profile.liveliness_lease_duration
+    if lease.nanoseconds >= Infinite.nanoseconds:
+        return float("inf")
+    seconds = lease.nanoseconds / 1e9
+    return float("inf") if seconds <= 0.0 or seconds >= _NO_LEASE_S else seconds
+
+
+def matching_reader_qos(wanted: QoSProfile, offered: Sequence[QoSProfile]) -> QoSProfile | None:
+    """The profile a reader asks for so that it matches the publishers that ``offered``.
+
+    A subscription of the suite asks for what its own publishers offer
+    (``wanted``: reliable, transient-local, liveliness lease 1 s) when at
+    least one publisher on the topic offers it, and otherwise for what the
+    publishers there do offer, down to rclpy's and rclcpp's defaults
+    (reliable, volatile, no lease) or ``qos_profile_sensor_data`` (best
+    effort): request-offered matching in DDS lets a reader ask for at most
+    what a writer offers. So between the suite's own nodes nothing is weaker
+    than before (history for a reader that completes discovery late, the
+    1 s lease by which a dead peer is seen), and an outside node with
+    default QoS is matched all the same.
+
+    Parameters
+    ----------
+    wanted : QoSProfile
+        The strongest profile the reader would take (the topic table's).
+    offered : sequence of QoSProfile
+        The profiles of the publishers on the topic (from the ROS graph).
+
+    Returns
+    -------
+    QoSProfile or None
+        None while there is no publisher to match (ask again later).
+    """
+    if not offered:
+        return None
+    reliable = wanted.reliability == ReliabilityPolicy.RELIABLE and any(
+        p.reliability == ReliabilityPolicy.RELIABLE for p in offered
+    )
+    reliability = ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT
+    durable = wanted.durability == DurabilityPolicy.TRANSIENT_LOCAL and any(
+        p.durability == DurabilityPolicy.TRANSIENT_LOCAL and p.reliability == reliability
+        for p in offered
+    )
+    durability = DurabilityPolicy.TRANSIENT_LOCAL if durable else DurabilityPolicy.VOLATILE
+    # The reader's lease must be at least each matched writer's: the longest
+    # one offered by the publishers this reader will match.
+    matched = [
+        p
+        for p in offered
+        if (p.reliability == ReliabilityPolicy.RELIABLE or not reliable)
+        and (p.durability == DurabilityPolicy.TRANSIENT_LOCAL or not durable)
+    ]
+    lease = max((_lease_s(p) for p in matched), default=float("inf"))
+    profile = QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=wanted.depth,
+        reliability=reliability,
+        durability=durability,
+        liveliness=LivelinessPolicy.AUTOMATIC,
+    )
+    if lease != float("inf"):
+        profile.liveliness_lease_duration = Duration(nanoseconds=round(lease * 1e9))
+    return profile
+
 
 #: Exit code of a node that refused its configuration.
 EXIT_BAD_CONFIG = 2

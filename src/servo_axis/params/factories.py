@@ -1071,6 +1071,7 @@ def check_consistency(role: str, values: Values) -> None:
         Naming the key (or keys) at fault.
     """
     run_steps(values)
+    external_roles(values)
     if role == "plant":
         build_plant(values)
     elif role == "feedback":
@@ -1089,6 +1090,28 @@ def check_consistency(role: str, values: Values) -> None:
         check_recorder_topics(values)
     elif role == "identifier":
         build_identifier(values)
+
+
+#: The roles a node from outside the suite may play (``external_roles``).
+EXTERNAL_ROLES = ("plant", "feedback", "feedforward", "learning", "identifier")
+
+
+def external_roles(values: Values) -> tuple[str, ...]:
+    """The roles of ``external_roles`` (the empty placeholder dropped), checked.
+
+    Raises
+    ------
+    ParameterFileError
+        Naming ``external_roles`` for a role that is not one of :data:`EXTERNAL_ROLES`.
+    """
+    roles = tuple(r for r in values.get("external_roles", [""]) if r)
+    for role in roles:
+        if role not in EXTERNAL_ROLES:
+            raise ParameterFileError(
+                f"parameter 'external_roles': expected roles among {list(EXTERNAL_ROLES)}, "
+                f"got {role!r}"
+            )
+    return roles
 
 
 def check_recorder_topics(values: Values) -> None:

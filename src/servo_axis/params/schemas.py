@@ -107,6 +107,12 @@ SHARED: dict[str, Param] = {
         meaning="scenario name (summary, plots; a learning memory file must carry the same)",
     ),
     "scenario.description": Param("", meaning="one-line description of the scenario"),
+    "external_roles": Param(
+        [""],
+        meaning="roles played by nodes from outside the suite (any node name; `--external` of "
+        "`run`): their topics' first publisher is the declared one, not a stranger; a subset "
+        "of plant, feedback, feedforward, learning, identifier",
+    ),
     "report_dir": Param(
         "",
         meaning="folder where each node writes `<node>.health.json` (rejected messages, "
