@@ -44,6 +44,8 @@ def _run(args: argparse.Namespace) -> int:
             domain_id=args.domain_id,
             namespace=args.namespace,
             plots=not args.no_plots,
+            external=tuple(args.external),
+            external_timeout_s=args.external_timeout,
             **({} if args.respawn_limit is None else {"respawn_limit": args.respawn_limit}),
         )
     except RunInterruptedError as err:
@@ -212,6 +214,22 @@ def main(argv: list[str] | None = None) -> int:
         type=int,
         default=None,
         help="restarts of a dead learning unit per axis (default 3; 0: no restart)",
+    )
+    run.add_argument(
+        "--external",
+        action="append",
+        default=[],
+        metavar="ROLE",
+        help="a node from outside the suite plays ROLE (plant, feedback, feedforward, "
+        "learning, identifier; repeatable; also the scenario key external_roles): the run "
+        "starts the others, prints the topics the outside node must serve and waits for it",
+    )
+    run.add_argument(
+        "--external-timeout",
+        type=float,
+        default=120.0,
+        metavar="S",
+        help="seconds to wait for the outside nodes before the first step (default 120)",
     )
     run.set_defaults(func=_run)
     ft = sub.add_parser("friction-table", help="build a friction table from a friction_id run")

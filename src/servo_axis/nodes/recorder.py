@@ -46,6 +46,7 @@ from servo_axis.recording.definitions import message_definition
 from servo_axis.recording.timeline import SimTimeline
 from servo_axis.recording.writer import DEFAULT_QOS, LATCHED_QOS_TEXT, BagWriter
 from servo_axis.wire import messages as msgs
+from servo_axis.wire import topics as topics_table
 from servo_axis.wire.cdr import clock_ns_from_cdr
 from servo_axis.wire.streams import JOINT_STREAMS, StreamGate, decode_joint_stream
 
@@ -213,10 +214,23 @@ class RecorderNode(ServoNode):
             cls, topic, callback, profile, raw=True, event_callbacks=events
         )
 
+    def _required(self, topic: str) -> bool:
+        """Whether ``topic`` must have a publisher before the recorder reports ready.
+
+        Every topic of a node the run started (they publish from the start);
+        of an outside node's topics, the per-sample streams the flow control
+        counts (an outside feedback need not publish ``fault`` before it trips).
+        """
+        entry = topics_table.BY_NAME.get(topic)
+        if entry is None or entry.producer not in self.external_roles:
+            return True
+        return topic in self._v["counted_topics"] or topic in self._v["final_topics"]
+
     def _check_ready(self) -> None:
         if self._v["wait_for_publishers"] and not all(
             self.input_matched(t, self._subs.get(t)) if t in self._subs else False
             for t in self._topics
+            if self._required(t)
         ):
             return
         self._ready_timer.cancel()

@@ -30,7 +30,7 @@ from servo_axis.params.scenario import (
     resolve_table,
     shared,
 )
-from servo_axis.wire.topics import TOPICS, recorded_topics, subscriber_count, topic
+from servo_axis.wire.topics import TOPICS, Topic, recorded_topics, subscriber_count, topic
 
 
 def sim_time_roles() -> tuple[str, ...]:
@@ -102,7 +102,11 @@ def law_outputs(scenario: dict[str, Any]) -> tuple[str, ...]:
 
 
 def handshake_overrides(
-    scenario: dict[str, Any], roles: list[str], bag_dir: Path, scenario_dir: Path
+    scenario: dict[str, Any],
+    roles: list[str],
+    bag_dir: Path,
+    scenario_dir: Path,
+    external: tuple[str, ...] = (),
 ) -> dict[str, dict[str, Any]]:
     """Per-node parameters the runner adds to a scenario (flat, dotted keys).
 
@@ -120,6 +124,10 @@ def handshake_overrides(
     scenario_dir : Path
         The scenario file's folder: relative friction-table paths are
         relative to it.
+    external : tuple of str
+        The roles among ``roles`` that nodes from outside the suite play:
+        counted like the others in the handshakes, given to every node as
+        ``external_roles``.
 
     Returns
     -------
@@ -142,6 +150,12 @@ def handshake_overrides(
     """
     recorded: list[str] = []
     out: dict[str, dict[str, Any]] = {"plant": {}}
+
+    def count(name: str, roles: list[str], recorded: list[str]) -> int:
+        # An outside node is waited for only on the inputs its role must take.
+        counted = [r for r in roles if r not in external or name in REQUIRED_INPUTS[r]]
+        return subscriber_count(name, counted, recorded)
+
     if "learning" in roles:
         out["learning"] = learning_overrides(scenario, bag_dir)
     if "recorder" in roles:
@@ -160,32 +174,26 @@ def handshake_overrides(
     if "identifier" in roles:
         ident = node_params(scenario, "identifier")
         out["identifier"] = {
-            "wait_for_estimate_subscribers": subscriber_count(
-                "identifier/estimates", roles, recorded
-            )
+            "wait_for_estimate_subscribers": count("identifier/estimates", roles, recorded)
         }
         if "memory.file" not in ident:
             out["identifier"]["memory.file"] = str(bag_dir.parent / "identifier_memory.json")
     if "learning" in roles:
         out["learning"].update(
-            wait_for_correction_subscribers=subscriber_count(
-                law_outputs(scenario)[0], roles, recorded
-            ),
-            wait_for_stats_subscribers=subscriber_count("learning/cycle_stats", roles, recorded),
+            wait_for_correction_subscribers=count(law_outputs(scenario)[0], roles, recorded),
+            wait_for_stats_subscribers=count("learning/cycle_stats", roles, recorded),
         )
     out["plant"].update(
-        wait_for_state_subscribers=subscriber_count("state", roles, recorded),
-        wait_for_clock_subscribers=subscriber_count("/clock", roles, recorded),
-        wait_for_status_subscribers=subscriber_count("plant/status", roles, recorded),
+        wait_for_state_subscribers=count("state", roles, recorded),
+        wait_for_clock_subscribers=count("/clock", roles, recorded),
+        wait_for_status_subscribers=count("plant/status", roles, recorded),
     )
     if "feedback" in roles:
-        out.setdefault("feedback", {})["wait_for_command_subscribers"] = subscriber_count(
+        out.setdefault("feedback", {})["wait_for_command_subscribers"] = count(
             "command", roles, recorded
         )
     if "feedforward" in roles:
-        ff: dict[str, Any] = {
-            "wait_for_reference_subscribers": subscriber_count("reference", roles, recorded)
-        }
+        ff: dict[str, Any] = {"wait_for_reference_subscribers": count("reference", roles, recorded)}
         given = node_params(scenario, "feedforward")
         for key in ("friction_table.file", "gms.file"):
             if given.get(key, ""):
@@ -202,6 +210,9 @@ def handshake_overrides(
             out.setdefault(role, {})["use_sim_time"] = True
     for role in roles:
         out.setdefault(role, {})["report_dir"] = str(bag_dir.parent / "logs")
+    if external:
+        for role in roles:
+            out[role]["external_roles"] = list(external)
     return out
 
 
@@ -260,3 +271,61 @@ def learning_values(scenario: dict[str, Any], scenario_path: Path) -> dict[str, 
     overrides = learning_overrides(scenario, Path(scenario_path).parent / "bag")
     overrides.pop("memory.file", None)
     return checked_values("learning", {**node_params(scenario, "learning"), **overrides})
+
+
+#: What a node playing each role must subscribe to (their publishers wait for
+#: it there): the samples it answers or learns from, and the reference a
+#: feedback node follows (published ahead: a volatile reader that matched
+#: late would never get the first samples). Its other inputs (``/clock`` for
+#: a node without ``use_sim_time``) are its choice, and no publisher waits
+#: for them.
+REQUIRED_INPUTS: dict[str, tuple[str, ...]] = {
+    "plant": ("command",),
+    "feedback": ("state", "reference"),
+    "feedforward": (),
+    "learning": ("state",),
+    "identifier": ("state", "command"),
+}
+
+#: The topic whose publisher shows that a node playing the role is there.
+PRESENCE_TOPICS = {
+    "plant": "state",
+    "feedback": "command",
+    "feedforward": "reference",
+    "identifier": "identifier/estimates",
+}
+
+
+def presence_topic(scenario: dict[str, Any], role: str) -> str:
+    """The output topic of ``role`` whose publisher shows that its node is there."""
+    if role == "learning":
+        return law_outputs(scenario)[0]
+    return PRESENCE_TOPICS[role]
+
+
+def role_topics(
+    scenario: dict[str, Any], roles: list[str], role: str
+) -> tuple[list[Topic], list[Topic]]:
+    """What a node playing ``role`` in a run of ``roles`` publishes and subscribes to.
+
+    The table's rows whose producer (consumer) is ``role``, less the topics
+    the scenario leaves off (a switch such as ``deformation.enabled``, the
+    outputs of learning laws other than the scenario's) and the inputs whose
+    producer does not run. ``recorder/progress`` (the plant's flow control)
+    is left to the suite's own plant.
+    """
+    on = set(switched_on(scenario))
+    laws = set(law_outputs(scenario)) if "learning" in roles else set()
+
+    def live(t: Topic) -> bool:
+        if t.enabled_by and t.name not in on:
+            return False
+        return t.producer != "learning" or t.name in laws
+
+    publishes = [t for t in TOPICS if t.producer == role and live(t)]
+    subscribes = [
+        t
+        for t in TOPICS
+        if role in t.consumers and t.producer in roles and live(t) and t.name != "recorder/progress"
+    ]
+    return publishes, subscribes

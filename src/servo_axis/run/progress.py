@@ -187,6 +187,10 @@ class ProgressWatcher:
         dims = list(msg.layout.dim)
         self.filter.offer([d.label for d in dims], [d.size for d in dims], msg.data)
 
+    def endpoints(self, topic: str) -> tuple[int, int]:
+        """Publishers and subscribers of ``topic`` (relative to the axis namespace) in the graph."""
+        return self.node.count_publishers(topic), self.node.count_subscribers(topic)
+
     def spin(self, seconds: float) -> None:
         """Handle what has arrived, waiting at most ``seconds``."""
         self._executor.spin_once(timeout_sec=seconds)

@@ -44,7 +44,7 @@ from typing import TYPE_CHECKING, Any, TextIO
 
 from servo_axis.analysis.health import NodeDeath, RunHealth, assess
 from servo_axis.core.errors import ConfigError, ParameterFileError
-from servo_axis.params.factories import checked_values, node_values, run_steps
+from servo_axis.params.factories import EXTERNAL_ROLES, checked_values, node_values, run_steps
 from servo_axis.params.scenario import (
     axes_of,
     axis_view,
@@ -55,7 +55,13 @@ from servo_axis.params.scenario import (
     roles_of,
     shared,
 )
-from servo_axis.run.plan import handshake_overrides, write_run_params
+from servo_axis.run.plan import (
+    REQUIRED_INPUTS,
+    handshake_overrides,
+    presence_topic,
+    role_topics,
+    write_run_params,
+)
 from servo_axis.run.processes import (
     Proc,
     clean_stale_shm,
@@ -83,6 +89,8 @@ RUN_ON_ROLES = ("feedforward",)
 RESPAWN_LIMIT = 3
 #: Exit code of a node that refused its configuration (never restarted).
 NODE_BAD_CONFIG = 2
+#: Seconds a run waits for its outside nodes before the first step, by default.
+EXTERNAL_TIMEOUT_S = 120.0
 #: Seconds the watch loop waits per pass (shared by the axes).
 POLL_S = 0.05
 
@@ -157,6 +165,8 @@ class _AxisRun:
     roles: list[str]
     params_path: Path
     args: list[str]
+    external: tuple[str, ...] = ()
+    steps: int = 0
     procs: list[Proc] = field(default_factory=list)
     watcher: ProgressWatcher | None = None
     env: dict[str, str] = field(default_factory=dict)
@@ -169,7 +179,15 @@ class _AxisRun:
         return self.out_dir / "logs"
 
     @property
+    def started_roles(self) -> list[str]:
+        """The roles the runner starts (those an outside node plays left out)."""
+        return [r for r in self.roles if r not in self.external]
+
+    @property
     def plant_done(self) -> bool:
+        if "plant" in self.external:
+            # An outside plant: done once the recorder has every step.
+            return self.watcher is not None and self.watcher.steps >= self.steps
         plant = next((p for p in self.procs if p.role in PLANT_ROLES), None)
         return plant is not None and plant.popen.poll() == 0
 
@@ -213,6 +231,8 @@ def run_scenario(
     extra_args: list[str] | None = None,
     on_started: Callable[[list[Proc]], object] | None = None,
     respawn_limit: int = RESPAWN_LIMIT,
+    external: tuple[str, ...] = (),
+    external_timeout_s: float = EXTERNAL_TIMEOUT_S,
 ) -> RunResult:
     """Run one scenario end to end and return where it was written.
 
@@ -223,6 +243,12 @@ def run_scenario(
     subdirectory of the run directory (its own bag, logs, summary) and the
     run's summary holds the per-axis summaries and the contour (XY) figures.
     ``os.environ`` is left as it was.
+
+    ``external`` names roles that nodes from outside the suite play (with
+    the scenario's ``external_roles``): the runner starts every other node,
+    says which topics the outside node must serve, and waits for it (at most
+    ``external_timeout_s`` before the first step); the rest of the run is as
+    usual.
 
     Raises
     ------
@@ -244,13 +270,34 @@ def run_scenario(
     common = shared(data)
     steps = run_steps(node_values(data, "plant"))
     run_dir = _new_run_dir(out_dir, common.get("scenario", {}).get("name") or scenario_path.stem)
+    outside = external_roles_of(data, external)
     runs = prepare_axis_runs(
-        data, scenario_path, run_dir, composed=composed, namespace=namespace, extra_args=extra_args
+        data,
+        scenario_path,
+        run_dir,
+        composed=composed,
+        namespace=namespace,
+        extra_args=extra_args,
+        external=outside,
     )
     domain = default_domain_id() if domain_id is None else domain_id
     line = ProgressLine(steps, progress) if progress is not None else None
+    if progress is not None:
+        for run in runs:
+            for role in run.external:
+                progress.write(describe_external(run, role))
+        progress.flush()
     watch = _run_nodes(
-        runs, domain, composed, line, stall_timeout_s, on_started, run_dir, respawn_limit
+        runs,
+        domain,
+        composed,
+        line,
+        stall_timeout_s,
+        on_started,
+        run_dir,
+        respawn_limit,
+        external_timeout_s,
+        progress,
     )
     if watch.signals:
         signame = signal.Signals(watch.signals[0]).name
@@ -310,6 +357,7 @@ def prepare_axis_runs(
     composed: bool = False,
     namespace: str = "",
     extra_args: list[str] | None = None,
+    external: tuple[str, ...] = (),
 ) -> list[_AxisRun]:
     """One set of nodes per axis, with its directory, parameter file and ROS arguments.
 
@@ -321,21 +369,67 @@ def prepare_axis_runs(
             f"scenario {scenario_path}: a multi-axis scenario runs as separate processes, "
             "each axis in its own namespace (no --composed, no --namespace)"
         )
+    if external and composed:
+        raise ConfigError("--external: a run with outside nodes runs as separate processes")
     for axis in axes:  # every section of every axis, before anything is written or started
         view = axis_view(scenario, axis, scenario_path.parent)
-        _check_sections(view, run_dir / axis, scenario_path.parent)
+        _check_sections(view, run_dir / axis, scenario_path.parent, external)
     if not axes:
-        _check_sections(scenario, run_dir, scenario_path.parent)
+        _check_sections(scenario, run_dir, scenario_path.parent, external)
     return [
-        _prepare_axis(scenario, scenario_path, run_dir, axis, namespace, extra_args or [])
+        _prepare_axis(scenario, scenario_path, run_dir, axis, namespace, extra_args or [], external)
         for axis in axes or [""]
     ]
 
 
-def _check_sections(scenario: dict[str, Any], axis_dir: Path, scenario_dir: Path) -> None:
+def external_roles_of(
+    scenario: dict[str, Any], given: tuple[str, ...] | list[str]
+) -> tuple[str, ...]:
+    """The roles outside nodes play: ``given`` (``--external``) and the scenario's ``external_roles``.
+
+    Raises
+    ------
+    ConfigError
+        For a role that is not one an outside node can play.
+    """
+    listed = [r for r in shared(scenario).get("external_roles", []) if r]
+    roles = tuple(dict.fromkeys([*given, *listed]))
+    for role in roles:
+        if role not in EXTERNAL_ROLES:
+            raise ConfigError(f"--external {role}: expected one of {', '.join(EXTERNAL_ROLES)}")
+    return roles
+
+
+def describe_external(run: _AxisRun, role: str) -> str:
+    """What the outside node of ``role`` must serve: topics, types, QoS (printed by the run)."""
+    publishes, subscribes = role_topics(run.scenario, run.roles, role)
+    ns = run.namespace.rstrip("/") if run.namespace not in ("", "/") else ""
+
+    def full(name: str) -> str:
+        return name if name.startswith("/") else f"{ns}/{name}"
+
+    lines = [f"outside {run.where(role)}: any node name, default QoS accepted (docs/interfaces.md)"]
+    lines += [f"  publishes   {full(t.name):32} {t.type_name:30} {t.meaning}" for t in publishes]
+    lines += [
+        f"  subscribes  {full(t.name):32} {t.type_name:30} "
+        f"{'' if t.name in REQUIRED_INPUTS[role] else '(optional) '}{t.meaning}"
+        for t in subscribes
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def _check_sections(
+    scenario: dict[str, Any], axis_dir: Path, scenario_dir: Path, external: tuple[str, ...] = ()
+) -> None:
     """Check each node's section as the node will (ParameterFileError naming the key)."""
     roles = roles_of(scenario)
-    overrides = handshake_overrides(scenario, roles, axis_dir / "bag", scenario_dir)
+    for role in external:
+        if role not in roles:
+            raise ConfigError(
+                f"--external {role}: the scenario has no {role} section (its roles: "
+                f"{', '.join(roles)})"
+            )
+    overrides = handshake_overrides(scenario, roles, axis_dir / "bag", scenario_dir, external)
     for role in roles:
         values = checked_values(role, {**node_params(scenario, role), **overrides.get(role, {})})
         table = values.get("friction_table.file") if values.get("friction_table.enabled") else None
@@ -350,6 +444,7 @@ def _prepare_axis(
     axis: str,
     namespace: str,
     extra_args: list[str],
+    external: tuple[str, ...] = (),
 ) -> _AxisRun:
     axis_dir = run_dir / axis if axis else run_dir
     (axis_dir / "logs").mkdir(parents=True, exist_ok=True)
@@ -364,9 +459,14 @@ def _prepare_axis(
         axis_scenario, axis_path, ns = scenario, scenario_path, namespace
         args = [*(["-r", f"__ns:={ns}"] if ns else []), *extra_args]
     roles = roles_of(axis_scenario)
-    overrides = handshake_overrides(axis_scenario, roles, axis_dir / "bag", scenario_path.parent)
+    overrides = handshake_overrides(
+        axis_scenario, roles, axis_dir / "bag", scenario_path.parent, external
+    )
     params_path = write_run_params(axis_scenario, overrides, axis_dir / "params.yaml")
-    return _AxisRun(axis, ns, axis_scenario, axis_path, axis_dir, roles, params_path, args)
+    steps = run_steps(node_values(axis_scenario, "plant"))
+    return _AxisRun(
+        axis, ns, axis_scenario, axis_path, axis_dir, roles, params_path, args, external, steps
+    )
 
 
 def _run_nodes(
@@ -378,6 +478,8 @@ def _run_nodes(
     on_started: Callable[[list[Proc]], object] | None,
     run_dir: Path,
     respawn_limit: int,
+    external_timeout_s: float = 0.0,
+    progress: TextIO | None = None,
 ) -> _Watch:
     """Start every axis's nodes, watch them until the plants are done, stop them all."""
     env = ros_environment(domain_id, runs[0].log_dir)
@@ -386,7 +488,7 @@ def _run_nodes(
     started = time.time()  # epoch, for the shared-memory clean-up
     try:
         for run in runs:
-            if "recorder" in run.roles:
+            if "recorder" in run.roles or run.external:
                 run.watcher = ProgressWatcher(
                     run.namespace or "/",
                     domain_id=domain_id,
@@ -400,11 +502,12 @@ def _run_nodes(
             for run in runs:
                 run.env = {**env, "ROS_LOG_DIR": str(run.log_dir)}
                 run.procs = start_nodes(
-                    run.params_path, run.roles, run.args, run.env, run.log_dir, composed
+                    run.params_path, run.started_roles, run.args, run.env, run.log_dir, composed
                 )
             if on_started is not None:
                 on_started([p for run in runs for p in run.procs])
-            _watch(runs, watch, line, stall_timeout_s, run_dir, respawn_limit)
+            outside = _Outside(runs, external_timeout_s, progress)
+            _watch(runs, watch, line, stall_timeout_s, run_dir, respawn_limit, outside)
         finally:
             watch.t_end = time.monotonic()
             stop_nodes([p for run in runs for p in run.procs])
@@ -425,6 +528,49 @@ def _run_nodes(
     return watch
 
 
+class _Outside:
+    """The wait for the nodes of the roles outside nodes play, before the first step."""
+
+    def __init__(self, runs: list[_AxisRun], timeout_s: float, out: TextIO | None) -> None:
+        self.missing = [(run, role) for run in runs for role in run.external]
+        self.timeout_s = timeout_s
+        self.out = out
+        self.t0 = time.monotonic()
+        self.told = 0.0
+
+    def _present(self, run: _AxisRun, role: str) -> bool:
+        assert run.watcher is not None
+        publishers, _ = run.watcher.endpoints(presence_topic(run.scenario, role))
+        return publishers > 0
+
+    def arrived(self) -> bool:
+        """Whether every outside node is there (its main output has a publisher)."""
+        self.missing = [(run, role) for run, role in self.missing if not self._present(run, role)]
+        if self.missing and self.out is not None and time.monotonic() - self.told >= 5.0:
+            self.told = time.monotonic()
+            waited = self.told - self.t0
+            for run, role in self.missing:
+                topic = presence_topic(run.scenario, role)
+                self.out.write(
+                    f"waiting for the outside {run.where(role)} ({waited:.0f} s of "
+                    f"{self.timeout_s:.0f} s): no publisher on {topic} yet\n"
+                )
+            self.out.flush()
+        return not self.missing
+
+    def failure(self) -> str | None:
+        """Why the run stops (the timeout passed), or None."""
+        if time.monotonic() - self.t0 <= self.timeout_s:
+            return None
+        names = ", ".join(
+            f"{run.where(role)} (no publisher on {presence_topic(run.scenario, role)})"
+            for run, role in self.missing
+        )
+        return (
+            f"the outside node did not come within --external-timeout {self.timeout_s:g} s: {names}"
+        )
+
+
 def _watch(
     runs: list[_AxisRun],
     watch: _Watch,
@@ -432,6 +578,7 @@ def _watch(
     stall_timeout_s: float,
     run_dir: Path,
     respawn_limit: int,
+    outside: _Outside | None = None,
 ) -> None:
     """Follow the progress until the plants are done, a node fails, the run stalls or a signal."""
     last_change = time.monotonic()
@@ -452,6 +599,13 @@ def _watch(
         watch.failure = _check_processes(runs, watch, respawn_limit)
         if watch.failure is not None or all(run.plant_done for run in runs):
             return
+        if outside is not None and not outside.arrived():
+            # The wait for an outside node has its own timeout, not the stall's.
+            watch.failure = outside.failure()
+            if watch.failure is not None:
+                return
+            last_change = time.monotonic()
+            continue
         if time.monotonic() - last_change > stall_timeout_s:
             watch.failure = f"no progress for {stall_timeout_s:.0f} s (see {run_dir})"
             return

@@ -1,0 +1,66 @@
+"""A PD position controller for the servo_axis emulated axis, in plain rclpy.
+
+It plays the `feedback` role and imports nothing from servo_axis. It answers each
+`state` sample with one `command` stamped like it (lockstep waits for exactly that):
+effort = motor torque (N m) = feedforward torque + Kp (r - y) + Kd (r' - y'), with
+r, r' and the feedforward torque from `reference` and y, y' from `state`.
+
+    python examples/pd_controller.py --ros-args -r __ns:=/x -p bandwidth_hz:=20.0 -p inertia_kgm2:=0.01
+"""
+
+import math
+
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+
+
+class PdController(Node):
+    def __init__(self) -> None:
+        super().__init__("my_pd_controller")
+        w = 2 * math.pi * self.declare_parameter("bandwidth_hz", 20.0).value
+        inertia = self.declare_parameter("inertia_kgm2", 0.01).value
+        self.kp, self.kd = inertia * w * w, 2 * 0.7 * inertia * w  # poles at w, damping 0.7
+        self.states: dict[tuple[int, int], JointState] = {}
+        self.references: dict[tuple[int, int], JointState] = {}
+        self.pub = self.create_publisher(JointState, "command", 10)
+        self.create_subscription(JointState, "state", self.on_state, 10)
+        # The reference comes ahead of the samples, in bursts: a deep queue keeps them all.
+        self.create_subscription(JointState, "reference", self.on_reference, 1000)
+
+    def on_state(self, msg: JointState) -> None:
+        self.states[stamp(msg)] = msg
+        self.answer(stamp(msg))
+
+    def on_reference(self, msg: JointState) -> None:
+        self.references[stamp(msg)] = msg
+        self.answer(stamp(msg))
+
+    def answer(self, key: tuple[int, int]) -> None:
+        if key not in self.states or key not in self.references:
+            return
+        state, ref = self.states.pop(key), self.references.pop(key)
+        error = ref.position[0] - state.position[0]  # encoder angle (rad)
+        rate = ref.velocity[0] - state.velocity[0]
+        command = JointState(header=state.header, name=[state.name[0]])
+        command.effort = [ref.effort[0] + self.kp * error + self.kd * rate]
+        self.pub.publish(command)
+
+
+def stamp(msg: JointState) -> tuple[int, int]:
+    return (msg.header.stamp.sec, msg.header.stamp.nanosec)
+
+
+def main() -> None:
+    rclpy.init()
+    try:
+        rclpy.spin(PdController())
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()
