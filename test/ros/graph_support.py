@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -45,3 +47,19 @@ def graph_nodes(
         )
         for role in roles
     ]
+
+
+def spin_until(
+    ctx: Context, nodes: list[Node], cond: Callable[[], bool], timeout_s: float = 20.0
+) -> None:
+    """Spin ``nodes`` on one executor until ``cond()``; fails after ``timeout_s``."""
+    ex = SingleThreadedExecutor(context=ctx)
+    for n in nodes:
+        ex.add_node(n)
+    deadline = time.monotonic() + timeout_s
+    try:
+        while not cond():
+            assert time.monotonic() < deadline, "timed out"
+            ex.spin_once(timeout_sec=0.05)
+    finally:
+        ex.shutdown()

@@ -12,18 +12,15 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
-import rclpy
 import yaml
-from graph_support import graph_nodes
+from graph_support import graph_nodes, spin_until
 from numpy.testing import assert_array_equal
 from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
@@ -63,29 +60,6 @@ STEPS = 1000  # the shortened run: 0.4 s
 #: first few RLS periods would be the initial one whatever came in; at
 #: 600 Hz they run from step 8 on, so each estimate depends on the input.
 FAST_PD_HZ = 600.0
-
-
-@pytest.fixture
-def context(ros_env: int) -> Iterator[Context]:
-    ctx = Context()
-    rclpy.init(args=[], context=ctx)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
-
-
-def spin_until(
-    ctx: Context, nodes: list[Node], cond: Callable[[], bool], timeout_s: float = 20.0
-) -> None:
-    ex = SingleThreadedExecutor(context=ctx)
-    for n in nodes:
-        ex.add_node(n)
-    deadline = time.monotonic() + timeout_s
-    try:
-        while not cond():
-            assert time.monotonic() < deadline, "timed out"
-            ex.spin_once(timeout_sec=0.05)
-    finally:
-        ex.shutdown()
 
 
 def spin_for(ctx: Context, nodes: list[Node], seconds: float) -> None:

@@ -4,18 +4,16 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
-import rclpy
 import yaml
-from graph_support import graph_nodes
+from graph_support import graph_nodes, spin_until
 from numpy.testing import assert_allclose, assert_array_equal
 from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
@@ -47,32 +45,9 @@ CONFIG = Path(__file__).resolve().parents[2] / "config"
 PERIOD_NS = 1_000_000
 
 
-@pytest.fixture
-def context(ros_env: int) -> Iterator[Context]:
-    ctx = Context()
-    rclpy.init(args=[], context=ctx)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
-
-
 def overrides(scenario: Path, role: str, **extra: Any) -> list[Parameter]:
     values = {**node_params(load_scenario(scenario), role), **extra}
     return [Parameter(k, value=v) for k, v in values.items()]
-
-
-def spin_until(
-    ctx: Context, nodes: list[Node], cond: Callable[[], bool], timeout_s: float = 20.0
-) -> None:
-    ex = SingleThreadedExecutor(context=ctx)
-    for n in nodes:
-        ex.add_node(n)
-    deadline = time.monotonic() + timeout_s
-    try:
-        while not cond():
-            assert time.monotonic() < deadline, "timed out"
-            ex.spin_once(timeout_sec=0.05)
-    finally:
-        ex.shutdown()
 
 
 def test_composed_lockstep_equals_core_only_loop(context: Context, tmp_path: Path) -> None:

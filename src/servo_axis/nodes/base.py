@@ -253,6 +253,11 @@ class ServoNode(Node):
             self.destroy_timer(self._unpublished_timer)
             self._unpublished_timer = None
 
+    @property
+    def inputs(self) -> tuple[str, ...]:
+        """The table topics the node subscribes to through :meth:`subscribe` (made or awaited)."""
+        return tuple(self._watched)
+
     def input_matched(self, name: str, subscription: Subscription | None = None) -> bool:
         """Whether the subscription to ``name`` exists and is matched with a publisher.
 

@@ -151,6 +151,14 @@ def handshake_overrides(
     recorded: list[str] = []
     out: dict[str, dict[str, Any]] = {"plant": {}}
 
+    def counted(name: str) -> bool:
+        # Of an outside node's streams, flow control counts only the one its
+        # role must publish (an outside feedback need not publish `deformation`).
+        entry = topic(name)
+        if entry.producer in external:
+            return entry.counted and name == presence_topic(scenario, entry.producer)
+        return entry.counted
+
     def count(name: str, roles: list[str], recorded: list[str]) -> int:
         # An outside node is waited for only on the inputs its role must take.
         counted = [r for r in roles if r not in external or name in REQUIRED_INPUTS[r]]
@@ -165,7 +173,7 @@ def handshake_overrides(
             rec.update(
                 topics=recorded,
                 types=types,
-                counted_topics=[name for name in recorded if topic(name).counted],
+                counted_topics=[name for name in recorded if counted(name)],
             )
         rec["output_dir"] = str(bag_dir)
         rec.update(scheduled_topics(scenario, recorded))

@@ -409,7 +409,12 @@ def describe_external(run: _AxisRun, role: str) -> str:
         return name if name.startswith("/") else f"{ns}/{name}"
 
     lines = [f"outside {run.where(role)}: any node name, default QoS accepted (docs/interfaces.md)"]
-    lines += [f"  publishes   {full(t.name):32} {t.type_name:30} {t.meaning}" for t in publishes]
+    must = presence_topic(run.scenario, role)
+    lines += [
+        f"  publishes   {full(t.name):32} {t.type_name:30} "
+        f"{'' if t.name == must else '(optional) '}{t.meaning}"
+        for t in publishes
+    ]
     lines += [
         f"  subscribes  {full(t.name):32} {t.type_name:30} "
         f"{'' if t.name in REQUIRED_INPUTS[role] else '(optional) '}{t.meaning}"

@@ -1,0 +1,445 @@
+"""Outside nodes play roles of a run, through ``python -m servo_axis run --external`` (issue 17).
+
+The outside nodes are the examples a user copies (``examples/``: plain rclpy,
+default QoS, their own node names, nothing imported from servo_axis) or a node
+of the suite started by hand under another name with the run's parameter
+file. Each run goes through the user's entry point; what is recorded is
+checked against an independent computation (the PD law on the recorded
+samples, the analytic sine) or against the same scenario run by the suite
+alone.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+from numpy.testing import assert_allclose
+
+from servo_axis.analysis.signals import StreamRules, read_streams
+from servo_axis.params.scenario import load_scenario
+from servo_axis.recording.deserialize import read_messages
+
+pytestmark = pytest.mark.integration
+
+REPO = Path(__file__).resolve().parents[2]
+CONFIG = REPO / "config"
+EXAMPLES = REPO / "examples"
+NS = "/x"
+RUN_TIMEOUT_S = 90.0
+
+
+def short(name: str, dst: Path, **shared: Any) -> Path:
+    """Shipped scenario ``name`` with ``/**`` values changed and its file paths absolute."""
+    data = load_scenario(CONFIG / f"{name}.yaml")
+    data["/**"]["ros__parameters"].update(shared)
+    ff = data.get("feedforward", {}).get("ros__parameters", {})
+    for key in ("friction_table", "gms"):
+        entry = ff.get(key, {})
+        if entry.get("file") and not Path(entry["file"]).is_absolute():
+            entry["file"] = str(CONFIG / entry["file"])
+    path = dst / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def start_run(scenario: Path, out: Path, *extra: str) -> subprocess.Popen[bytes]:
+    cmd = [sys.executable, "-m", "servo_axis", "run", str(scenario), "--out", str(out)]
+    cmd += ["--domain-id", os.environ["ROS_DOMAIN_ID"], "--namespace", NS, "--no-plots", *extra]
+    log = (out.parent / f"{out.name}.out").open("wb")
+    return subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+
+
+def start_outside(args: list[str], log: Path) -> subprocess.Popen[bytes]:
+    """An outside node in the run's domain (the environment the README gives a user)."""
+    return subprocess.Popen(
+        [sys.executable, *args],
+        stdout=log.open("wb"),
+        stderr=subprocess.STDOUT,
+        start_new_session=True,
+    )
+
+
+def finish(proc: subprocess.Popen[bytes], timeout_s: float) -> int | None:
+    """The exit code; None if it had to be stopped (SIGINT, then SIGKILL)."""
+    try:
+        return proc.wait(timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        stop(proc)
+        return None
+
+
+def stop(proc: subprocess.Popen[bytes]) -> None:
+    if proc.poll() is None:
+        os.killpg(proc.pid, signal.SIGINT)
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+
+
+def tails(out: Path) -> str:
+    text = (out.parent / f"{out.name}.out").read_text(errors="replace").splitlines()[-15:]
+    for log in sorted((out / "logs").glob("[a-z]*.log")) if (out / "logs").is_dir() else []:
+        text += [f"{log.stem}: {line}" for line in log.read_text().splitlines()[-4:]]
+    return "\n".join(text)
+
+
+def run_with_outside(
+    scenario: Path, out: Path, roles: list[str], outside: list[list[str]]
+) -> tuple[int | None, Any]:
+    """Run ``scenario`` with ``roles`` played by the ``outside`` commands; the exit code."""
+    extra = [a for r in roles for a in ("--external", r)]
+    proc = start_run(scenario, out, *extra)
+    nodes = [
+        start_outside(args, out.parent / f"{out.name}.outside{i}.log")
+        for i, args in enumerate(outside)
+    ]
+    try:
+        code = finish(proc, RUN_TIMEOUT_S)
+    finally:
+        for node in nodes:
+            stop(node)
+    return code, nodes
+
+
+def payload_hashes(bag: Path, raw_payloads: Any) -> dict[str, str]:
+    return {
+        topic: hashlib.sha256(b"".join(data)).hexdigest()
+        for topic, data in raw_payloads(bag).items()
+    }
+
+
+def joint_series(bag: Path, topic: str) -> dict[int, Any]:
+    """Messages of a JointState topic by stamp (ns)."""
+    return {
+        m.message.header.stamp.sec * 10**9 + m.message.header.stamp.nanosec: m.message
+        for m in read_messages(bag, topics=[topic])
+    }
+
+
+def pd_controller(bandwidth_hz: float, inertia: float) -> list[str]:
+    return [
+        str(EXAMPLES / "pd_controller.py"),
+        "--ros-args",
+        "-r",
+        f"__ns:={NS}",
+        "-p",
+        f"bandwidth_hz:={bandwidth_hz}",
+        "-p",
+        f"inertia_kgm2:={inertia}",
+    ]
+
+
+# -- an outside controller on each plant model ----------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("scenario", "duration_s", "bandwidth_hz", "inertia"),
+    [
+        ("ptc_nominal", 0.5, 20.0, 0.01),  # rigid ball screw, nominal
+        ("rptc_detailed", 1.0, 20.0, 0.01),  # 3 modes, dead time, friction; RPTC learning on
+        ("dlpid_tilt_pid", 0.4, 10.0, 0.005),  # tilting table (003)
+        ("slow_reversal_sigmoid", 0.5, 20.0, 0.0033),  # elastic ball screw (004)
+    ],
+)
+def test_the_example_controller_drives_each_plant_model(
+    ros_env: int,
+    tmp_path: Path,
+    raw_payloads: Any,
+    scenario: str,
+    duration_s: float,
+    bandwidth_hz: float,
+    inertia: float,
+) -> None:
+    """Twice through `run --external feedback` with examples/pd_controller.py: exit 0, the
+    bags identical, and every recorded command is the PD law of the recorded state and
+    reference of its sample (computed here, independently of the example)."""
+    path = short(scenario, tmp_path, duration_s=duration_s)
+    codes, hashes = [], []
+    for i in range(2):
+        out = tmp_path / f"run{i}"
+        code, _ = run_with_outside(path, out, ["feedback"], [pd_controller(bandwidth_hz, inertia)])
+        assert code == 0, tails(out)
+        codes.append(code)
+        hashes.append(payload_hashes(out / "bag", raw_payloads))
+    assert hashes[0] == hashes[1]
+    bag = tmp_path / "run0" / "bag"
+    state, ref, cmd = (joint_series(bag, f"{NS}/{t}") for t in ("state", "reference", "command"))
+    steps = round(duration_s / load_scenario(path)["/**"]["ros__parameters"]["control_period_s"])
+    assert len(state) == len(cmd) == steps
+    w = 2 * math.pi * bandwidth_hz
+    kp, kd = inertia * w * w, 2 * 0.7 * inertia * w
+    stamps = sorted(cmd)
+    want = [
+        ref[t].effort[0]
+        + kp * (ref[t].position[0] - state[t].position[0])
+        + kd * (ref[t].velocity[0] - state[t].velocity[0])
+        for t in stamps
+    ]
+    got = [cmd[t].effort[0] for t in stamps]
+    assert_allclose(got, want, rtol=1e-12, atol=1e-12)
+    assert {cmd[t].name[0] for t in stamps} == {state[stamps[0]].name[0]}
+    # It did control the axis: the motor follows the reference to within a tenth of its swing.
+    y = np.array([state[t].position[0] for t in stamps])
+    r = np.array([ref[t].position[0] for t in stamps])
+    assert np.max(np.abs(r - y)) < 0.1 * max(np.ptp(r), 1e-3)
+
+
+# -- an outside reference generator ----------------------------------------------------
+
+
+def test_the_example_reference_generator_feeds_the_axis(
+    ros_env: int, tmp_path: Path, raw_payloads: Any
+) -> None:
+    """`run ptc_nominal --external feedforward` with examples/sine_reference.py: exit 0, the
+    bags of two runs identical, the recorded reference is the analytic sine of its stamp,
+    and the suite's feedback made the axis follow it."""
+    path = short("ptc_nominal", tmp_path, duration_s=0.5)
+    gen = [str(EXAMPLES / "sine_reference.py"), "--ros-args", "-r", f"__ns:={NS}"]
+    hashes = []
+    for i in range(2):
+        out = tmp_path / f"run{i}"
+        code, _ = run_with_outside(path, out, ["feedforward"], [gen])
+        assert code == 0, tails(out)
+        hashes.append(payload_hashes(out / "bag", raw_payloads))
+    assert hashes[0] == hashes[1]
+    bag = tmp_path / "run0" / "bag"
+    ref, state = joint_series(bag, f"{NS}/reference"), joint_series(bag, f"{NS}/state")
+    assert len(ref) == 500
+    t = np.array(sorted(ref)) * 1e-9
+    a, w = 5.0, 2 * math.pi * 2.0
+    assert_allclose([ref[k].position[0] for k in sorted(ref)], a * (1 - np.cos(w * t)), atol=1e-12)
+    assert_allclose([ref[k].velocity[0] for k in sorted(ref)], a * w * np.sin(w * t), atol=1e-9)
+    assert_allclose(
+        [ref[k].effort[0] for k in sorted(ref)],
+        0.01 * a * w * w * np.cos(w * t) + 0.1 * a * w * np.sin(w * t),
+        atol=1e-9,
+    )
+    err = [ref[k].position[0] - state[k].position[0] for k in sorted(ref)]
+    assert max(abs(e) for e in err[250:]) < 0.01 * 2 * a
+
+
+# -- an outside learning unit ------------------------------------------------------------
+
+
+def test_an_outside_learning_unit_gives_the_suites_own_result(
+    ros_env: int, tmp_path: Path, raw_payloads: Any
+) -> None:
+    """The suite's learning node started by hand under another name (`my_learner`) with the
+    run's parameter file plays `--external learning`: the bag is the one of the same
+    scenario run by the suite alone, topic for topic, byte for byte."""
+    path = short("rptc_detailed", tmp_path, duration_s=1.5)
+    alone = tmp_path / "alone"
+    assert finish(start_run(path, alone), RUN_TIMEOUT_S) == 0, tails(alone)
+
+    out = tmp_path / "outside"
+    proc = start_run(path, out, "--external", "learning")
+    deadline = time.monotonic() + 30
+    while not (out / "params.yaml").is_file():
+        assert time.monotonic() < deadline and proc.poll() is None, tails(out)
+        time.sleep(0.05)
+    params = yaml.safe_load((out / "params.yaml").read_text())
+    params["/**/my_learner"] = params.pop("/**/learning")
+    mine = tmp_path / "my_learner.yaml"
+    mine.write_text(yaml.safe_dump(params))
+    learner = start_outside(
+        ["-m", "servo_axis.nodes.learning", "--ros-args", "--params-file", str(mine),
+         "-r", "__node:=my_learner", "-r", f"__ns:={NS}"],
+        tmp_path / "my_learner.log",
+    )  # fmt: skip
+    try:
+        code = finish(proc, RUN_TIMEOUT_S)
+    finally:
+        stop(learner)
+    assert code == 0, tails(out)
+    assert payload_hashes(out / "bag", raw_payloads) == payload_hashes(alone / "bag", raw_payloads)
+
+
+# -- junk and silence from outside ------------------------------------------------------
+
+
+class OutsideJunk:
+    """A node of the user's (default QoS, its own name) that follows `state` and, with
+    ``junk``, sends junk on `command`."""
+
+    def __init__(
+        self, domain: int, axis: str = "x", period_ns: int = 1_000_000, *, junk: bool = True
+    ) -> None:
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        from sensor_msgs.msg import JointState
+
+        self.rclpy, self.axis, self.period_ns = rclpy, axis, period_ns
+        self.context = rclpy.context.Context()
+        rclpy.init(args=[], context=self.context, domain_id=domain)
+        self.node = rclpy.create_node("not_a_servo_node", namespace=NS, context=self.context)
+        self.pub = self.node.create_publisher(JointState, "command", 10)
+        self.step = 0
+        self.node.create_subscription(JointState, "state", self._on_state, 10)
+        self.kinds = ["nan", "short", "empty", "wrong_name", "past", "ahead", "off_grid"]
+        self.sent: dict[str, int] = dict.fromkeys(self.kinds, 0)
+        self._i = 0
+        if junk:
+            self.node.create_timer(0.005, self._tick)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+
+    def _on_state(self, msg: Any) -> None:
+        self.step = (msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec) // self.period_ns
+
+    def _tick(self) -> None:
+        from builtin_interfaces.msg import Time
+        from sensor_msgs.msg import JointState
+
+        kind = self.kinds[self._i % len(self.kinds)]
+        self._i += 1
+        if self.step < 20:
+            return  # until the stream has begun, "past" is no past
+        ns = {"past": (self.step - 5) * self.period_ns, "ahead": (self.step + 1000) * self.period_ns,
+              "off_grid": (self.step + 1) * self.period_ns + self.period_ns // 2}.get(
+            kind, (self.step + 1) * self.period_ns)  # fmt: skip
+        msg = JointState(name=[f"{self.axis}_motor"], effort=[0.0])
+        msg.header.stamp = Time(sec=ns // 10**9, nanosec=ns % 10**9)
+        if kind == "nan":
+            msg.effort = [math.nan]
+        elif kind == "short":
+            msg.effort = []
+        elif kind == "empty":
+            msg = JointState(header=msg.header)
+        elif kind == "wrong_name":
+            msg.name = ["y_motor"]
+        self.pub.publish(msg)
+        self.sent[kind] += 1
+
+    def spin_while(self, cond: Any, timeout_s: float) -> None:
+        deadline = time.monotonic() + timeout_s
+        while cond() and time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.01)
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        self.rclpy.try_shutdown(context=self.context)
+
+
+def test_junk_beside_an_outside_controller_is_rejected_and_changes_no_stream(
+    ros_env: int, tmp_path: Path
+) -> None:
+    """A second outside node with default QoS sends NaN, short, empty, misnamed, past,
+    ahead and off-grid commands while the example controller drives the axis: the plant
+    rejects and counts them, reports the stranger (exit 3), and the validated streams of
+    the bag are the clean run's."""
+    path = short("ptc_nominal", tmp_path, duration_s=1.0)
+    rules = StreamRules.from_scenario(load_scenario(path), 0.001)
+    clean = tmp_path / "clean"
+    code, _ = run_with_outside(path, clean, ["feedback"], [pd_controller(20.0, 0.01)])
+    assert code == 0, tails(clean)
+
+    dirty = tmp_path / "junk"
+    junk = OutsideJunk(ros_env)
+    try:
+        proc = start_run(path, dirty, "--external", "feedback")
+        ctrl = start_outside(pd_controller(20.0, 0.01), tmp_path / "ctrl.log")
+        try:
+            junk.spin_while(lambda: proc.poll() is None, RUN_TIMEOUT_S)
+            code = finish(proc, 10.0)
+        finally:
+            stop(ctrl)
+    finally:
+        junk.close()
+    assert code == 3, tails(dirty)
+    assert all(n > 0 for n in junk.sent.values()), junk.sent
+    summary = yaml.safe_load((dirty / "summary.json").read_text())
+    plant = summary["health"]["nodes"]["plant"]
+    assert plant["rejected"]["command"] > 0
+    assert any("not_a_servo_node" in who for who in plant["strangers"]["command"])
+    a, b = read_streams(clean / "bag", rules), read_streams(dirty / "bag", rules)
+    for topic in (f"{NS}/state", f"{NS}/command", f"{NS}/reference"):
+        assert [(k.step, k.data) for k in b.kept[topic]] == [
+            (k.step, k.data) for k in a.kept[topic]
+        ], topic
+
+
+def test_an_outside_controller_that_stops_answering_is_a_reported_fallback(
+    ros_env: int, tmp_path: Path
+) -> None:
+    """SIGKILL of the outside controller mid-run: once the graph shows it gone (its
+    participant's lease) and `command_timeout_s` has passed, the plant applies zero
+    current, the run ends with exit 3 or 4, the summary names the fallback, and every
+    state sample is in the bag."""
+    path = short("ptc_nominal", tmp_path, duration_s=1.5, mode="lockstep")
+    out = tmp_path / "run"
+    watcher = OutsideJunk(ros_env, junk=False)
+    try:
+        proc = start_run(path, out, "--external", "feedback")
+        ctrl = start_outside(pd_controller(20.0, 0.01), tmp_path / "ctrl.log")
+        try:
+            watcher.spin_while(lambda: watcher.step < 300 and proc.poll() is None, 60.0)
+            os.killpg(ctrl.pid, signal.SIGKILL)
+            killed_at = watcher.step
+            code = finish(proc, RUN_TIMEOUT_S)
+        finally:
+            stop(ctrl)
+    finally:
+        watcher.close()
+    assert 300 <= killed_at < 1500
+    assert code in (3, 4), tails(out)
+    summary = yaml.safe_load((out / "summary.json").read_text())
+    kinds = [f["kind"] for f in summary["health"]["nodes"]["plant"]["fallbacks"]]
+    assert "command_timeout" in kinds
+    assert summary["message_counts"][f"{NS}/state"] == 1500
+    assert 0 < summary["message_counts"][f"{NS}/command"] < 1500
+
+
+# -- the runner's own checks -------------------------------------------------------------
+
+
+def test_an_outside_node_that_never_comes_ends_the_run_with_a_readable_bag(
+    ros_env: int, tmp_path: Path
+) -> None:
+    path = short("ptc_nominal", tmp_path, duration_s=0.2)
+    out = tmp_path / "run"
+    proc = start_run(path, out, "--external", "feedback", "--external-timeout", "3")
+    code = finish(proc, 60)
+    text = (tmp_path / "run.out").read_text()
+    assert code == 1, text
+    assert "outside node did not come within --external-timeout 3 s" in text
+    assert "publishes   /x/command" in text and "subscribes  /x/state" in text
+    assert (out / "bag" / "metadata.yaml").is_file()
+    from rosbags.rosbag2 import Reader
+
+    with Reader(out / "bag") as reader:
+        assert reader.message_count == sum(1 for _ in reader.messages())
+
+
+@pytest.mark.parametrize(
+    ("role", "message"),
+    [
+        ("controller", "--external controller: expected one of plant, feedback"),
+        ("identifier", "--external identifier: the scenario has no identifier section"),
+    ],
+)
+def test_an_external_role_the_run_cannot_have_is_refused(
+    ros_env: int, tmp_path: Path, role: str, message: str
+) -> None:
+    out = tmp_path / "run"
+    proc = subprocess.run(
+        [sys.executable, "-m", "servo_axis", "run", "ptc_nominal", "--out", str(out),
+         "--external", role],
+        capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert proc.returncode == 2, proc.stderr
+    assert message in proc.stderr
+    assert not out.exists()
