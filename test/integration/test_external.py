@@ -60,13 +60,21 @@ def start_run(scenario: Path, out: Path, *extra: str) -> subprocess.Popen[bytes]
     return subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
 
 
-def start_outside(args: list[str], log: Path) -> subprocess.Popen[bytes]:
-    """An outside node in the run's domain (the environment the README gives a user)."""
+def start_outside(
+    args: list[str], log: Path, *, run_profile: bool = False
+) -> subprocess.Popen[bytes]:
+    """An outside node in the run's domain, with localhost discovery (what the README asks
+    of a user) and Fast DDS's own defaults, or with ``run_profile`` the run's profile too."""
+    env = dict(os.environ)
+    if not run_profile:
+        env.pop("FASTRTPS_DEFAULT_PROFILES_FILE", None)
+        env.pop("FASTDDS_BUILTIN_TRANSPORTS", None)
     return subprocess.Popen(
         [sys.executable, *args],
         stdout=log.open("wb"),
         stderr=subprocess.STDOUT,
         start_new_session=True,
+        env=env,
     )
 
 
@@ -270,24 +278,45 @@ def test_an_outside_learning_unit_gives_the_suites_own_result(
 # -- junk and silence from outside ------------------------------------------------------
 
 
-class OutsideJunk:
-    """A node of the user's (default QoS, its own name) that follows `state` and, with
-    ``junk``, sends junk on `command`."""
+class OutsideNode:
+    """A node of the user's (default QoS, its own name) in this process.
+
+    It follows `state`; with ``answer`` it plays the feedback with the example's PD law
+    (the same floating-point operations as ``examples/pd_controller.py``); with ``junk``
+    it sends NaN, short, empty, misnamed, past, ahead and off-grid commands at 200 Hz,
+    through its own command publisher if it answers, else through one it makes only
+    once the run is under way (after the declared controller's).
+    """
 
     def __init__(
-        self, domain: int, axis: str = "x", period_ns: int = 1_000_000, *, junk: bool = True
+        self,
+        domain: int,
+        *,
+        junk: bool = True,
+        answer: bool = False,
+        bandwidth_hz: float = 20.0,
+        inertia: float = 0.01,
+        axis: str = "x",
+        period_ns: int = 1_000_000,
     ) -> None:
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
         from sensor_msgs.msg import JointState
 
-        self.rclpy, self.axis, self.period_ns = rclpy, axis, period_ns
+        self.rclpy, self.axis, self.period_ns, self.junk = rclpy, axis, period_ns, junk
         self.context = rclpy.context.Context()
         rclpy.init(args=[], context=self.context, domain_id=domain)
         self.node = rclpy.create_node("not_a_servo_node", namespace=NS, context=self.context)
-        self.pub = self.node.create_publisher(JointState, "command", 10)
+        self.pub = self.node.create_publisher(JointState, "command", 10) if answer else None
+        w = 2 * math.pi * bandwidth_hz
+        self.kp, self.kd = inertia * w * w, 2 * 0.7 * inertia * w
+        self.states: dict[int, Any] = {}
+        self.references: dict[int, Any] = {}
+        self.answer = answer
         self.step = 0
         self.node.create_subscription(JointState, "state", self._on_state, 10)
+        if answer:
+            self.node.create_subscription(JointState, "reference", self._on_reference, 1000)
         self.kinds = ["nan", "short", "empty", "wrong_name", "past", "ahead", "off_grid"]
         self.sent: dict[str, int] = dict.fromkeys(self.kinds, 0)
         self._i = 0
@@ -296,17 +325,42 @@ class OutsideJunk:
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
 
+    def _ns(self, msg: Any) -> int:
+        return msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+
     def _on_state(self, msg: Any) -> None:
-        self.step = (msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec) // self.period_ns
+        self.step = self._ns(msg) // self.period_ns
+        if self.answer:
+            self.states[self._ns(msg)] = msg
+            self._answer(self._ns(msg))
+
+    def _on_reference(self, msg: Any) -> None:
+        self.references[self._ns(msg)] = msg
+        self._answer(self._ns(msg))
+
+    def _answer(self, key: int) -> None:
+        from sensor_msgs.msg import JointState
+
+        if key not in self.states or key not in self.references:
+            return
+        state, ref = self.states.pop(key), self.references.pop(key)
+        error = ref.position[0] - state.position[0]
+        rate = ref.velocity[0] - state.velocity[0]
+        command = JointState(header=state.header, name=[state.name[0]])
+        command.effort = [ref.effort[0] + self.kp * error + self.kd * rate]
+        assert self.pub is not None
+        self.pub.publish(command)
 
     def _tick(self) -> None:
         from builtin_interfaces.msg import Time
         from sensor_msgs.msg import JointState
 
-        kind = self.kinds[self._i % len(self.kinds)]
-        self._i += 1
         if self.step < 20:
             return  # until the stream has begun, "past" is no past
+        if self.pub is None:
+            self.pub = self.node.create_publisher(JointState, "command", 10)
+        kind = self.kinds[self._i % len(self.kinds)]
+        self._i += 1
         ns = {"past": (self.step - 5) * self.period_ns, "ahead": (self.step + 1000) * self.period_ns,
               "off_grid": (self.step + 1) * self.period_ns + self.period_ns // 2}.get(
             kind, (self.step + 1) * self.period_ns)  # fmt: skip
@@ -334,21 +388,54 @@ class OutsideJunk:
         self.rclpy.try_shutdown(context=self.context)
 
 
-def test_junk_beside_an_outside_controller_is_rejected_and_changes_no_stream(
+def clean_external_run(path: Path, out: Path) -> None:
+    code, _ = run_with_outside(path, out, ["feedback"], [pd_controller(20.0, 0.01)])
+    assert code == 0, tails(out)
+
+
+def same_streams(clean: Path, dirty: Path, path: Path) -> None:
+    rules = StreamRules.from_scenario(load_scenario(path), 0.001)
+    a, b = read_streams(clean / "bag", rules), read_streams(dirty / "bag", rules)
+    for topic in (f"{NS}/state", f"{NS}/command", f"{NS}/reference"):
+        got = [(k.step, k.data) for k in b.kept[topic]]
+        assert got == [(k.step, k.data) for k in a.kept[topic]], topic
+        assert len(got) == rules.steps, topic
+
+
+def test_junk_from_the_outside_controller_itself_is_rejected_and_changes_nothing(
     ros_env: int, tmp_path: Path
 ) -> None:
-    """A second outside node with default QoS sends NaN, short, empty, misnamed, past,
-    ahead and off-grid commands while the example controller drives the axis: the plant
-    rejects and counts them, reports the stranger (exit 3), and the validated streams of
-    the bag are the clean run's."""
+    """The outside feedback node answers every state and, through the same publisher,
+    sends junk commands: the plant rejects and counts them like an internal node's; no
+    stranger, exit 0, and the bag's validated streams are those of the clean example run."""
     path = short("ptc_nominal", tmp_path, duration_s=1.0)
-    rules = StreamRules.from_scenario(load_scenario(path), 0.001)
-    clean = tmp_path / "clean"
-    code, _ = run_with_outside(path, clean, ["feedback"], [pd_controller(20.0, 0.01)])
-    assert code == 0, tails(clean)
-
+    clean_external_run(path, tmp_path / "clean")
     dirty = tmp_path / "junk"
-    junk = OutsideJunk(ros_env)
+    node = OutsideNode(ros_env, answer=True)
+    try:
+        proc = start_run(path, dirty, "--external", "feedback")
+        node.spin_while(lambda: proc.poll() is None, RUN_TIMEOUT_S)
+        code = finish(proc, 10.0)
+    finally:
+        node.close()
+    assert code == 0, tails(dirty)
+    assert all(n > 0 for n in node.sent.values()), node.sent
+    summary = yaml.safe_load((dirty / "summary.json").read_text())
+    plant = summary["health"]["nodes"]["plant"]
+    assert plant["rejected"]["command"] > 0 and not plant["strangers"]
+    same_streams(tmp_path / "clean", dirty, path)
+
+
+def test_a_stranger_beside_the_outside_controller_is_reported_and_changes_nothing(
+    ros_env: int, tmp_path: Path
+) -> None:
+    """While the example controller drives the axis, a second outside node (default QoS)
+    starts publishing junk commands: it is a stranger (exit 3), its junk is rejected and
+    counted, and the bag's validated streams are those of the clean run."""
+    path = short("ptc_nominal", tmp_path, duration_s=1.0)
+    clean_external_run(path, tmp_path / "clean")
+    dirty = tmp_path / "junk"
+    junk = OutsideNode(ros_env)
     try:
         proc = start_run(path, dirty, "--external", "feedback")
         ctrl = start_outside(pd_controller(20.0, 0.01), tmp_path / "ctrl.log")
@@ -365,11 +452,7 @@ def test_junk_beside_an_outside_controller_is_rejected_and_changes_no_stream(
     plant = summary["health"]["nodes"]["plant"]
     assert plant["rejected"]["command"] > 0
     assert any("not_a_servo_node" in who for who in plant["strangers"]["command"])
-    a, b = read_streams(clean / "bag", rules), read_streams(dirty / "bag", rules)
-    for topic in (f"{NS}/state", f"{NS}/command", f"{NS}/reference"):
-        assert [(k.step, k.data) for k in b.kept[topic]] == [
-            (k.step, k.data) for k in a.kept[topic]
-        ], topic
+    same_streams(tmp_path / "clean", dirty, path)
 
 
 def test_an_outside_controller_that_stops_answering_is_a_reported_fallback(
@@ -381,10 +464,11 @@ def test_an_outside_controller_that_stops_answering_is_a_reported_fallback(
     state sample is in the bag."""
     path = short("ptc_nominal", tmp_path, duration_s=1.5, mode="lockstep")
     out = tmp_path / "run"
-    watcher = OutsideJunk(ros_env, junk=False)
+    watcher = OutsideNode(ros_env, junk=False)
     try:
         proc = start_run(path, out, "--external", "feedback")
-        ctrl = start_outside(pd_controller(20.0, 0.01), tmp_path / "ctrl.log")
+        # The run's profile: its 5 s participant lease is how soon a killed node is seen gone.
+        ctrl = start_outside(pd_controller(20.0, 0.01), tmp_path / "ctrl.log", run_profile=True)
         try:
             watcher.spin_while(lambda: watcher.step < 300 and proc.poll() is None, 60.0)
             os.killpg(ctrl.pid, signal.SIGKILL)

@@ -243,6 +243,9 @@ class ServoNode(Node):
         profile = matching_reader_qos(wanted, [i.qos_profile for i in infos])
         if profile is None:
             return False
+        if name in topics.BY_NAME and topics.topic(name).producer in self.external_roles:
+            # An outside role's publisher is the first one seen: the one there now.
+            self._declared.setdefault(name, bytes(infos[0].endpoint_gid).hex())
         create(profile)
         return True
 
