@@ -302,8 +302,9 @@ def plot_reversal_detail(
 
     A 2 x 2 figure over ``[t_stop - before_s, t_stop + after_s]``: the
     reference ``R r`` and the scale ``x_t`` (mm); ``d_r`` at its valid
-    samples (mm/rad); the current reference ``u`` of the feedback and the
-    feedforward current ``u_ff`` (A); the tracking error ``R (r - y)`` (um).
+    samples (mm/rad); the motor torque reference ``K_T u`` of the feedback
+    and the feedforward torque ``K_T u_ff`` (N m, as the bag has them); the
+    tracking error ``R (r - y)`` (um).
     A dotted line marks ``t_stop``.
 
     Parameters
@@ -347,9 +348,9 @@ def plot_reversal_detail(
     pos.legend(fontsize="small")
     ratio.plot(ts, d_r[inside], "-", lw=0.9)
     ratio.set_ylabel("d_r (mm/rad)")
-    current.plot(ts, sig.command_A[inside], "-", lw=0.9, label="u (command)")
-    current.plot(ts, sig.feedforward_A[inside], ":", lw=0.9, label="u_ff (feedforward)")
-    current.set_ylabel("control input (A)")
+    current.plot(ts, sig.command_Nm[inside], "-", lw=0.9, label="K_T u (command)")
+    current.plot(ts, sig.feedforward_Nm[inside], ":", lw=0.9, label="K_T u_ff (feedforward)")
+    current.set_ylabel("control input, torque (N m)")
     current.legend(fontsize="small")
     error.plot(ts, 1e6 * series.error_m[inside], "-", lw=0.9)
     error.set_ylabel(f"tracking error ({micro(series.summary.unit)})")
