@@ -341,17 +341,17 @@ def plot_reversal_detail(
     ts = t[inside]
     plt = _pyplot()
     fig, axes = plt.subplots(2, 2, figsize=(10, 6), sharex=True)
-    (pos, current), (ratio, error) = axes
+    (pos, torque), (ratio, error) = axes
     pos.plot(ts, 1e3 * lead * sig.reference_rad[inside], "-", lw=0.9, label="reference R r")
     pos.plot(ts, 1e3 * sig.scale_m[inside], "--", lw=0.9, label="scale x_t")
     pos.set_ylabel("position (mm)")
     pos.legend(fontsize="small")
     ratio.plot(ts, d_r[inside], "-", lw=0.9)
     ratio.set_ylabel("d_r (mm/rad)")
-    current.plot(ts, sig.command_Nm[inside], "-", lw=0.9, label="K_T u (command)")
-    current.plot(ts, sig.feedforward_Nm[inside], ":", lw=0.9, label="K_T u_ff (feedforward)")
-    current.set_ylabel("control input, torque (N m)")
-    current.legend(fontsize="small")
+    torque.plot(ts, sig.command_Nm[inside], "-", lw=0.9, label="K_T u (command)")
+    torque.plot(ts, sig.feedforward_Nm[inside], ":", lw=0.9, label="K_T u_ff (feedforward)")
+    torque.set_ylabel("control input, torque (N m)")
+    torque.legend(fontsize="small")
     error.plot(ts, 1e6 * series.error_m[inside], "-", lw=0.9)
     error.set_ylabel(f"tracking error ({micro(series.summary.unit)})")
     for ax in axes.flat:
