@@ -3,9 +3,11 @@
 In a slow reversing motion the inertial and viscous torques are tiny, so the
 motor torque the loop supplies is the friction: ``T_f ~ K_T i - J_n a_r -
 D_n v_r`` with the nominal model and the reference's acceleration and
-velocity. Binned against the displacement from the reference's last
-reversal, it is the data-based friction table of paper 000 Fig. 17 (and the
-table of paper 001) that the feedforward generator reads.
+velocity; ``K_T i`` is the motor torque reference the bag's ``command``
+carries (the feedback's current reference times the nominal ``K_T``).
+Binned against the displacement from the reference's last reversal, it is
+the data-based friction table of paper 000 Fig. 17 (and the table of paper
+001) that the feedforward generator reads.
 
 ``python -m servo_axis friction-table runs/<friction_id run> --out table.csv``
 """
@@ -29,16 +31,27 @@ from servo_axis.params.scenario import load_scenario
 def estimate_friction_torque(
     *,
     reference_rad: np.ndarray,
-    current_A: np.ndarray,
+    motor_torque_Nm: np.ndarray,
     period_s: float,
-    torque_constant_Nm_per_A: float,
     inertia_kgm2: float,
     damping_Nms_per_rad: float,
 ) -> np.ndarray:
-    """Friction torque estimate ``K_T i - J a_r - D v_r`` per sample, N m."""
+    """Friction torque estimate ``K_T i - J a_r - D v_r`` per sample, N m.
+
+    Parameters
+    ----------
+    reference_rad : ndarray
+        The motor-angle reference ``r``, rad.
+    motor_torque_Nm : ndarray
+        The motor torque reference ``K_T i`` (the ``command`` topic), N m.
+    period_s : float
+        ``T_u``, s (the derivatives of ``r``).
+    inertia_kgm2, damping_Nms_per_rad : float
+        ``J`` and ``D`` of the nominal model.
+    """
     vel = np.gradient(reference_rad, period_s)
     acc = np.gradient(vel, period_s)
-    return torque_constant_Nm_per_A * current_A - inertia_kgm2 * acc - damping_Nms_per_rad * vel
+    return motor_torque_Nm - inertia_kgm2 * acc - damping_Nms_per_rad * vel
 
 
 @dataclass(frozen=True)
@@ -82,9 +95,8 @@ def measured_friction(run_dir: Path) -> MeasuredFriction:
         )
     torque = estimate_friction_torque(
         reference_rad=sig.reference_rad,
-        current_A=sig.command_A,
+        motor_torque_Nm=sig.command_Nm,
         period_s=period,
-        torque_constant_Nm_per_A=values["nominal.torque_constant_Nm_per_A"],
         inertia_kgm2=values["nominal.inertia_kgm2"],
         damping_Nms_per_rad=values["nominal.damping_Nms_per_rad"],
     )

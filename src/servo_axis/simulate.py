@@ -6,16 +6,30 @@ and steps them in the order the lockstep protocol guarantees (state[k] ->
 command[k] -> plant step). It is the reference that the node graph must
 reproduce bit for bit, and the "core only" line of the benchmark. It runs
 any registered plant model. Nothing here imports rclpy.
+
+The values cross the same conversions as on the wire
+(:mod:`servo_axis.core.drive`): the feedforward current becomes the torque
+of ``reference`` with the generator's nominal ``K_T`` and a current again
+with the feedback's; the loop's current becomes the torque of ``command``
+with the nominal ``K_T`` and the plant's current reference with the plant's
+own ``K_T``; a learned input correction becomes the torque of
+``learning/input_correction`` and a current again. :class:`Trajectory`
+holds the torques as the bag has them.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from servo_axis.core.drive import current_from_torque, torque_from_current
+from servo_axis.core.feedback.loop import FeedbackLoop
 from servo_axis.core.feedback.output import controlled_output
+from servo_axis.core.models.base import PlantOutput
 from servo_axis.params import factories
 from servo_axis.params.scenario import load_scenario
 from servo_axis.run.plan import learning_values
@@ -23,13 +37,50 @@ from servo_axis.run.plan import learning_values
 
 @dataclass(frozen=True)
 class Trajectory:
-    """Per-step signals of a core-only run (arrays of length ``steps``)."""
+    """Per-step signals of a core-only run (arrays of length ``steps``).
+
+    ``encoder_rad``, ``scale_m`` (the sensors), ``reference_rad`` (the
+    feedback reference), ``feedforward_Nm`` and ``command_Nm`` (the torques
+    of ``reference`` and ``command``, N m: what the node graph publishes).
+    """
 
     encoder_rad: np.ndarray
     scale_m: np.ndarray
     reference_rad: np.ndarray
-    feedforward_A: np.ndarray
-    command_A: np.ndarray
+    feedforward_Nm: np.ndarray
+    command_Nm: np.ndarray
+
+
+@dataclass(frozen=True)
+class _Drive:
+    """The torque constants of the wire's conversions: the feedforward's, the
+    feedback's (nominal) and the plant's."""
+
+    feedforward: float
+    feedback: float
+    plant: float
+
+    @classmethod
+    def of(cls, ffv: Mapping[str, Any], fbv: Mapping[str, Any], pv: Mapping[str, Any]) -> _Drive:
+        return cls(
+            feedforward=ffv["nominal.torque_constant_Nm_per_A"],
+            feedback=fbv["nominal.torque_constant_Nm_per_A"],
+            plant=pv["torque_constant_Nm_per_A"],
+        )
+
+    def step(
+        self, loop: FeedbackLoop, y: PlantOutput, r: float, u_ff: float
+    ) -> tuple[float, float, float]:
+        """``(feedforward torque, command torque, plant current)`` of one sample, as on the wire."""
+        tau_ff = torque_from_current(u_ff, torque_constant_Nm_per_A=self.feedforward)
+        u = loop.step(
+            encoder_rad=y.encoder_rad,
+            scale_m=y.scale_m,
+            reference_rad=r,
+            feedforward_A=current_from_torque(tau_ff, torque_constant_Nm_per_A=self.feedback),
+        ).current_A
+        tau = torque_from_current(u, torque_constant_Nm_per_A=self.feedback)
+        return tau_ff, tau, current_from_torque(tau, torque_constant_Nm_per_A=self.plant)
 
 
 def simulate(scenario_path: Path, *, steps: int | None = None) -> Trajectory:
@@ -42,16 +93,15 @@ def simulate(scenario_path: Path, *, steps: int | None = None) -> Trajectory:
     sim = factories.build_plant(pv)
     loop = factories.build_loop(fbv)
     gen = factories.build_generator(ffv)
+    drive = _Drive.of(ffv, fbv, pv)
     refs = gen.samples(0, n)
     out = np.empty((n, 5))
     y = sim.output()
     for k in range(n):
         r, _, u_ff = refs[k]
-        u = loop.step(
-            encoder_rad=y.encoder_rad, scale_m=y.scale_m, reference_rad=r, feedforward_A=u_ff
-        ).current_A
-        out[k] = (y.encoder_rad, y.scale_m, r, u_ff, u)
-        y = sim.step(u)
+        tau_ff, tau, current = drive.step(loop, y, r, u_ff)
+        out[k] = (y.encoder_rad, y.scale_m, r, tau_ff, tau)
+        y = sim.step(current)
     return Trajectory(*(out[:, i].copy() for i in range(5)))
 
 
@@ -91,16 +141,16 @@ def simulate_learning(scenario_path: Path, *, steps: int | None = None) -> Learn
     lead = pv["lead_m_per_rad"]
     sensor = fbv["sensor"]
     period = law.samples_per_period
+    drive = _Drive.of(ffv, fbv, pv)
+    kt_learning = lv["nominal.torque_constant_Nm_per_A"]
     out = np.empty((n, 5))
     errors = []
     y = sim.output()
     for k in range(n):
         ((r, _, u_ff),) = gen.samples(k, k + 1)
-        u = loop.step(
-            encoder_rad=y.encoder_rad, scale_m=y.scale_m, reference_rad=r, feedforward_A=u_ff
-        ).current_A
-        out[k] = (y.encoder_rad, y.scale_m, r, u_ff, u)
-        y = sim.step(u)
+        tau_ff, tau, current = drive.step(loop, y, r, u_ff)
+        out[k] = (y.encoder_rad, y.scale_m, r, tau_ff, tau)
+        y = sim.step(current)
         j, idx = divmod(k, period)
         if idx == period - 1 and k + 1 < n:
             ks = np.arange(j * period, (j + 1) * period)
@@ -112,8 +162,15 @@ def simulate_learning(scenario_path: Path, *, steps: int | None = None) -> Learn
             errors.append(error)
             if j + 2 >= lv["start_cycle"]:
                 law.learn(error, period=j + 1)
-            (current,) = law.next_correction(period=j + 2)
-            gen.set_correction(j + 1, current)
+            (learned,) = law.next_correction(period=j + 2)
+            # learning/input_correction: a torque with the learning unit's
+            # K_T, a current again with the feedforward's.
+            torque = torque_from_current(
+                np.asarray(learned, dtype=float), torque_constant_Nm_per_A=kt_learning
+            )
+            gen.set_correction(
+                j + 1, current_from_torque(torque, torque_constant_Nm_per_A=drive.feedforward)
+            )
     return LearningRun(Trajectory(*(out[:, i].copy() for i in range(5))), np.array(errors), law)
 
 
@@ -135,7 +192,7 @@ def simulate_identification(scenario_path: Path, *, steps: int | None = None) ->
 
     What the node graph does in lockstep, in the same order: ``state[k]``
     (the encoder angle), ``command[k]``, the identifier takes both (the
-    torque ``K_T i[k]`` with the nominal ``K_T``), and an estimate from step
+    torque of ``command[k]``, ``K_T i[k]`` with the nominal ``K_T``), and an estimate from step
     ``k`` is set in the generator, from ``k + 1 + latency``, before any
     sample from there on is computed; estimates that would apply after the
     run are not used (the node does not publish them). Without an
@@ -150,24 +207,22 @@ def simulate_identification(scenario_path: Path, *, steps: int | None = None) ->
         iv = factories.node_values(scenario, "identifier")
         identifier = factories.build_identifier(iv)
         _, latency = factories.estimate_schedule(iv, "rls_period_s", "latency_s")
-        kt = iv["nominal.torque_constant_Nm_per_A"]
     n = factories.run_steps(pv) if steps is None else steps
     sim = factories.build_plant(pv)
     loop = factories.build_loop(fbv)
     gen = factories.build_generator(ffv)
+    drive = _Drive.of(ffv, fbv, pv)
     out = np.empty((n, 5))
     angle_true = np.empty(n)
     rows: list[list[float]] = []
     y = sim.output()
     for k in range(n):
         ((r, _, u_ff),) = gen.samples(k, k + 1)
-        u = loop.step(
-            encoder_rad=y.encoder_rad, scale_m=y.scale_m, reference_rad=r, feedforward_A=u_ff
-        ).current_A
-        out[k] = (y.encoder_rad, y.scale_m, r, u_ff, u)
+        tau_ff, tau, current = drive.step(loop, y, r, u_ff)
+        out[k] = (y.encoder_rad, y.scale_m, r, tau_ff, tau)
         angle_true[k] = y.angle_rad
         if identifier is not None:
-            e = identifier.update(k, y.encoder_rad, kt * u)
+            e = identifier.update(k, y.encoder_rad, tau)
             if e is not None and e.step + 1 + latency < n:
                 applies = e.step + 1 + latency
                 gen.set_estimate(
@@ -178,7 +233,7 @@ def simulate_identification(scenario_path: Path, *, steps: int | None = None) ->
                     coulomb_Nm=e.C,
                 )
                 rows.append([e.step, applies, e.J, e.D, e.U, e.C, e.kappa, *map(float, e.updated)])
-        y = sim.step(u)
+        y = sim.step(current)
     return IdentificationRun(
         Trajectory(*(out[:, i].copy() for i in range(5))),
         np.array(rows).reshape(-1, 11),

@@ -88,7 +88,7 @@ def test_the_four_schemes_are_their_plain_call_loops(ros_env: int, tmp_path: Pat
         got = recorded(result.run_dir)
         # Bit for bit: the same sensor readings, commands and estimates.
         assert_array_equal(got["encoder"], core.trajectory.encoder_rad)
-        assert_array_equal(got["command"], core.trajectory.command_A)
+        assert_array_equal(got["command"], core.trajectory.command_Nm)
         assert_array_equal(got["estimates"], core.estimates)
         counts = summary.message_counts
         if scheme == "pid":
@@ -158,7 +158,7 @@ def test_a_killed_identifier_resumes_bit_identically(ros_env: int, tmp_path: Pat
     core = simulate_identification(path)
     got = recorded(run_dir)
     assert_array_equal(got["encoder"], core.trajectory.encoder_rad)
-    assert_array_equal(got["command"], core.trajectory.command_A)
+    assert_array_equal(got["command"], core.trajectory.command_Nm)
     _, first = np.unique(got["estimates"][:, 0], return_index=True)
     assert len(got["estimates"]) - len(first) <= 1
     assert_array_equal(got["estimates"][np.sort(first)], core.estimates)

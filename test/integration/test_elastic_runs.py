@@ -62,12 +62,20 @@ def cli(domain: int, tmp_path: Path, *args: str, timeout: float = 180.0) -> str:
 
 
 def joint_streams(run_dir: Path) -> dict[str, dict[int, Any]]:
-    """Per recorded JointState topic, the decoded message of each step."""
+    """Per recorded per-sample topic, the decoded message of each step.
+
+    ``/state`` and ``/command`` are JointStates (the step of the stamp);
+    ``/deformation`` is a Float64MultiArray whose first field is its step.
+    """
     out: dict[str, dict[int, Any]] = {}
     for m in read_raw(run_dir / "bag"):
-        if m.topic in ("/state", "/command", "/deformation"):
+        if m.topic in ("/state", "/command"):
             js = cdr.decode("sensor_msgs/msg/JointState", m.data)
             out.setdefault(m.topic, {})[js.stamp_ns // TU_NS] = js
+        elif m.topic == "/deformation":
+            array = cdr.decode("std_msgs/msg/Float64MultiArray", m.data)
+            values = cdr.labelled_values(array, cdr.DEFORMATION_LABELS)
+            out.setdefault(m.topic, {})[cdr.check_deformation_values(values)] = array
     return out
 
 
@@ -97,7 +105,7 @@ def test_gms_and_sigmoid_at_slow_and_fast_reversals(ros_env: int, tmp_path: Path
         # Bit for bit the plain-call loop: readings and commands.
         assert_array_equal(series(got["/state"], "position", 0), core.encoder_rad)
         assert_array_equal(series(got["/state"], "position", 1), core.scale_m)
-        assert_array_equal(series(got["/command"], "effort", 0), core.command_A)
+        assert_array_equal(series(got["/command"], "effort", 0), core.command_Nm)
         peaks[name] = max_after_first_cycle(run_dir)
         # the summary's figure is the one of the plain-call loop (table side)
         error = np.abs(R * core.reference_rad - core.scale_m)[len(core.scale_m) // 2 :]
@@ -158,7 +166,7 @@ def test_deformation_cases_show_the_finding_of_fig_11(ros_env: int, tmp_path: Pa
     got = joint_streams(run_dir)
     encoder = series(got["/state"], "position", 0)
     scale = series(got["/state"], "position", 1)
-    published = np.array([got["/deformation"][k].position for k in range(len(got["/deformation"]))])
+    published = np.array([got["/deformation"][k].data[1:] for k in range(len(got["/deformation"]))])
     # The published d_r is eqs. (5)-(7) of the recorded readings, bit for bit.
     trace = deformation_ratio(
         encoder, scale, window_samples=10, lead_m_per_rad=R, min_rotation_rad=1e-3

@@ -194,11 +194,11 @@ class JunkPublisher:
             return self.estimate(now, kind)
         if topic in ("plant/status", "recorder/progress"):
             labels = (
-                "step,deadline_misses,rejected_commands,command_timeouts"
+                ("step", "deadline_misses", "rejected_commands", "command_timeouts")
                 if topic == "plant/status"
-                else "steps_recorded"
+                else ("steps_recorded",)
             )
-            size = len(labels.split(","))
+            size = len(labels)
             value = {
                 "nan": math.nan,
                 "inf": math.inf,
@@ -214,8 +214,9 @@ class JunkPublisher:
                 data = data[:-1]
             msg = Float64MultiArray()
             if kind != "empty":
-                label = "junk" if kind == "wrong_labels" else labels
-                msg.layout.dim = [MultiArrayDimension(label=label, size=size, stride=size)]
+                # One dimension per field, as the nodes write them (junk: one wrong label).
+                fields = ("junk", *labels[1:]) if kind == "wrong_labels" else labels
+                msg.layout.dim = [MultiArrayDimension(label=lb, size=1, stride=1) for lb in fields]
                 msg.data = data
             return msg
         motor, table = f"{self.axis}_motor", f"{self.axis}_table"
@@ -260,9 +261,8 @@ class JunkPublisher:
         msg = Float64MultiArray()
         if kind == "empty":
             return msg
-        size = len(ESTIMATE_LABELS)
-        label = "junk" if kind == "wrong_labels" else ",".join(ESTIMATE_LABELS)
-        msg.layout.dim = [MultiArrayDimension(label=label, size=size, stride=size)]
+        fields = ("junk", *ESTIMATE_LABELS[1:]) if kind == "wrong_labels" else ESTIMATE_LABELS
+        msg.layout.dim = [MultiArrayDimension(label=lb, size=1, stride=1) for lb in fields]
         msg.data = data[:-1] if kind == "short" else data
         return msg
 

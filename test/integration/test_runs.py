@@ -127,7 +127,7 @@ def test_bag_reads_back_with_independent_readers(ros_env: int, tmp_path: Path) -
         ]
     assert len(decoded) == 300
     # The PTC makes the loop track from the first sample on; the command
-    # equals the feedforward current the summary recomputes from the bag.
+    # equals the feedforward torque the summary recomputes from the bag.
     assert np.all(np.isfinite(decoded)) and max(abs(x) for x in decoded) > 0.1
 
 

@@ -26,6 +26,7 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
+from servo_axis.core.drive import torque_from_current
 from servo_axis.core.errors import ParameterFileError
 from servo_axis.core.identification.dlpid import Estimate
 from servo_axis.nodes.feedforward import FeedforwardNode
@@ -130,7 +131,7 @@ def test_identification_graph_equals_the_plain_call_loop(context: Context, tmp_p
             reference[k] = m.message.position[0]
     assert sorted(state) == sorted(command) == sorted(reference) == list(range(STEPS))
     assert_array_equal([state[k] for k in range(STEPS)], core.trajectory.encoder_rad)
-    assert_array_equal([command[k] for k in range(STEPS)], core.trajectory.command_A)
+    assert_array_equal([command[k] for k in range(STEPS)], core.trajectory.command_Nm)
     assert_array_equal([reference[k] for k in range(STEPS)], core.trajectory.reference_rad)
     # Every estimate, in the order published, with its schedule and flags.
     assert_array_equal(np.array(estimates).reshape(-1, 11), core.estimates)
@@ -236,7 +237,9 @@ def test_feedforward_rejects_bad_estimates_and_takes_a_repeat_silently(
             first, inertia_kgm2=4e-3, damping_Nms_per_rad=1.2e-2, unbalance_Nm=0.25, coulomb_Nm=0.02
         )
         expected = np.array(core.samples(0, first + R))
-        got = np.array([(r.position_rad, r.velocity_rad_s, r.current_A) for r in refs])
+        got = np.array([(r.position_rad, r.velocity_rad_s, r.torque_Nm) for r in refs])
+        kt = values["nominal.torque_constant_Nm_per_A"]
+        expected[:, 2] = torque_from_current(expected[:, 2], torque_constant_Nm_per_A=kt)
         assert_array_equal(got, expected)
         before = build_generator(values)
         before.set_estimate(
@@ -259,15 +262,20 @@ def test_feedforward_rejects_bad_estimates_and_takes_a_repeat_silently(
 # -- the lone identifier against a core Dlpid ----------------------------------------------
 
 
+#: The nominal torque constant of the feeder's commands (N m/A).
+FEEDER_KT = 0.8
+
+
 def identifier_values(data: dict[str, Any], **extra: Any) -> dict[str, Any]:
     """The identifier section of the scenario, with the fast PD filters and ``extra``.
 
-    The nominal ``K_T`` is not 1 here, so that a current taken for the torque shows.
+    The nominal ``K_T`` is not 1 here: the feeder publishes the torque ``K_T i``
+    a feedback with it would, and a current taken for the torque would show.
     """
     return {
         **node_params(data, "identifier"),
         "pd_cutoff_hz": FAST_PD_HZ,
-        "nominal.torque_constant_Nm_per_A": 0.8,
+        "nominal.torque_constant_Nm_per_A": FEEDER_KT,
         **extra,
     }
 
@@ -306,8 +314,10 @@ class Feeder(Node):
         )
 
     def command(self, k: int, current: float | None = None) -> JointState:
+        """``command[k]``: the motor torque reference ``K_T i`` of the current ``i`` (A)."""
         i = sample(k)[1] if current is None else current
-        return msgs.command_to_msg(msgs.CommandSample(k, i), axis=AXIS, period_ns_=PERIOD_NS)
+        torque = torque_from_current(i, torque_constant_Nm_per_A=FEEDER_KT)
+        return msgs.command_to_msg(msgs.CommandSample(k, torque), axis=AXIS, period_ns_=PERIOD_NS)
 
     def send(self, steps: range) -> None:
         for k in steps:
@@ -318,11 +328,11 @@ class Feeder(Node):
 def core_estimates(values: dict[str, Any], steps: range) -> tuple[list[Estimate], Any]:
     """A core identifier of ``values`` fed :func:`sample` at ``steps``: its estimates, itself."""
     core = build_identifier(checked_values("identifier", values))
-    kt = values["nominal.torque_constant_Nm_per_A"]
+    assert values["nominal.torque_constant_Nm_per_A"] == FEEDER_KT
     out = []
     for k in steps:
         y, i = sample(k)
-        e = core.update(k, y, kt * i)
+        e = core.update(k, y, FEEDER_KT * i)
         if e is not None:
             out.append(e)
     return out, core

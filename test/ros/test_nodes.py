@@ -78,9 +78,9 @@ def test_composed_lockstep_equals_core_only_loop(context: Context, tmp_path: Pat
     assert_array_equal(
         [recorded["/reference"][k].position[0] for k in range(steps)], core.reference_rad
     )
-    assert_array_equal([recorded["/command"][k].effort[0] for k in range(steps)], core.command_A)
+    assert_array_equal([recorded["/command"][k].effort[0] for k in range(steps)], core.command_Nm)
     # The run is not trivial: friction makes the axis lag, the loop reacts.
-    assert np.max(np.abs(core.command_A)) > 1.0
+    assert np.max(np.abs(core.command_Nm)) > 1.0
 
 
 class Probe(Node):
@@ -107,9 +107,10 @@ class Probe(Node):
             period_ns_=PERIOD_NS,
         )
 
-    def reference(self, step: int, angle: float = 0.0, current: float = 0.0) -> JointState:
+    def reference(self, step: int, angle: float = 0.0, torque: float = 0.0) -> JointState:
+        """``reference[step]``: the angle (rad) and the feedforward torque (N m)."""
         return msgs.reference_to_msg(
-            msgs.ReferenceSample(step, angle, 0.0, current), axis="x", period_ns_=PERIOD_NS
+            msgs.ReferenceSample(step, angle, 0.0, torque), axis="x", period_ns_=PERIOD_NS
         )
 
 
@@ -140,7 +141,7 @@ def test_feedback_rejects_bad_input_and_passes_nothing_on(context: Context) -> N
     nan_state = probe.state(0)
     nan_state.position = [math.nan, 0.0]
     probe.state_pub.publish(nan_state)  # rejected, no command for it
-    probe.state_pub.publish(probe.state(0, 0.0))  # good: answered with the feedforward 1.5 A
+    probe.state_pub.publish(probe.state(0, 0.0))  # good: answered with the feedforward 1.5 N m
     spin_until(context, nodes, lambda: len(probe.commands) >= 1 and fb.rejected >= 3)
     probe.state_pub.publish(probe.state(0, 0.0))  # stale stamp: rejected
     off_grid = probe.state(1)
@@ -148,7 +149,9 @@ def test_feedback_rejects_bad_input_and_passes_nothing_on(context: Context) -> N
     probe.state_pub.publish(off_grid)  # not on the control grid: rejected
     spin_until(context, nodes, lambda: fb.rejected >= 5)
     assert [c.step for c in probe.commands] == [0]
-    assert probe.commands[0].current_A == pytest.approx(1.5, abs=1e-12)  # PID sees zero error
+    # The PID sees zero error: the feedforward torque comes back, through the
+    # current 1.5 / K_T,n and the torque K_T,n i, up to rounding.
+    assert probe.commands[0].torque_Nm == pytest.approx(1.5, rel=2.3e-16)
     assert not probe.faults
     fb.destroy_node()
     probe.destroy_node()
@@ -170,7 +173,7 @@ def test_feedback_trips_on_following_error_and_holds_zero(context: Context) -> N
     for k in range(3):
         probe.state_pub.publish(probe.state(k, 0.0))
     spin_until(context, nodes, lambda: len(probe.commands) >= 3 and len(probe.faults) >= 1)
-    assert [c.current_A for c in probe.commands] == [0.0, 0.0, 0.0]
+    assert [c.torque_Nm for c in probe.commands] == [0.0, 0.0, 0.0]
     step, code, value = probe.faults[0]
     assert (step, code) == (0, 1)
     assert value == pytest.approx(0.01 * 1.91e-3, rel=1e-12)
@@ -191,7 +194,7 @@ def test_feedback_trips_when_reference_stops_arriving(context: Context) -> None:
     spin_until(context, nodes, lambda: len(probe.faults) >= 1 and len(probe.commands) >= 1)
     elapsed = time.monotonic() - t0
     assert probe.faults[0][:2] == [0.0, 4.0]
-    assert probe.commands[0].current_A == 0.0
+    assert probe.commands[0].torque_Nm == 0.0
     # Within the stated bound: lease + input_timeout_s + the watchdog period.
     assert 0.3 <= elapsed < LIVELINESS_LEASE_S + 0.3 + 0.03 + 0.2
     assert [f.kind for f in fb.health.fallbacks] == ["input_timeout"]
@@ -199,7 +202,7 @@ def test_feedback_trips_when_reference_stops_arriving(context: Context) -> None:
     for k in range(1, 4):
         probe.state_pub.publish(probe.state(k))
     spin_until(context, nodes, lambda: len(probe.commands) >= 4)
-    assert [(c.step, c.current_A) for c in probe.commands] == [(k, 0.0) for k in range(4)]
+    assert [(c.step, c.torque_Nm) for c in probe.commands] == [(k, 0.0) for k in range(4)]
     fb.destroy_node()
     probe.destroy_node()
 
@@ -250,10 +253,8 @@ def test_plant_rejects_bad_commands_and_waits_for_a_valid_one(context: Context) 
         lambda: plant.started and cmd_pub.get_subscription_count() >= 1 and len(states) == 1,
     )
 
-    def command(step: int, current: float) -> JointState:
-        return msgs.command_to_msg(
-            msgs.CommandSample(step, current), axis="x", period_ns_=PERIOD_NS
-        )
+    def command(step: int, torque: float) -> JointState:
+        return msgs.command_to_msg(msgs.CommandSample(step, torque), axis="x", period_ns_=PERIOD_NS)
 
     nan_cmd = command(0, 0.0)
     nan_cmd.effort = [math.nan]
@@ -263,11 +264,9 @@ def test_plant_rejects_bad_commands_and_waits_for_a_valid_one(context: Context) 
         cmd_pub.publish(bad)
     spin_until(context, nodes, lambda: plant.rejected >= 3)
     assert len(states) == 1 and plant.plant.step_index == 0  # nothing moved
-    cmd_pub.publish(command(0, 2.0))
+    cmd_pub.publish(command(0, 2.0))  # 2 N m: the plant's current 2 / K_T, its torque 2 N m
     spin_until(context, nodes, lambda: len(states) == 2)
-    assert states[1].step == 1 and states[1].motor_torque_Nm == pytest.approx(
-        2.0 * 0.715, rel=1e-12
-    )
+    assert states[1].step == 1 and states[1].motor_torque_Nm == pytest.approx(2.0, rel=1e-15)
     cmd_pub.publish(command(0, 2.0))  # stale: step 0 is done
     spin_until(context, nodes, lambda: plant.rejected >= 4)
     assert plant.plant.step_index == 1
@@ -291,10 +290,8 @@ def test_realtime_plant_holds_the_newest_command_and_counts_misses(context: Cont
     probe = Node("feedback", context=context)
     cmd_pub = probe.create_publisher(JointState, "command", STREAM_QOS)
 
-    def command(step: int, current: float) -> JointState:
-        return msgs.command_to_msg(
-            msgs.CommandSample(step, current), axis="x", period_ns_=period_ns
-        )
+    def command(step: int, torque: float) -> JointState:
+        return msgs.command_to_msg(msgs.CommandSample(step, torque), axis="x", period_ns_=period_ns)
 
     # What the probe sends when it sees state k: late, on time, or older
     # than the command the plant already holds.
@@ -308,15 +305,12 @@ def test_realtime_plant_holds_the_newest_command_and_counts_misses(context: Cont
 
     probe.create_subscription(JointState, "state", on_state, STREAM_QOS)
     spin_until(context, [plant, probe], lambda: len(states) >= 5, timeout_s=30)
-    torque_per_A = 0.715
     assert [s.step for s in states[:5]] == [0, 1, 2, 3, 4]
-    # tick 1: nothing yet (0 A); tick 2: the late command of step 0 is the
+    # tick 1: nothing yet (0 N m); tick 2: the late command of step 0 is the
     # newest, held; tick 3: on time; tick 4: step 1's command is older than
     # the held one: stale, rejected, changes nothing.
     assert_allclose(
-        [s.motor_torque_Nm for s in states[1:5]],
-        [0.0, 2.0 * torque_per_A, 3.0 * torque_per_A, 3.0 * torque_per_A],
-        rtol=1e-12,
+        [s.motor_torque_Nm for s in states[1:5]], [0.0, 2.0, 3.0, 3.0], rtol=1e-15, atol=0.0
     )
     assert plant._deadline_misses == 3 and plant.rejected == 1
     plant.destroy_node()
@@ -341,7 +335,7 @@ def test_feedforward_rejects_a_bad_status_and_publishes_ahead(context: Context) 
     bad = msgs.labelled_array(
         ("step", "deadline_misses", "rejected_commands", "command_timeouts"), [15, 0, 0, 0]
     )
-    bad.layout.dim[0].label = "step,misses"
+    bad.layout.dim[1].label = "misses"
     status_pub.publish(bad)
     spin_until(context, nodes, lambda: ff.rejected >= 1)
     assert len(refs) == 20  # a bad status moves nothing
@@ -569,7 +563,7 @@ def test_a_new_plant_model_runs_headless_and_in_the_node_graph(
     even = np.arange(0, steps, 2)
     stroke = 0.02 / 1.91e-3
     assert np.max(np.abs(core.reference_rad[even] - core.encoder_rad[even])) < 1e-12 * stroke
-    assert np.max(np.abs(core.command_A)) > 1.0
+    assert np.max(np.abs(core.command_Nm)) > 1.0
     bag = tmp_path / "bag"
     nodes = graph_nodes(context, data, bag, path.parent)
     plant = nodes[-1]
@@ -584,7 +578,7 @@ def test_a_new_plant_model_runs_headless_and_in_the_node_graph(
         if m.topic in recorded:
             recorded[m.topic][msgs.step_from_stamp(m.message.header.stamp, PERIOD_NS)] = m.message
     assert_array_equal([recorded["/state"][k].position[0] for k in range(steps)], core.encoder_rad)
-    assert_array_equal([recorded["/command"][k].effort[0] for k in range(steps)], core.command_A)
+    assert_array_equal([recorded["/command"][k].effort[0] for k in range(steps)], core.command_Nm)
     # An unknown model name stops the plant naming the key and the registered ones.
     with pytest.raises(ParameterFileError, match=r"parameter 'model': expected one of \["):
         PlantNode(context=context, parameter_overrides=[Parameter("model", value="no_such")])
@@ -831,7 +825,7 @@ def test_plant_waits_for_a_slow_feedback_and_falls_back_only_once_it_is_gone(
     assert plant._timeouts == 0 and plant.plant.step_index == 0 and not plant.health.fallbacks
     cmd_pub.publish(msgs.command_to_msg(msgs.CommandSample(0, 2.0), axis="x", period_ns_=PERIOD_NS))
     spin_until(context, nodes, lambda: len(states) == 2)
-    assert states[1].motor_torque_Nm == pytest.approx(2.0 * 0.715, rel=1e-12)
+    assert states[1].motor_torque_Nm == pytest.approx(2.0, rel=1e-15)
     t0 = time.monotonic()
     feedback.destroy_publisher(cmd_pub)  # the feedback is gone
     spin_until(context, nodes, lambda: plant.done, timeout_s=5)

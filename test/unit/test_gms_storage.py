@@ -140,14 +140,15 @@ def gms_run(tmp_path: Path) -> tuple[Path, np.ndarray, np.ndarray]:
         RUN_PARAMS, pos, 50e-6 * w * np.sin(w * k * PERIOD_S), period_s=PERIOD_S
     )
     ref = pos / LEAD
-    # The current that makes K_T i - J a_r - D v_r the friction exactly.
+    # The motor torque K_T i that makes K_T i - J a_r - D v_r the friction exactly.
     zero = estimate_friction_torque(
         reference_rad=ref,
-        current_A=np.zeros(k.size),
+        motor_torque_Nm=np.zeros(k.size),
         period_s=PERIOD_S,
-        **NOMINAL,
+        inertia_kgm2=NOMINAL["inertia_kgm2"],
+        damping_Nms_per_rad=NOMINAL["damping_Nms_per_rad"],
     )
-    current = (friction - zero) / NOMINAL["torque_constant_Nm_per_A"]
+    torque = friction - zero
     run = tmp_path / "run"
     with BagWriter(run / "bag") as bag:
         for topic in ("state", "reference", "command"):
@@ -169,7 +170,7 @@ def gms_run(tmp_path: Path) -> tuple[Path, np.ndarray, np.ndarray]:
                 effort=[0.0, 0.0],
             )
             bag.write("state", state, log_time_ns=t + 1)
-            command = joint_state(ts, i, ["x_motor"], effort=[float(current[i])])
+            command = joint_state(ts, i, ["x_motor"], effort=[float(torque[i])])
             bag.write("command", command, log_time_ns=t + 2)
     path = write_scenario(tmp_path / "gms_fit.yaml")
     summarise(

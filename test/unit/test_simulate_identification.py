@@ -134,20 +134,20 @@ def test_pid_alone_has_no_estimates_and_no_feedforward_current(
 ) -> None:
     _, pid = runs["dlpid_tilt_pid"]
     assert pid.estimates.shape == (0, len(ESTIMATE_LABELS))
-    assert np.all(pid.trajectory.feedforward_A == 0.0)
-    assert len(pid.trajectory.feedforward_A) == round(DURATION_S / 4e-4)
+    assert np.all(pid.trajectory.feedforward_Nm == 0.0)
+    assert len(pid.trajectory.feedforward_Nm) == round(DURATION_S / 4e-4)
     # The axis moved all the same, along the reference.
     assert np.ptp(pid.trajectory.reference_rad) > 0.1
     # With the identifier the feedforward does give a current.
     _, lpf2 = runs["dlpid_tilt_lpf2"]
-    assert np.any(lpf2.trajectory.feedforward_A != 0.0)
+    assert np.any(lpf2.trajectory.feedforward_Nm != 0.0)
 
 
 def test_the_run_is_deterministic(runs: dict[str, tuple[Path, IdentificationRun]]) -> None:
     path, run = runs["dlpid_tilt_lpf2"]
     again = simulate_identification(path)
     assert_array_equal(again.estimates, run.estimates)
-    assert_array_equal(again.trajectory.command_A, run.trajectory.command_A)
+    assert_array_equal(again.trajectory.command_Nm, run.trajectory.command_Nm)
 
 
 def test_true_parameters_inside_tight_bounds_stay_there(tmp_path: Path) -> None:

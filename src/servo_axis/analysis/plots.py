@@ -302,8 +302,9 @@ def plot_reversal_detail(
 
     A 2 x 2 figure over ``[t_stop - before_s, t_stop + after_s]``: the
     reference ``R r`` and the scale ``x_t`` (mm); ``d_r`` at its valid
-    samples (mm/rad); the current reference ``u`` of the feedback and the
-    feedforward current ``u_ff`` (A); the tracking error ``R (r - y)`` (um).
+    samples (mm/rad); the motor torque reference ``K_T u`` of the feedback
+    and the feedforward torque ``K_T u_ff`` (N m, as the bag has them); the
+    tracking error ``R (r - y)`` (um).
     A dotted line marks ``t_stop``.
 
     Parameters
@@ -340,17 +341,17 @@ def plot_reversal_detail(
     ts = t[inside]
     plt = _pyplot()
     fig, axes = plt.subplots(2, 2, figsize=(10, 6), sharex=True)
-    (pos, current), (ratio, error) = axes
+    (pos, torque), (ratio, error) = axes
     pos.plot(ts, 1e3 * lead * sig.reference_rad[inside], "-", lw=0.9, label="reference R r")
     pos.plot(ts, 1e3 * sig.scale_m[inside], "--", lw=0.9, label="scale x_t")
     pos.set_ylabel("position (mm)")
     pos.legend(fontsize="small")
     ratio.plot(ts, d_r[inside], "-", lw=0.9)
     ratio.set_ylabel("d_r (mm/rad)")
-    current.plot(ts, sig.command_A[inside], "-", lw=0.9, label="u (command)")
-    current.plot(ts, sig.feedforward_A[inside], ":", lw=0.9, label="u_ff (feedforward)")
-    current.set_ylabel("control input (A)")
-    current.legend(fontsize="small")
+    torque.plot(ts, sig.command_Nm[inside], "-", lw=0.9, label="K_T u (command)")
+    torque.plot(ts, sig.feedforward_Nm[inside], ":", lw=0.9, label="K_T u_ff (feedforward)")
+    torque.set_ylabel("control input, torque (N m)")
+    torque.legend(fontsize="small")
     error.plot(ts, 1e6 * series.error_m[inside], "-", lw=0.9)
     error.set_ylabel(f"tracking error ({micro(series.summary.unit)})")
     for ax in axes.flat:

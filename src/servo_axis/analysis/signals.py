@@ -20,13 +20,14 @@ changes no figure. The rules per topic (:class:`StreamRules`):
 * ``state`` (JointState ``[<axis>_motor, <axis>_table]``; ``position`` =
   [encoder angle (rad), scale (m)], ``velocity``, ``effort``): steps 0, 1, ...
 * ``reference`` (JointState ``[<axis>_motor]``: ``position[0]`` = feedback
-  reference (rad), ``velocity``, ``effort[0]`` = feedforward current (A)): steps 0, 1, ...
-* ``command`` (JointState ``[<axis>_motor]``, ``effort[0]`` = current (A)): steps 0, 1, ...
-* ``deformation`` (JointState :func:`~servo_axis.wire.cdr.deformation_names`,
-  ``position`` = [``d_r`` (m/rad), scale increment (m), encoder increment
-  (rad), valid (1.0 or 0.0, as the nodes' decoder requires)]): steps 0, 1,
-  ... like ``state``; none in a run whose feedback has ``deformation.enabled``
-  false.
+  reference (rad), ``velocity``, ``effort[0]`` = feedforward torque (N m)): steps 0, 1, ...
+* ``command`` (JointState ``[<axis>_motor]``, ``effort[0]`` = motor torque
+  reference ``K_T,n i`` (N m)): steps 0, 1, ...
+* ``deformation`` (Float64MultiArray
+  :data:`~servo_axis.wire.cdr.DEFORMATION_LABELS`: ``[step, d_r_m_per_rad,
+  scale_increment_m, encoder_increment_rad, valid]``, ``valid`` 1 or 0 as
+  the nodes' decoder requires): steps 0, 1, ... like ``state``; none in a
+  run whose feedback has ``deformation.enabled`` false.
 * ``learning/correction`` (JointState ``[<axis>_motor]``, ``position``,
   ``velocity``): the reference instants from the second cycle on, one after
   the other; none in a run without learning.
@@ -86,7 +87,7 @@ from servo_axis.params.factories import (
 from servo_axis.params.scenario import ROLES, SHARED_SECTION
 from servo_axis.recording.reader import RawMessage, read_raw
 from servo_axis.wire import cdr, topics
-from servo_axis.wire.streams import StreamGate, decode_joint_stream
+from servo_axis.wire.streams import StreamGate, decode_array_stream, decode_joint_stream
 
 #: The scenario's section of the parameter identifier (paper 003), present
 #: only when one runs.
@@ -145,10 +146,11 @@ class Signals:
         ``reference`` message, ascending.
     encoder_rad, scale_m : ndarray of float
         Sensor readings at those steps (rad, m).
-    reference_rad, feedforward_A : ndarray of float
-        Feedback reference (rad) and feedforward current (A).
-    command_A : ndarray of float
-        Current reference (A); NaN at a step without a validated ``command`` message.
+    reference_rad, feedforward_Nm : ndarray of float
+        Feedback reference (rad) and feedforward torque ``K_T,n u_ff`` (N m).
+    command_Nm : ndarray of float
+        Motor torque reference ``K_T,n i`` (N m); NaN at a step without a
+        validated ``command`` message.
     faults : list of FaultRecord
         The validated ``fault`` messages, in recording order.
     counts : dict
@@ -177,8 +179,8 @@ class Signals:
     encoder_rad: NDArray[np.float64]
     scale_m: NDArray[np.float64]
     reference_rad: NDArray[np.float64]
-    feedforward_A: NDArray[np.float64]
-    command_A: NDArray[np.float64]
+    feedforward_Nm: NDArray[np.float64]
+    command_Nm: NDArray[np.float64]
     faults: list[FaultRecord] = field(default_factory=list)
     counts: dict[str, int] = field(default_factory=dict)
     dropped: dict[str, int] = field(default_factory=dict)
@@ -412,15 +414,10 @@ def _joint_stream(rules: StreamRules, name: str) -> _Check:
 
 
 def _deformation_stream(rules: StreamRules) -> _Check:
-    joint = _joint_stream(rules, "deformation")
-
     def check(data: bytes) -> tuple[int, Any, None]:
-        step, msg, _ = joint(data)
-        # The subscribers' own check (wire.messages.deformation_from_msg): a
-        # flag that is neither 0 nor 1 is no sample of the feedback's.
-        valid = msg.position[3]
-        if valid not in (0.0, 1.0):
-            raise SignalError(f"position[3] (valid): expected 0.0 or 1.0, got {valid!r}")
+        # The subscribers' own checks (wire.messages.deformation_from_msg):
+        # the fields, finite values, a whole step, valid 0 or 1.
+        step, msg = decode_array_stream("deformation", data)
         return step, msg, None
 
     return check
@@ -696,8 +693,8 @@ def load_signals(
         encoder_rad=np.array([state[s][0] for s in steps]),
         scale_m=np.array([state[s][1] for s in steps]),
         reference_rad=np.array([ref[s][0] for s in steps]),
-        feedforward_A=np.array([ref[s][1] for s in steps]),
-        command_A=np.array([cmd.get(s, math.nan) for s in steps]),
+        feedforward_Nm=np.array([ref[s][1] for s in steps]),
+        command_Nm=np.array([cmd.get(s, math.nan) for s in steps]),
         faults=faults,
         counts=streams.counts,
         dropped=streams.dropped,
@@ -709,9 +706,9 @@ def load_signals(
 
 def _deformation_trace(kept: list[Kept], steps: list[int]) -> DeformationTrace:
     """The kept ``deformation`` samples at ``steps`` (missing ones: 0.0, NaN, NaN, invalid)."""
-    by_step = {k.step: k.msg.position for k in kept}
+    by_step = {k.step: k.msg.data[1:5] for k in kept}
     missing = (0.0, math.nan, math.nan, 0.0)
-    rows = np.array([by_step.get(s, missing)[:4] for s in steps], dtype=float).reshape(-1, 4)
+    rows = np.array([by_step.get(s, missing) for s in steps], dtype=float).reshape(-1, 4)
     return DeformationTrace(
         d_r_m_per_rad=rows[:, 0].copy(),
         scale_increment_m=rows[:, 1].copy(),

@@ -4,12 +4,19 @@ Topics (relative to the namespace):
 
 * subscribes ``state`` (JointState, every sample) and ``reference``
   (JointState, published ahead by the feedforward generator);
-* publishes ``command`` (JointState, every sample), ``fault``
-  (Float64MultiArray ``[step, code, value]``, latched, once on a trip) and,
-  with ``deformation.enabled``, ``deformation`` (JointState, every sample:
-  the deformation ratio ``d_r`` of paper 004 eqs. (5)-(7) from the scale and
+* publishes ``command`` (JointState, every sample: the motor torque
+  reference ``K_T,n i_ref``, N m), ``fault`` (Float64MultiArray ``[step,
+  code, value]``, latched, once on a trip) and, with ``deformation.enabled``,
+  ``deformation`` (Float64MultiArray ``[step, d_r_m_per_rad,
+  scale_increment_m, encoder_increment_rad, valid]``, every sample: the
+  deformation ratio ``d_r`` of paper 004 eqs. (5)-(7) from the scale and
   the encoder, :mod:`servo_axis.core.deformation`), published just before
   the command of the same sample.
+
+The loop computes in currents (A); the wire carries torques: the
+feedforward torque of ``reference`` becomes a current and the loop's current
+reference a torque with the nominal torque constant
+``nominal.torque_constant_Nm_per_A`` (:mod:`servo_axis.core.drive`).
 
 For ``state[k]`` the node answers ``command[k]`` as soon as
 ``reference[k]`` is here. The controlled output is
@@ -48,6 +55,7 @@ from __future__ import annotations
 import time
 from typing import Any
 
+from servo_axis.core.drive import current_from_torque, torque_from_current
 from servo_axis.core.errors import SignalError
 from servo_axis.core.feedback.loop import Fault, LoopOutput
 from servo_axis.nodes.base import ServoNode
@@ -70,14 +78,15 @@ class FeedbackNode(ServoNode):
         self._lead = values["lead_m_per_rad"]
         self._period_ns = msgs.period_ns(values["control_period_s"])
         self._lockstep = values["mode"] == "lockstep"
+        self._kt = values["nominal.torque_constant_Nm_per_A"]
 
         self._command_msg = msgs.joint_state_template(msgs.motor_names(self._axis), ("effort",))
         self._command_pub = self.publisher("command")
         self._fault_pub = self.publisher("fault")
         self._deformation = build_deformation(values)
         if self._deformation is not None:
-            self._deformation_msg = msgs.joint_state_template(
-                msgs.deformation_names(self._axis), ("position",)
+            self._deformation_msg = msgs.deformation_to_msg(
+                msgs.DeformationSample(0, 0.0, 0.0, 0.0, False)
             )
             self._deformation_pub = self.publisher("deformation")
 
@@ -154,7 +163,7 @@ class FeedbackNode(ServoNode):
                 encoder_rad=state.encoder_rad,
                 scale_m=state.scale_m,
                 reference_rad=ref.position_rad,
-                feedforward_A=ref.current_A,
+                feedforward_A=current_from_torque(ref.torque_Nm, torque_constant_Nm_per_A=self._kt),
             )
         if out.fault is not None:
             self._publish_fault(state.step, out.fault, out.fault_value)
@@ -167,13 +176,14 @@ class FeedbackNode(ServoNode):
                 d.encoder_increment_rad,
                 d.valid,
             )
-            self._deformation_pub.publish(
-                msgs.write_deformation(self._deformation_msg, sample, period_ns_=self._period_ns)
-            )
+            self._deformation_pub.publish(msgs.write_deformation(self._deformation_msg, sample))
         self._command_pub.publish(
             msgs.write_command(
                 self._command_msg,
-                msgs.CommandSample(step=state.step, current_A=out.current_A),
+                msgs.CommandSample(
+                    step=state.step,
+                    torque_Nm=torque_from_current(out.current_A, torque_constant_Nm_per_A=self._kt),
+                ),
                 period_ns_=self._period_ns,
             )
         )

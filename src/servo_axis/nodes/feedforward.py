@@ -3,10 +3,15 @@
 Topics (relative to the namespace):
 
 * publishes ``reference`` (JointState, one message per control sample,
-  published up to ``preview_steps`` samples ahead of the plant);
+  published up to ``preview_steps`` samples ahead of the plant; its
+  ``effort`` is the feedforward torque ``K_T,n u_ff``, N m, of the
+  generator's current ``u_ff`` with ``nominal.torque_constant_Nm_per_A``,
+  :mod:`servo_axis.core.drive`);
 * subscribes ``plant/status`` (Float64MultiArray, every ``status_every_steps``
   of the plant) to know how far the plant is, without a callback per sample;
-* with learning, subscribes ``learning/correction`` and applies each
+* with learning, subscribes ``learning/correction`` (target-side laws) or
+  ``learning/input_correction`` (input-side laws: a torque, N m, turned
+  back into a current with the nominal torque constant) and applies each
   period's correction from the period it is stamped for;
 * with ``adaptive.enabled`` (paper 003), subscribes ``identifier/estimates``
   and applies each estimate from its ``applies_from_step``: the PTC's model
@@ -52,6 +57,7 @@ from typing import Any
 
 import numpy as np
 
+from servo_axis.core.drive import current_from_torque, torque_from_current
 from servo_axis.core.errors import ServoAxisError, SignalError
 from servo_axis.nodes.base import ServoNode
 from servo_axis.nodes.lockstep import PeerWatch
@@ -79,6 +85,7 @@ class FeedforwardNode(ServoNode):
         self._period_ns = msgs.period_ns(values["control_period_s"])
         self._steps = run_steps(values)
         self._window = values["preview_steps"]
+        self._kt = values["nominal.torque_constant_Nm_per_A"]
         self._estimate_lag = (
             estimate_schedule(values, "adaptive.rls_period_s", "adaptive.latency_s")[1] + 1
             if values["adaptive.enabled"]
@@ -189,7 +196,7 @@ class FeedforwardNode(ServoNode):
             raise SignalError(f"cycle {cycle + 1} is too far in the future")
         if isinstance(c, msgs.CorrectionSample):
             return cycle, idx, (c.position_rad, c.velocity_rad_s)
-        return cycle, idx, (c.current_A,)
+        return cycle, idx, (current_from_torque(c.torque_Nm, torque_constant_Nm_per_A=self._kt),)
 
     def _on_correction(self, item: tuple[int, int, tuple[float, ...]]) -> None:
         cycle, idx, values_at = item
@@ -349,11 +356,15 @@ class FeedforwardNode(ServoNode):
         if until <= self.published:
             return
         samples = self.generator.samples(self.published, until)
+        kt = self._kt
         for k, (pos, vel, cur) in enumerate(samples, start=self.published):
             self._pub.publish(
                 msgs.reference_to_msg(
                     msgs.ReferenceSample(
-                        step=k, position_rad=pos, velocity_rad_s=vel, current_A=cur
+                        step=k,
+                        position_rad=pos,
+                        velocity_rad_s=vel,
+                        torque_Nm=torque_from_current(cur, torque_constant_Nm_per_A=kt),
                     ),
                     axis=self._axis,
                     period_ns_=self._period_ns,

@@ -4,8 +4,9 @@ Topics (relative to the namespace):
 
 * subscribes ``state`` (JointState, every sample: the measured angle
   ``y_m[k]`` is the encoder reading) and ``command`` (JointState, every
-  sample: the current ``i[k]`` the feedback answered ``state[k]`` with; the
-  torque is ``T_m[k] = K_T i[k]`` with the nominal ``K_T``);
+  sample: the motor torque reference ``T_m[k] = K_T i[k]`` (N m) the
+  feedback answered ``state[k]`` with, its current reference times the
+  nominal ``K_T``; the torque of the regression);
 * publishes ``identifier/estimates`` (Float64MultiArray,
   :data:`~servo_axis.wire.cdr.ESTIMATE_LABELS`) once per RLS period.
 
@@ -63,7 +64,6 @@ class IdentifierNode(ServoNode):
         self._v = values
         self._axis = values["axis"]
         self._period_ns = msgs.period_ns(values["control_period_s"])
-        self._kt = values["nominal.torque_constant_Nm_per_A"]
         self._steps = run_steps(values)
         self._scenario = values["scenario.name"] or "unnamed"
         self._memory = Path(values["memory.file"]) if values["memory.file"] else None
@@ -83,7 +83,7 @@ class IdentifierNode(ServoNode):
         self._state_gate = StreamGate(window=window, first=first, limit=self._steps)
         self._command_gate = StreamGate(window=window, first=first, limit=self._steps)
         self._angles: dict[int, float] = {}
-        self._currents: dict[int, float] = {}
+        self._torques: dict[int, float] = {}
         self.inputs_subscribed = False
         self.after_consumers_matched(
             [(self._pub, "identifier/estimates", values["wait_for_estimate_subscribers"])],
@@ -124,7 +124,7 @@ class IdentifierNode(ServoNode):
         self.subscribe(
             "command",
             lambda m: self._fresh(msgs.command_from_msg(m, axis=axis, period_ns_=period_ns)),
-            lambda c: self._take(c.step, current=c.current_A) if c is not None else None,
+            lambda c: self._take(c.step, torque=c.torque_Nm) if c is not None else None,
             gate=self._command_gate,
         )
         self.inputs_subscribed = True
@@ -133,29 +133,29 @@ class IdentifierNode(ServoNode):
         """The sample, or None for history a resumed identifier already had."""
         return None if sample.step <= self._skip_through else sample
 
-    def _take(self, step: int, *, angle: float | None = None, current: float | None = None) -> None:
+    def _take(self, step: int, *, angle: float | None = None, torque: float | None = None) -> None:
         if angle is not None:
             self._angles[step] = angle
-        if current is not None:
-            self._currents[step] = current
+        if torque is not None:
+            self._torques[step] = torque
         while True:
             last = self.identifier.last_step
             if last is not None:
                 nxt = last + 1
-            elif self._angles and self._currents:
+            elif self._angles and self._torques:
                 # A late joiner without memory starts where both streams are
                 # in; what one stream has before that is never used.
-                nxt = max(min(self._angles), min(self._currents))
-                for buffer in (self._angles, self._currents):
+                nxt = max(min(self._angles), min(self._torques))
+                for buffer in (self._angles, self._torques):
                     for old in [k for k in buffer if k < nxt]:
                         del buffer[old]
             else:
                 return
-            if nxt not in self._angles or nxt not in self._currents:
+            if nxt not in self._angles or nxt not in self._torques:
                 return
             y = self._angles.pop(nxt)
-            u = self._currents.pop(nxt)
-            estimate = self.identifier.update(nxt, y, self._kt * u)
+            torque = self._torques.pop(nxt)
+            estimate = self.identifier.update(nxt, y, torque)
             if estimate is not None:
                 self._publish(estimate)
 

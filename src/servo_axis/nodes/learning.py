@@ -13,7 +13,9 @@ Topics (relative to the namespace):
   ``velocity`` = its central-difference velocity (rad/s)); for an
   input-side law ``learning/input_correction`` (``N`` messages per trial,
   stamped with the control samples of the next trial: ``effort`` = the
-  current ``f_{j+1}`` (A)); ``learning/cycle_stats`` (Float64MultiArray
+  torque ``K_T,n f_{j+1}`` (N m) of the law's current ``f_{j+1}`` (A), with
+  ``nominal.torque_constant_Nm_per_A``, :mod:`servo_axis.core.drive`);
+  ``learning/cycle_stats`` (Float64MultiArray
   ``[cycle, rms_m, max_m, cycles_learned]``, once per period); and, for a
   projection-based law, ``learning/parameters`` and
   ``learning/friction_table``.
@@ -46,6 +48,7 @@ import numpy as np
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 
+from servo_axis.core.drive import torque_from_current
 from servo_axis.core.errors import ParameterFileError, ServoAxisError, SignalError
 from servo_axis.core.feedback.output import controlled_output
 from servo_axis.core.learning.base import IdentifyingLaw
@@ -72,6 +75,7 @@ class LearningNode(ServoNode):
         values = self.values
         self._grid = grid(values)
         self.law = build_learning_law(values)
+        self._kt = values["nominal.torque_constant_Nm_per_A"]
         law_outputs = learning_law(values["law"]).outputs
         self._side = self.law.side
         # A target-side law learns from the reference instants, an input-side
@@ -282,11 +286,13 @@ class LearningNode(ServoNode):
                 )
             return
         (current,) = self.law.next_correction(period=cycle + 1)
+        kt = self._kt
         for idx in range(self._nd):
+            torque = torque_from_current(float(current[idx]), torque_constant_Nm_per_A=kt)
             self._correction_pub.publish(
                 msgs.write_input_correction(
                     self._correction_msg,
-                    msgs.InputCorrectionSample(first + idx, float(current[idx])),
+                    msgs.InputCorrectionSample(first + idx, torque),
                     period_ns_=self._period_ns,
                 )
             )

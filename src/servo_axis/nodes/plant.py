@@ -8,7 +8,10 @@ Topics (relative to the node's namespace):
   callback per sample), ``plant/status`` (Float64MultiArray ``[step,
   deadline_misses, rejected_commands, command_timeouts]``, every
   ``status_every_steps``: the feedforward generator's progress signal);
-* subscribes ``command`` (JointState) and ``recorder/progress``
+* subscribes ``command`` (JointState: the motor torque reference, N m, which
+  the plant, as a drive does, turns into its current reference with its own
+  ``torque_constant_Nm_per_A``, :mod:`servo_axis.core.drive`, and saturates
+  on ``current_limit_A``) and ``recorder/progress``
   (Float64MultiArray, for flow control).
 
 The model is chosen by ``model`` from the registry of
@@ -41,6 +44,7 @@ from __future__ import annotations
 import time
 from typing import Any
 
+from servo_axis.core.drive import current_from_torque
 from servo_axis.core.errors import ParameterFileError, SignalError
 from servo_axis.core.models.base import PlantOutput
 from servo_axis.nodes.base import ServoNode
@@ -89,6 +93,7 @@ class PlantNode(ServoNode):
         self._period_ns = msgs.period_ns(values["control_period_s"])
         self._steps = run_steps(values)
         self._lockstep = values["mode"] == "lockstep"
+        self._kt = values["torque_constant_Nm_per_A"]
         self._v = values
         self._flow = FlowControl(
             enabled=values["flow_control"],
@@ -212,11 +217,12 @@ class PlantNode(ServoNode):
 
     # -- callbacks -------------------------------------------------------------
     def _on_command(self, cmd: msgs.CommandSample) -> None:
+        current = current_from_torque(cmd.torque_Nm, torque_constant_Nm_per_A=self._kt)
         if not self._lockstep and cmd.step < self.plant.step_index:
             # Late, but newer than the held current: it replaces it.
-            self._last_current, self._held_step = cmd.current_A, cmd.step
+            self._last_current, self._held_step = current, cmd.step
             return
-        self._command = cmd.current_A
+        self._command = current
         if self._lockstep:
             self._advance()
 

@@ -9,8 +9,9 @@ recorder never loses a message. A first ``[0]`` means "all subscriptions
 matched, ready".
 
 Log times are simulation times (:class:`~servo_axis.recording.timeline.SimTimeline`):
-a ``JointState`` is logged at its header stamp, a ``Clock`` at its clock, an
-unstamped message at the simulation time seen so far on ``/clock`` and the
+a ``JointState`` is logged at its header stamp, a ``Clock`` at its clock, a
+per-sample vector that carries its step (``deformation``) at that step's
+time, any other message at the simulation time seen so far on ``/clock`` and the
 counted topics (junk stamps are bounded; see the timeline's docstring). The
 bag's timeline and ``metadata.yaml``'s duration are then the simulated ones,
 the same run after run.
@@ -48,7 +49,13 @@ from servo_axis.recording.writer import DEFAULT_QOS, LATCHED_QOS_TEXT, BagWriter
 from servo_axis.wire import messages as msgs
 from servo_axis.wire import topics as topics_table
 from servo_axis.wire.cdr import clock_ns_from_cdr
-from servo_axis.wire.streams import JOINT_STREAMS, StreamGate, decode_joint_stream
+from servo_axis.wire.streams import (
+    ARRAY_STREAMS,
+    STEP_STREAMS,
+    StreamGate,
+    decode_array_stream,
+    decode_step_stream,
+)
 
 #: Wall-time period (s) of the flush of the bag: half the 0.5 s a killed
 #: recorder may lose, so that a tick delayed by a long callback still keeps
@@ -138,14 +145,17 @@ class RecorderNode(ServoNode):
             self._counts[name] = 0
             if topic in values["counted_topics"]:
                 self._counted.append(name)
-                if topic not in JOINT_STREAMS:
+                if topic not in STEP_STREAMS:
                     raise ParameterFileError(
                         f"parameter 'counted_topics': {topic!r} is not a per-sample stream "
-                        f"(one of {sorted(JOINT_STREAMS)})"
+                        f"(one of {sorted(STEP_STREAMS)})"
                     )
                 self._gates[name] = (topic, StreamGate(window=window, first=0, limit=self._steps))
             qos = LATCHED_READ_QOS if topic in values["latched_topics"] else STREAM_QOS
             stamp = stamp_reader(type_name)
+            if topic in ARRAY_STREAMS:
+                # A vector of one step carries the step: logged at its time.
+                stamp = self._array_step_ns(topic)
             # The loop's own streams move the timeline; the reference runs ahead.
             clock = stamp is clock_ns_from_cdr or topic in ("state", "command")
             events = (
@@ -196,7 +206,7 @@ class RecorderNode(ServoNode):
                 # behind may move the gate.
                 topic, gate = self._gates[name]
                 try:
-                    step, _ = decode_joint_stream(
+                    step, _ = decode_step_stream(
                         topic, data, axis=self._axis, period_ns=self._period_ns
                     )
                     gate.accept(step)
@@ -225,6 +235,14 @@ class RecorderNode(ServoNode):
         if entry is None or entry.producer not in self.external_roles:
             return True
         return topic in self._v["counted_topics"] or topic in self._v["final_topics"]
+
+    def _array_step_ns(self, topic: str) -> Callable[[bytes], int]:
+        period_ns = self._period_ns
+
+        def step_ns(data: bytes) -> int:
+            return decode_array_stream(topic, data)[0] * period_ns
+
+        return step_ns
 
     def _check_ready(self) -> None:
         if self._v["wait_for_publishers"] and not all(

@@ -163,11 +163,19 @@ def register_plant_model(
     """Make a plant model selectable as ``plant.model: <name>``.
 
     ``warnings(values)`` lists what is allowed but unusual in checked values
-    (the plant node logs each at start).
+    (the plant node logs each at start). The schema must have
+    ``torque_constant_Nm_per_A``: the plant, as a drive, turns the motor
+    torque reference of ``command`` into its current with it
+    (:mod:`servo_axis.core.drive`).
     """
     clash = set(schema) & (set(schemas.PLANT) | set(schemas.SHARED))
     if clash:
         raise ValueError(f"schema: keys {sorted(clash)} are the plant node's own")
+    if "torque_constant_Nm_per_A" not in schema:
+        raise ValueError(
+            "schema: expected a key 'torque_constant_Nm_per_A' (N m/A), with which the "
+            "plant turns the torque reference of `command` into its current"
+        )
     PLANT_MODELS[name] = PlantModelEntry(
         schema=schema, build=build, warnings=warnings or (lambda values: [])
     )

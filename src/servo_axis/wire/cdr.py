@@ -23,8 +23,16 @@ functions of plain values, so that the nodes (through
 decoded payloads of a bag) validate with the same code: joint names
 (:func:`state_names`, :func:`motor_names`), array lengths and finiteness
 (:func:`check_joint_arrays`, :func:`check_finite`), the stamp on the control
-grid (:func:`step_of_stamp_ns`) and the labels of a Float64MultiArray
+grid (:func:`step_of_stamp_ns`) and the layout of a Float64MultiArray
 (:func:`check_labelled_values`, with the ``*_LABELS`` of each topic).
+
+Every Float64MultiArray of the project has one ``MultiArrayDimension`` per
+field, in order: ``label`` = the field's name with its unit (``step``,
+``d_r_m_per_rad``, ``rms_m``), ``size`` = the number of values of the field
+(1 for a scalar, ``n`` for a segment such as ``x_r_m`` of the friction
+table), ``stride`` = ``size``; the sizes add up to ``len(data)``
+(``data_offset`` is written 0). A vector that belongs to a control step carries that
+step as its first field, ``step``.
 """
 
 from __future__ import annotations
@@ -38,6 +46,7 @@ from typing import Any
 from servo_axis.core.errors import SignalError
 
 __all__ = [
+    "DEFORMATION_LABELS",
     "ESTIMATE_LABELS",
     "FAULT_LABELS",
     "PROGRESS_LABELS",
@@ -48,7 +57,9 @@ __all__ = [
     "EstimateData",
     "JointStateData",
     "MultiArrayData",
+    "check_deformation_values",
     "check_estimate_values",
+    "check_labelled_values",
     "clock_ns_from_cdr",
     "decode",
     "decode_clock",
@@ -382,7 +393,8 @@ def decode(type_name: str, data: bytes) -> JointStateData | MultiArrayData | Clo
 
 # -- checks shared by the nodes and the analysis -------------------------------
 
-#: Field labels of the Float64MultiArray topics (one labelled dimension each).
+#: Field labels of the Float64MultiArray topics (one dimension per field,
+#: each of size 1 unless a topic says otherwise).
 STATUS_LABELS: tuple[str, ...] = (
     "step",
     "deadline_misses",
@@ -396,6 +408,16 @@ FAULT_LABELS: tuple[str, ...] = (
     "value(m_or_A_or_s)",
 )
 STATS_LABELS: tuple[str, ...] = ("cycle", "rms_m", "max_m", "cycles_learned")
+#: ``deformation`` (004 eqs. (5)-(7)): the control step, ``d_r`` (0 where not
+#: defined), the scale's increment ``x_t[k] - x_t[k-p]``, the encoder's
+#: ``th_m[k] - th_m[k-p]`` and whether ``d_r`` is defined (1/0).
+DEFORMATION_LABELS: tuple[str, ...] = (
+    "step",
+    "d_r_m_per_rad",
+    "scale_increment_m",
+    "encoder_increment_rad",
+    "valid",
+)
 #: ``identifier/estimates``: the last control sample the estimate was computed
 #: from, the first it applies to, ``J, D, U, C`` (003 eq. (2)), the PE index
 #: of eq. (7) and whether each parameter was updated at this RLS step (1/0).
@@ -509,16 +531,6 @@ def motor_names(axis: str) -> list[str]:
     return [f"{axis}_motor"]
 
 
-def deformation_names(axis: str) -> list[str]:
-    """Joint names of the ``deformation`` topic (its ``position`` carries the values)."""
-    return [
-        f"{axis}_deformation_ratio",
-        f"{axis}_scale_increment",
-        f"{axis}_encoder_increment",
-        f"{axis}_deformation_valid",
-    ]
-
-
 def check_finite(name: str, values: Sequence[float]) -> Sequence[float]:
     """``values`` if every one is finite, else :class:`SignalError` naming ``name[i]``.
 
@@ -577,25 +589,77 @@ def check_labelled_values(
     dim_sizes: Sequence[int],
     data: Sequence[float],
     labels: Sequence[str],
+    *,
+    dim_strides: Sequence[int] | None = None,
+    sizes: Sequence[int | None] | None = None,
 ) -> list[float]:
     """The values of a labelled Float64MultiArray after checking its layout.
 
-    One dimension labelled ``",".join(labels)`` of size ``len(labels)``,
-    ``len(labels)`` finite values.
+    The layout has one dimension per field, in order: ``label`` = the
+    field's name, ``size`` = its number of values, ``stride`` = ``size``;
+    the sizes add up to ``len(data)``.
+
+    Parameters
+    ----------
+    dim_labels, dim_sizes : sequence
+        ``layout.dim[i].label`` and ``.size`` of the message.
+    data : sequence of float
+        ``data``.
+    labels : sequence of str
+        The fields the topic has, in order.
+    dim_strides : sequence of int or None
+        ``layout.dim[i].stride`` (checked equal to the sizes); None: not checked.
+    sizes : sequence of (int or None) or None
+        The size each field must have (None for a segment of any length);
+        None: every field is a scalar (size 1).
+
+    Returns
+    -------
+    list of float
+        ``data``, every value finite.
 
     Raises
     ------
     SignalError
-        Naming what is wrong.
+        Naming what is wrong: the fields, a size, a stride, the total length
+        or a value that is not finite.
     """
-    expected = ",".join(labels)
-    if len(dim_labels) != 1 or dim_labels[0] != expected:
+    if list(dim_labels) != list(labels):
         raise SignalError(
-            f"layout.dim: expected one dimension labelled {expected!r}, got {list(dim_labels)}"
+            f"layout.dim: expected one dimension per field {list(labels)}, got {list(dim_labels)}"
         )
-    if len(data) != len(labels) or dim_sizes[0] != len(labels):
-        raise SignalError(f"data: expected {len(labels)} values, got {len(data)}")
+    want = [1] * len(labels) if sizes is None else list(sizes)
+    for label, got, expected in zip(labels, dim_sizes, want, strict=True):
+        if expected is not None and got != expected:
+            raise SignalError(f"layout.dim {label!r}: expected size {expected}, got {got}")
+    if dim_strides is not None and list(dim_strides) != list(dim_sizes):
+        raise SignalError(
+            f"layout.dim: expected strides equal to the sizes {list(dim_sizes)}, "
+            f"got {list(dim_strides)}"
+        )
+    if sum(dim_sizes) != len(data):
+        raise SignalError(
+            f"data: expected {sum(dim_sizes)} values (sizes {list(dim_sizes)} of "
+            f"{list(labels)}), got {len(data)}"
+        )
     return [float(v) for v in check_finite("data", data)]
+
+
+def check_deformation_values(values: Sequence[float]) -> int:
+    """The step of the values of a ``deformation`` message (:data:`DEFORMATION_LABELS` order).
+
+    Raises
+    ------
+    SignalError
+        A step that is not a whole number >= 0, or ``valid`` neither 0 nor 1
+        (:func:`check_labelled_values` checks the layout and finiteness).
+    """
+    step, valid = values[0], values[4]
+    if step != int(step) or step < 0:
+        raise SignalError(f"step: expected a whole number >= 0, got {step!r}")
+    if valid not in (0.0, 1.0):
+        raise SignalError(f"valid: expected 0 or 1, got {valid!r}")
+    return int(step)
 
 
 def joint_state_step(
@@ -616,6 +680,10 @@ def joint_state_step(
     return step_of_stamp_ns(msg.stamp_ns, period_ns)
 
 
-def labelled_values(msg: MultiArrayData, labels: Sequence[str]) -> list[float]:
+def labelled_values(
+    msg: MultiArrayData, labels: Sequence[str], *, sizes: Sequence[int | None] | None = None
+) -> list[float]:
     """The values of a decoded labelled Float64MultiArray (:func:`check_labelled_values`)."""
-    return check_labelled_values(msg.labels, msg.sizes, msg.data, labels)
+    return check_labelled_values(
+        msg.labels, msg.sizes, msg.data, labels, dim_strides=msg.strides, sizes=sizes
+    )

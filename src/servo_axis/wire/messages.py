@@ -4,9 +4,15 @@ Only ``sensor_msgs/JointState``, ``std_msgs/Float64MultiArray`` and
 ``rosgraph_msgs/Clock`` cross the wire (DESIGN 3). Every per-sample signal
 is a JointState whose ``header.stamp`` is the sample's simulation time
 ``k * T_u``; the step ``k`` is recovered from the stamp exactly (integer
-nanoseconds). Vectors are Float64MultiArray with one labelled dimension
-whose label lists the fields, comma-separated, with units; a vector that
-belongs to a step carries that step as its first element, labelled ``step``.
+nanoseconds). A JointState carries only what it defines, in SI units (REP
+103): ``position`` (rad, m), ``velocity`` (rad/s, m/s), ``effort`` (N m for
+the motor joint, N for the table); the current references of the
+controllers travel as motor torque references ``K_T i``
+(:mod:`servo_axis.core.drive`). What is not a joint state travels as a
+Float64MultiArray with one ``MultiArrayDimension`` per field (``label`` =
+the field with its unit, ``size`` = its number of values, ``stride`` =
+``size``: :func:`labelled_array`); a vector that belongs to a step carries
+that step as its first field, ``step``.
 
 Decoders validate: names, lengths, finiteness and the stamp grid. They raise
 :class:`servo_axis.core.errors.SignalError` naming what is wrong. The checks
@@ -30,6 +36,7 @@ from servo_axis.core.errors import SignalError
 
 # The labels and joint names are defined beside the pure checks (wire.cdr) and
 # re-exported here, where the nodes take them from.
+from servo_axis.wire.cdr import DEFORMATION_LABELS as DEFORMATION_LABELS
 from servo_axis.wire.cdr import ESTIMATE_LABELS as ESTIMATE_LABELS
 from servo_axis.wire.cdr import FAULT_LABELS as FAULT_LABELS
 from servo_axis.wire.cdr import PROGRESS_LABELS as PROGRESS_LABELS
@@ -37,13 +44,13 @@ from servo_axis.wire.cdr import STATS_LABELS as STATS_LABELS
 from servo_axis.wire.cdr import STATUS_LABELS as STATUS_LABELS
 from servo_axis.wire.cdr import EstimateData as EstimateData
 from servo_axis.wire.cdr import (
+    check_deformation_values,
     check_estimate_values,
     check_finite,
     check_joint_arrays,
     check_labelled_values,
     step_of_stamp_ns,
 )
-from servo_axis.wire.cdr import deformation_names as deformation_names
 from servo_axis.wire.cdr import motor_names as motor_names
 from servo_axis.wire.cdr import state_names as state_names
 
@@ -174,13 +181,16 @@ def state_from_msg(msg: JointState, *, axis: str, period_ns_: int) -> StateSampl
 
 @dataclass(frozen=True)
 class CommandSample:
-    """Current command for control sample ``step`` (topic ``command``).
+    """Motor torque reference for control sample ``step`` (topic ``command``).
 
-    JointState name ``[<axis>_motor]``, ``effort`` = [current reference (A)].
+    JointState name ``[<axis>_motor]``, ``effort`` = [motor torque reference
+    ``K_T,n i_ref`` (N m)]: the feedback's current reference times the
+    nominal torque constant; the plant turns it back into its current
+    reference with its own ``K_T`` (:mod:`servo_axis.core.drive`).
     """
 
     step: int
-    current_A: float
+    torque_Nm: float
 
 
 def command_to_msg(sample: CommandSample, *, axis: str, period_ns_: int) -> JointState:
@@ -191,23 +201,23 @@ def command_to_msg(sample: CommandSample, *, axis: str, period_ns_: int) -> Join
 
 def write_command(msg: JointState, sample: CommandSample, *, period_ns_: int) -> JointState:
     """Fill a template from :func:`command_to_msg` with ``sample`` (publisher reuse)."""
-    return _fill(msg, sample.step, period_ns_, effort=(sample.current_A,))
+    return _fill(msg, sample.step, period_ns_, effort=(sample.torque_Nm,))
 
 
 def command_from_msg(msg: JointState, *, axis: str, period_ns_: int) -> CommandSample:
     """Decode and validate a ``command`` message."""
     step = _check_joint_state(msg, motor_names(axis), ("effort",), period_ns_)
-    return CommandSample(step=step, current_A=msg.effort[0])
+    return CommandSample(step=step, torque_Nm=msg.effort[0])
 
 
 @dataclass(frozen=True)
 class DeformationSample:
     """The deformation ratio at control sample ``step`` (topic ``deformation``, 004 eqs. (5)-(7)).
 
-    JointState names :func:`deformation_names`, all in ``position``: ``d_r``
-    (m/rad; 0 where not defined), the scale's increment ``x_t[k] - x_t[k-p]``
-    (m), the encoder's ``th_m[k] - th_m[k-p]`` (rad) and ``valid`` (1.0 where
-    ``d_r`` is defined, else 0.0).
+    A Float64MultiArray of the fields :data:`DEFORMATION_LABELS`: ``step``,
+    ``d_r_m_per_rad`` (m/rad; 0 where not defined), ``scale_increment_m``
+    (``x_t[k] - x_t[k-p]``, m), ``encoder_increment_rad`` (``th_m[k] -
+    th_m[k-p]``, rad) and ``valid`` (1 where ``d_r`` is defined, else 0).
     """
 
     step: int
@@ -217,39 +227,35 @@ class DeformationSample:
     valid: bool
 
 
-def deformation_to_msg(sample: DeformationSample, *, axis: str, period_ns_: int) -> JointState:
+def deformation_to_msg(sample: DeformationSample) -> Float64MultiArray:
     """Encode a :class:`DeformationSample`."""
-    template = joint_state_template(deformation_names(axis), ("position",))
-    return write_deformation(template, sample, period_ns_=period_ns_)
+    template = labelled_array(DEFORMATION_LABELS, [0.0] * len(DEFORMATION_LABELS))
+    return write_deformation(template, sample)
 
 
-def write_deformation(msg: JointState, sample: DeformationSample, *, period_ns_: int) -> JointState:
+def write_deformation(msg: Float64MultiArray, sample: DeformationSample) -> Float64MultiArray:
     """Fill a template from :func:`deformation_to_msg` with ``sample`` (publisher reuse)."""
-    return _fill(
-        msg,
-        sample.step,
-        period_ns_,
-        position=(
-            sample.d_r_m_per_rad,
-            sample.scale_increment_m,
-            sample.encoder_increment_rad,
-            1.0 if sample.valid else 0.0,
-        ),
+    values = (
+        float(sample.step),
+        sample.d_r_m_per_rad,
+        sample.scale_increment_m,
+        sample.encoder_increment_rad,
+        1.0 if sample.valid else 0.0,
     )
+    msg.data[:] = array.array("d", _finite("data", values))
+    return msg
 
 
-def deformation_from_msg(msg: JointState, *, axis: str, period_ns_: int) -> DeformationSample:
-    """Decode and validate a ``deformation`` message."""
-    step = _check_joint_state(msg, deformation_names(axis), ("position",), period_ns_)
-    valid = msg.position[3]
-    if valid not in (0.0, 1.0):
-        raise SignalError(f"position[3] (valid): expected 0.0 or 1.0, got {valid!r}")
+def deformation_from_msg(msg: Float64MultiArray) -> DeformationSample:
+    """Decode and validate a ``deformation`` message (layout, finiteness, step, valid 0/1)."""
+    values = labelled_array_values(msg, DEFORMATION_LABELS)
+    step = check_deformation_values(values)
     return DeformationSample(
         step=step,
-        d_r_m_per_rad=msg.position[0],
-        scale_increment_m=msg.position[1],
-        encoder_increment_rad=msg.position[2],
-        valid=valid == 1.0,
+        d_r_m_per_rad=values[1],
+        scale_increment_m=values[2],
+        encoder_increment_rad=values[3],
+        valid=values[4] == 1.0,
     )
 
 
@@ -259,13 +265,16 @@ class ReferenceSample:
 
     JointState name ``[<axis>_motor]``: ``position`` = motor-angle reference
     for the feedback (rad; with PTC the nominal output trajectory),
-    ``velocity`` = its velocity (rad/s), ``effort`` = feedforward current (A).
+    ``velocity`` = its velocity (rad/s), ``effort`` = feedforward torque
+    ``K_T,n u_ff`` (N m): the generator's feedforward current times the
+    nominal torque constant, which the feedback turns back into a current
+    (:mod:`servo_axis.core.drive`).
     """
 
     step: int
     position_rad: float
     velocity_rad_s: float
-    current_A: float
+    torque_Nm: float
 
 
 def reference_to_msg(sample: ReferenceSample, *, axis: str, period_ns_: int) -> JointState:
@@ -282,7 +291,7 @@ def write_reference(msg: JointState, sample: ReferenceSample, *, period_ns_: int
         period_ns_,
         position=(sample.position_rad,),
         velocity=(sample.velocity_rad_s,),
-        effort=(sample.current_A,),
+        effort=(sample.torque_Nm,),
     )
 
 
@@ -295,31 +304,71 @@ def reference_from_msg(msg: JointState, *, axis: str, period_ns_: int) -> Refere
         step=step,
         position_rad=msg.position[0],
         velocity_rad_s=msg.velocity[0],
-        current_A=msg.effort[0],
+        torque_Nm=msg.effort[0],
     )
 
 
-def labelled_array(labels: Sequence[str], values: Sequence[float]) -> Float64MultiArray:
-    """Float64MultiArray whose single dimension's label names every element."""
-    if len(labels) != len(values):
-        raise SignalError(
-            f"values: expected {len(labels)} values for {list(labels)}, got {len(values)}"
-        )
+def labelled_array(
+    labels: Sequence[str], values: Sequence[float], *, sizes: Sequence[int] | None = None
+) -> Float64MultiArray:
+    """Float64MultiArray with one dimension per field: ``label``, ``size``, ``stride`` = ``size``.
+
+    Parameters
+    ----------
+    labels : sequence of str
+        The fields, in order, each named with its unit (``step``, ``rms_m``).
+    values : sequence of float
+        The data: the fields' values one after the other.
+    sizes : sequence of int or None
+        The number of values of each field (a segment has several); None:
+        one each.
+
+    Raises
+    ------
+    SignalError
+        For an empty, repeated or comma-separated label, sizes that do not
+        match the labels or add up to ``len(values)``, or a value that is
+        not finite.
+    """
+    counts = [1] * len(labels) if sizes is None else [int(n) for n in sizes]
+    if len(counts) != len(labels):
+        raise SignalError(f"sizes: expected one size per label {list(labels)}, got {counts}")
     for label in labels:
         if not label or "," in label:
             raise SignalError(f"labels: expected non-empty labels without commas, got {label!r}")
+    if len(set(labels)) != len(labels):
+        raise SignalError(f"labels: expected distinct labels, got {list(labels)}")
+    if any(n < 0 for n in counts) or sum(counts) != len(values):
+        raise SignalError(
+            f"values: expected {sum(counts)} values (sizes {counts} of {list(labels)}), "
+            f"got {len(values)}"
+        )
     msg = Float64MultiArray()
     msg.layout.dim = [
-        MultiArrayDimension(label=",".join(labels), size=len(labels), stride=len(labels))
+        MultiArrayDimension(label=label, size=n, stride=n)
+        for label, n in zip(labels, counts, strict=True)
     ]
     msg.data = [float(v) for v in _finite("data", values)]
     return msg
 
 
-def labelled_array_values(msg: Float64MultiArray, labels: Sequence[str]) -> list[float]:
-    """Values of a :func:`labelled_array` message after checking its labels."""
+def labelled_array_values(
+    msg: Float64MultiArray, labels: Sequence[str], *, sizes: Sequence[int | None] | None = None
+) -> list[float]:
+    """Values of a :func:`labelled_array` message after checking its layout.
+
+    ``sizes`` as in :func:`servo_axis.wire.cdr.check_labelled_values` (None:
+    every field a scalar; an entry None: a segment of any length).
+    """
     dims = list(msg.layout.dim)
-    return check_labelled_values([d.label for d in dims], [d.size for d in dims], msg.data, labels)
+    return check_labelled_values(
+        [d.label for d in dims],
+        [d.size for d in dims],
+        msg.data,
+        labels,
+        dim_strides=[d.stride for d in dims],
+        sizes=sizes,
+    )
 
 
 @dataclass(frozen=True)
@@ -361,22 +410,24 @@ def correction_from_msg(msg: JointState, *, axis: str, period_ns_: int) -> Corre
 
 @dataclass(frozen=True)
 class InputCorrectionSample:
-    """Learned feedforward current at a control sample (topic ``learning/input_correction``).
+    """Learned feedforward torque at a control sample (topic ``learning/input_correction``).
 
     JointState name ``[<axis>_motor]``, stamped with the control sample it
-    applies to: ``effort`` = current added to the control input (A), the
-    ``f_{j+1}`` of paper 001 eq. (3)/(11).
+    applies to: ``effort`` = torque ``K_T,n f`` (N m) of the current ``f_{j+1}``
+    (A) of paper 001 eq. (3)/(11) that the law adds to the control input; the
+    feedforward generator turns it back into a current
+    (:mod:`servo_axis.core.drive`).
     """
 
     step: int
-    current_A: float
+    torque_Nm: float
 
 
 def write_input_correction(
     msg: JointState, sample: InputCorrectionSample, *, period_ns_: int
 ) -> JointState:
     """Fill a template from :func:`input_correction_to_msg` with ``sample`` (publisher reuse)."""
-    return _fill(msg, sample.step, period_ns_, effort=(sample.current_A,))
+    return _fill(msg, sample.step, period_ns_, effort=(sample.torque_Nm,))
 
 
 def input_correction_to_msg(
@@ -392,7 +443,7 @@ def input_correction_from_msg(
 ) -> InputCorrectionSample:
     """Decode and validate a ``learning/input_correction`` message."""
     step = _check_joint_state(msg, motor_names(axis), ("effort",), period_ns_)
-    return InputCorrectionSample(step=step, current_A=msg.effort[0])
+    return InputCorrectionSample(step=step, torque_Nm=msg.effort[0])
 
 
 def estimate_to_msg(estimate: EstimateData) -> Float64MultiArray:
@@ -429,33 +480,18 @@ def friction_table_to_msg(
         raise SignalError(f"torque_Nm: expected {len(x)} values (one per x_r_m), got {len(t)}")
     check_finite("x_r_m", x)
     check_finite("torque_Nm", t)
-    msg = Float64MultiArray()
-    sizes = (1, len(x), len(t))
-    msg.layout.dim = [
-        MultiArrayDimension(label=label, size=size, stride=size)
-        for label, size in zip(FRICTION_TABLE_LABELS, sizes, strict=True)
-    ]
-    msg.data = [float(trial), *x, *t]
-    return msg
+    return labelled_array(FRICTION_TABLE_LABELS, [float(trial), *x, *t], sizes=(1, len(x), len(t)))
 
 
 def friction_table_from_msg(msg: Float64MultiArray) -> tuple[int, list[float], list[float]]:
     """``(trial, x_r_m, torque_Nm)`` of a :func:`friction_table_to_msg` message, checked."""
-    dims = list(msg.layout.dim)
-    labels = tuple(d.label for d in dims)
-    if labels != FRICTION_TABLE_LABELS:
+    data = labelled_array_values(msg, FRICTION_TABLE_LABELS, sizes=(1, None, None))
+    n, n_torque = msg.layout.dim[1].size, msg.layout.dim[2].size
+    if n != n_torque:
         raise SignalError(
-            f"layout: expected segments {list(FRICTION_TABLE_LABELS)}, got {list(labels)}"
+            f"layout.dim 'torque_Nm': expected size {n} (one per x_r_m), got {n_torque}"
         )
-    sizes = [d.size for d in dims]
-    data = list(msg.data)
-    if sizes[0] != 1 or sizes[1] != sizes[2] or sum(sizes) != len(data):
-        raise SignalError(
-            f"layout: expected sizes [1, n, n] adding up to {len(data)} values, got {sizes}"
-        )
-    check_finite("data", data)
     trial = data[0]
     if trial != int(trial) or trial < 1:
         raise SignalError(f"trial: expected a whole number >= 1, got {trial!r}")
-    n = sizes[1]
     return int(trial), data[1 : 1 + n], data[1 + n :]

@@ -16,7 +16,7 @@ Nothing here imports rclpy.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from typing import TypeVar
 
 from servo_axis.core.errors import SignalError
@@ -111,8 +111,17 @@ JOINT_STREAMS: dict[str, tuple[Callable[[str], list[str]], tuple[str, ...]]] = {
     "reference": (cdr.motor_names, ("position", "velocity", "effort")),
     "learning/correction": (cdr.motor_names, ("position", "velocity")),
     "learning/input_correction": (cdr.motor_names, ("effort",)),
-    "deformation": (cdr.deformation_names, ("position",)),
 }
+
+#: The per-sample Float64MultiArray streams of the table (a vector per control
+#: step that carries the step as its first field): their fields and the check
+#: that gives the step of the values.
+ARRAY_STREAMS: dict[str, tuple[tuple[str, ...], Callable[[Sequence[float]], int]]] = {
+    "deformation": (cdr.DEFORMATION_LABELS, cdr.check_deformation_values),
+}
+
+#: Every stream with one message per control step (what a recorder may count).
+STEP_STREAMS: frozenset[str] = frozenset(JOINT_STREAMS) | frozenset(ARRAY_STREAMS)
 
 
 def decode_joint_stream(
@@ -129,3 +138,26 @@ def decode_joint_stream(
     names_of, fields = JOINT_STREAMS[name]
     msg = cdr.decode_joint_state(data)  # SignalError for a payload that does not decode
     return cdr.joint_state_step(msg, names_of(axis), fields, period_ns), msg
+
+
+def decode_array_stream(name: str, data: bytes) -> tuple[int, cdr.MultiArrayData]:
+    """Step and message of a recorded per-sample Float64MultiArray of stream ``name``.
+
+    Raises
+    ------
+    SignalError
+        For a payload that does not decode, a layout other than the topic's
+        fields, a non-finite value or a value its check refuses.
+    """
+    labels, step_of = ARRAY_STREAMS[name]
+    msg = cdr.decode_float64_multi_array(data)
+    return step_of(cdr.labelled_values(msg, labels)), msg
+
+
+def decode_step_stream(
+    name: str, data: bytes, *, axis: str, period_ns: int
+) -> tuple[int, cdr.JointStateData | cdr.MultiArrayData]:
+    """Step and message of a recorded sample of any :data:`STEP_STREAMS` stream (checked)."""
+    if name in ARRAY_STREAMS:
+        return decode_array_stream(name, data)
+    return decode_joint_stream(name, data, axis=axis, period_ns=period_ns)

@@ -38,6 +38,7 @@ from servo_axis.params.scenario import load_scenario
 from servo_axis.recording.writer import BagWriter
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
+MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 PERIOD_S = 0.001
@@ -59,8 +60,7 @@ STOPS = (
 )
 AXIS_NAMES = ["x_motor", "x_table"]
 MOTOR = ["x_motor"]
-DEFORMATION = ["x_deformation_ratio", "x_scale_increment", "x_encoder_increment"]
-DEFORMATION += ["x_deformation_valid"]
+DEFORMATION = ("step", "d_r_m_per_rad", "scale_increment_m", "encoder_increment_rad", "valid")
 
 
 class Cdr:
@@ -83,6 +83,20 @@ class Cdr:
             },
         )
         return bytes(self.ts.serialize_cdr(msg, JOINT_STATE))
+
+    def multi_array(self, labels: tuple[str, ...], data: list[float]) -> bytes:
+        """One dimension per field of size 1, as the nodes write it."""
+        dims = [
+            self.t["std_msgs/msg/MultiArrayDimension"](label=label, size=1, stride=1)
+            for label in labels
+        ]
+        layout = self.t["std_msgs/msg/MultiArrayLayout"](dim=dims, data_offset=0)
+        msg = self.t[MULTI_ARRAY](layout=layout, data=np.array(data, dtype=np.float64))
+        return bytes(self.ts.serialize_cdr(msg, MULTI_ARRAY))
+
+    def deformation(self, step: float, values: list[float]) -> bytes:
+        """A ``deformation`` message ``[step, d_r, dx, dth, valid]``."""
+        return self.multi_array(DEFORMATION, [float(step), *values])
 
 
 CDR = Cdr()
@@ -158,18 +172,20 @@ def messages(junk: bool = False) -> tuple[list[tuple[str, bytes]], int]:
         )
         out.append(("/x/state", state))
         values = RUN.deformation_values(k)
-        real = CDR.joint_state(ns, DEFORMATION, position=values)
-        nxt = (k + 1) * PERIOD_NS
+        real = CDR.deformation(k, values)
         if junk and k % 97 == 5:
             # A stranger's copy of the next sample arriving first, and kinds
             # of junk the subscribers refuse: all before the real message.
             bad = [
-                CDR.joint_state(nxt, DEFORMATION, position=[1.0, 0.0, 0.0, 1.0]),  # ahead
-                CDR.joint_state(ns, DEFORMATION, position=[nan, 0.0, 0.0, 1.0]),
-                CDR.joint_state(ns, DEFORMATION, position=values[:3]),  # short
-                CDR.joint_state(ns, DEFORMATION, position=[*values[:3], 0.5]),  # valid 0.5
-                CDR.joint_state(ns, [n.replace("x_", "y_") for n in DEFORMATION], position=values),
-                CDR.joint_state(ns + PERIOD_NS // 2, DEFORMATION, position=values),  # off grid
+                CDR.deformation(k + 1, [1.0, 0.0, 0.0, 1.0]),  # ahead
+                CDR.deformation(k, [nan, 0.0, 0.0, 1.0]),
+                CDR.multi_array(DEFORMATION, [float(k), *values[:3]]),  # short
+                CDR.deformation(k, [*values[:3], 0.5]),  # valid 0.5
+                CDR.multi_array(  # the fields in another order
+                    ("step", "scale_increment_m", "d_r_m_per_rad", *DEFORMATION[3:]),
+                    [float(k), *values],
+                ),
+                CDR.deformation(k + 0.5, values),  # not a whole step
                 b"\x00\x01\x00\x00",
             ]
             out += [("/x/deformation", b) for b in bad]
@@ -177,9 +193,9 @@ def messages(junk: bool = False) -> tuple[list[tuple[str, bytes]], int]:
         out.append(("/x/deformation", real))
         if junk and k % 89 == 7:
             out += [
-                ("/x/deformation", CDR.joint_state(0, DEFORMATION, position=values)),  # past
+                ("/x/deformation", CDR.deformation(0, values)),  # past
                 ("/x/deformation", real),  # the same step again
-                ("/x/deformation", CDR.joint_state(10**18, DEFORMATION, position=values)),
+                ("/x/deformation", CDR.deformation(10**12, values)),
             ]
             n_junk += 3
         out.append(("/x/command", CDR.joint_state(ns, MOTOR, effort=[-0.1 * math.cos(k / 30)])))
@@ -188,8 +204,9 @@ def messages(junk: bool = False) -> tuple[list[tuple[str, bytes]], int]:
 
 def write_bag(bag_dir: Path, msgs: list[tuple[str, bytes]]) -> None:
     with BagWriter(bag_dir) as bag:
-        for topic in ("/x/reference", "/x/state", "/x/deformation", "/x/command"):
+        for topic in ("/x/reference", "/x/state", "/x/command"):
             bag.add_topic(topic, JOINT_STATE)
+        bag.add_topic("/x/deformation", MULTI_ARRAY)
         for i, (topic, data) in enumerate(msgs):
             bag.write(topic, data, log_time_ns=i)
 

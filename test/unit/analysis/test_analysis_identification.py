@@ -72,9 +72,13 @@ class Cdr:
         return bytes(self.ts.serialize_cdr(msg, JOINT_STATE))
 
     def multi_array(self, labels: tuple[str, ...] | str, data: list[float]) -> bytes:
-        label = labels if isinstance(labels, str) else ",".join(labels)
-        dim = self.t["std_msgs/msg/MultiArrayDimension"](label=label, size=len(data), stride=1)
-        layout = self.t["std_msgs/msg/MultiArrayLayout"](dim=[dim], data_offset=0)
+        """One dimension per field of size 1 (the project's layout); a str: one dimension."""
+        fields = [(labels, len(data))] if isinstance(labels, str) else [(lb, 1) for lb in labels]
+        dims = [
+            self.t["std_msgs/msg/MultiArrayDimension"](label=lb, size=size, stride=size)
+            for lb, size in fields
+        ]
+        layout = self.t["std_msgs/msg/MultiArrayLayout"](dim=dims, data_offset=0)
         msg = self.t[MULTI_ARRAY](layout=layout, data=np.array(data, dtype=np.float64))
         return bytes(self.ts.serialize_cdr(msg, MULTI_ARRAY))
 

@@ -81,9 +81,16 @@ class Cdr:
         return bytes(self.ts.serialize_cdr(msg, JOINT_STATE))
 
     def multi_array(self, labels: tuple[str, ...] | str, data: list[float]) -> bytes:
-        label = labels if isinstance(labels, str) else ",".join(labels)
-        dim = self.t["std_msgs/msg/MultiArrayDimension"](label=label, size=len(data), stride=1)
-        layout = self.t["std_msgs/msg/MultiArrayLayout"](dim=[dim], data_offset=0)
+        """One dimension per field of size 1 (the project's layout); a str: one dimension."""
+        if isinstance(labels, str):
+            fields = [(labels, len(data))]
+        else:
+            fields = [(label, 1) for label in labels]
+        dims = [
+            self.t["std_msgs/msg/MultiArrayDimension"](label=label, size=size, stride=size)
+            for label, size in fields
+        ]
+        layout = self.t["std_msgs/msg/MultiArrayLayout"](dim=dims, data_offset=0)
         msg = self.t[MULTI_ARRAY](layout=layout, data=np.array(data, dtype=np.float64))
         return bytes(self.ts.serialize_cdr(msg, MULTI_ARRAY))
 
@@ -360,9 +367,9 @@ def test_signals_and_summary_are_those_of_the_clean_bag(
     clean = load_signals(clean_run / "bag", PERIOD_S, scenario=scenario)
     dirty = load_signals(junk_run / "bag", PERIOD_S, scenario=scenario)
     assert clean.step.tolist() == list(range(N))
-    for name in ("step", "encoder_rad", "scale_m", "reference_rad", "feedforward_A", "command_A"):
+    for name in ("step", "encoder_rad", "scale_m", "reference_rad", "feedforward_Nm", "command_Nm"):
         assert_array_equal(getattr(dirty, name), getattr(clean, name), err_msg=name)
-    assert not np.isnan(clean.command_A).any()
+    assert not np.isnan(clean.command_Nm).any()
     assert clean.faults == dirty.faults == [FaultRecord(120, 1, "following_error", 2.5e-3)]
     assert dirty.dropped == junk and sum(clean.dropped.values()) == 0
     # summary.json (no scenario passed to load_signals there: the rules are
@@ -398,7 +405,7 @@ def test_short_and_empty_joint_states_are_dropped_not_raised(tmp_path: Path) -> 
     ]
     write(tmp_path / "bag", msgs)
     sig = load_signals(tmp_path / "bag", PERIOD_S)
-    assert sig.step.size == 0 and sig.command_A.size == 0 and sig.faults == []
+    assert sig.step.size == 0 and sig.command_Nm.size == 0 and sig.faults == []
     assert sig.dropped == {"/x/state": 4, "/x/reference": 2, "/x/command": 1, "/x/fault": 2}
 
 

@@ -66,10 +66,13 @@ class Cdr:
         return bytes(self.ts.serialize_cdr(msg, JOINT_STATE))
 
     def multi_array(self, label: str | tuple[str, ...], data: list[float]) -> bytes:
-        if isinstance(label, tuple):
-            label = ",".join(label)
-        dim = self.t["std_msgs/msg/MultiArrayDimension"](label=label, size=len(data), stride=1)
-        layout = self.t["std_msgs/msg/MultiArrayLayout"](dim=[dim], data_offset=0)
+        """One dimension per field of size 1 (the project's layout); a str: one dimension."""
+        fields = [(label, len(data))] if isinstance(label, str) else [(lb, 1) for lb in label]
+        dims = [
+            self.t["std_msgs/msg/MultiArrayDimension"](label=lb, size=size, stride=size)
+            for lb, size in fields
+        ]
+        layout = self.t["std_msgs/msg/MultiArrayLayout"](dim=dims, data_offset=0)
         msg = self.t[MULTI_ARRAY](layout=layout, data=np.array(data, dtype=np.float64))
         return bytes(self.ts.serialize_cdr(msg, MULTI_ARRAY))
 
@@ -84,8 +87,8 @@ def signals_of_step(k: int) -> dict[str, float]:
         "encoder_rad": 0.5 * math.sin(0.01 * k),
         "scale_m": LEAD * 0.5 * math.sin(0.01 * k) + 1e-6 * math.cos(0.3 * k),
         "reference_rad": 0.5 * math.sin(0.01 * k + 0.001),
-        "feedforward_A": 0.1 * k,
-        "command_A": -0.2 * k,
+        "feedforward_Nm": 0.1 * k,
+        "command_Nm": -0.2 * k,
     }
 
 
@@ -122,7 +125,7 @@ def write_bag(directory: Path) -> dict[str, int]:
                     ["x_motor"],
                     position=[v["reference_rad"]],
                     velocity=[0.0],
-                    effort=[v["feedforward_A"]],
+                    effort=[v["feedforward_Nm"]],
                 ),
             )
             if k >= N:
@@ -139,7 +142,7 @@ def write_bag(directory: Path) -> dict[str, int]:
                     ),
                 )
             if k not in MISSING_COMMAND:
-                put("/x/command", cdr.joint_state(k, ["x_motor"], effort=[v["command_A"]]))
+                put("/x/command", cdr.joint_state(k, ["x_motor"], effort=[v["command_Nm"]]))
             if k == int(FAULT[0]):
                 put("/x/fault", cdr.multi_array(FAULT_LABELS, list(FAULT)))
             if k % 50 == 0:
@@ -189,12 +192,14 @@ def test_load_signals_reads_the_bag_by_leaf_topic(run_dir: tuple[Path, dict[str,
     steps = [k for k in range(N) if k not in MISSING_STATE]
     assert sig.step.dtype.kind == "i"
     assert sig.step.tolist() == steps
-    for name in ("encoder_rad", "scale_m", "reference_rad", "feedforward_A"):
+    for name in ("encoder_rad", "scale_m", "reference_rad", "feedforward_Nm"):
         expected = [signals_of_step(k)[name] for k in steps]
         assert_allclose(getattr(sig, name), expected, rtol=0, atol=0, err_msg=name)
-    command = [math.nan if k in MISSING_COMMAND else signals_of_step(k)["command_A"] for k in steps]
-    assert_allclose(sig.command_A, command, rtol=0, atol=0, equal_nan=True)
-    assert np.isnan(sig.command_A[[3, 9]]).all()  # steps 3 and 10 (step 7 is not there)
+    command = [
+        math.nan if k in MISSING_COMMAND else signals_of_step(k)["command_Nm"] for k in steps
+    ]
+    assert_allclose(sig.command_Nm, command, rtol=0, atol=0, equal_nan=True)
+    assert np.isnan(sig.command_Nm[[3, 9]]).all()  # steps 3 and 10 (step 7 is not there)
     assert sig.faults == [FaultRecord(step=120, code=1, name="following_error", value=2.5e-3)]
     assert sig.counts == counts
     assert list(sig.counts) == list(counts)  # order of first message
@@ -211,7 +216,7 @@ def test_load_signals_drops_a_fault_of_an_unknown_code_or_layout(tmp_path: Path)
         bag.write("fault", cdr.multi_array(FAULT_LABELS, [7.0, 3.0, -1.0]), log_time_ns=8)
         bag.write("fault", cdr.multi_array(FAULT_LABELS, [7.0, 3.0, -2.0]), log_time_ns=9)
     sig = load_signals(tmp_path / "bag", PERIOD_S)
-    assert sig.step.size == 0 and sig.command_A.size == 0
+    assert sig.step.size == 0 and sig.command_Nm.size == 0
     # Unknown code, wrong labels, a step that is no whole number, the same step again.
     assert sig.faults == [FaultRecord(step=7, code=3, name="current", value=-1.0)]
     assert sig.counts == {"fault": 5}
@@ -469,7 +474,8 @@ def test_friction_table_from_run_uses_the_scenario_nominal_model(tmp_path: Path)
     n = 1000  # 2 s at 2 ms: two reversals of a 1 Hz, 20 um sine
     k = np.arange(n)
     ref = 20e-6 / LEAD * np.sin(2 * np.pi * 1.0 * k * PERIOD_S)
-    current = 0.3 * np.sign(np.cos(2 * np.pi * k * PERIOD_S)) + 0.01 * np.sin(0.7 * k)
+    # The motor torque reference K_T i of the command topic, N m.
+    torque_Nm = 0.3 * np.sign(np.cos(2 * np.pi * k * PERIOD_S)) + 0.01 * np.sin(0.7 * k)
     run = tmp_path / "fid"
     with BagWriter(run / "bag") as bag:
         for topic in ("state", "reference", "command"):
@@ -492,7 +498,7 @@ def test_friction_table_from_run_uses_the_scenario_nominal_model(tmp_path: Path)
                 ),
                 log_time_ns=t + 1,
             )
-            command = cdr.joint_state(i, ["x_motor"], effort=[current[i]])
+            command = cdr.joint_state(i, ["x_motor"], effort=[torque_Nm[i]])
             bag.write("command", command, log_time_ns=t + 2)
     path = write_scenario(tmp_path / "fid.yaml")
     scenario = load_scenario(path)
@@ -503,7 +509,11 @@ def test_friction_table_from_run_uses_the_scenario_nominal_model(tmp_path: Path)
 
     table = table_from_run(run, bin_width_m=1e-6, max_displacement_m=10e-6)
     torque = estimate_friction_torque(
-        reference_rad=ref, current_A=current, period_s=PERIOD_S, **nominal
+        reference_rad=ref,
+        motor_torque_Nm=torque_Nm,
+        period_s=PERIOD_S,
+        inertia_kgm2=nominal["inertia_kgm2"],
+        damping_Nms_per_rad=nominal["damping_Nms_per_rad"],
     )
     expected = build_friction_table(
         position_m=ref * LEAD, torque_Nm=torque, bin_width_m=1e-6, max_displacement_m=10e-6
@@ -513,9 +523,10 @@ def test_friction_table_from_run_uses_the_scenario_nominal_model(tmp_path: Path)
     # With the default nominal model the table differs: the scenario's values are used.
     default = estimate_friction_torque(
         reference_rad=ref,
-        current_A=current,
+        motor_torque_Nm=torque_Nm,
         period_s=PERIOD_S,
-        **{k: SHARED[f"nominal.{k}"].default for k in nominal},  # type: ignore[arg-type]
+        inertia_kgm2=SHARED["nominal.inertia_kgm2"].default,  # type: ignore[arg-type]
+        damping_Nms_per_rad=SHARED["nominal.damping_Nms_per_rad"].default,  # type: ignore[arg-type]
     )
     other = build_friction_table(
         position_m=ref * LEAD, torque_Nm=default, bin_width_m=1e-6, max_displacement_m=10e-6

@@ -296,3 +296,13 @@ def test_a_broken_params_file_is_one_line_with_the_place(tmp_path: Path) -> None
         check_params_files(["--ros-args", "--params-file", str(good), "--params-file", str(broken)])
     assert "\n" not in str(e.value)
     assert "line 4" in str(e.value)
+
+
+def test_every_plant_model_has_the_drive_torque_constant() -> None:
+    # The plant turns the torque reference of `command` into its current with it.
+    for name, entry in PLANT_MODELS.items():
+        assert "torque_constant_Nm_per_A" in entry.schema, name
+    schema = {"inertia_kgm2": Param(0.01, unit="kg m^2", above=0.0, meaning="J")}
+    with pytest.raises(ValueError, match="torque_constant_Nm_per_A"):
+        factories.register_plant_model("no_drive_constant", schema=schema, build=lambda v, r: None)  # type: ignore[arg-type, return-value]
+    assert "no_drive_constant" not in PLANT_MODELS

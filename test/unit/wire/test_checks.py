@@ -16,6 +16,7 @@ def test_the_nodes_use_the_same_labels_names_and_checks() -> None:
     assert msgs.FAULT_LABELS is cdr.FAULT_LABELS
     assert msgs.STATS_LABELS is cdr.STATS_LABELS
     assert msgs.PROGRESS_LABELS is cdr.PROGRESS_LABELS
+    assert msgs.DEFORMATION_LABELS is cdr.DEFORMATION_LABELS
     assert msgs.state_names("y") == cdr.state_names("y") == ["y_motor", "y_table"]
     assert msgs.motor_names("y") == cdr.motor_names("y") == ["y_motor"]
 
@@ -52,18 +53,48 @@ def test_step_of_stamp_ns() -> None:
 
 def test_check_labelled_values() -> None:
     labels = ("step", "x")
-    assert cdr.check_labelled_values(["step,x"], [2], [1.0, 2.0], labels) == [1.0, 2.0]
+    assert cdr.check_labelled_values(["step", "x"], [1, 1], [1.0, 2.0], labels) == [1.0, 2.0]
+    assert cdr.check_labelled_values(
+        ["step", "x"], [1, 1], [1.0, 2.0], labels, dim_strides=[1, 1]
+    ) == [1.0, 2.0]
     bad = [
-        ([], [], [1.0, 2.0], "layout.dim"),
-        (["step;x"], [2], [1.0, 2.0], "layout.dim"),
-        (["step,x", "y"], [2, 1], [1.0, 2.0], "layout.dim"),
-        (["step,x"], [2], [1.0], "data: expected 2 values"),
-        (["step,x"], [3], [1.0, 2.0], "data: expected 2 values"),
-        (["step,x"], [2], [math.inf, 2.0], r"data\[0\]"),
+        ([], [], [1.0, 2.0], "layout.dim: expected one dimension per field"),
+        (["step,x"], [2], [1.0, 2.0], "layout.dim: expected one dimension per field"),
+        (["step", "y"], [1, 1], [1.0, 2.0], r"\['step', 'x'\], got \['step', 'y'\]"),
+        (["step", "x", "y"], [1, 1, 1], [1.0, 2.0, 3.0], "layout.dim"),
+        (["step", "x"], [1, 2], [1.0, 2.0, 3.0], "layout.dim 'x': expected size 1, got 2"),
+        (["step", "x"], [1, 1], [1.0], r"data: expected 2 values \(sizes \[1, 1\]"),
+        (["step", "x"], [1, 1], [1.0, 2.0, 3.0], "data: expected 2 values"),
+        (["step", "x"], [1, 1], [math.inf, 2.0], r"data\[0\]"),
     ]
     for dim_labels, sizes, data, match in bad:
         with pytest.raises(SignalError, match=match):
             cdr.check_labelled_values(dim_labels, sizes, data, labels)
+    with pytest.raises(SignalError, match="strides equal to the sizes"):
+        cdr.check_labelled_values(["step", "x"], [1, 1], [1.0, 2.0], labels, dim_strides=[2, 1])
+
+
+def test_check_labelled_values_of_segments() -> None:
+    labels = ("trial", "x_r_m", "torque_Nm")
+    values = [3.0, 1e-6, 2e-6, 0.5, 0.6]
+    got = cdr.check_labelled_values(labels, [1, 2, 2], values, labels, sizes=(1, None, None))
+    assert got == values
+    with pytest.raises(SignalError, match=r"layout\.dim 'trial': expected size 1, got 2"):
+        cdr.check_labelled_values(labels, [2, 1, 2], values, labels, sizes=(1, None, None))
+    with pytest.raises(SignalError, match="data: expected 6 values"):
+        cdr.check_labelled_values(labels, [1, 2, 3], values, labels, sizes=(1, None, None))
+
+
+def test_check_deformation_values() -> None:
+    assert cdr.check_deformation_values([12.0, 1e-5, 1e-6, 1e-3, 1.0]) == 12
+    assert cdr.check_deformation_values([0.0, 0.0, 0.0, 0.0, 0.0]) == 0
+    for values, match in (
+        ([1.5, 0.0, 0.0, 0.0, 1.0], "step: expected a whole number >= 0, got 1.5"),
+        ([-1.0, 0.0, 0.0, 0.0, 1.0], "step"),
+        ([2.0, 0.0, 0.0, 0.0, 0.5], "valid: expected 0 or 1, got 0.5"),
+    ):
+        with pytest.raises(SignalError, match=match):
+            cdr.check_deformation_values(values)
 
 
 def test_decoded_payloads_are_checked_as_the_nodes_check_messages() -> None:
@@ -95,3 +126,14 @@ def test_decoded_payloads_are_checked_as_the_nodes_check_messages() -> None:
     decoded_status = cdr.decode_float64_multi_array(serialize_message(status))
     assert cdr.labelled_values(decoded_status, cdr.STATUS_LABELS) == [50.0, 0.0, 1.0, 0.0]
     assert msgs.labelled_array_values(status, msgs.STATUS_LABELS) == [50.0, 0.0, 1.0, 0.0]
+    # A layout the node's decoder refuses, the analysis refuses with the same words.
+    wrong = msgs.labelled_array(msgs.STATUS_LABELS, [50, 0, 1, 0])
+    wrong.layout.dim[2].size = 2
+    with pytest.raises(SignalError) as node_err:
+        msgs.labelled_array_values(wrong, msgs.STATUS_LABELS)
+    with pytest.raises(SignalError) as bag_err:
+        cdr.labelled_values(
+            cdr.decode_float64_multi_array(serialize_message(wrong)), cdr.STATUS_LABELS
+        )
+    assert str(bag_err.value) == str(node_err.value)
+    assert "rejected_commands" in str(node_err.value)

@@ -73,8 +73,8 @@ def test_round_trip_of_large_steps_and_zero_parameters() -> None:
 
 def test_the_message_carries_the_labels_in_order() -> None:
     msg = wire(estimate())
-    assert [d.label for d in msg.layout.dim] == [",".join(ESTIMATE_LABELS)]
-    assert msg.layout.dim[0].size == len(ESTIMATE_LABELS) == 11
+    assert [d.label for d in msg.layout.dim] == list(ESTIMATE_LABELS)
+    assert [(d.size, d.stride) for d in msg.layout.dim] == [(1, 1)] * 11
     assert list(msg.data) == estimate().values()
 
 
@@ -131,11 +131,13 @@ def test_wrong_labels_are_refused() -> None:
     swapped[2], swapped[3] = swapped[3], swapped[2]  # J and D swapped
     for labels in (swapped, [*ESTIMATE_LABELS[:-1], "updated_friction"]):
         msg = msgs.labelled_array(labels, good_values())
-        with pytest.raises(SignalError, match=r"layout\.dim: expected one dimension labelled"):
+        with pytest.raises(SignalError, match=r"layout\.dim: expected one dimension per field"):
             msgs.estimate_from_msg(msg)
-    # A right label split over two dimensions is no estimate either.
+    # The labels of before (one dimension listing the fields) are no estimate either.
     msg = wire(estimate())
-    msg.layout.dim = [msg.layout.dim[0], msg.layout.dim[0]]
+    msg.layout.dim = [msg.layout.dim[0]]
+    msg.layout.dim[0].label = ",".join(ESTIMATE_LABELS)
+    msg.layout.dim[0].size = msg.layout.dim[0].stride = 11
     with pytest.raises(SignalError, match=r"layout\.dim"):
         msgs.estimate_from_msg(msg)
 
@@ -143,6 +145,10 @@ def test_wrong_labels_are_refused() -> None:
 def test_a_dimension_size_that_disagrees_with_the_data_is_refused() -> None:
     msg = wire(estimate())
     msg.layout.dim[0].size = 10
+    with pytest.raises(SignalError, match=r"layout.dim 'step': expected size 1, got 10"):
+        msgs.estimate_from_msg(msg)
+    msg = wire(estimate())
+    msg.data = list(msg.data)[:10]
     with pytest.raises(SignalError, match=r"data: expected 11 values"):
         msgs.estimate_from_msg(msg)
 

@@ -56,16 +56,6 @@ def test_period_ns_requires_whole_nanoseconds() -> None:
             msgs.input_correction_to_msg,
             msgs.input_correction_from_msg,
         ),
-        (
-            msgs.DeformationSample(812, 3.7e-5, 2.1e-6, 1.1e-3, True),
-            msgs.deformation_to_msg,
-            msgs.deformation_from_msg,
-        ),
-        (
-            msgs.DeformationSample(9, 0.0, 1e-7, 2e-5, False),
-            msgs.deformation_to_msg,
-            msgs.deformation_from_msg,
-        ),
     ],
 )
 def test_round_trip_through_cdr(sample: object, encode: object, decode: object) -> None:
@@ -104,20 +94,92 @@ def test_encoders_refuse_to_put_nan_on_the_wire() -> None:
         msgs.command_to_msg(msgs.CommandSample(0, math.inf), axis="x", period_ns_=PERIOD_NS)
 
 
+def test_joint_state_efforts_are_torques_in_N_m() -> None:
+    from servo_axis.core.drive import current_from_torque, torque_from_current
+
+    kt = 0.715
+    current = 2.5
+    cmd = msgs.command_to_msg(
+        msgs.CommandSample(3, torque_from_current(current, torque_constant_Nm_per_A=kt)),
+        axis="x",
+        period_ns_=PERIOD_NS,
+    )
+    wire = deserialize_message(serialize_message(cmd), JointState)
+    assert wire.effort[0] == current * kt
+    back = msgs.command_from_msg(wire, axis="x", period_ns_=PERIOD_NS)
+    assert back.torque_Nm == current * kt
+    assert current_from_torque(back.torque_Nm, torque_constant_Nm_per_A=kt) == pytest.approx(
+        current, rel=2.3e-16
+    )
+
+
+@pytest.mark.parametrize(
+    "sample",
+    [
+        msgs.DeformationSample(812, 3.7e-5, 2.1e-6, 1.1e-3, True),
+        msgs.DeformationSample(9, 0.0, 1e-7, 2e-5, False),
+        msgs.DeformationSample(0, -4e-6, -1e-7, -2e-5, True),
+    ],
+)
+def test_deformation_round_trip_through_cdr(sample: msgs.DeformationSample) -> None:
+    msg = msgs.deformation_to_msg(sample)
+    wire = deserialize_message(serialize_message(msg), Float64MultiArray)
+    assert [(d.label, d.size, d.stride) for d in wire.layout.dim] == [
+        ("step", 1, 1),
+        ("d_r_m_per_rad", 1, 1),
+        ("scale_increment_m", 1, 1),
+        ("encoder_increment_rad", 1, 1),
+        ("valid", 1, 1),
+    ]
+    assert wire.data[0] == sample.step
+    assert msgs.deformation_from_msg(wire) == sample
+    # The template is refilled in place (the feedback's per-sample path).
+    again = msgs.write_deformation(msg, msgs.DeformationSample(10, 1.0, 2.0, 3.0, False))
+    assert again is msg and list(msg.data) == [10.0, 1.0, 2.0, 3.0, 0.0]
+
+
 def test_labelled_array_round_trip_and_checks() -> None:
     labels = ("step", "code", "value")
     msg = msgs.labelled_array(labels, [12, 4, 0.5])
     wire = deserialize_message(serialize_message(msg), Float64MultiArray)
-    assert wire.layout.dim[0].label == "step,code,value"
-    assert wire.layout.dim[0].size == 3
+    assert [(d.label, d.size, d.stride) for d in wire.layout.dim] == [
+        ("step", 1, 1),
+        ("code", 1, 1),
+        ("value", 1, 1),
+    ]
+    assert wire.layout.data_offset == 0
     assert msgs.labelled_array_values(wire, labels) == [12.0, 4.0, 0.5]
     with pytest.raises(SignalError, match=r"layout\.dim"):
         msgs.labelled_array_values(wire, ("step", "code", "other"))
     wire.data = [1.0, 2.0]
-    with pytest.raises(SignalError, match="data"):
+    with pytest.raises(SignalError, match="data: expected 3 values"):
         msgs.labelled_array_values(wire, labels)
     with pytest.raises(SignalError, match="labels"):
         msgs.labelled_array(("a,b",), [1.0])
+    with pytest.raises(SignalError, match="distinct"):
+        msgs.labelled_array(("a", "a"), [1.0, 2.0])
+    with pytest.raises(SignalError, match="values: expected 2 values"):
+        msgs.labelled_array(("a", "b"), [1.0])
+    with pytest.raises(SignalError, match=r"data\[1\]"):
+        msgs.labelled_array(("a", "b"), [1.0, math.nan])
+
+
+def test_labelled_array_with_segments_round_trip() -> None:
+    labels = ("trial", "x_r_m", "torque_Nm")
+    values = [2.0, 0.0, 1e-6, 2e-6, -0.3, 0.1, 0.3]
+    msg = msgs.labelled_array(labels, values, sizes=(1, 3, 3))
+    wire = deserialize_message(serialize_message(msg), Float64MultiArray)
+    assert [(d.label, d.size, d.stride) for d in wire.layout.dim] == [
+        ("trial", 1, 1),
+        ("x_r_m", 3, 3),
+        ("torque_Nm", 3, 3),
+    ]
+    assert msgs.labelled_array_values(wire, labels, sizes=(1, None, None)) == values
+    assert msgs.labelled_array_values(wire, labels, sizes=(1, 3, 3)) == values
+    with pytest.raises(SignalError, match=r"layout\.dim 'x_r_m': expected size 1, got 3"):
+        msgs.labelled_array_values(wire, labels)
+    with pytest.raises(SignalError, match="sizes: expected one size per label"):
+        msgs.labelled_array(labels, values, sizes=(1, 6))
 
 
 def test_stamp_from_cdr_reads_the_header_without_deserialising() -> None:
@@ -163,31 +225,42 @@ def test_friction_table_round_trip_and_checks() -> None:
         msgs.friction_table_to_msg(1, [math.nan], [0.0])
     short = msgs.friction_table_to_msg(4, x_r, torque)
     short.data = list(short.data)[:-1]
-    with pytest.raises(SignalError, match="sizes"):
+    with pytest.raises(SignalError, match="data: expected 9 values"):
         msgs.friction_table_from_msg(short)
     relabelled = msgs.friction_table_to_msg(4, x_r, torque)
     relabelled.layout.dim[1].label = "x"
-    with pytest.raises(SignalError, match="segments"):
+    with pytest.raises(SignalError, match="one dimension per field"):
         msgs.friction_table_from_msg(relabelled)
+    uneven = msgs.friction_table_to_msg(4, x_r, torque)
+    uneven.layout.dim[1].size = uneven.layout.dim[1].stride = 3
+    uneven.layout.dim[2].size = uneven.layout.dim[2].stride = 5
+    with pytest.raises(SignalError, match="'torque_Nm': expected size 3"):
+        msgs.friction_table_from_msg(uneven)
     zero_trial = msgs.friction_table_to_msg(0, x_r, torque)
     with pytest.raises(SignalError, match="trial"):
         msgs.friction_table_from_msg(zero_trial)
 
 
-def test_deformation_rejects_a_valid_flag_that_is_not_0_or_1_and_nan() -> None:
-    msg = msgs.deformation_to_msg(
-        msgs.DeformationSample(5, 1e-5, 1e-6, 1e-3, True), axis="x", period_ns_=PERIOD_NS
+def test_deformation_rejects_a_valid_flag_that_is_not_0_or_1_nan_and_other_layouts() -> None:
+    msg = msgs.deformation_to_msg(msgs.DeformationSample(5, 1e-5, 1e-6, 1e-3, True))
+    msg.data[4] = 0.5
+    with pytest.raises(SignalError, match=r"valid: expected 0 or 1, got 0.5"):
+        msgs.deformation_from_msg(msg)
+    msg.data[4] = 1.0
+    msg.data[1] = float("nan")
+    with pytest.raises(SignalError, match=r"data\[1\]"):
+        msgs.deformation_from_msg(msg)
+    msg.data[1] = 0.0
+    msg.data[0] = 5.5
+    with pytest.raises(SignalError, match="step: expected a whole number"):
+        msgs.deformation_from_msg(msg)
+    short = msgs.deformation_to_msg(msgs.DeformationSample(5, 1e-5, 1e-6, 1e-3, True))
+    short.data = list(short.data)[:4]
+    with pytest.raises(SignalError, match="data: expected 5 values"):
+        msgs.deformation_from_msg(short)
+    old_layout = msgs.labelled_array(
+        ["step,d_r_m_per_rad,scale_increment_m,encoder_increment_rad,valid".replace(",", ";")],
+        [1.0],
     )
-    msg.position[3] = 0.5
-    with pytest.raises(SignalError, match=r"position\[3\] \(valid\)"):
-        msgs.deformation_from_msg(msg, axis="x", period_ns_=PERIOD_NS)
-    msg.position[3] = 1.0
-    msg.position[0] = float("nan")
-    with pytest.raises(SignalError):
-        msgs.deformation_from_msg(msg, axis="x", period_ns_=PERIOD_NS)
-    short = msgs.deformation_to_msg(
-        msgs.DeformationSample(5, 1e-5, 1e-6, 1e-3, True), axis="x", period_ns_=PERIOD_NS
-    )
-    short.name = short.name[:3]
-    with pytest.raises(SignalError):
-        msgs.deformation_from_msg(short, axis="x", period_ns_=PERIOD_NS)
+    with pytest.raises(SignalError, match="one dimension per field"):
+        msgs.deformation_from_msg(old_layout)
