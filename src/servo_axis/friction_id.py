@@ -1,4 +1,4 @@
-"""Friction table from a slow-reversal run (scenario ``friction_id``, DESIGN 7).
+"""Friction table from a slow-reversal run (scenario ``friction_id``, docs/design.md section 7).
 
 In a slow reversing motion the inertial and viscous torques are tiny, so the
 motor torque the loop supplies is the friction: ``T_f ~ K_T i - J_n a_r -
