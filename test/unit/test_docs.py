@@ -50,7 +50,7 @@ def test_the_repository_refers_to_nothing_a_clone_lacks() -> None:
     the papers are cited in docs/papers.md, and the links between the docs resolve."""
     import re
 
-    checked = [REPO / "README.md", REPO / "pyproject.toml"]
+    checked = [*REPO.glob("*.md"), REPO / "pyproject.toml"]
     for folder, pattern in (("src", "*"), ("docs", "*.md"), ("scripts", "*"), ("test", "*.py")):
         checked += [p for p in (REPO / folder).rglob(pattern) if p.is_file()]
     checked = [p for p in checked if p.suffix in {".py", ".md", ".yaml", ".toml", ".sh", ".txt"}]
@@ -60,7 +60,7 @@ def test_the_repository_refers_to_nothing_a_clone_lacks() -> None:
         text = path.read_text(errors="replace")
         assert "../shared" not in text and "shared/papers" not in text, path
         assert not re.search(r"DESIGN\s+\d", text), path
-    for doc in [REPO / "README.md", *(REPO / "docs").glob("*.md")]:
+    for doc in [*REPO.glob("*.md"), *(REPO / "docs").glob("*.md")]:
         for target in re.findall(r"\]\(([^)#:]+)(?:#[^)]*)?\)", doc.read_text()):
             assert (doc.parent / target).exists(), f"{doc.name}: link to {target} does not resolve"
     design = (REPO / "docs" / "design.md").read_text()
