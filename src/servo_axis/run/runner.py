@@ -271,10 +271,11 @@ def run_scenario(
     recovered = _recover_bags(runs)
     if watch.signals:
         signame = signal.Signals(watch.signals[0]).name
-        bags = ", ".join(str(run.out_dir / "bag") for run in runs)
+        bags = ", ".join(str(run.out_dir / "bag") for run in runs if (run.out_dir / "bag").is_dir())
+        kept = f"the bag written so far is in {bags}" if bags else "no bag had been started yet"
         watch.interrupted = (
             f"interrupted by {signame} at step {max(watch.steps, 0)} of {steps}; "
-            f"the nodes were stopped, the bag written so far is in {bags}"
+            f"the nodes were stopped, {kept}"
         )
         summary = _summary_of_the_recorded_part(runs, data, run_dir, watch, composed, recovered)
         note = f"\nsummary of what was recorded: {run_dir / 'summary.json'}" if summary else ""
