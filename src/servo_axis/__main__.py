@@ -450,7 +450,9 @@ def build_parser(prog: str = "python -m servo_axis") -> argparse.ArgumentParser:
         help="the cycle --error-out enlarges, from 1 (default 3)",
     )
     cmp.add_argument(
-        "--title", default="tracking error per cycle", help="title of the --out figure"
+        "--title",
+        default="tracking error per cycle",
+        help="title of the --out and --error-out figures",
     )
     cmp.add_argument(
         "--rmsd", action="store_true", help="compare by RMSD of the whole run, not per cycle"
@@ -475,6 +477,11 @@ def build_parser(prog: str = "python -m servo_axis") -> argparse.ArgumentParser:
     )
     rec.add_argument("bag_dir", help="the bag directory, e.g. <run>/bag")
     rec.set_defaults(func=_bag_recover)
+    for group in (sub, bag_sub):  # each command's --help starts with what it does
+        for choice in group._choices_actions:
+            command = group.choices[choice.dest]
+            if command.description is None:
+                command.description = f"{choice.help[0].upper()}{choice.help[1:]}."
     return parser
 
 
