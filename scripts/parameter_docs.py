@@ -39,7 +39,7 @@ NOTES = {
     "plant": "The plant node itself; the keys of its model follow. `wait_for_*` and "
     "`flow_control` are set by the runner.",
     "plant (model ball_screw)": "Keys of the `plant` section with `model: ball_screw` "
-    "(default). Defaults are the ball-screw X axis of DESIGN 7 (000/001) without "
+    "(default). Defaults are the ball-screw X axis of docs/design.md section 7 (000/001) without "
     "resonance modes, dead time, friction or disturbance; `modes.*` = `[0.0]` means no "
     "resonance mode.",
     "feedback": "`sensor` is also a key of the learning unit, which must learn from the same "

@@ -20,11 +20,17 @@ table from cycle 1 and repetitive PTC learning from cycle 2.
 from __future__ import annotations
 
 import argparse
+import math
 import os
+import signal
 import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
+from typing import NoReturn
 
-from servo_axis.core.errors import ServoAxisError
+from servo_axis.core.errors import ConfigError, ServoAxisError
+from servo_axis.params.names import domain_id_problem, namespace_problem
 
 #: The shipped scenario ``python -m servo_axis`` runs.
 DEFAULT_SCENARIO = "rptc_friction_table"
@@ -84,7 +90,8 @@ def _friction_table(args: argparse.Namespace) -> int:
     table = table_from_run(
         Path(args.run_dir), bin_width_m=args.bin_width_m, max_displacement_m=args.max_displacement_m
     )
-    save_friction_table(Path(args.out), table)
+    with _writing("--out", args.out):
+        save_friction_table(Path(args.out), table)
     print(f"friction table with {len(table.displacement_m)} points written to {args.out}")
     return 0
 
@@ -96,12 +103,13 @@ def _gms_fit(args: argparse.Namespace) -> int:
     data = load_fit_data(Path(args.run_dir))
     fit = fit_run_data(data, elements=args.elements)
     p = fit.params
-    save_gms_parameters(
-        Path(args.out),
-        p,
-        plant_model=data.plant_model,
-        plant_fingerprint=data.plant_fingerprint,
-    )
+    with _writing("--out", args.out):
+        save_gms_parameters(
+            Path(args.out),
+            p,
+            plant_model=data.plant_model,
+            plant_fingerprint=data.plant_fingerprint,
+        )
     print(f"GMS model with {p.elements} elements written to {args.out} ({data.plant_fingerprint})")
     print(f"  F_c = {p.coulomb_Nm:.6g} N m")
     print(f"  {'element':>7}  {'k_i (N m/m)':>12}  {'alpha_i':>8}  {'break-away (um)':>15}")
@@ -109,7 +117,8 @@ def _gms_fit(args: argparse.Namespace) -> int:
         print(f"  {i + 1:>7}  {k:>12.6g}  {a:>8.4f}  {b * 1e6:>15.4g}")
     print(f"  RMS residual = {fit.rms_residual_Nm:.4g} N m (samples from the first reversal on)")
     if args.plot:
-        plot_fit(fit, data.position_m, data.torque_Nm, Path(args.plot))
+        with _writing("--plot", args.plot):
+            plot_fit(fit, data.position_m, data.torque_Nm, Path(args.plot))
         print(f"figure written to {args.plot}")
     return 0
 
@@ -123,6 +132,7 @@ def _summary(args: argparse.Namespace) -> int:
 
 
 def _compare(args: argparse.Namespace) -> int:
+    from servo_axis.analysis.comparison import differences
     from servo_axis.analysis.plots import plot_cycles, plot_error_overlay, plot_rmsd_bars
     from servo_axis.analysis.summary import AxesSummary, RunSummary, load_summary
     from servo_axis.analysis.text import (
@@ -147,6 +157,22 @@ def _compare(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
+    if not all(label.strip() for label in labels):
+        print(f"error: --labels {args.labels!r}: a label is empty", file=sys.stderr)
+        return 2
+    units = sorted({s.unit for s in summaries})
+    if len(units) > 1:  # no --force for this one: m and rad have no common scale
+        print(f"error: runs with errors in different units ({', '.join(units)})", file=sys.stderr)
+        return 2
+    differ = differences([Path(d) for d in args.run_dirs], summaries, labels)
+    if differ and not args.force:
+        print(
+            f"error: the runs do not compare: {'; '.join(differ)} (--force compares them anyway)",
+            file=sys.stderr,
+        )
+        return 2
+    if differ:
+        print(f"warning: compared anyway (--force): {'; '.join(differ)}", file=sys.stderr)
     by_rmsd = args.rmsd or rmsd_applies(summaries)
     try:
         rmsd = rmsd_table(summaries, labels) if by_rmsd or args.bar_chart else ""
@@ -158,19 +184,22 @@ def _compare(args: argparse.Namespace) -> int:
         print()
         print(max_error_table(summaries, labels))
     if args.bar_chart:
-        plot_rmsd_bars(summaries, labels, Path(args.bar_chart), title="RMSD of tracking error")
+        with _writing("--bar-chart", args.bar_chart):
+            plot_rmsd_bars(summaries, labels, Path(args.bar_chart), title="RMSD of tracking error")
         print(f"figure written to {args.bar_chart}")
     if args.out:
-        plot_cycles(summaries, labels, Path(args.out), title=args.title)
+        with _writing("--out", args.out):
+            plot_cycles(summaries, labels, Path(args.out), title=args.title)
         print(f"figure written to {args.out}")
     if args.error_out:
-        plot_error_overlay(
-            [Path(d) for d in args.run_dirs],
-            labels,
-            Path(args.error_out),
-            zoom_cycle=args.zoom_cycle,
-            title=args.title,
-        )
+        with _writing("--error-out", args.error_out):
+            plot_error_overlay(
+                [Path(d) for d in args.run_dirs],
+                labels,
+                Path(args.error_out),
+                zoom_cycle=args.zoom_cycle,
+                title=args.title,
+            )
         print(f"figure written to {args.error_out}")
     return 0
 
@@ -186,34 +215,165 @@ def _list(args: argparse.Namespace) -> int:
     from servo_axis.params.scenario import load_scenario, scenario_dir, shared
 
     folder = Path(args.config_dir) if args.config_dir else scenario_dir()
-    for path in sorted(folder.glob("*.yaml")):
+    found = sorted(folder.glob("*.yaml"))
+    if not found:
+        raise ConfigError(f"--config-dir {folder}: no scenario files (*.yaml) there")
+    for path in found:
         about = shared(load_scenario(path)).get("scenario", {})
         print(f"{path.stem:<24} {about.get('description', '')}")
     return 0
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Entry point of ``python -m servo_axis``."""
-    parser = argparse.ArgumentParser(prog="python -m servo_axis", description=__doc__)
-    sub = parser.add_subparsers(dest="command")
-    run = sub.add_parser("run", help="run a scenario end to end and record it")
+#: What the top-level help says first.
+DESCRIPTION = f"""\
+servo_axis: a ROS 2 (Jazzy) emulation of a machine-tool servo axis and its
+controllers. `run` starts the plant, feedback, feedforward, learning,
+identifier and recorder nodes of a scenario, records every topic to a
+rosbag2 (MCAP) bag and writes the tracking error's summary and plots.
+With no command it runs the shipped scenario {DEFAULT_SCENARIO}.
+"""
+
+#: Examples at the end of the top-level help.
+EXAMPLES = """\
+examples:
+  python -m servo_axis list
+  python -m servo_axis run ptc_nominal --out runs/ptc
+  python -m servo_axis run rptc_detailed --composed --namespace /x --domain-id 42
+  python -m servo_axis summary runs/ptc
+  python -m servo_axis compare runs/q runs/q5 --labels Q,Q~5 --out cycles.png
+  python -m servo_axis compare runs/pid runs/lpf2 --rmsd --bar-chart rmsd.png
+  python -m servo_axis friction-table runs/friction_id --out table.csv
+  python -m servo_axis gms-fit runs/friction_id_elastic --out gms.txt --plot fit.png
+  python -m servo_axis bag recover runs/ptc/bag
+(`servo-axis` is the same command as `python -m servo_axis`.)
+
+Exit codes of run: 0 complete and deterministic, 1 failed, 2 bad option or
+configuration (nothing started or written), 3 not the deterministic result,
+4 the feedback loop tripped, 130/143 interrupted by SIGINT/SIGTERM.
+"""
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line on stderr (exit 2)."""
+
+    def error(self, message: str) -> NoReturn:
+        text = " ".join(message.split())
+        self.exit(2, f"error: {text} (see {self.prog} --help)\n")
+
+
+def _domain_id(text: str) -> int:
+    problem = domain_id_problem(text)
+    if problem is not None:
+        raise argparse.ArgumentTypeError(problem)
+    return int(text)
+
+
+def _namespace(text: str) -> str:
+    if text == "":
+        return ""
+    problem = namespace_problem(text)
+    if problem is not None:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a valid ROS namespace: {problem}")
+    return "" if text == "/" else text
+
+
+def _int_at_least(low: int, high: int | None = None) -> Callable[[str], int]:
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < low or (high is not None and value > high):
+            span = f"{low}..{high}" if high is not None else f">= {low}"
+            raise argparse.ArgumentTypeError(f"{text!r}: expected an integer {span}")
+        return value
+
+    return parse
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a finite number > 0")
+    return value
+
+
+def _output_file(text: str) -> str:
+    """A file to write: its folder must exist; it must not be a folder."""
+    path = Path(text)
+    if path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text}: is a directory, expected a file to write")
+    if not path.parent.is_dir():
+        raise argparse.ArgumentTypeError(f"{text}: cannot write it: no directory {path.parent}")
+    return text
+
+
+def _existing_dir(text: str) -> str:
+    if not Path(text).is_dir():
+        raise argparse.ArgumentTypeError(f"{text}: no such directory")
+    return text
+
+
+@contextmanager
+def _writing(option: str, path: str) -> Iterator[None]:
+    """Turn an OS error while ``path`` is written into one line naming ``option``."""
+    try:
+        yield
+    except OSError as err:
+        raise ConfigError(f"{option} {path}: cannot write it: {err}") from None
+
+
+def build_parser(prog: str = "python -m servo_axis") -> argparse.ArgumentParser:
+    """The command line's parser (every argument with its help)."""
+    parser = _Parser(
+        prog=prog,
+        description=DESCRIPTION,
+        epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    sub = parser.add_subparsers(
+        dest="command", metavar="COMMAND", help=f"what to do (default: run {DEFAULT_SCENARIO})"
+    )
+    run = sub.add_parser(
+        "run",
+        help="run a scenario end to end and record it",
+        description="Run a scenario end to end: start the nodes, record every topic, "
+        "write summary.json and the plots.",
+    )
     run.add_argument(
         "scenario",
         help="name of a shipped scenario (see `list`), e.g. rptc_detailed, "
         "or a scenario file (ROS parameter YAML)",
     )
-    run.add_argument("--out", help="run directory to create (default runs/<name>-<time>)")
-    run.add_argument("--composed", action="store_true", help="all nodes in one process")
     run.add_argument(
-        "--domain-id", type=int, default=None, help="ROS_DOMAIN_ID (default: from env or pid)"
+        "--out",
+        help="run directory to create; must be empty or not exist (default runs/<name>-<time>)",
     )
-    run.add_argument("--namespace", default="", help="namespace of the axis, e.g. /x")
+    run.add_argument(
+        "--composed", action="store_true", help="all nodes in one process on one executor"
+    )
+    run.add_argument(
+        "--domain-id",
+        type=_domain_id,
+        default=None,
+        help="ROS_DOMAIN_ID of the run, 0..232 (default: ROS_DOMAIN_ID, else derived from the pid)",
+    )
+    run.add_argument(
+        "--namespace",
+        type=_namespace,
+        default="",
+        help="ROS namespace of a single-axis run's nodes and topics, absolute, e.g. /x "
+        "(default: none)",
+    )
     run.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     run.add_argument(
         "--respawn-limit",
-        type=int,
+        type=_int_at_least(0),
         default=None,
-        help="restarts of a dead learning unit per axis (default 3; 0: no restart)",
+        help="restarts of a dead learning unit or identifier per axis (default 3; 0: no restart)",
     )
     run.add_argument(
         "--external",
@@ -233,26 +393,52 @@ def main(argv: list[str] | None = None) -> int:
     )
     run.set_defaults(func=_run)
     ft = sub.add_parser("friction-table", help="build a friction table from a friction_id run")
-    ft.add_argument("run_dir")
-    ft.add_argument("--out", required=True, help="CSV file to write")
-    ft.add_argument("--bin-width-m", type=float, default=0.5e-6)
-    ft.add_argument("--max-displacement-m", type=float, default=40e-6)
+    ft.add_argument("run_dir", help="run directory of a friction_id run")
+    ft.add_argument("--out", required=True, type=_output_file, help="CSV file to write")
+    ft.add_argument(
+        "--bin-width-m",
+        type=_positive_float,
+        default=0.5e-6,
+        help="displacement bin of the table, m (default 0.5e-6)",
+    )
+    ft.add_argument(
+        "--max-displacement-m",
+        type=_positive_float,
+        default=40e-6,
+        help="displacement after a reversal the table covers, m (default 40e-6)",
+    )
     ft.set_defaults(func=_friction_table)
     gms = sub.add_parser(
         "gms-fit",
         help="fit a GMS friction model (Al-Bender et al. 2005; paper 004 Fig. 4(b)) to a "
         "friction_id run",
     )
-    gms.add_argument("run_dir")
-    gms.add_argument("--out", required=True, help="GMS parameter file to write")
-    gms.add_argument("--elements", type=int, default=4, help="number of elements (default 4)")
-    gms.add_argument("--plot", help="PNG to write: measured and model torque against displacement")
+    gms.add_argument(
+        "run_dir", help="run directory of a friction_id run (e.g. friction_id_elastic)"
+    )
+    gms.add_argument("--out", required=True, type=_output_file, help="GMS parameter file to write")
+    gms.add_argument(
+        "--elements",
+        type=_int_at_least(1, 20),
+        default=4,
+        help="number of Maxwell-slip elements, 1..20 (default 4)",
+    )
+    gms.add_argument(
+        "--plot",
+        type=_output_file,
+        help="PNG to write: measured and model torque against displacement",
+    )
     gms.set_defaults(func=_gms_fit)
     sm = sub.add_parser("summary", help="print the summary of a run directory")
-    sm.add_argument("run_dir")
+    sm.add_argument("run_dir", help="run directory (holds summary.json)")
     sm.set_defaults(func=_summary)
     ls = sub.add_parser("list", help="the shipped scenarios and what each runs")
-    ls.add_argument("--config-dir", default=None, help="list this folder's scenarios instead")
+    ls.add_argument(
+        "--config-dir",
+        type=_existing_dir,
+        default=None,
+        help="list this folder's scenarios instead",
+    )
     ls.set_defaults(func=_list)
     cmp = sub.add_parser(
         "compare",
@@ -262,19 +448,46 @@ def main(argv: list[str] | None = None) -> int:
         "(else the scenario *_pid, else the first), with the final estimates / true values "
         "(003 Fig. 9)",
     )
-    cmp.add_argument("run_dirs", nargs="+")
+    cmp.add_argument(
+        "run_dirs",
+        nargs="+",
+        metavar="run_dir",
+        help="run directories (single-axis, or one axis of a multi-axis run)",
+    )
     cmp.add_argument("--labels", help="comma-separated, one per run (default: directory names)")
-    cmp.add_argument("--out", help="PNG to write: max and RMS error per cycle")
-    cmp.add_argument("--error-out", help="PNG to write: error against time, one cycle enlarged")
-    cmp.add_argument("--zoom-cycle", type=int, default=3, help="the cycle enlarged (default 3)")
-    cmp.add_argument("--title", default="tracking error per cycle")
+    cmp.add_argument("--out", type=_output_file, help="PNG to write: max and RMS error per cycle")
+    cmp.add_argument(
+        "--error-out",
+        type=_output_file,
+        help="PNG to write: error against time, one cycle enlarged",
+    )
+    cmp.add_argument(
+        "--zoom-cycle",
+        type=_int_at_least(1),
+        default=3,
+        help="the cycle --error-out enlarges, from 1 (default 3)",
+    )
+    cmp.add_argument(
+        "--title",
+        default="tracking error per cycle",
+        help="title of the --out and --error-out figures",
+    )
     cmp.add_argument(
         "--rmsd", action="store_true", help="compare by RMSD of the whole run, not per cycle"
     )
-    cmp.add_argument("--bar-chart", help="PNG to write: RMSD per run as bars (003 Fig. 9)")
+    cmp.add_argument(
+        "--bar-chart", type=_output_file, help="PNG to write: RMSD per run as bars (003 Fig. 9)"
+    )
+    cmp.add_argument(
+        "--force",
+        action="store_true",
+        help="compare runs with different references, control periods or cycles anyway",
+    )
     cmp.set_defaults(func=_compare)
     bag = sub.add_parser("bag", help="bag tools: recover")
-    bag_sub = bag.add_subparsers(dest="bag_command", required=True)
+    bag_sub = bag.add_subparsers(
+        dest="bag_command", required=True, metavar="BAG_COMMAND", help="what to do with a bag"
+    )
     rec = bag_sub.add_parser(
         "recover",
         help="make a bag whose recorder died (no metadata.yaml, no MCAP summary) readable "
@@ -282,7 +495,21 @@ def main(argv: list[str] | None = None) -> int:
     )
     rec.add_argument("bag_dir", help="the bag directory, e.g. <run>/bag")
     rec.set_defaults(func=_bag_recover)
-    args = parser.parse_args(argv)
+    for group in (sub, bag_sub):  # each command's --help starts with what it does
+        for choice in group._choices_actions:
+            command = group.choices[choice.dest]
+            if command.description is None:
+                command.description = f"{choice.help[0].upper()}{choice.help[1:]}."
+    return parser
+
+
+def main(argv: list[str] | None = None, prog: str = "python -m servo_axis") -> int:
+    """Entry point of ``python -m servo_axis`` (and of the ``servo-axis`` command)."""
+    parser = build_parser(prog)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as done:  # --help (0) or a bad option (2, its line already written)
+        return done.code if isinstance(done.code, int) else 2
     if args.command is None:
         args = parser.parse_args(["run", DEFAULT_SCENARIO])
     try:
@@ -291,9 +518,17 @@ def main(argv: list[str] | None = None) -> int:
         # The reader of our output went away (`list | head`): not an error of ours.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    except KeyboardInterrupt:
+        print("\ninterrupted", file=sys.stderr)
+        return 128 + int(signal.SIGINT)
     except (ServoAxisError, OSError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
+
+
+def console() -> int:
+    """Entry point of the ``servo-axis`` console command."""
+    return main(prog="servo-axis")
 
 
 if __name__ == "__main__":

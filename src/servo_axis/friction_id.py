@@ -1,4 +1,4 @@
-"""Friction table from a slow-reversal run (scenario ``friction_id``, DESIGN 7).
+"""Friction table from a slow-reversal run (scenario ``friction_id``, docs/design.md section 7).
 
 In a slow reversing motion the inertial and viscous torques are tiny, so the
 motor torque the loop supplies is the friction: ``T_f ~ K_T i - J_n a_r -
@@ -21,8 +21,8 @@ from typing import Any
 import numpy as np
 
 from servo_axis.analysis.signals import load_signals
-from servo_axis.analysis.summary import SUMMARY_FILE, RunSummary
-from servo_axis.core.errors import SignalError
+from servo_axis.analysis.summary import RunSummary, load_summary
+from servo_axis.core.errors import ConfigError, SignalError
 from servo_axis.core.feedforward.friction_table import FrictionTable, build_friction_table
 from servo_axis.params.factories import node_values
 from servo_axis.params.scenario import load_scenario
@@ -81,9 +81,13 @@ def measured_friction(run_dir: Path) -> MeasuredFriction:
 
     The control period, the lead and the nominal model are the checked
     feedforward parameters of the run's scenario (their defaults where it
-    does not set them). SignalError for a bag with fewer than 3 samples.
+    does not set them). SignalError for a bag with fewer than 3 samples,
+    ConfigError for a directory that is not a single-axis run.
     """
-    summary = RunSummary.from_json(Path(run_dir) / SUMMARY_FILE)
+    summary = load_summary(Path(run_dir))
+    if not isinstance(summary, RunSummary):
+        axes = ", ".join(str(Path(run_dir) / a) for a in summary.axes)
+        raise ConfigError(f"{run_dir}: a multi-axis run; give one of its axes: {axes}")
     scenario = load_scenario(Path(summary.scenario_file))
     values = node_values(scenario, "feedforward")
     period = float(values["control_period_s"])

@@ -194,7 +194,8 @@ def test_killed_plant_feedback_or_recorder_stops_the_run_and_keeps_the_bag(
     assert k.code == EXIT_FAILED, k.stderr
     assert f"{role} exited" in k.stderr
     health = k.summary["health"]
-    assert health["outcome"].startswith(f"stopped: {role} exited")
+    assert health["outcome"] == "failed"
+    assert health["reasons"][0].startswith(f"stopped: {role} exited")
     assert health["deaths"][0]["role"] == role
     assert health["bag_recovered"] == (role == "recorder")
     assert 0 < k.summary["steps"] < STEPS

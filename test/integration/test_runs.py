@@ -7,6 +7,7 @@ and stops and reaps them before it ends.
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -433,6 +434,25 @@ def test_a_signal_to_the_runner_stops_every_node_and_keeps_the_bag(
         assert got == list(range(len(got))), topic
     assert len(steps["/state"]) > 500
     assert abs(len(steps["/state"]) - len(steps["/command"])) <= 200  # the flow-control window
+    # summary.json says so and holds what was recorded; `summary` reads it.
+    summary = json.loads((out / "summary.json").read_text())
+    health = summary["health"]
+    assert health["outcome"] == "interrupted" and health["exit_code"] == 128 + sig
+    assert health["reasons"][0].startswith(f"interrupted by {sig.name} at step ")
+    assert not health["deterministic"]
+    assert summary["message_counts"]["/state"] == len(steps["/state"])
+    assert summary["steps"] > 500
+    assert f"summary of what was recorded: {out / 'summary.json'}" in stderr
+    shown = subprocess.run(
+        [sys.executable, "-m", "servo_axis", "summary", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert shown.returncode == 0, shown.stderr
+    assert f"health            interrupted, NOT the deterministic result (exit {128 + sig})" in (
+        shown.stdout
+    )
 
 
 def predicted_dob_ratio(frequency_hz: float, scenario: Path) -> float:

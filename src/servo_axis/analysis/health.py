@@ -11,11 +11,13 @@ code  meaning
 0     complete, and the deterministic result of the scenario
 1     failed: a node the run cannot do without died or stalled (the summary
       of what was recorded is written if the bag allows it)
-2     bad configuration (nothing started)
+2     bad configuration or option (nothing started, nothing written)
 3     complete, but not the deterministic result: a node fell back (a peer was
       gone), a node died and was restarted, or a stranger published on the
       run's topics
 4     complete with a fault: the feedback loop tripped
+130   interrupted by SIGINT (143: SIGTERM); the nodes were stopped, the bag
+      closed and the summary of what was recorded written (``interrupted``)
 ====  ==========================================================================
 
 Nothing here imports rclpy.
@@ -75,7 +77,9 @@ class RunHealth:
     Attributes
     ----------
     outcome : str
-        ``complete`` or ``stopped: <why>``.
+        ``complete``; ``failed`` (the runner stopped the run: why is the first
+        of ``reasons``); ``interrupted`` (SIGINT or SIGTERM stopped it: why is
+        the first of ``reasons``).
     deterministic : bool
         No fallback, no death, no stranger: the result is the scenario's.
     exit_code : int
@@ -117,6 +121,7 @@ class RunHealth:
 def assess(
     *,
     failure: str | None,
+    interrupted: str | None = None,
     deaths: list[NodeDeath],
     reports: dict[str, NodeHealth],
     faults: int,
@@ -128,6 +133,9 @@ def assess(
     ----------
     failure : str or None
         Why the runner stopped the run early (None: it completed).
+    interrupted : str or None
+        Why a signal stopped the run (``interrupted by SIGINT at step ...``;
+        None: no signal). The exit code is then ``128 + signal number``.
     deaths : list of NodeDeath
         Nodes that ended before the run did.
     reports : dict
@@ -149,9 +157,13 @@ def assess(
             reasons.append(f"{role}: {len(who)} stranger publisher(s) on {name}: {', '.join(who)}")
     if bag_recovered:
         reasons.append("the recorder died: the bag was recovered up to its last flushed chunk")
-    deterministic = not reasons and failure is None
-    if failure is not None:
-        code, outcome = EXIT_FAILED, f"stopped: {failure.splitlines()[0]}"
+    deterministic = not reasons and failure is None and interrupted is None
+    if interrupted is not None:
+        code, outcome = _signal_exit_code(interrupted), "interrupted"
+        reasons.insert(0, interrupted.splitlines()[0])
+    elif failure is not None:
+        code, outcome = EXIT_FAILED, "failed"
+        reasons.insert(0, f"stopped: {failure.splitlines()[0]}")
     elif faults:
         code, outcome = EXIT_FAULT, "complete"
         reasons.append(f"the feedback loop tripped ({faults} fault(s))")
@@ -168,3 +180,13 @@ def assess(
         nodes={role: report.to_dict() for role, report in sorted(reports.items())},
         bag_recovered=bag_recovered,
     )
+
+
+def _signal_exit_code(interrupted: str) -> int:
+    """``128 + signal number`` of the signal named in ``interrupted by SIG...`` (130 if none)."""
+    import signal
+
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        if sig.name in interrupted:
+            return 128 + int(sig)
+    return 128 + int(signal.SIGINT)

@@ -18,7 +18,10 @@
 * :func:`plot_reversal_detail`: position, ``d_r``, control input and
   tracking error around one stop (004 Fig. 12).
 
-Errors are in um, or urad (and positions in mrad) for a rotary table.
+Each error axis is in the unit its data reads best in (:func:`error_scale`:
+um, nm, ... of m, or urad, nrad, ... of rad for a rotary table; positions in
+mm, mrad for a rotary table), without an offset or a multiplier above the
+axis; cycle axes have integer ticks.
 """
 
 from __future__ import annotations
@@ -43,7 +46,6 @@ from servo_axis.analysis.summary import (
 from servo_axis.analysis.text import (
     PARAMETER_ROWS,
     baseline_index,
-    micro,
     period_word,
     reductions,
 )
@@ -65,6 +67,62 @@ DEFORMATION_FIGURE = "deformation.png"
 DEFORMATION_COLUMNS = 6
 
 
+#: SI prefixes an error axis may take: factor from the base unit, prefix.
+PREFIXES: tuple[tuple[float, str], ...] = (
+    (1e3, "m"),
+    (1e6, "u"),
+    (1e9, "n"),
+    (1e12, "p"),
+    (1e15, "f"),
+    (1e18, "a"),
+)
+
+
+def error_scale(values: Any, unit: str = "m") -> tuple[float, str]:
+    """The factor and unit an error axis shows ``values`` (in ``unit``) in.
+
+    The largest prefix of :data:`PREFIXES` (mm, um, nm, ...) in which the
+    largest finite ``|value|`` is at least 1, so that tick labels are plain
+    numbers from 1 up; um (urad) when there is no non-zero finite value.
+
+    Parameters
+    ----------
+    values : array_like
+        The errors, in ``unit``.
+    unit : str
+        ``m`` or ``rad``.
+
+    Returns
+    -------
+    factor : float
+        What to multiply ``values`` by.
+    label : str
+        The unit of the scaled values, e.g. ``nm``.
+    """
+    data = np.abs(np.asarray(values, dtype=float).ravel())
+    data = data[np.isfinite(data)]
+    peak = float(data.max()) if data.size else 0.0
+    if peak <= 0.0:
+        return 1e6, f"u{unit}"
+    for factor, prefix in PREFIXES:
+        if peak * factor >= 1.0:
+            return factor, f"{prefix}{unit}"
+    factor, prefix = PREFIXES[-1]
+    return factor, f"{prefix}{unit}"
+
+
+def _plain(ax: Any, axis: str = "y") -> None:
+    """No offset and no multiplier above a linear axis: the numbers as they are."""
+    ax.ticklabel_format(axis=axis, useOffset=False, style="plain")
+
+
+def _integer_ticks(ax: Any) -> None:
+    """Ticks of the x axis (cycles, trials) at whole numbers only."""
+    from matplotlib.ticker import MaxNLocator
+
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+
+
 def _pyplot() -> Any:
     import matplotlib
 
@@ -77,22 +135,30 @@ def _pyplot() -> Any:
 def plot_cycles(
     summaries: Sequence[RunSummary], labels: Sequence[str], path: Path, *, title: str
 ) -> Path:
-    """Max and RMS tracking error per cycle of one or more runs (000 Fig. 15), log scale."""
+    """Max and RMS tracking error per cycle of one or more runs (000 Fig. 15), log scale.
+
+    Integer cycle ticks; the error in the unit of :func:`error_scale` of the largest maximum.
+    """
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7, 4))
-    for summary, label, marker in zip(summaries, labels, "osd^v<>", strict=False):
-        c = cycle_errors(summary)
-        (line,) = ax.semilogy(c["cycle"], 1e6 * c["max_m"], "-" + marker, label=f"{label}: max")
+    per_run = [cycle_errors(summary) for summary in summaries]
+    factor, shown = error_scale(
+        [c["max_m"] for c in per_run if c["max_m"].size] or [0.0],
+        summaries[0].unit if summaries else "m",
+    )
+    for c, label, marker in zip(per_run, labels, "osd^v<>", strict=False):
+        (line,) = ax.semilogy(c["cycle"], factor * c["max_m"], "-" + marker, label=f"{label}: max")
         ax.semilogy(
             c["cycle"],
-            1e6 * c["rms_m"],
+            factor * c["rms_m"],
             ":" + marker,
             color=line.get_color(),
             ms=4,
             label=f"{label}: RMS",
         )
+    _integer_ticks(ax)
     ax.set_xlabel(period_word(summaries))
-    ax.set_ylabel("tracking error (um)")
+    ax.set_ylabel(f"tracking error ({shown})")
     ax.set_title(title)
     ax.grid(True, which="both", lw=0.3)
     ax.legend(fontsize="small")
@@ -114,21 +180,25 @@ def plot_error_overlay(
     enlarged (000 Fig. 13(b)-(c), Fig. 15(b)-(c))."""
     plt = _pyplot()
     fig, (whole, zoom) = plt.subplots(2, 1, figsize=(9, 6))
-    word, unit = "cycle", "um"
-    for run_dir, label in zip(run_dirs, labels, strict=True):
-        series = run_series(Path(run_dir))
+    word = "cycle"
+    runs = [run_series(Path(run_dir)) for run_dir in run_dirs]
+    factor, unit = error_scale(
+        np.concatenate([r.error_m for r in runs]) if runs else [0.0],
+        runs[0].summary.unit if runs else "m",
+    )
+    for series, label in zip(runs, labels, strict=True):
         word = series.summary.period_name or "cycle"
-        unit = micro(series.summary.unit)
         t = series.time_s
-        err_um = series.error_m * 1e6
-        whole.plot(t, err_um, lw=0.7, label=label)
+        err = series.error_m * factor
+        whole.plot(t, err, lw=0.7, label=label)
         cycle_s = series.summary.reference_period_s
         if cycle_s:
             inside = (t >= (zoom_cycle - 1) * cycle_s) & (t < zoom_cycle * cycle_s)
-            zoom.plot(t[inside], err_um[inside], lw=0.8, label=label)
+            zoom.plot(t[inside], err[inside], lw=0.8, label=label)
     whole.set_title(title)
     zoom.set_title(f"{word} {zoom_cycle} enlarged")
     for ax in (whole, zoom):
+        _plain(ax)
         ax.set_xlabel("time (s)")
         ax.set_ylabel(f"tracking error ({unit})")
         ax.grid(True, lw=0.3)
@@ -149,7 +219,8 @@ def plot(run_dir: Path) -> list[Path]:
     series = run_series(run_dir)
     summary, sig, y, lead = series.summary, series.signals, series.y_rad, series.lead_m_per_rad
     t = series.time_s
-    err = series.error_m * 1e6
+    factor, shown = error_scale(series.error_m, summary.unit)
+    err = series.error_m * factor
     rotary = summary.unit == "rad"
     even = SampleGrid(control_period_s=summary.control_period_s).reference_instants(sig.step)
     figures: list[tuple[str, str, str, list[tuple[Any, Any, str, str]]]] = [
@@ -164,7 +235,7 @@ def plot(run_dir: Path) -> list[Path]:
         ),
         (
             "error.png",
-            f"tracking error ({micro(summary.unit)})",
+            f"tracking error ({shown})",
             "tracking error e = R (r - y)",
             [(t, err, "-", "all samples"), (t[even], err[even], ".", "T_r instants")],
         ),
@@ -174,6 +245,7 @@ def plot(run_dir: Path) -> list[Path]:
         fig, ax = plt.subplots(figsize=(9, 4))
         for x_values, y_values, style, label in lines:
             ax.plot(x_values, y_values, style, label=label, lw=0.8, ms=2)
+        _plain(ax)
         ax.set_xlabel("time (s)")
         ax.set_ylabel(ylabel)
         ax.set_title(f"{summary.scenario}: {title}")
@@ -304,7 +376,7 @@ def plot_reversal_detail(
     reference ``R r`` and the scale ``x_t`` (mm); ``d_r`` at its valid
     samples (mm/rad); the motor torque reference ``K_T u`` of the feedback
     and the feedforward torque ``K_T u_ff`` (N m, as the bag has them); the
-    tracking error ``R (r - y)`` (um).
+    tracking error ``R (r - y)`` (in the unit of :func:`error_scale`).
     A dotted line marks ``t_stop``.
 
     Parameters
@@ -352,9 +424,11 @@ def plot_reversal_detail(
     torque.plot(ts, sig.feedforward_Nm[inside], ":", lw=0.9, label="K_T u_ff (feedforward)")
     torque.set_ylabel("control input, torque (N m)")
     torque.legend(fontsize="small")
-    error.plot(ts, 1e6 * series.error_m[inside], "-", lw=0.9)
-    error.set_ylabel(f"tracking error ({micro(series.summary.unit)})")
+    factor, shown = error_scale(series.error_m[inside], series.summary.unit)
+    error.plot(ts, factor * series.error_m[inside], "-", lw=0.9)
+    error.set_ylabel(f"tracking error ({shown})")
     for ax in axes.flat:
+        _plain(ax)
         ax.axvline(t_stop, color="k", ls=":", lw=0.8)
         ax.grid(True, lw=0.3)
     for ax in axes[1]:
@@ -427,12 +501,14 @@ def plot_rmsd_bars(
     plt = _pyplot()
     base = baseline_index(summaries, labels)
     cuts = reductions(summaries, base)
-    unit = micro(summaries[0].unit if summaries else "m")
-    heights = [1e6 * s.rmsd for s in summaries]
+    factor, unit = error_scale(
+        [s.rmsd for s in summaries] or [0.0], summaries[0].unit if summaries else "m"
+    )
+    heights = [factor * s.rmsd for s in summaries]
     fig, ax = plt.subplots(figsize=(max(4.0, 1.2 * len(summaries) + 2), 4))
     bars = ax.bar(range(len(summaries)), heights, color="tab:blue")
     for i, (bar, cut) in enumerate(zip(bars, cuts, strict=True)):
-        text = "base" if i == base else f"{-cut:+.1f}%"
+        text = "base" if i == base else ("n/a" if not np.isfinite(cut) else f"{-cut:+.1f}%")
         ax.annotate(
             text,
             (bar.get_x() + bar.get_width() / 2, bar.get_height()),
@@ -441,6 +517,7 @@ def plot_rmsd_bars(
             fontsize="small",
         )
     ax.set_xticks(range(len(summaries)), list(labels))
+    _plain(ax)
     ax.set_ylabel(f"RMSD of tracking error ({unit})")
     ax.set_title(title)
     ax.grid(True, axis="y", lw=0.3)
@@ -494,9 +571,13 @@ def plot_contour(run_dir: Path) -> Path:
     xy.set_title(f"radial error x {gain:,.0f}")
     xy.legend(fontsize="small")
     rows = summary.contour.cycles
-    bars.bar([r.cycle for r in rows], [1e6 * r.circular_deviation_m for r in rows])
+    deviations = [r.circular_deviation_m for r in rows]
+    factor, shown = error_scale(deviations or [0.0])
+    bars.bar([r.cycle for r in rows], [factor * d for d in deviations])
+    _integer_ticks(bars)
+    _plain(bars)
     bars.set_xlabel("cycle")
-    bars.set_ylabel("circular deviation (um)")
+    bars.set_ylabel(f"circular deviation ({shown})")
     bars.set_title(f"{summary.scenario}: circularity per cycle")
     bars.grid(True, lw=0.3)
     fig.tight_layout()

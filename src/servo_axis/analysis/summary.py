@@ -958,8 +958,28 @@ def summary_from_dict(data: dict[str, Any]) -> RunSummary | AxesSummary:
 
 
 def load_summary(run_dir: Path) -> RunSummary | AxesSummary:
-    """The ``summary.json`` of a run directory, single- or multi-axis."""
-    return summary_from_dict(_read(Path(run_dir) / SUMMARY_FILE))
+    """The ``summary.json`` of a run directory, single- or multi-axis.
+
+    Raises
+    ------
+    ConfigError
+        If ``run_dir`` is not a directory with a ``summary.json``
+        (``<dir>: not a run directory: no summary.json``), or the file is not
+        a summary this version reads (the message names the file and what is
+        wrong).
+    """
+    path = Path(run_dir) / SUMMARY_FILE
+    if not Path(run_dir).is_dir():
+        raise ConfigError(f"{run_dir}: not a run directory: no such directory")
+    if not path.is_file():
+        raise ConfigError(f"{run_dir}: not a run directory: no {SUMMARY_FILE}")
+    try:
+        return summary_from_dict(_read(path))
+    except OSError as err:
+        raise ConfigError(f"{path}: cannot read it: {err}") from None
+    except (ValueError, KeyError, TypeError, AttributeError) as err:
+        what = f"missing key {err}" if isinstance(err, KeyError) else str(err)
+        raise ConfigError(f"{path}: not a servo_axis run summary: {what}") from None
 
 
 def cycle_errors(summary: RunSummary) -> dict[str, NDArray[Any]]:

@@ -43,6 +43,24 @@ def _g(x: float | None, spec: str = ".6g") -> str:
     return "-" if x is None or not math.isfinite(x) else format(x, spec)
 
 
+#: A base below this (m or rad) gives no reduction (``n/a``): 1 - x / 0 means nothing.
+TINY_BASE = 1e-12
+#: Between two columns of a comparison: a wider value than its column cannot run into the next.
+GAP = "  "
+
+
+def reduction(value: float, base: float) -> float:
+    """``100 (1 - value / base)``, %; NaN when ``base`` is below :data:`TINY_BASE` or not finite."""
+    if not math.isfinite(base) or abs(base) < TINY_BASE:
+        return math.nan
+    return 100.0 * (1.0 - value / base)
+
+
+def _cut(value: float) -> str:
+    """A reduction as the tables show it: 2 decimals, ``n/a`` when there is none."""
+    return "n/a" if not math.isfinite(value) else f"{value:.2f}"
+
+
 #: Row labels of the identified parameters, in :data:`~servo_axis.analysis.summary.IDENTIFIED` order.
 PARAMETER_ROWS: tuple[str, ...] = ("J (kg m^2)", "D (N m s/rad)", "U (N m)", "C (N m)")
 
@@ -233,7 +251,7 @@ def compare_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> str
     """
     per_run = [cycle_errors(s) for s in summaries]
     n = max((len(c["cycle"]) for c in per_run), default=0)
-    width = max(14, *(len(label) + 2 for label in labels))
+    width = max(12, *(len(label) for label in labels))
     word = period_word(summaries)
     lines: list[str] = []
     for title, key in (("max", "max_m"), ("RMS", "rms_m")):
@@ -241,14 +259,14 @@ def compare_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> str
             lines.append("")
         lines += [
             f"{title} error per {word} (um)",
-            f"{word:<5}" + "".join(f"{x:>{width}}" for x in labels),
+            f"{word:<5}" + "".join(f"{GAP}{x:>{width}}" for x in labels),
         ]
         for k in range(n):
             cells = [
-                f"{1e6 * c[key][k]:>{width}.6g}" if k < len(c[key]) else " " * width
+                f"{GAP}{1e6 * c[key][k]:>{width}.6g}" if k < len(c[key]) else GAP + " " * width
                 for c in per_run
             ]
-            lines.append(f"{k + 1:>5}" + "".join(cells))
+            lines.append(f"{k + 1:>5}" + "".join(cells).rstrip())
     return "\n".join(lines)
 
 
@@ -258,21 +276,22 @@ def max_error_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> s
     After the first cycle, so that the start from rest does not count: what
     is left are the periodic reversals. The reduction is
     ``100 (1 - max / max_base)`` against the first run (the conventional
-    method: ``compare runs/fast_reversal_gms runs/fast_reversal_sigmoid``).
-    Runs without a complete first cycle use all their samples.
+    method: ``compare runs/fast_reversal_gms runs/fast_reversal_sigmoid``),
+    ``n/a`` against a base below :data:`TINY_BASE`. Runs without a complete
+    first cycle use all their samples. Columns are two spaces apart.
     """
     maxima = [
         (s.tracking_error.after_first_cycle or s.tracking_error).all_samples.max_m
         for s in summaries
     ]
-    width = max(14, *(len(label) + 2 for label in labels))
+    width = max(12, *(len(label) for label in labels))
     lines = [
         f"max tracking error after cycle 1 (um); reduction against {labels[0]}",
-        f"{'run':<{width}}{'max (um)':>14}{'reduction (%)':>15}",
+        f"{'run':<{width}}{GAP}{'max (um)':>12}{GAP}{'reduction (%)':>13}",
     ]
     for i, (label, peak) in enumerate(zip(labels, maxima, strict=True)):
-        cut = "base" if i == 0 else _g(100.0 * (1.0 - peak / maxima[0]), ".2f")
-        lines.append(f"{label:<{width}}{_um(peak):>14}{cut:>15}")
+        cut = "base" if i == 0 else _cut(reduction(peak, maxima[0]))
+        lines.append(f"{label:<{width}}{GAP}{_um(peak):>12}{GAP}{cut:>13}")
     return "\n".join(lines)
 
 
@@ -300,9 +319,9 @@ def baseline_index(summaries: Sequence[RunSummary], labels: Sequence[str]) -> in
 
 
 def reductions(summaries: Sequence[RunSummary], base: int) -> list[float]:
-    """Per run, ``100 (1 - RMSD / RMSD_base)``: how much lower its RMSD is, %."""
+    """Per run, ``100 (1 - RMSD / RMSD_base)``: how much lower its RMSD is, % (NaN: no base)."""
     ref = summaries[base].rmsd
-    return [100.0 * (1.0 - s.rmsd / ref) if ref > 0 else math.nan for s in summaries]
+    return [reduction(s.rmsd, ref) for s in summaries]
 
 
 def rmsd_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> str:
@@ -311,7 +330,8 @@ def rmsd_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> str:
     each identified parameter when a run has them (003 Figs. 7, 9).
 
     One row per run: label, RMSD (um or urad, 6 significant digits), reduction
-    (%, 2 decimals; ``base`` for the baseline) and, if any run identified
+    (%, 2 decimals; ``base`` for the baseline, ``n/a`` against a baseline
+    below :data:`TINY_BASE`) and, if any run identified
     parameters, ``J/true``, ``D/true``, ``U/true``, ``C/true`` (``-`` for a
     run without).
 
@@ -325,20 +345,21 @@ def rmsd_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> str:
         raise ValueError(f"runs with errors in different units ({', '.join(sorted(units))})")
     mu = micro(units.pop() if units else "m")
     base = baseline_index(summaries, labels)
-    width = max(14, *(len(label) + 2 for label in labels))
+    width = max(12, *(len(label) for label in labels))
     ident = any(s.identification is not None for s in summaries)
     names = ("J", "D", "U", "C")
     lines = [
         f"RMSD of the tracking error over the whole run ({mu}); reduction against {labels[base]}",
-        f"{'run':<{width}}{'RMSD (' + mu + ')':>16}{'reduction (%)':>15}"
-        + ("".join(f"{n + '/true':>10}" for n in names) if ident else ""),
+        f"{'run':<{width}}{GAP}{'RMSD (' + mu + ')':>14}{GAP}{'reduction (%)':>13}"
+        + ("".join(f"{GAP}{n + '/true':>8}" for n in names) if ident else ""),
     ]
     for i, (s, label, cut) in enumerate(
         zip(summaries, labels, reductions(summaries, base), strict=True)
     ):
-        row = f"{label:<{width}}{_um(s.rmsd):>16}{'base' if i == base else _g(cut, '.2f'):>15}"
+        shown = "base" if i == base else _cut(cut)
+        row = f"{label:<{width}}{GAP}{_um(s.rmsd):>14}{GAP}{shown:>13}"
         if ident:
             ratios = s.identification.final_ratio.values() if s.identification else (None,) * 4
-            row += "".join(f"{_g(r, '.5g'):>10}" for r in ratios)
+            row += "".join(f"{GAP}{_g(r, '.5g'):>8}" for r in ratios)
         lines.append(row)
     return "\n".join(lines)

@@ -527,7 +527,7 @@ register_feedforward_term("sigmoid", _sigmoid_term)
 
 
 def estimate_schedule(values: Values, period_key: str, latency_key: str) -> tuple[int, int]:
-    """``(period, latency)`` in control samples of an online estimate (003, DESIGN 4).
+    """``(period, latency)`` in control samples of an online estimate (003, docs/design.md section 4).
 
     Both are whole numbers of reference periods and the latency is at least
     one period: an estimate computed from the samples up to ``k`` applies

@@ -10,9 +10,10 @@ depends on several keys at once (``sim_step_s`` divides
 values build. :data:`SECTIONS` lists them for the parameter reference
 (``scripts/parameter_docs.py`` -> ``docs/parameters.md``).
 
-Paper numbers refer to ``shared/papers`` (000: Fujimoto & Takemura, RPTC
-with the n-times learning filter; 001: Hayashi & Fujimoto; 004: Zhu &
-Fujimoto), "DESIGN 7" to the axis presets of the design notes.
+Paper numbers refer to the papers of ``docs/papers.md`` (000: Fujimoto &
+Takemura, RPTC with the n-times learning filter; 001: Hayashi et al.; 003:
+Ge et al.; 004: Zhu & Fujimoto), "docs/design.md section 7" to the axis
+presets of the design intent.
 """
 
 from __future__ import annotations
@@ -81,7 +82,7 @@ SHARED: dict[str, Param] = {
         _BALL_SCREW["lead_m_per_rad"],
         unit="m/rad",
         above=0.0,
-        meaning="ball-screw lead R: table position x = R theta (DESIGN 7: 1.91 mm/rad)",
+        meaning="ball-screw lead R: table position x = R theta (docs/design.md section 7: 1.91 mm/rad)",
     ),
     "nominal.torque_constant_Nm_per_A": Param(
         0.715,
@@ -187,7 +188,7 @@ PLANT: dict[str, Param] = {
     ),
 }
 
-#: Keys of the plant with ``model: ball_screw``: eq. (30) of 000 with DESIGN 7 defaults.
+#: Keys of the plant with ``model: ball_screw``: eq. (30) of 000 with docs/design.md section 7 defaults.
 BALL_SCREW: dict[str, Param] = {
     "torque_constant_Nm_per_A": Param(
         _BALL_SCREW["torque_constant_Nm_per_A"],
@@ -221,7 +222,7 @@ BALL_SCREW: dict[str, Param] = {
     ),
     "modes.a": Param(
         [0.0],
-        meaning="relative gains a_i of the modes of eq. (30): K_i = a_i K_T / J (DESIGN 7)",
+        meaning="relative gains a_i of the modes of eq. (30): K_i = a_i K_T / J (docs/design.md section 7)",
     ),
     "dead_time_s": Param(
         _BALL_SCREW["dead_time_s"],
@@ -303,7 +304,7 @@ BALL_SCREW: dict[str, Param] = {
         2.0 * math.pi / 2**20,
         unit="rad",
         minimum=0.0,
-        meaning="rotary-encoder count on the motor angle (2 pi / 2^20 rad, DESIGN 7); 0 = ideal",
+        meaning="rotary-encoder count on the motor angle (2 pi / 2^20 rad, docs/design.md section 7); 0 = ideal",
     ),
     "encoder.noise_std": Param(
         0.0,
@@ -315,7 +316,7 @@ BALL_SCREW: dict[str, Param] = {
         100e-9,
         unit="m",
         minimum=0.0,
-        meaning="linear-scale count on the table position (100 nm, DESIGN 7); 0 = ideal",
+        meaning="linear-scale count on the table position (100 nm, docs/design.md section 7); 0 = ideal",
     ),
     "scale.noise_std": Param(
         0.0,

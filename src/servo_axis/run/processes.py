@@ -22,6 +22,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from servo_axis.params.names import check_domain_id
+
 #: Seconds between SIGINT and SIGKILL when the nodes are stopped.
 STOP_TIMEOUT_S = 5.0
 #: The roles that take turns on the per-sample path in lockstep.
@@ -53,9 +55,15 @@ def discovery_settings(log_dir: Path) -> dict[str, str]:
 
 
 def default_domain_id() -> int:
-    """ROS_DOMAIN_ID from the environment, else one derived from the pid (1..100)."""
+    """ROS_DOMAIN_ID from the environment, else one derived from the pid (1..100).
+
+    Raises
+    ------
+    ConfigError
+        For a ROS_DOMAIN_ID that is not an integer 0..232.
+    """
     if "ROS_DOMAIN_ID" in os.environ:
-        return int(os.environ["ROS_DOMAIN_ID"])
+        return check_domain_id(os.environ["ROS_DOMAIN_ID"], "ROS_DOMAIN_ID")
     return os.getpid() % 100 + 1
 
 

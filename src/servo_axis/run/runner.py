@@ -45,6 +45,7 @@ from typing import TYPE_CHECKING, Any, TextIO
 from servo_axis.analysis.health import NodeDeath, RunHealth, assess
 from servo_axis.core.errors import ConfigError, ParameterFileError
 from servo_axis.params.factories import EXTERNAL_ROLES, checked_values, node_values, run_steps
+from servo_axis.params.names import check_domain_id, check_namespace
 from servo_axis.params.scenario import (
     axes_of,
     axis_view,
@@ -107,10 +108,16 @@ class RunError(RuntimeError):
 
 
 class RunInterruptedError(RunError):
-    """SIGINT or SIGTERM stopped the run; the nodes were stopped and the bag closed."""
+    """SIGINT or SIGTERM stopped the run; the nodes were stopped and the bag closed.
 
-    def __init__(self, text: str, signum: int) -> None:
-        super().__init__(text)
+    ``summary`` is what could be made of the bag recorded so far (its
+    ``health.outcome`` is ``interrupted``; None if nothing was recorded).
+    """
+
+    def __init__(
+        self, text: str, signum: int, summary: RunSummary | AxesSummary | None = None
+    ) -> None:
+        super().__init__(text, summary)
         self.signum = signum
 
 
@@ -210,6 +217,7 @@ class _Watch:
     t_first: float | None = None  # the first recorded step
     t_end: float = 0.0
     failure: str | None = None
+    interrupted: str | None = None  # why, when a signal stopped the run
     signals: list[int] = field(default_factory=list)
     exit_codes: dict[str, int] = field(default_factory=dict)
 
@@ -254,7 +262,10 @@ def run_scenario(
     ------
     ConfigError
         For a scenario that is neither a file nor a shipped scenario, or
-        not a valid scenario; for an ``out_dir`` that is not empty.
+        not a valid scenario; for an ``out_dir`` that is not empty or cannot
+        be created, a ``namespace`` ROS would reject, a ``domain_id`` outside
+        0..232 (also from ROS_DOMAIN_ID) or a negative ``respawn_limit``:
+        before anything is written or started.
     RunError
         If the plant, the feedback or the recorder dies, a learning unit
         dies more than ``respawn_limit`` times, the run stalls, or a node
@@ -263,8 +274,14 @@ def run_scenario(
     RunInterruptedError
         If SIGINT or SIGTERM reached the runner (called from the main
         thread): the nodes are stopped, the bag written so far is closed and
-        readable, no summary is made.
+        readable, and ``summary.json`` holds what was recorded (``health.outcome``
+        ``interrupted``).
     """
+    # The options first: nothing is written or started for a bad one.
+    namespace = check_namespace(namespace) if namespace else ""
+    domain = default_domain_id() if domain_id is None else check_domain_id(domain_id)
+    if respawn_limit < 0:
+        raise ConfigError(f"--respawn-limit {respawn_limit}: expected an integer >= 0")
     scenario_path = find_scenario(scenario).resolve()
     data = load_scenario(scenario_path)
     common = shared(data)
@@ -280,7 +297,6 @@ def run_scenario(
         extra_args=extra_args,
         external=outside,
     )
-    domain = default_domain_id() if domain_id is None else domain_id
     line = ProgressLine(steps, progress) if progress is not None else None
     if progress is not None:
         for run in runs:
@@ -299,23 +315,20 @@ def run_scenario(
         external_timeout_s,
         progress,
     )
+    recovered = _recover_bags(runs)
     if watch.signals:
         signame = signal.Signals(watch.signals[0]).name
-        bags = ", ".join(str(run.out_dir / "bag") for run in runs)
-        raise RunInterruptedError(
+        bags = ", ".join(str(run.out_dir / "bag") for run in runs if (run.out_dir / "bag").is_dir())
+        kept = f"the bag written so far is in {bags}" if bags else "no bag had been started yet"
+        watch.interrupted = (
             f"interrupted by {signame} at step {max(watch.steps, 0)} of {steps}; "
-            f"the nodes were stopped, the bag written so far is in {bags}",
-            watch.signals[0],
+            f"the nodes were stopped, {kept}"
         )
-    recovered = _recover_bags(runs)
+        summary = _summary_of_the_recorded_part(runs, data, run_dir, watch, composed, recovered)
+        note = f"\nsummary of what was recorded: {run_dir / 'summary.json'}" if summary else ""
+        raise RunInterruptedError(watch.interrupted + note, watch.signals[0], summary)
     if watch.failure is not None:
-        summary = None
-        try:
-            summary = summarise_run(
-                runs, data, run_dir, watch, composed=composed, plots=False, recovered=recovered
-            )
-        except Exception as err:  # the bag may be too short to summarise
-            print(f"no summary of the recorded part: {err}", file=sys.stderr)
+        summary = _summary_of_the_recorded_part(runs, data, run_dir, watch, composed, recovered)
         note = f"\nsummary of what was recorded: {run_dir / 'summary.json'}" if summary else ""
         raise RunError(watch.failure + note, summary)
     if line is not None:
@@ -324,6 +337,24 @@ def run_scenario(
         runs, data, run_dir, watch, composed=composed, plots=plots, recovered=recovered
     )
     return RunResult(run_dir, steps, watch.wall_time_s, watch.exit_codes, summary)
+
+
+def _summary_of_the_recorded_part(
+    runs: list[_AxisRun],
+    data: dict[str, Any],
+    run_dir: Path,
+    watch: _Watch,
+    composed: bool,
+    recovered: set[str],
+) -> RunSummary | AxesSummary | None:
+    """``summary.json`` of a failed or interrupted run (no plots); None if the bag does not allow one."""
+    try:
+        return summarise_run(
+            runs, data, run_dir, watch, composed=composed, plots=False, recovered=recovered
+        )
+    except Exception as err:  # the bag may be too short to summarise
+        print(f"no summary of the recorded part: {err}", file=sys.stderr)
+        return None
 
 
 def _recover_bags(runs: list[_AxisRun]) -> set[str]:
@@ -344,9 +375,19 @@ def _new_run_dir(out_dir: Path | None, name: str) -> Path:
     if out_dir is None:
         out_dir = Path("runs") / f"{name}-{time.strftime('%Y%m%d-%H%M%S')}"
     out_dir = out_dir.resolve()
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ConfigError(f"--out {out_dir}: exists and is not a directory")
     if out_dir.exists() and any(out_dir.iterdir()):
         raise ConfigError(f"--out {out_dir}: exists and is not empty")
     return out_dir
+
+
+def _create_run_dir(run_dir: Path) -> None:
+    """Create the run directory, or :class:`ConfigError` naming ``--out`` and the OS's reason."""
+    try:
+        run_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise ConfigError(f"--out {run_dir}: cannot create it: {err}") from None
 
 
 def prepare_axis_runs(
@@ -376,6 +417,7 @@ def prepare_axis_runs(
         _check_sections(view, run_dir / axis, scenario_path.parent, external)
     if not axes:
         _check_sections(scenario, run_dir, scenario_path.parent, external)
+    _create_run_dir(run_dir)
     return [
         _prepare_axis(scenario, scenario_path, run_dir, axis, namespace, extra_args or [], external)
         for axis in axes or [""]
@@ -686,6 +728,7 @@ def summarise_run(
         reports = read_health(run.log_dir)
         health = assess(
             failure=watch.failure,
+            interrupted=watch.interrupted,
             deaths=run.deaths,
             reports=reports,
             faults=len(summary.faults),
@@ -702,6 +745,7 @@ def summarise_run(
         return per_axis[""]
     health = assess(
         failure=watch.failure,
+        interrupted=watch.interrupted,
         deaths=all_deaths,
         reports=all_reports,
         faults=sum(len(s.faults) for s in per_axis.values()),

@@ -1,7 +1,7 @@
 """Conversions between wire messages and plain samples: pure functions.
 
 Only ``sensor_msgs/JointState``, ``std_msgs/Float64MultiArray`` and
-``rosgraph_msgs/Clock`` cross the wire (DESIGN 3). Every per-sample signal
+``rosgraph_msgs/Clock`` cross the wire (docs/design.md section 3). Every per-sample signal
 is a JointState whose ``header.stamp`` is the sample's simulation time
 ``k * T_u``; the step ``k`` is recovered from the stamp exactly (integer
 nanoseconds). A JointState carries only what it defines, in SI units (REP

@@ -66,7 +66,22 @@ def test_a_fault_outranks_a_fallback_and_a_failure_outranks_both() -> None:
     assert fault.exit_code == EXIT_FAULT and fault.outcome == "complete"
     failed = assess(failure="plant exited with code -9:\nlog", deaths=[], reports={}, faults=1)
     assert failed.exit_code == EXIT_FAILED
-    assert failed.outcome == "stopped: plant exited with code -9:" and not failed.deterministic
+    assert failed.outcome == "failed" and not failed.deterministic
+    assert failed.reasons[0] == "stopped: plant exited with code -9:"
+
+
+def test_an_interruption_outranks_everything_and_takes_the_signal_s_exit_code() -> None:
+    for name, code in (("SIGINT", 130), ("SIGTERM", 143)):
+        health = assess(
+            failure=None,
+            interrupted=f"interrupted by {name} at step 12 of 100; the nodes were stopped",
+            deaths=[],
+            reports={},
+            faults=1,
+        )
+        assert health.outcome == "interrupted" and health.exit_code == code
+        assert health.reasons[0].startswith(f"interrupted by {name} at step 12 of 100")
+        assert not health.deterministic
 
 
 def test_health_round_trips_through_json_and_report_files(tmp_path) -> None:

@@ -11,7 +11,7 @@ per reference sample, as many as states), the state advances over ``T_r`` as
     ``[u[2i], u[2i+1]]^T = B^-1 (x_d[i+1] - A x_d[i])``
 
 makes the nominal state equal the target ``x_d`` at every reference instant
-(DESIGN 1). The nominal output between them is the feedback reference.
+(docs/design.md section 1). The nominal output between them is the feedback reference.
 
 The nominal model can be replaced from a given reference instant on
 (:meth:`MultiratePtc.replace_model`): the adaptive PTC of paper 003 eq. (11)

@@ -66,7 +66,7 @@ WEIGHT_SUM_TOLERANCE = 1e-9
 
 #: Default ``C`` (1/s): a slipping element's deficit decays as ``exp(-C t)``, i.e. over
 #: ``v / C`` of travel; five of these (0.7 % left) are 0.1 um at 10 mm/s, 1/100 of the
-#: ~10 um pre-sliding distance of the ball-screw axis (DESIGN 7; 15 um in paper 004
+#: ~10 um pre-sliding distance of the ball-screw axis (docs/design.md section 7; 15 um in paper 004
 #: Fig. 4(b)). At the slow reversals of an identification run it is the rate-independent
 #: limit ``C -> infinity`` to a few nm.
 DEFAULT_ATTRACTION_PER_S = 5e5

@@ -36,7 +36,7 @@ class FrictionParams:
     presliding_width_m : float
         Displacement from a reversal, at the table, after which the rolling
         friction reaches its Coulomb level on the virgin curve (region A), m,
-        > 0. About 10 um for the ball-screw X axis (DESIGN 7).
+        > 0. About 10 um for the ball-screw X axis (docs/design.md section 7).
     elements : int
         Number of Maxwell-slip elements, 1..200. The virgin curve is
         piecewise linear with this many knots.

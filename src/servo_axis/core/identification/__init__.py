@@ -2,7 +2,7 @@
 
 An identifier consumes the state stream at its own period (``T_RLS``) and
 publishes estimates that take effect in the feedforward from a step fixed by
-configuration (DESIGN 4): the PTC's model is replaced from that step on
+configuration (docs/design.md section 4): the PTC's model is replaced from that step on
 (:meth:`servo_axis.core.feedforward.ptc.MultiratePtc.replace_model`). An
 identifier is a module here (numerics: regression, RLS, PE index) plus its
 registration in :mod:`servo_axis.params.factories`, and its node under

@@ -5,7 +5,7 @@ eq. (30) of paper 000::
 
     P(s) = [ K_T / (J s^2 + D s) + sum_i K_i / (s^2 + 2 zeta_i w_i s + w_i^2) ] e^{-T_d s}
 
-with ``K_i = a_i K_T / J`` (DESIGN 7). The table position is ``x = R theta``
+with ``K_i = a_i K_T / J`` (docs/design.md section 7). The table position is ``x = R theta``
 (rigid screw; the elastic two-inertia axis of paper 004 is a separate model).
 Friction and an injectable disturbance act as input torques at the motor and
 so pass through the whole of ``P(s)``, as the paper injects rolling friction
@@ -41,7 +41,7 @@ from servo_axis.core.friction.model import FrictionModel, FrictionParams
 from servo_axis.core.models.base import PlantOutput, clipped_current, sim_steps, whole_ratio, zoh
 from servo_axis.core.sensors import PositionSensor, SensorParams
 
-#: Resonance modes of DESIGN 7 (paper 000 Table I did not survive; our choice):
+#: Resonance modes of docs/design.md section 7 (paper 000 Table I did not survive; our choice):
 #: (frequency Hz, damping ratio, relative gain a_i).
 BALL_SCREW_MODES: tuple[tuple[float, float, float], ...] = (
     (180.0, 0.05, 0.3),
@@ -82,7 +82,7 @@ class DisturbanceParams:
 
 @dataclass(frozen=True, kw_only=True)
 class BallScrewParams:
-    """Physical parameters of the ball-screw axis (defaults: DESIGN 7, X axis of paper 000).
+    """Physical parameters of the ball-screw axis (defaults: docs/design.md section 7, X axis of paper 000).
 
     Parameters
     ----------
