@@ -6,8 +6,11 @@
   wrong type, NaN/inf or a value out of range raises
   :class:`ParameterFileError` naming the full key, in the constructor,
   before any publisher exists. The given keys are read through public rclpy
-  API (``automatically_declare_parameters_from_overrides``); the rest of the
-  schema is declared with its default so that ``ros2 param`` would show it.
+  API (``automatically_declare_parameters_from_overrides``); then every key
+  of the schema is declared (the rest with its default) with a read-only
+  descriptor made from the schema (:mod:`servo_axis.nodes.parameters`:
+  meaning, unit, range), so that ``ros2 param describe`` shows it and a
+  ``ros2 param set`` while running is refused with a reason.
 * Input: :meth:`ServoNode.subscribe` decodes and validates each message
   with a pure function of :mod:`servo_axis.wire.messages` before the
   node's handler sees it; a message that fails is dropped, counted
@@ -38,12 +41,13 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, Protocol, TypeVar
 
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.publisher import Publisher
 from rclpy.qos import QoSProfile
 from rclpy.subscription import Subscription
@@ -52,6 +56,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 from servo_axis.core.errors import SignalError
+from servo_axis.nodes.parameters import descriptor
 from servo_axis.nodes.runtime import (
     LATCHED_QOS,
     LATCHED_READ_QOS,
@@ -59,8 +64,8 @@ from servo_axis.nodes.runtime import (
     Throttle,
     steady_clock,
 )
-from servo_axis.params.factories import checked_values
-from servo_axis.params.schema import BUILTIN
+from servo_axis.params.factories import checked_values, node_schema
+from servo_axis.params.schema import BUILTIN, Param
 from servo_axis.wire import topics
 from servo_axis.wire.health import Fallback, NodeHealth, write_health
 from servo_axis.wire.streams import StreamGate
@@ -119,7 +124,6 @@ class ServoNode(Node):
     def __init__(self, role: str, **kwargs: Any) -> None:
         super().__init__(
             role,
-            allow_undeclared_parameters=True,
             automatically_declare_parameters_from_overrides=True,
             **kwargs,
         )
@@ -129,9 +133,7 @@ class ServoNode(Node):
             if name not in BUILTIN
         }
         self.values: dict[str, Any] = checked_values(role, given)
-        for name, value in self.values.items():
-            if name not in given and not (isinstance(value, list) and not value):
-                self.declare_parameter(name, value)
+        self._describe_parameters(node_schema(role, given), set(given))
         self.rejected = 0
         self.health = NodeHealth(role)
         self._report_dir = Path(self.values["report_dir"]) if self.values["report_dir"] else None
@@ -145,6 +147,25 @@ class ServoNode(Node):
         self._matched_since: dict[str, float] = {}
         self._prefix: bytes | None = None
         self.create_timer(STRANGER_CHECK_S, self._check_strangers, clock=steady_clock())
+
+    def _describe_parameters(self, schema: Mapping[str, Param], given: set[str]) -> None:
+        """Declare every schema key with its descriptor (read-only) and its checked value.
+
+        The given keys were declared from the overrides without a descriptor:
+        they get theirs now, with the checked value (an integer given for a
+        number becomes that number). The others are declared with their
+        default; an empty list, whose type rclpy cannot infer, is declared by
+        its type (its value is then not set).
+        """
+        for name, param in schema.items():
+            desc = descriptor(name, param)
+            value = Parameter(name, Parameter.Type(desc.type), self.values[name])
+            if name in given:
+                self.set_descriptor(name, desc, value.get_parameter_value())
+            elif isinstance(self.values[name], list) and not self.values[name]:
+                self.declare_parameter(name, Parameter.Type(desc.type), desc)
+            else:
+                self.declare_parameter(name, value.value, desc, ignore_override=True)
 
     def publisher(self, name: str) -> Publisher:
         """A publisher of table topic ``name`` with its type and QoS."""
