@@ -35,6 +35,10 @@
   discovered.
 * Report: :mod:`servo_axis.wire.health`, written to ``report_dir`` on each
   fallback, on each new stranger and when the node closes.
+* Diagnostics: about once a second of wall time and when it closes, a
+  ``DiagnosticArray`` on ``/diagnostics`` (:mod:`servo_axis.nodes.diagnostics`):
+  the report above with a level, and what :meth:`ServoNode.diagnostic_values`
+  adds.
 * QoS and message types come from the topic table (:mod:`servo_axis.wire.topics`).
 """
 
@@ -45,6 +49,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, Protocol, TypeVar
 
+from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -56,6 +61,13 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 from servo_axis.core.errors import SignalError
+from servo_axis.nodes.diagnostics import (
+    DIAGNOSTICS_PERIOD_S,
+    DIAGNOSTICS_TOPIC,
+    Status,
+    diagnostic_array,
+    node_status,
+)
 from servo_axis.nodes.parameters import descriptor
 from servo_axis.nodes.runtime import (
     LATCHED_QOS,
@@ -147,6 +159,9 @@ class ServoNode(Node):
         self._matched_since: dict[str, float] = {}
         self._prefix: bytes | None = None
         self.create_timer(STRANGER_CHECK_S, self._check_strangers, clock=steady_clock())
+        # Default QoS (reliable, volatile, keep-last 10), as ROS's diagnostics tools use.
+        self._diagnostics_pub = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, 10)
+        self.create_timer(DIAGNOSTICS_PERIOD_S, self.publish_diagnostics, clock=steady_clock())
 
     def _describe_parameters(self, schema: Mapping[str, Param], given: set[str]) -> None:
         """Declare every schema key with its descriptor (read-only) and its checked value.
@@ -376,9 +391,42 @@ class ServoNode(Node):
         except OSError as err:
             self.get_logger().error(f"cannot write the health report: {err}")
 
+    # -- diagnostics -------------------------------------------------------------
+    def diagnostic_values(self) -> list[tuple[str, Any]]:
+        """The node's own state on ``/diagnostics`` (a node adds its own: step, mode, ...)."""
+        return []
+
+    def diagnostic_error(self) -> str | None:
+        """An error the node is in (one line: its status is then ERROR), None if none."""
+        return None
+
+    def diagnostic_stamp_ns(self) -> int:
+        """The stamp of a status: the node's clock (simulation time with ``use_sim_time``)."""
+        return int(self.get_clock().now().nanoseconds)
+
+    def diagnostic_status(self) -> Status:
+        """What the node's next ``/diagnostics`` status says."""
+        return node_status(self.health, self.diagnostic_values(), self.diagnostic_error())
+
+    def publish_diagnostics(self) -> None:
+        """Publish the node's status on ``/diagnostics`` (:mod:`servo_axis.nodes.diagnostics`)."""
+        self._diagnostics_pub.publish(
+            diagnostic_array(
+                self.diagnostic_status(),
+                name=self.get_fully_qualified_name(),
+                hardware_id=str(self.values["axis"]),
+                stamp_ns=self.diagnostic_stamp_ns(),
+            )
+        )
+
     def close(self) -> None:
-        """Called once when the node's process ends: write the report."""
+        """Called once when the node's process ends: write the report, a last status."""
         self.write_report()
+        if self.context.ok():
+            try:
+                self.publish_diagnostics()
+            except Exception as err:  # the context may be going down
+                self.get_logger().warning(f"no last /diagnostics status: {err}")
 
 
 def _plain(value: Any) -> Any:
