@@ -205,7 +205,11 @@ def main(argv: list[str] | None = None) -> int:
     run.add_argument(
         "--domain-id", type=int, default=None, help="ROS_DOMAIN_ID (default: from env or pid)"
     )
-    run.add_argument("--namespace", default="", help="namespace of the axis, e.g. /x")
+    run.add_argument(
+        "--namespace",
+        default="",
+        help="ROS namespace of a single-axis run (default /<axis>, e.g. /x; / for the root)",
+    )
     run.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     run.add_argument(
         "--respawn-limit",

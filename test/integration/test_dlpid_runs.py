@@ -92,12 +92,12 @@ def test_the_four_schemes_are_their_plain_call_loops(ros_env: int, tmp_path: Pat
         assert_array_equal(got["estimates"], core.estimates)
         counts = summary.message_counts
         if scheme == "pid":
-            assert "/identifier/estimates" not in counts and summary.identification is None
+            assert "/tilt/identifier/estimates" not in counts and summary.identification is None
         else:
             # One estimate per T_RLS = 10 samples, none applying after the run.
             steps = summary.steps
             expected = sum(1 for k in range(9, steps, 10) if k + 11 < steps)
-            assert counts["/identifier/estimates"] == expected == len(core.estimates)
+            assert counts["/tilt/identifier/estimates"] == expected == len(core.estimates)
             ident = summary.identification
             assert ident is not None and ident.estimates == expected
             assert_allclose(ident.final.inertia_kgm2, core.estimates[-1, 2], rtol=0)

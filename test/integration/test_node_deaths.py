@@ -114,7 +114,7 @@ def _assert_reaped_and_readable(k: Killed) -> None:
 
     with Reader(k.run_dir / "bag") as reader:
         counts = {c.topic: c.msgcount for c in reader.connections}
-        assert counts["/state"] > 0
+        assert counts["/x/state"] > 0
         n = sum(1 for _ in reader.messages())
     assert n == sum(counts.values())
 
