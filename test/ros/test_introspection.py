@@ -134,3 +134,39 @@ def test_parameters_are_described_and_refuse_a_set_while_running(context: Contex
     finally:
         probe.destroy_node()
         plant.destroy_node()
+
+
+def every_schema() -> list[tuple[str, Any]]:
+    """``(role/choice, schema)`` for every role and every plant model, law and method."""
+    from servo_axis.params.factories import (
+        IDENTIFIERS,
+        LEARNING_LAWS,
+        NODE_SCHEMAS,
+        PLANT_MODELS,
+        node_schema,
+    )
+
+    out = [(role, node_schema(role, {})) for role in NODE_SCHEMAS]
+    out += [(f"plant/{m}", node_schema("plant", {"model": m})) for m in PLANT_MODELS]
+    out += [(f"learning/{law}", node_schema("learning", {"law": law})) for law in LEARNING_LAWS]
+    out += [(f"identifier/{m}", node_schema("identifier", {"method": m})) for m in IDENTIFIERS]
+    return out
+
+
+@pytest.mark.parametrize(
+    ("where", "schema"), every_schema(), ids=lambda x: x if isinstance(x, str) else ""
+)
+def test_every_key_gets_a_descriptor_whose_range_holds_its_default(where: str, schema: Any) -> None:
+    from servo_axis.nodes.parameters import descriptor
+
+    for name, param in schema.items():
+        d = descriptor(name, param)
+        assert d.read_only and d.name == name and d.description, (where, name)
+        assert param.meaning in d.description, (where, name)
+        assert not param.unit or f"[{param.unit}]" in d.description, (where, name)
+        default = param.default if isinstance(param.default, list) else [param.default]
+        for x in default:
+            for r in [*d.floating_point_range, *d.integer_range]:
+                assert r.from_value <= x <= r.to_value, (where, name, x, r)
+        if param.above is not None and not d.integer_range and param.minimum is None:
+            assert "itself is refused" in d.description, (where, name)
