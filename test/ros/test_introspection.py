@@ -1,4 +1,4 @@
-"""ROS introspection of a node: its parameters described and read-only, seen through services."""
+"""ROS introspection of a node: parameters described and read-only, its /diagnostics levels."""
 
 from __future__ import annotations
 
@@ -170,3 +170,53 @@ def test_every_key_gets_a_descriptor_whose_range_holds_its_default(where: str, s
                 assert r.from_value <= x <= r.to_value, (where, name, x, r)
         if param.above is not None and not d.integer_range and param.minimum is None:
             assert "itself is refused" in d.description, (where, name)
+
+
+def test_diagnostics_levels_of_a_node_seen_by_a_default_qos_subscriber(context: Context) -> None:
+    """OK, then WARN after a rejected message, then ERROR after a trip, on /diagnostics."""
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+
+    from servo_axis.core.feedback.loop import Fault
+    from servo_axis.nodes.feedback import FeedbackNode
+
+    feedback = FeedbackNode(context=context, namespace="/y")
+    probe = rclpy.create_node("probe", context=context)
+    got: list[DiagnosticStatus] = []
+    sub = probe.create_subscription(
+        DiagnosticArray, "/diagnostics", lambda m: got.extend(m.status), 10
+    )
+    ex = SingleThreadedExecutor(context=context)
+    ex.add_node(feedback)
+    ex.add_node(probe)
+
+    def publish_and_read() -> DiagnosticStatus:
+        got.clear()
+        feedback.publish_diagnostics()
+        deadline = time.monotonic() + 10
+        while not any(s.name == "/y/feedback" for s in got):
+            assert time.monotonic() < deadline, "no status"
+            ex.spin_once(timeout_sec=0.02)
+        return [s for s in got if s.name == "/y/feedback"][-1]
+
+    try:
+        deadline = time.monotonic() + 10
+        while sub.get_publisher_count() < 1:
+            assert time.monotonic() < deadline, "not matched"
+            ex.spin_once(timeout_sec=0.02)
+        ok = publish_and_read()
+        assert ok.level == DiagnosticStatus.OK and ok.hardware_id == "x"
+        feedback.reject("state", "state rejected: junk")
+        warn = publish_and_read()
+        assert warn.level == DiagnosticStatus.WARN
+        assert warn.message == "1 messages rejected (1 state)"
+        feedback.loop.trip(Fault.FOLLOWING_ERROR)
+        error = publish_and_read()
+        assert error.level == DiagnosticStatus.ERROR
+        assert error.message.startswith("tripped: following_error")
+        values = {kv.key: kv.value for kv in error.values}
+        assert values["tripped"] == "true" and values["fault"] == "following_error"
+        assert values["rejected state"] == "1"
+    finally:
+        ex.shutdown()
+        probe.destroy_node()
+        feedback.destroy_node()
