@@ -362,14 +362,25 @@ def test_namespaced_composed_run_leaves_nothing_behind(ros_env: int, tmp_path: P
         out_dir=tmp_path / "ns",
         domain_id=ros_env,
         composed=True,
-        namespace="/x",
+        namespace="/bench",  # instead of the default /<axis>
         progress=None,
         plots=False,
     )
     counts = result.summary.message_counts
-    assert counts["/x/state"] == counts["/x/command"] == counts["/x/reference"] == 300
+    assert counts["/bench/state"] == counts["/bench/command"] == counts["/bench/reference"] == 300
     assert counts["/clock"] == 30  # the clock stays global
-    assert result.exit_codes == {"composed": 0}
+    root = run_scenario(
+        scenario,
+        out_dir=tmp_path / "root",
+        domain_id=ros_env,
+        composed=True,
+        namespace="/",  # the root
+        progress=None,
+        plots=False,
+    )
+    counts = root.summary.message_counts
+    assert counts["/state"] == counts["/command"] == counts["/reference"] == 300
+    assert result.exit_codes == root.exit_codes == {"composed": 0}
     # UDP transport: no shared-memory files, so none can be left behind.
     assert {p.name for p in Path("/dev/shm").glob("fastrtps_*")} - shm_before == set()
     leftovers = subprocess.run(
