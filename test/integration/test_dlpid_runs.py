@@ -49,14 +49,14 @@ def recorded(run_dir: Path) -> dict[str, Any]:
     command: dict[int, float] = {}
     estimates: list[list[float]] = []
     for m in read_raw(run_dir / "bag"):
-        if m.topic in ("/state", "/command"):
+        if m.topic in ("/tilt/state", "/tilt/command"):
             js = cdr.decode("sensor_msgs/msg/JointState", m.data)
             step = js.stamp_ns // round(TU * 1e9)
-            if m.topic == "/state":
+            if m.topic == "/tilt/state":
                 state[step] = js.position[0]
             else:
                 command[step] = js.effort[0]
-        elif m.topic == "/identifier/estimates":
+        elif m.topic == "/tilt/identifier/estimates":
             arr = cdr.decode("std_msgs/msg/Float64MultiArray", m.data)
             estimates.append(list(arr.data))
     return {
@@ -126,7 +126,7 @@ def test_identical_bags_run_after_run_and_composed(
         assert result.exit_code == 0, name
         bags.append(raw_payloads(result.run_dir / "bag"))
     first = bags[0]
-    assert "/identifier/estimates" in first and len(first["/identifier/estimates"]) > 100
+    assert "/tilt/identifier/estimates" in first and len(first["/tilt/identifier/estimates"]) > 100
     for other in bags[1:]:
         assert set(other) == set(first)
         for topic in first:
