@@ -43,6 +43,13 @@ machines are shared and noisy, so only ratios within one run compare.
 """
 
 
+def table_count(counts: dict[str, int], name: str) -> int:
+    """Messages of table topic ``name`` in a summary's counts, whatever the run's namespace."""
+    from servo_axis.analysis.signals import table_name
+
+    return sum(n for topic, n in counts.items() if table_name(topic) == name)
+
+
 def pong() -> None:
     """Child process: echo every ``ping`` on ``pong``."""
     import rclpy
@@ -167,7 +174,7 @@ def learning_cost(
     spread = "; ".join(
         f"{n}: " + ", ".join(f"{v:,.0f}" for v in vals) for n, vals in samples.items()
     )
-    periods = r.summary.message_counts.get("/learning/cycle_stats", 0)
+    periods = table_count(r.summary.message_counts, "learning/cycle_stats")
     stall_ms = 1e3 * (steps / with_ - steps / base) / max(periods, 1)
     law_ms = law_cost_ms(data, scenario)
     text = (
@@ -265,7 +272,7 @@ def identifier_cost(
         f"{n}: " + ", ".join(f"{v:,.0f}" for v in vals) for n, vals in samples.items()
     )
     base, with_ = rates["without identifier"], rates["with identifier"]
-    estimates = last.summary.message_counts.get("/identifier/estimates", 0)
+    estimates = table_count(last.summary.message_counts, "identifier/estimates")
     text = (
         f"{table_text}\n\nMedians of {args.repeat} alternating runs ({spread} steps/s).\n"
         f"Cost of the identifier: {100 * (1 - with_ / base):.1f} % of the steps/s "

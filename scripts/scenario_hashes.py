@@ -8,7 +8,10 @@ per recorded topic::
 
     <scenario> <topic> <message count> <sha256 of the CDR payloads in recorded order>
 
-A multi-axis scenario's topics carry their axis namespace. The output of the
+A multi-axis scenario's topics carry their axis namespace (``/x/state``); a
+single-axis run's topics are named relative to its namespace (``/x/state`` of
+a run is ``/state`` here), so that the lines compare the payloads, whatever
+the namespace the run puts its nodes in. The output of the
 commit before a restructure is kept in ``test/data/scenario_hashes.txt``;
 ``--check`` compares a fresh run against it and exits 1 on any difference:
 
@@ -65,9 +68,22 @@ def scenario_lines(scenario: Path, work: Path, domain_id: int, composed: bool) -
         raise SystemExit(f"{scenario.name}: run exited {code}")
     lines = []
     for bag in run_dirs_with_bags(out):
+        # A single-axis run is namespaced (/x/state); its lines name the
+        # topics relative to that namespace (/state), as they always have.
+        ns = single_axis_ns(scenario) if bag == out / "bag" else ""
         for topic, (count, digest) in bag_hashes(bag).items():
+            if ns and topic.startswith(ns + "/"):
+                topic = topic[len(ns) :]
             lines.append(f"{scenario.stem} {topic} {count} {digest}")
     return lines
+
+
+def single_axis_ns(scenario: Path) -> str:
+    """The namespace a single-axis run of ``scenario`` puts its nodes in (``/<axis>``)."""
+    from servo_axis.params.scenario import load_scenario
+    from servo_axis.run.runner import single_axis_namespace
+
+    return single_axis_namespace(load_scenario(scenario))
 
 
 def main() -> int:

@@ -365,8 +365,8 @@ def build_parser(prog: str = "python -m servo_axis") -> argparse.ArgumentParser:
         "--namespace",
         type=_namespace,
         default="",
-        help="ROS namespace of a single-axis run's nodes and topics, absolute, e.g. /x "
-        "(default: none)",
+        help="ROS namespace of a single-axis run's nodes and topics, absolute "
+        "(default /<axis>, e.g. /x; / for the root)",
     )
     run.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     run.add_argument(

@@ -49,14 +49,14 @@ def recorded(run_dir: Path) -> dict[str, Any]:
     command: dict[int, float] = {}
     estimates: list[list[float]] = []
     for m in read_raw(run_dir / "bag"):
-        if m.topic in ("/state", "/command"):
+        if m.topic in ("/tilt/state", "/tilt/command"):
             js = cdr.decode("sensor_msgs/msg/JointState", m.data)
             step = js.stamp_ns // round(TU * 1e9)
-            if m.topic == "/state":
+            if m.topic == "/tilt/state":
                 state[step] = js.position[0]
             else:
                 command[step] = js.effort[0]
-        elif m.topic == "/identifier/estimates":
+        elif m.topic == "/tilt/identifier/estimates":
             arr = cdr.decode("std_msgs/msg/Float64MultiArray", m.data)
             estimates.append(list(arr.data))
     return {
@@ -92,12 +92,12 @@ def test_the_four_schemes_are_their_plain_call_loops(ros_env: int, tmp_path: Pat
         assert_array_equal(got["estimates"], core.estimates)
         counts = summary.message_counts
         if scheme == "pid":
-            assert "/identifier/estimates" not in counts and summary.identification is None
+            assert "/tilt/identifier/estimates" not in counts and summary.identification is None
         else:
             # One estimate per T_RLS = 10 samples, none applying after the run.
             steps = summary.steps
             expected = sum(1 for k in range(9, steps, 10) if k + 11 < steps)
-            assert counts["/identifier/estimates"] == expected == len(core.estimates)
+            assert counts["/tilt/identifier/estimates"] == expected == len(core.estimates)
             ident = summary.identification
             assert ident is not None and ident.estimates == expected
             assert_allclose(ident.final.inertia_kgm2, core.estimates[-1, 2], rtol=0)
@@ -126,7 +126,7 @@ def test_identical_bags_run_after_run_and_composed(
         assert result.exit_code == 0, name
         bags.append(raw_payloads(result.run_dir / "bag"))
     first = bags[0]
-    assert "/identifier/estimates" in first and len(first["/identifier/estimates"]) > 100
+    assert "/tilt/identifier/estimates" in first and len(first["/tilt/identifier/estimates"]) > 100
     for other in bags[1:]:
         assert set(other) == set(first)
         for topic in first:

@@ -69,10 +69,10 @@ def joint_streams(run_dir: Path) -> dict[str, dict[int, Any]]:
     """
     out: dict[str, dict[int, Any]] = {}
     for m in read_raw(run_dir / "bag"):
-        if m.topic in ("/state", "/command"):
+        if m.topic in ("/x/state", "/x/command"):
             js = cdr.decode("sensor_msgs/msg/JointState", m.data)
             out.setdefault(m.topic, {})[js.stamp_ns // TU_NS] = js
-        elif m.topic == "/deformation":
+        elif m.topic == "/x/deformation":
             array = cdr.decode("std_msgs/msg/Float64MultiArray", m.data)
             values = cdr.labelled_values(array, cdr.DEFORMATION_LABELS)
             out.setdefault(m.topic, {})[cdr.check_deformation_values(values)] = array
@@ -103,9 +103,9 @@ def test_gms_and_sigmoid_at_slow_and_fast_reversals(ros_env: int, tmp_path: Path
         core = simulate(path)
         got = joint_streams(run_dir)
         # Bit for bit the plain-call loop: readings and commands.
-        assert_array_equal(series(got["/state"], "position", 0), core.encoder_rad)
-        assert_array_equal(series(got["/state"], "position", 1), core.scale_m)
-        assert_array_equal(series(got["/command"], "effort", 0), core.command_Nm)
+        assert_array_equal(series(got["/x/state"], "position", 0), core.encoder_rad)
+        assert_array_equal(series(got["/x/state"], "position", 1), core.scale_m)
+        assert_array_equal(series(got["/x/command"], "effort", 0), core.command_Nm)
         peaks[name] = max_after_first_cycle(run_dir)
         # the summary's figure is the one of the plain-call loop (table side)
         error = np.abs(R * core.reference_rad - core.scale_m)[len(core.scale_m) // 2 :]
@@ -153,7 +153,7 @@ def test_fast_reversal_sigmoid_bags_are_identical_separate_and_composed(
         cli(ros_env, tmp_path, "run", str(path), "--out", str(tmp_path / name), *extra)
         bags.append(raw_payloads(tmp_path / name / "bag"))
     first = bags[0]
-    assert len(first["/deformation"]) == len(first["/state"]) == 4000
+    assert len(first["/x/deformation"]) == len(first["/x/state"]) == 4000
     for other in bags[1:]:
         assert set(other) == set(first)
         for topic in first:
@@ -164,9 +164,11 @@ def test_deformation_cases_show_the_finding_of_fig_11(ros_env: int, tmp_path: Pa
     run_dir = tmp_path / "cases"
     cli(ros_env, tmp_path, "run", str(CONFIG / "deformation_cases.yaml"), "--out", str(run_dir))
     got = joint_streams(run_dir)
-    encoder = series(got["/state"], "position", 0)
-    scale = series(got["/state"], "position", 1)
-    published = np.array([got["/deformation"][k].data[1:] for k in range(len(got["/deformation"]))])
+    encoder = series(got["/x/state"], "position", 0)
+    scale = series(got["/x/state"], "position", 1)
+    published = np.array(
+        [got["/x/deformation"][k].data[1:] for k in range(len(got["/x/deformation"]))]
+    )
     # The published d_r is eqs. (5)-(7) of the recorded readings, bit for bit.
     trace = deformation_ratio(
         encoder, scale, window_samples=10, lead_m_per_rad=R, min_rotation_rad=1e-3
@@ -221,4 +223,4 @@ def test_a_gms_file_of_another_plant_stops_the_run_before_the_axis_moves(
     assert done.returncode != 0
     assert "parameter 'gms.file'" in done.stdout + done.stderr
     assert "identified on plant" in done.stdout + done.stderr
-    assert not any(m.topic == "/command" for m in read_raw(tmp_path / "run" / "bag"))
+    assert not any(m.topic == "/x/command" for m in read_raw(tmp_path / "run" / "bag"))

@@ -52,12 +52,12 @@ def test_projection_ilc_carries_over_to_a_new_reference(
         assert runs[law].exit_code == 0
         counts = summary.message_counts
         # f_{j+1} per control sample for trials 2..7; nothing after the last.
-        assert counts["/learning/input_correction"] == (TRIALS - 1) * N
-        assert counts["/learning/cycle_stats"] == TRIALS - 1
-        assert "/learning/correction" not in counts
+        assert counts["/x/learning/input_correction"] == (TRIALS - 1) * N
+        assert counts["/x/learning/cycle_stats"] == TRIALS - 1
+        assert "/x/learning/correction" not in counts
         if law != "silc":
-            assert counts["/learning/parameters"] == TRIALS - 1
-        assert ("/learning/friction_table" in counts) == (law == "bfft")
+            assert counts["/x/learning/parameters"] == TRIALS - 1
+        assert ("/x/learning/friction_table" in counts) == (law == "bfft")
         # The node graph is the plain-call loop, trial by trial (trials 1..6
         # are learned from; the error statistics come from the bag).
         rms, peak = per_trial(summary)
@@ -85,7 +85,7 @@ def test_projection_ilc_carries_over_to_a_new_reference(
         progress=None,
     )
     a, b = raw_payloads(runs["bfft"].run_dir / "bag"), raw_payloads(again.run_dir / "bag")
-    assert set(a) == set(b) and "/learning/friction_table" in a
+    assert set(a) == set(b) and "/x/learning/friction_table" in a
     for topic in a:
         assert a[topic] == b[topic], topic
     # What the law identified (001 eq. (14b)) is near the plant's J, D, T_c

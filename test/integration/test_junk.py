@@ -40,7 +40,13 @@ PERIOD_S = 0.001
 PERIOD_NS = 1_000_000
 CYCLE_STEPS = 500
 DURATION_S = 1.5  # 3 learning cycles of 0.5 s
-COMPARED = ("/state", "/command", "/reference", "/learning/correction", "/learning/cycle_stats")
+COMPARED = (
+    "/x/state",
+    "/x/command",
+    "/x/reference",
+    "/x/learning/correction",
+    "/x/learning/cycle_stats",
+)
 RUN_TIMEOUT_S = 40.0
 
 
@@ -103,7 +109,10 @@ class JunkPublisher:
         self.period_ns, self.axis, self.steps = period_ns, axis, steps
         self.context = rclpy.context.Context()
         rclpy.init(args=[], context=self.context, domain_id=domain)
-        self.node = rclpy.create_node("junk", context=self.context, enable_rosout=False)
+        # In the run's namespace (/<axis>, the default), so that it publishes on its topics.
+        self.node = rclpy.create_node(
+            "junk", namespace=f"/{axis}", context=self.context, enable_rosout=False
+        )
         classes = {"JointState": JointState, "Float64MultiArray": Float64MultiArray, "Clock": Clock}
         self.pubs: dict[str, Any] = {}
         for t in TOPICS:
@@ -322,15 +331,15 @@ def test_junk_on_every_topic_changes_no_stream_and_no_figure(ros_env: int, tmp_p
     assert all(junk.sent[job] > 0 for job in junk.jobs), junk.sent
     # The clean bag holds nothing to drop, and its streams are complete.
     assert sum(clean.dropped.values()) == 0, clean.first_reason
-    assert [k.step for k in clean.kept["/state"]] == list(range(1500))
-    assert [k.step for k in clean.kept["/learning/cycle_stats"]] == [1, 2]
+    assert [k.step for k in clean.kept["/x/state"]] == list(range(1500))
+    assert [k.step for k in clean.kept["/x/learning/cycle_stats"]] == [1, 2]
     # The junk run's own streams are the clean run's, byte for byte.
     for topic in COMPARED:
         got = [(k.step, k.data) for k in dirty.kept[topic]]
         want = [(k.step, k.data) for k in clean.kept[topic]]
         assert got == want, (topic, len(got), len(want), dirty.first_reason.get(topic))
     # The recorder recorded the junk too.
-    for topic in ("/state", "/command", "/reference", "/clock", "/plant/status"):
+    for topic in ("/x/state", "/x/command", "/x/reference", "/clock", "/x/plant/status"):
         assert dirty.counts[topic] > len(dirty.kept[topic]), topic
         assert dirty.dropped[topic] > 0, topic
     # The summary's figures are the clean run's.
@@ -379,11 +388,11 @@ def test_junk_on_every_topic_of_an_identifier_run_changes_no_stream_and_no_estim
     clean = read_streams(tmp_path / "clean" / "bag", rules)
     dirty = read_streams(tmp_path / "junk" / "bag", rules)
     assert sum(clean.dropped.values()) == 0, clean.first_reason
-    for topic in ("/state", "/command", "/reference", "/identifier/estimates"):
+    for topic in ("/tilt/state", "/tilt/command", "/tilt/reference", "/tilt/identifier/estimates"):
         got = [(k.step, k.data) for k in dirty.kept[topic]]
         want = [(k.step, k.data) for k in clean.kept[topic]]
         assert got == want, (topic, len(got), len(want), dirty.first_reason.get(topic))
-    assert dirty.dropped["/identifier/estimates"] > 0
+    assert dirty.dropped["/tilt/identifier/estimates"] > 0
     # The feedforward refused the junk estimates and said so in its report.
     report = (tmp_path / "junk" / "logs" / "feedforward.health.json").read_text()
     assert "identifier/estimates" in report

@@ -33,8 +33,8 @@ def test_n_times_filter_learns_n_times_faster_through_the_node_graph(
     )
     for run in (q3, q1):
         counts = run.summary.message_counts
-        assert counts["/learning/correction"] == 6 * 250  # one correction per cycle boundary
-        assert counts["/learning/cycle_stats"] == 6  # not for the cycle that ends the run
+        assert counts["/x/learning/correction"] == 6 * 250  # one correction per cycle boundary
+        assert counts["/x/learning/cycle_stats"] == 6  # not for the cycle that ends the run
         assert not run.summary.faults
         # Every boundary got its correction in time, the run's end included
         # (nothing is awaited for the cycle after it).
@@ -86,14 +86,14 @@ def test_detailed_axis_learns_and_is_deterministic(
     # learning messages included.
     a, b = raw_payloads(q5.run_dir / "bag"), raw_payloads(again.run_dir / "bag")
     for topic in (
-        "/state",
-        "/command",
-        "/reference",
-        "/learning/correction",
-        "/learning/cycle_stats",
+        "/x/state",
+        "/x/command",
+        "/x/reference",
+        "/x/learning/correction",
+        "/x/learning/cycle_stats",
     ):
         assert a[topic] == b[topic], topic
-    assert len(a["/learning/correction"]) == 5 * 250
+    assert len(a["/x/learning/correction"]) == 5 * 250
     # 000 Fig. 17/18 on one axis: the friction table takes the quadrant
     # glitch out of cycle 1, where nothing is learned yet; RPTC goes on from
     # there to below what RPTC alone reaches.

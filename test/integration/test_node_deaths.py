@@ -114,7 +114,7 @@ def _assert_reaped_and_readable(k: Killed) -> None:
 
     with Reader(k.run_dir / "bag") as reader:
         counts = {c.topic: c.msgcount for c in reader.connections}
-        assert counts["/state"] > 0
+        assert counts["/x/state"] > 0
         n = sum(1 for _ in reader.messages())
     assert n == sum(counts.values())
 
@@ -158,8 +158,8 @@ def test_killed_feedforward_trips_the_feedback_and_the_run_ends_safely(
     s = k.summary
     # The plant ran to the end on zero current (the summary's steps are the
     # ones with a reference too: those before the feedforward died).
-    assert s["message_counts"]["/state"] == STEPS
-    assert s["message_counts"]["/command"] == STEPS
+    assert s["message_counts"]["/x/state"] == STEPS
+    assert s["message_counts"]["/x/command"] == STEPS
     assert 0 < s["steps"] < STEPS
     (fault,) = s["faults"]
     assert fault["name"] == "input_timeout"
@@ -167,7 +167,7 @@ def test_killed_feedforward_trips_the_feedback_and_the_run_ends_safely(
     assert health["deaths"][0]["role"] == "feedforward"
     assert health["deaths"][0]["action"] == "ran on"
     with AnyReader([k.run_dir / "bag"]) as reader:
-        conns = [c for c in reader.connections if c.topic == "/command"]
+        conns = [c for c in reader.connections if c.topic == "/x/command"]
         current = np.array(
             [reader.deserialize(raw, c.msgtype).effort[0] for c, _, raw in reader.messages(conns)]
         )

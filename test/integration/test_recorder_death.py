@@ -81,7 +81,7 @@ def test_sigkilled_recorder_loses_at_most_half_a_second_and_the_bag_recovers(
         text=True,
         start_new_session=True,
     )
-    watcher = ProgressWatcher("/", domain_id=ros_env)
+    watcher = ProgressWatcher("/x", domain_id=ros_env)  # the run's default namespace /<axis>
     acks: list[tuple[float, int]] = []
     try:
         deadline = time.monotonic() + 90
@@ -133,7 +133,7 @@ def test_sigkilled_recorder_loses_at_most_half_a_second_and_the_bag_recovers(
 
     store = get_typestore(Stores.ROS2_JAZZY)
     with Reader(out / "bag") as reader:
-        (state_conn,) = [c for c in reader.connections if c.topic == "/state"]
+        (state_conn,) = [c for c in reader.connections if c.topic == "/x/state"]
         states = [
             (t, store.deserialize_cdr(raw, state_conn.msgtype).header.stamp)
             for _c, t, raw in reader.messages(connections=[state_conn])

@@ -75,7 +75,7 @@ def test_ptc_tracks_the_nominal_plant_and_pid_alone_does_not(ros_env: int, tmp_p
     for result in (ptc, pid):
         s = result.summary.to_dict()
         assert s["steps"] == steps
-        for topic in ("/state", "/command", "/reference"):
+        for topic in ("/x/state", "/x/command", "/x/reference"):
             assert s["message_counts"][topic] == steps  # the recorder lost nothing
         assert s["message_counts"]["/clock"] == steps // 10  # /clock every 10 samples
         assert not s["faults"]
@@ -106,13 +106,13 @@ def test_bag_reads_back_with_independent_readers(ros_env: int, tmp_path: Path) -
         states = [
             reader.deserialize(raw, conn.msgtype)
             for conn, _t, raw in reader.messages(
-                connections=[c for c in reader.connections if c.topic == "/state"]
+                connections=[c for c in reader.connections if c.topic == "/x/state"]
             )
         ]
-    assert {t: counts[t] for t in ("/state", "/command", "/reference", "/clock")} == {
-        "/state": 300,
-        "/command": 300,
-        "/reference": 300,
+    assert {t: counts[t] for t in ("/x/state", "/x/command", "/x/reference", "/clock")} == {
+        "/x/state": 300,
+        "/x/command": 300,
+        "/x/reference": 300,
         "/clock": 30,
     }
     assert [s.name for s in states[:1]] == [["x_motor", "x_table"]]
@@ -123,7 +123,7 @@ def test_bag_reads_back_with_independent_readers(ros_env: int, tmp_path: Path) -
         decoded = [
             m.decoded_message.effort[0]
             for m in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages(
-                topics=["/command"]
+                topics=["/x/command"]
             )
         ]
     assert len(decoded) == 300
@@ -148,12 +148,12 @@ def test_lockstep_runs_are_identical_separate_and_composed(
         for name, composed in (("a", False), ("b", False), ("c", True))
     ]
     payloads = [raw_payloads(r.run_dir / "bag") for r in runs]
-    for topic in ("/state", "/command", "/reference", "/clock", "/plant/status"):
-        assert len(payloads[0][topic]) == {"/clock": 60, "/plant/status": 12}.get(topic, 600)
+    for topic in ("/x/state", "/x/command", "/x/reference", "/clock", "/x/plant/status"):
+        assert len(payloads[0][topic]) == {"/clock": 60, "/x/plant/status": 12}.get(topic, 600)
         assert payloads[0][topic] == payloads[1][topic], f"{topic}: separate runs differ"
         assert payloads[0][topic] == payloads[2][topic], f"{topic}: composed differs from separate"
     # Not trivially equal: the friction makes the commands vary.
-    assert len(set(payloads[0]["/command"])) > 500
+    assert len(set(payloads[0]["/x/command"])) > 500
 
 
 def test_friction_table_halves_the_quadrant_glitches(ros_env: int, tmp_path: Path) -> None:
@@ -344,12 +344,12 @@ def test_realtime_mode_keeps_wall_time_and_counts_misses(ros_env: int, tmp_path:
         scenario, out_dir=tmp_path / "rt", domain_id=ros_env, progress=None, plots=False
     )
     s = result.summary.to_dict()
-    assert s["message_counts"]["/state"] == 1000
+    assert s["message_counts"]["/x/state"] == 1000
     assert 0.5 < s["realtime_factor"] < 1.1
     from servo_axis.recording.deserialize import read_messages
 
     status = [
-        m.message.data for m in read_messages(result.run_dir / "bag", topics=["/plant/status"])
+        m.message.data for m in read_messages(result.run_dir / "bag", topics=["/x/plant/status"])
     ]
     assert status, "plant/status was not published"
     assert status[-1][0] == 1000 and status[-1][1] >= 0  # the final status, at step N
@@ -363,14 +363,25 @@ def test_namespaced_composed_run_leaves_nothing_behind(ros_env: int, tmp_path: P
         out_dir=tmp_path / "ns",
         domain_id=ros_env,
         composed=True,
-        namespace="/x",
+        namespace="/bench",  # instead of the default /<axis>
         progress=None,
         plots=False,
     )
     counts = result.summary.message_counts
-    assert counts["/x/state"] == counts["/x/command"] == counts["/x/reference"] == 300
+    assert counts["/bench/state"] == counts["/bench/command"] == counts["/bench/reference"] == 300
     assert counts["/clock"] == 30  # the clock stays global
-    assert result.exit_codes == {"composed": 0}
+    root = run_scenario(
+        scenario,
+        out_dir=tmp_path / "root",
+        domain_id=ros_env,
+        composed=True,
+        namespace="/",  # the root
+        progress=None,
+        plots=False,
+    )
+    counts = root.summary.message_counts
+    assert counts["/state"] == counts["/command"] == counts["/reference"] == 300
+    assert result.exit_codes == root.exit_codes == {"composed": 0}
     # UDP transport: no shared-memory files, so none can be left behind.
     assert {p.name for p in Path("/dev/shm").glob("fastrtps_*")} - shm_before == set()
     leftovers = subprocess.run(
@@ -420,7 +431,7 @@ def test_a_signal_to_the_runner_stops_every_node_and_keeps_the_bag(
         assert "Traceback" not in text and "[FATAL]" not in text, log
     steps: dict[str, list[int]] = {}
     with AnyReader([out / "bag"]) as reader:
-        for topic in ("/state", "/command", "/reference"):
+        for topic in ("/x/state", "/x/command", "/x/reference"):
             (conn,) = [c for c in reader.connections if c.topic == topic]
             stamps = [
                 reader.deserialize(raw, conn.msgtype).header.stamp
@@ -432,15 +443,15 @@ def test_a_signal_to_the_runner_stops_every_node_and_keeps_the_bag(
     # so their ends may differ by what was in flight).
     for topic, got in steps.items():
         assert got == list(range(len(got))), topic
-    assert len(steps["/state"]) > 500
-    assert abs(len(steps["/state"]) - len(steps["/command"])) <= 200  # the flow-control window
+    assert len(steps["/x/state"]) > 500
+    assert abs(len(steps["/x/state"]) - len(steps["/x/command"])) <= 200  # the flow-control window
     # summary.json says so and holds what was recorded; `summary` reads it.
     summary = json.loads((out / "summary.json").read_text())
     health = summary["health"]
     assert health["outcome"] == "interrupted" and health["exit_code"] == 128 + sig
     assert health["reasons"][0].startswith(f"interrupted by {sig.name} at step ")
     assert not health["deterministic"]
-    assert summary["message_counts"]["/state"] == len(steps["/state"])
+    assert summary["message_counts"]["/x/state"] == len(steps["/x/state"])
     assert summary["steps"] > 500
     assert f"summary of what was recorded: {out / 'summary.json'}" in stderr
     shown = subprocess.run(
@@ -513,7 +524,7 @@ def test_disturbance_observer_leaves_what_the_loop_transfer_functions_predict(
         )
         assert not run.summary.faults
         with AnyReader([run.run_dir / "bag"]) as reader:
-            (conn,) = [c for c in reader.connections if c.topic == "/state"]
+            (conn,) = [c for c in reader.connections if c.topic == "/x/state"]
             angle = np.array(
                 [
                     reader.deserialize(raw, conn.msgtype).position[0]

@@ -37,7 +37,7 @@ def one_line_error(capsys: pytest.CaptureFixture[str]) -> str:
 @pytest.mark.parametrize("name", ["/", "/x", "/machine_1/x", "/_a/B9", "/" + "a" * 244])
 def test_namespaces_ros_accepts(name: str) -> None:
     assert namespace_problem(name) is None
-    assert check_namespace(name) == ("" if name == "/" else name)
+    assert check_namespace(name) == name
 
 
 @pytest.mark.parametrize(

@@ -6,8 +6,11 @@
   wrong type, NaN/inf or a value out of range raises
   :class:`ParameterFileError` naming the full key, in the constructor,
   before any publisher exists. The given keys are read through public rclpy
-  API (``automatically_declare_parameters_from_overrides``); the rest of the
-  schema is declared with its default so that ``ros2 param`` would show it.
+  API (``automatically_declare_parameters_from_overrides``); then every key
+  of the schema is declared (the rest with its default) with a read-only
+  descriptor made from the schema (:mod:`servo_axis.nodes.parameters`:
+  meaning, unit, range), so that ``ros2 param describe`` shows it and a
+  ``ros2 param set`` while running is refused with a reason.
 * Input: :meth:`ServoNode.subscribe` decodes and validates each message
   with a pure function of :mod:`servo_axis.wire.messages` before the
   node's handler sees it; a message that fails is dropped, counted
@@ -41,18 +44,24 @@
   :data:`MATCH_SETTLE_S` before it is believed.
 * Report: :mod:`servo_axis.wire.health`, written to ``report_dir`` on each
   fallback, on each new stranger and when the node closes.
+* Diagnostics: about once a second of wall time and when it closes, a
+  ``DiagnosticArray`` on ``/diagnostics`` (:mod:`servo_axis.nodes.diagnostics`):
+  the report above with a level, and what :meth:`ServoNode.diagnostic_values`
+  adds.
 * QoS and message types come from the topic table (:mod:`servo_axis.wire.topics`).
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, Protocol, TypeVar
 
+from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from rclpy.subscription import Subscription
@@ -61,6 +70,14 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 from servo_axis.core.errors import SignalError
+from servo_axis.nodes.diagnostics import (
+    DIAGNOSTICS_PERIOD_S,
+    DIAGNOSTICS_TOPIC,
+    Status,
+    diagnostic_array,
+    node_status,
+)
+from servo_axis.nodes.parameters import descriptor
 from servo_axis.nodes.runtime import (
     LATCHED_QOS,
     LATCHED_READ_QOS,
@@ -69,8 +86,8 @@ from servo_axis.nodes.runtime import (
     matching_reader_qos,
     steady_clock,
 )
-from servo_axis.params.factories import checked_values, external_roles
-from servo_axis.params.schema import BUILTIN
+from servo_axis.params.factories import checked_values, external_roles, node_schema
+from servo_axis.params.schema import BUILTIN, Param
 from servo_axis.wire import topics
 from servo_axis.wire.health import Fallback, NodeHealth, write_health
 from servo_axis.wire.streams import StreamGate
@@ -129,7 +146,6 @@ class ServoNode(Node):
     def __init__(self, role: str, **kwargs: Any) -> None:
         super().__init__(
             role,
-            allow_undeclared_parameters=True,
             automatically_declare_parameters_from_overrides=True,
             **kwargs,
         )
@@ -139,9 +155,7 @@ class ServoNode(Node):
             if name not in BUILTIN
         }
         self.values: dict[str, Any] = checked_values(role, given)
-        for name, value in self.values.items():
-            if name not in given and not (isinstance(value, list) and not value):
-                self.declare_parameter(name, value)
+        self._describe_parameters(node_schema(role, given), set(given))
         self.rejected = 0
         self.health = NodeHealth(role)
         self._report_dir = Path(self.values["report_dir"]) if self.values["report_dir"] else None
@@ -159,6 +173,28 @@ class ServoNode(Node):
         self._unpublished: list[tuple[str, QoSProfile, Callable[[QoSProfile], None]]] = []
         self._unpublished_timer: Any = None
         self.create_timer(STRANGER_CHECK_S, self._check_strangers, clock=steady_clock())
+        # Default QoS (reliable, volatile, keep-last 10), as ROS's diagnostics tools use.
+        self._diagnostics_pub = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, 10)
+        self.create_timer(DIAGNOSTICS_PERIOD_S, self.publish_diagnostics, clock=steady_clock())
+
+    def _describe_parameters(self, schema: Mapping[str, Param], given: set[str]) -> None:
+        """Declare every schema key with its descriptor (read-only) and its checked value.
+
+        The given keys were declared from the overrides without a descriptor:
+        they get theirs now, with the checked value (an integer given for a
+        number becomes that number). The others are declared with their
+        default; an empty list, whose type rclpy cannot infer, is declared by
+        its type (its value is then not set).
+        """
+        for name, param in schema.items():
+            desc = descriptor(name, param)
+            value = Parameter(name, Parameter.Type(desc.type), self.values[name])
+            if name in given:
+                self.set_descriptor(name, desc, value.get_parameter_value())
+            elif isinstance(self.values[name], list) and not self.values[name]:
+                self.declare_parameter(name, Parameter.Type(desc.type), desc)
+            else:
+                self.declare_parameter(name, value.value, desc, ignore_override=True)
 
     def publisher(self, name: str) -> Publisher:
         """A publisher of table topic ``name`` with its type and QoS."""
@@ -463,9 +499,42 @@ class ServoNode(Node):
         except OSError as err:
             self.get_logger().error(f"cannot write the health report: {err}")
 
+    # -- diagnostics -------------------------------------------------------------
+    def diagnostic_values(self) -> list[tuple[str, Any]]:
+        """The node's own state on ``/diagnostics`` (a node adds its own: step, mode, ...)."""
+        return []
+
+    def diagnostic_error(self) -> str | None:
+        """An error the node is in (one line: its status is then ERROR), None if none."""
+        return None
+
+    def diagnostic_stamp_ns(self) -> int:
+        """The stamp of a status: the node's clock (simulation time with ``use_sim_time``)."""
+        return int(self.get_clock().now().nanoseconds)
+
+    def diagnostic_status(self) -> Status:
+        """What the node's next ``/diagnostics`` status says."""
+        return node_status(self.health, self.diagnostic_values(), self.diagnostic_error())
+
+    def publish_diagnostics(self) -> None:
+        """Publish the node's status on ``/diagnostics`` (:mod:`servo_axis.nodes.diagnostics`)."""
+        self._diagnostics_pub.publish(
+            diagnostic_array(
+                self.diagnostic_status(),
+                name=self.get_fully_qualified_name(),
+                hardware_id=str(self.values["axis"]),
+                stamp_ns=self.diagnostic_stamp_ns(),
+            )
+        )
+
     def close(self) -> None:
-        """Called once when the node's process ends: write the report."""
+        """Called once when the node's process ends: write the report, a last status."""
         self.write_report()
+        if self.context.ok():
+            try:
+                self.publish_diagnostics()
+            except Exception as err:  # the context may be going down
+                self.get_logger().warning(f"no last /diagnostics status: {err}")
 
 
 def _plain(value: Any) -> Any:

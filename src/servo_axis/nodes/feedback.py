@@ -108,6 +108,18 @@ class FeedbackNode(ServoNode):
         )
         self.create_timer(values["input_timeout_s"] / 10.0, self._watchdog, clock=steady_clock())
 
+    def diagnostic_values(self) -> list[tuple[str, Any]]:
+        fault = self.loop.fault
+        return [
+            ("tripped", self.loop.tripped),
+            ("fault", "none" if fault is None else fault.name.lower()),
+            ("missed_references", self.missed_references),
+        ]
+
+    def diagnostic_error(self) -> str | None:
+        fault = self.loop.fault
+        return None if fault is None else f"tripped: {fault.name.lower()}, zero current"
+
     def _subscribe_inputs(self) -> None:
         period_ns, axis = self._period_ns, self._axis
         self.subscribe(

@@ -147,6 +147,15 @@ class FeedforwardNode(ServoNode):
         )
         self._start_timer = self.create_timer(0.01, self._try_start, clock=steady_clock())
 
+    def diagnostic_values(self) -> list[tuple[str, Any]]:
+        return [
+            ("started", self.started),
+            ("published_up_to_step", self.published),
+            ("plant_step", self._plant_step),
+            ("missed_corrections", self.missed_corrections),
+            ("estimates_taken", self.estimates_taken),
+        ]
+
     def _try_start(self) -> None:
         if not self.consumers_matched(
             self._pub, "reference", self._v["wait_for_reference_subscribers"]

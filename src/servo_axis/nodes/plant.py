@@ -145,6 +145,21 @@ class PlantNode(ServoNode):
         self.create_timer(0.05, self._watchdog, clock=steady_clock())
 
     # -- start ---------------------------------------------------------------
+    def diagnostic_values(self) -> list[tuple[str, Any]]:
+        return [
+            ("mode", self._v["mode"]),
+            ("started", self.started),
+            ("done", self.done),
+            ("step", self.plant.step_index),
+            ("steps", self._steps),
+            ("deadline_misses", self._deadline_misses),
+            ("command_timeouts", self._timeouts),
+        ]
+
+    def diagnostic_stamp_ns(self) -> int:
+        """The simulation time of the plant's step (it owns the clock)."""
+        return int(self.plant.step_index) * self._period_ns
+
     def _connected(self) -> bool:
         v = self._v
         if not self.consumers_matched(self._state_pub, "state", v["wait_for_state_subscribers"]):

@@ -307,6 +307,13 @@ class RecorderNode(ServoNode):
         last = self._gates[name][1].last
         return 0 if last is None else last + 1
 
+    def diagnostic_values(self) -> list[tuple[str, Any]]:
+        return [
+            ("steps_recorded", self.recorded),
+            ("messages_written", sum(self._counts.values())),
+            ("publishers_gone", ", ".join(sorted(self._gone)) or "none"),
+        ]
+
     @property
     def message_counts(self) -> dict[str, int]:
         """Messages written per topic."""

@@ -57,14 +57,11 @@ def namespace_problem(name: str) -> str | None:
 
 
 def check_namespace(name: str, option: str = "--namespace") -> str:
-    """``name`` if it is a valid ROS namespace, else :class:`ConfigError` naming ``option``.
-
-    The root ``/`` is returned as ``""`` (no namespace), as the runner takes it.
-    """
+    """``name`` if it is a valid ROS namespace (``/``: the root), else :class:`ConfigError` naming ``option``."""
     problem = namespace_problem(name)
     if problem is not None:
         raise ConfigError(f"{option}: {name!r} is not a valid ROS namespace: {problem}")
-    return "" if name == "/" else name
+    return name
 
 
 def domain_id_problem(value: str | int) -> str | None:

@@ -17,6 +17,7 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -52,6 +53,48 @@ def discovery_settings(log_dir: Path) -> dict[str, str]:
         "FASTDDS_BUILTIN_TRANSPORTS": "UDPv4",
         "FASTRTPS_DEFAULT_PROFILES_FILE": str(profile),
     }
+
+
+def run_header(domain_id: int, namespaces: list[str], settings: Mapping[str, str]) -> list[str]:
+    """What a run prints first about its ROS graph: how to reach it from outside.
+
+    Parameters
+    ----------
+    domain_id : int
+        The run's ``ROS_DOMAIN_ID``.
+    namespaces : list of str
+        The namespace of each axis (``""``: the root).
+    settings : mapping
+        :func:`discovery_settings` of the run.
+
+    Returns
+    -------
+    list of str
+        The lines: domain and namespaces, discovery and transports, and the
+        environment a ``ros2`` command needs to see the run.
+    """
+    shown = [ns or "/" for ns in namespaces]
+    first = shown[0].rstrip("/")
+    clock = (
+        ", each axis its own <ns>/clock" if len(shown) > 1 else "; /clock and /diagnostics absolute"
+    )
+    range_ = settings["ROS_AUTOMATIC_DISCOVERY_RANGE"]
+    profile = settings["FASTRTPS_DEFAULT_PROFILES_FILE"]
+    transports = settings["FASTDDS_BUILTIN_TRANSPORTS"]
+    return [
+        f"ROS 2: ROS_DOMAIN_ID={domain_id}, namespace{'s' if len(shown) > 1 else ''} "
+        f"{', '.join(shown)} (nodes {first}/plant, {first}/feedback, ...{clock})",
+        f"discovery: ROS_AUTOMATIC_DISCOVERY_RANGE={range_}, "
+        f"FASTRTPS_DEFAULT_PROFILES_FILE={profile} (100 ms announcements), "
+        f"transports FASTDDS_BUILTIN_TRANSPORTS={transports}"
+        + (
+            " + shared memory (rmw_fastrtps adds it under LOCALHOST)"
+            if range_ == "LOCALHOST"
+            else ""
+        ),
+        f"watch it: ROS_DOMAIN_ID={domain_id} ROS_AUTOMATIC_DISCOVERY_RANGE={range_} "
+        f"ros2 topic echo {first}/state  (README: Watching a live run)",
+    ]
 
 
 def default_domain_id() -> int:

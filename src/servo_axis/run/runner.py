@@ -34,6 +34,7 @@ In every case ``summary.json``'s ``health``
 from __future__ import annotations
 
 import dataclasses
+import re
 import signal
 import sys
 import time
@@ -69,6 +70,7 @@ from servo_axis.run.processes import (
     default_domain_id,
     discovery_settings,
     ros_environment,
+    run_header,
     start_node,
     start_nodes,
     stop_nodes,
@@ -297,6 +299,12 @@ def run_scenario(
         extra_args=extra_args,
         external=outside,
     )
+    if progress is not None:
+        name = common.get("scenario", {}).get("name") or scenario_path.stem
+        print(f"servo_axis run {name}: {steps} steps, run directory {run_dir}", file=progress)
+        namespaces = [run.namespace for run in runs]
+        header = run_header(domain, namespaces, discovery_settings(runs[0].log_dir))
+        print("\n".join(header), file=progress, flush=True)
     line = ProgressLine(steps, progress) if progress is not None else None
     if progress is not None:
         for run in runs:
@@ -417,6 +425,7 @@ def prepare_axis_runs(
         _check_sections(view, run_dir / axis, scenario_path.parent, external)
     if not axes:
         _check_sections(scenario, run_dir, scenario_path.parent, external)
+        single_axis_namespace(scenario, namespace)
     _create_run_dir(run_dir)
     return [
         _prepare_axis(scenario, scenario_path, run_dir, axis, namespace, extra_args or [], external)
@@ -465,6 +474,31 @@ def describe_external(run: _AxisRun, role: str) -> str:
     return "\n".join(lines) + "\n"
 
 
+def single_axis_namespace(scenario: dict[str, Any], namespace: str = "") -> str:
+    """The namespace of a single-axis run: ``namespace`` if given, else ``/<axis>``.
+
+    ``"/"`` is the root (returned as ``""``: the nodes start without a
+    namespace remap). The default is the scenario's shared key ``axis``
+    (``/x``): the nodes are ``/x/plant``, ``/x/feedback``, ... and the
+    topics ``/x/state``, ``/x/command``, ...; ``/clock`` and
+    ``/diagnostics`` stay absolute.
+
+    Raises
+    ------
+    ParameterFileError
+        For an ``axis`` that cannot name a ROS namespace.
+    """
+    if namespace:
+        return "" if namespace == "/" else namespace
+    axis = node_values(scenario, "plant")["axis"]
+    if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*", axis):
+        raise ParameterFileError(
+            f"parameter 'axis': {axis!r} cannot name the run's ROS namespace /<axis> (a "
+            "letter, then letters, digits or _); rename it or give --namespace"
+        )
+    return f"/{axis}"
+
+
 def _check_sections(
     scenario: dict[str, Any], axis_dir: Path, scenario_dir: Path, external: tuple[str, ...] = ()
 ) -> None:
@@ -503,7 +537,8 @@ def _prepare_axis(
         ns = f"/{axis}"
         args = ["-r", f"__ns:={ns}", "-r", f"/clock:={ns}/clock", *extra_args]
     else:
-        axis_scenario, axis_path, ns = scenario, scenario_path, namespace
+        axis_scenario, axis_path = scenario, scenario_path
+        ns = single_axis_namespace(scenario, namespace)
         args = [*(["-r", f"__ns:={ns}"] if ns else []), *extra_args]
     roles = roles_of(axis_scenario)
     overrides = handshake_overrides(

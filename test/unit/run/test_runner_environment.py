@@ -34,7 +34,7 @@ def test_os_environ_is_the_same_before_and_after_a_run(
         scenario, out_dir=tmp_path / "run", domain_id=ros_env, progress=None, plots=False
     )
     assert dict(os.environ) == before
-    assert result.summary.message_counts["/state"] == 300
+    assert result.summary.message_counts["/x/state"] == 300
     assert result.exit_codes == {
         "recorder": 0,
         "feedforward": 0,

@@ -1,0 +1,73 @@
+"""A run seen the ROS way: /diagnostics read by a default-QoS subscriber during a real run."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+
+pytestmark = pytest.mark.integration
+
+ROLES = ("plant", "feedback", "feedforward", "recorder")
+
+
+def test_every_node_reports_on_diagnostics_during_a_run(ros_env: int, tmp_path: Path) -> None:
+    """``python -m servo_axis run ptc_nominal``: each node's status, its level and values."""
+    ctx = Context()
+    rclpy.init(args=[], context=ctx)
+    node = rclpy.create_node("diagnostics_reader", context=ctx)
+    seen: dict[str, list[DiagnosticStatus]] = {}
+
+    def on_array(msg: Any) -> None:
+        for status in msg.status:
+            seen.setdefault(status.name, []).append(status)
+
+    node.create_subscription(DiagnosticArray, "/diagnostics", on_array, 10)  # default QoS
+    ex = SingleThreadedExecutor(context=ctx)
+    ex.add_node(node)
+    run = subprocess.Popen(
+        [sys.executable, "-m", "servo_axis", "run", "ptc_nominal", "--out", str(tmp_path / "run"),
+         "--domain-id", str(ros_env), "--no-plots"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )  # fmt: skip
+    try:
+        deadline = time.monotonic() + 120
+        while run.poll() is None:
+            assert time.monotonic() < deadline, "the run did not end"
+            ex.spin_once(timeout_sec=0.05)
+        for _ in range(20):  # what is still on its way
+            ex.spin_once(timeout_sec=0.01)
+        out = run.stdout.read() if run.stdout else ""
+    finally:
+        if run.poll() is None:
+            run.kill()
+            run.wait()
+        ex.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+    assert run.returncode == 0, out
+    assert f"ROS 2: ROS_DOMAIN_ID={ros_env}, namespace /x (nodes /x/plant" in out  # the header
+    names = {f"/x/{role}" for role in ROLES}
+    assert names <= set(seen), sorted(seen)
+    for name in names:
+        statuses = seen[name]
+        assert {s.hardware_id for s in statuses} == {"x"}
+        assert {s.level for s in statuses} == {DiagnosticStatus.OK}, [s.message for s in statuses]
+        values = {kv.key: kv.value for kv in statuses[-1].values}
+        assert values["rejected"] == "0" and values["fallbacks"] == "0"
+    plant = [{kv.key: kv.value for kv in s.values} for s in seen["/x/plant"]]
+    assert all(p["mode"] == "lockstep" and p["deadline_misses"] == "0" for p in plant)
+    steps = [int(p["step"]) for p in plant]
+    assert steps == sorted(steps) and 0 <= steps[0] <= 2000
+    feedback = {kv.key: kv.value for kv in seen["/x/feedback"][-1].values}
+    assert feedback["tripped"] == "false" and feedback["fault"] == "none"
