@@ -55,6 +55,7 @@ from servo_axis.params.scenario import (
     roles_of,
     shared,
 )
+from servo_axis.run.live import LiveAxis, check_live, live_axis, module_args, wait_ready
 from servo_axis.run.plan import handshake_overrides, write_run_params
 from servo_axis.run.processes import (
     Proc,
@@ -64,6 +65,7 @@ from servo_axis.run.processes import (
     ros_environment,
     start_node,
     start_nodes,
+    start_process,
     stop_nodes,
 )
 from servo_axis.run.progress import ProgressLine, ProgressWatcher
@@ -200,6 +202,16 @@ class _Watch:
         return self.t_end - (self.t_first or self.t_start)
 
 
+@dataclass
+class _Live:
+    """The live view of a run (:mod:`servo_axis.run.live`): its port, axes, where it says so."""
+
+    port: int
+    axes: list[LiveAxis]
+    out: TextIO | None
+    proc: Proc | None = None
+
+
 def run_scenario(
     scenario: str | Path,
     *,
@@ -213,6 +225,7 @@ def run_scenario(
     extra_args: list[str] | None = None,
     on_started: Callable[[list[Proc]], object] | None = None,
     respawn_limit: int = RESPAWN_LIMIT,
+    live_port: int | None = None,
 ) -> RunResult:
     """Run one scenario end to end and return where it was written.
 
@@ -238,19 +251,31 @@ def run_scenario(
         If SIGINT or SIGTERM reached the runner (called from the main
         thread): the nodes are stopped, the bag written so far is closed and
         readable, no summary is made.
+
+    With ``live_port``, the run is also served to Foxglove / Lichtblick on
+    ``ws://127.0.0.1:<live_port>`` while it runs (:mod:`servo_axis.run.live`;
+    a :class:`ConfigError` before anything is written if the optional
+    package is missing or the port is taken); the run itself is the same.
     """
     scenario_path = find_scenario(scenario).resolve()
     data = load_scenario(scenario_path)
     common = shared(data)
     steps = run_steps(node_values(data, "plant"))
+    if live_port is not None:
+        check_live(live_port)
     run_dir = _new_run_dir(out_dir, common.get("scenario", {}).get("name") or scenario_path.stem)
     runs = prepare_axis_runs(
         data, scenario_path, run_dir, composed=composed, namespace=namespace, extra_args=extra_args
     )
     domain = default_domain_id() if domain_id is None else domain_id
     line = ProgressLine(steps, progress) if progress is not None else None
+    live = (
+        None
+        if live_port is None
+        else _Live(live_port, [live_axis(run.scenario, run.namespace) for run in runs], progress)
+    )
     watch = _run_nodes(
-        runs, domain, composed, line, stall_timeout_s, on_started, run_dir, respawn_limit
+        runs, domain, composed, line, stall_timeout_s, on_started, run_dir, respawn_limit, live
     )
     if watch.signals:
         signame = signal.Signals(watch.signals[0]).name
@@ -378,8 +403,13 @@ def _run_nodes(
     on_started: Callable[[list[Proc]], object] | None,
     run_dir: Path,
     respawn_limit: int,
+    live: _Live | None = None,
 ) -> _Watch:
-    """Start every axis's nodes, watch them until the plants are done, stop them all."""
+    """Start every axis's nodes, watch them until the plants are done, stop them all.
+
+    With ``live``, the live view is started first (the runner waits until it
+    listens and prints its URL) and stopped after the nodes.
+    """
     env = ros_environment(domain_id, runs[0].log_dir)
     settings = discovery_settings(runs[0].log_dir)
     watch = _Watch()
@@ -397,6 +427,8 @@ def _run_nodes(
         watch.t_start_epoch = started
         previous_handlers = catch_stop_signals(watch.signals)
         try:
+            if live is not None:
+                _start_live(live, env, runs[0].log_dir if len(runs) == 1 else run_dir, watch)
             for run in runs:
                 run.env = {**env, "ROS_LOG_DIR": str(run.log_dir)}
                 run.procs = start_nodes(
@@ -413,6 +445,8 @@ def _run_nodes(
             }
             restore_handlers(previous_handlers)
     finally:
+        if live is not None and live.proc is not None:
+            stop_nodes([live.proc])
         for run in runs:
             if run.watcher is not None:
                 run.watcher.close()
@@ -423,6 +457,27 @@ def _run_nodes(
             # included), so their last user's clean exit leaves them behind.
             clean_stale_shm(since=started)
     return watch
+
+
+def _start_live(live: _Live, env: dict[str, str], log_dir: Path, watch: _Watch) -> None:
+    """Start the live view and wait until it listens; print its URL."""
+    live.proc = start_process(
+        "live",
+        ["-m", "servo_axis.run.live", *module_args(live.port, live.axes)],
+        {**env, "ROS_LOG_DIR": str(log_dir)},
+        log_dir / "live.log",
+    )
+    proc = live.proc
+    address = wait_ready(
+        proc.log_path, lambda: proc.popen.poll() is None, stopped=lambda: bool(watch.signals)
+    )
+    if address and live.out is not None:
+        print(
+            f"live view: {address}  (Foxglove / Lichtblick: open a connection, "
+            "Foxglove WebSocket, this URL)",
+            file=live.out,
+            flush=True,
+        )
 
 
 def _watch(
