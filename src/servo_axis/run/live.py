@@ -76,6 +76,16 @@ INSTALL_HINT = (
 READY_TIMEOUT_S = 20.0
 #: The server's time is broadcast every this many simulated seconds.
 TIME_EVERY_S = 0.01
+#: Messages buffered per viewer before the oldest is dropped (the SDK's
+#: default, 1024, is a quarter of a simulated second of four 1 kHz channels).
+BACKLOG_MESSAGES = 16_384
+#: Seconds the live view goes on forwarding after SIGINT/SIGTERM while
+#: messages still arrive (the runner's SIGKILL comes 5 s after its SIGINT),
+#: and the pause in arrivals that ends it sooner.
+DRAIN_S = 3.0
+DRAIN_IDLE_S = 0.3
+#: Seconds the server is given to send what it has queued before it stops.
+FLUSH_S = 0.3
 #: Steps a reference or an output waits for its partner before it is dropped.
 PAIR_WINDOW_STEPS = 20_000
 
@@ -344,6 +354,7 @@ class LiveBridge:
         from servo_axis.wire import messages as msgs
 
         self.server: Any = None
+        self.last_message_s = time.monotonic()
         self.axes = axes
         self.rejected = 0
         self.sim_ns = 0
@@ -437,6 +448,7 @@ class LiveBridge:
             gate = _Gate()
 
             def on_data(data: bytes) -> None:
+                self.last_message_s = time.monotonic()
                 if not (ch.has_sinks() or (after is not None and error_ch.has_sinks())):
                     return
                 try:
@@ -518,6 +530,7 @@ def main(argv: list[str] | None = None) -> int:
             host=HOST,
             port=args.port,
             capabilities=[foxglove.Capability.Time],
+            message_backlog_size=BACKLOG_MESSAGES,
         )
     except Exception as err:  # the SDK raises its own error types
         print(f"live: cannot serve on {HOST}:{args.port}: {err}", file=sys.stderr, flush=True)
@@ -527,24 +540,41 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{READY} {url(server.port)} channels {', '.join(bridge.topics)}", flush=True)
         return _spin(bridge)
     finally:
+        time.sleep(FLUSH_S)
         server.stop()
 
 
 def _spin(bridge: LiveBridge) -> int:
-    from rclpy.node import Node
+    """Forward until SIGINT/SIGTERM, then what is still arriving (at most :data:`DRAIN_S`)."""
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
 
-    from servo_axis.nodes.runtime import run_main
+    from servo_axis.nodes.runtime import make_executor
+    from servo_axis.stop_signals import catch_stop_signals, restore_handlers
 
-    class LiveNode(Node):
-        def __init__(self) -> None:
-            super().__init__("servo_axis_live", enable_rosout=False, start_parameter_services=False)
-            bridge.subscribe(self)
-
-        def close(self) -> None:
-            if bridge.rejected:
-                print(f"live: {bridge.rejected} messages failed validation", flush=True)
-
-    return run_main("live", [LiveNode], args=[sys.argv[0]])
+    stop: list[int] = []
+    previous = catch_stop_signals(stop)
+    rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
+    node = rclpy.create_node("servo_axis_live", enable_rosout=False, start_parameter_services=False)
+    executor = make_executor()
+    executor.add_node(node)
+    try:
+        bridge.subscribe(node)
+        while not stop:
+            executor.spin_once(timeout_sec=0.1)
+        # The runner stops the live view after the nodes: what they sent
+        # last may still be queued here (the bridge can lag behind a fast run).
+        end = time.monotonic() + DRAIN_S
+        while time.monotonic() < end and time.monotonic() - bridge.last_message_s < DRAIN_IDLE_S:
+            executor.spin_once(timeout_sec=DRAIN_IDLE_S / 4)
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+        restore_handlers(previous)
+    if bridge.rejected:
+        print(f"live: {bridge.rejected} messages failed validation (not forwarded)", flush=True)
+    return 0
 
 
 if __name__ == "__main__":
