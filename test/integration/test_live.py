@@ -121,8 +121,9 @@ def payload_hashes(payloads: dict[str, list[bytes]]) -> dict[str, tuple[int, str
     }
 
 
+@pytest.mark.parametrize("mode", ["separate", "composed"])
 def test_live_view_serves_the_run_on_the_simulation_timeline_and_changes_nothing(
-    ros_env: int, tmp_path: Path, raw_payloads: Callable[[Path], dict[str, list[bytes]]]
+    ros_env: int, tmp_path: Path, raw_payloads: Callable[[Path], dict[str, list[bytes]]], mode: str
 ) -> None:
     scenario = load_scenario(find_scenario(SCENARIO))
     plant = node_values(scenario, "plant")
@@ -134,7 +135,8 @@ def test_live_view_serves_the_run_on_the_simulation_timeline_and_changes_nothing
     give_up = threading.Event()
     client = threading.Thread(target=viewer.watch, args=(give_up,), daemon=True)
     client.start()
-    live = run(tmp_path / "live", ros_env, "--live", "--live-port", str(viewer.port))
+    composed = ["--composed"] if mode == "composed" else []
+    live = run(tmp_path / "live", ros_env, "--live", "--live-port", str(viewer.port), *composed)
     give_up.set()
     client.join(timeout=90)
     assert live.returncode == 0, live.stdout + live.stderr
@@ -155,10 +157,12 @@ def test_live_view_serves_the_run_on_the_simulation_timeline_and_changes_nothing
         json.loads(by_topic[topic]["schema"])
 
     # Messages on the simulation timeline: log time = the header stamp = step * T_u,
-    # increasing, within the run.
+    # increasing, within the run. Every step: the viewer subscribed while the
+    # nodes started, the bridge reads the writers' history and forwards what
+    # is still queued when it is stopped.
     for topic in CHANNELS[:4]:
         got = viewer.messages.get(topic, [])
-        assert len(got) >= 100, f"{topic}: {len(got)} messages"
+        assert len(got) == steps, f"{topic}: {len(got)} messages of {steps}"
         times = np.array([t for t, _ in got], dtype=np.int64)
         assert np.all(times % period_ns == 0), topic
         assert np.all(np.diff(times) > 0), topic
@@ -194,7 +198,7 @@ def test_live_view_serves_the_run_on_the_simulation_timeline_and_changes_nothing
     refs = {m["step"]: m["position_rad"] for _, m in viewer.messages["/reference"]}
     errors = [m for _, m in viewer.messages["/tracking_error"]]
     both = [e for e in errors if e["step"] in refs and e["step"] in states]
-    assert len(both) >= 100
+    assert len(both) == steps
     for e in both:
         assert e["reference_rad"] == refs[e["step"]]
         assert e["output_rad"] == states[e["step"]]["encoder_rad"]
@@ -212,7 +216,7 @@ def test_live_view_serves_the_run_on_the_simulation_timeline_and_changes_nothing
     )
 
     # The live view changes nothing: the bag of a run without it is byte-identical.
-    plain = run(tmp_path / "plain", ros_env)
+    plain = run(tmp_path / "plain", ros_env, *composed)
     assert plain.returncode == 0, plain.stdout + plain.stderr
     assert "live view" not in plain.stdout
     with_live = payload_hashes(raw_payloads(tmp_path / "live" / "bag"))

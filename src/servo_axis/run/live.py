@@ -26,12 +26,14 @@ simulation too.
 
 It does not change the run. It is not one of the run's roles: no handshake
 counts it (:meth:`~servo_axis.nodes.base.ServoNode.consumers_matched` counts
-only the table's consumers and the recorder), it publishes nothing the nodes
-read, and it reads with a reliable volatile profile
-(:data:`~servo_axis.nodes.runtime.LATE_JOIN_QOS`), which the publishers'
-reliable transient-local keep-last profile serves without ever waiting for
-it (a keep-last writer drops its oldest sample rather than block). The
-recorded bytes are those of a run without it (``test/integration/test_live.py``).
+only the table's consumers and the recorder), and it publishes nothing the
+nodes read. It subscribes as the nodes do
+(:func:`~servo_axis.nodes.base.reader_qos`: reliable, transient-local,
+keep-last 2000), so that it gets the first samples from the writers'
+history even when it is matched after they were sent (a ``--composed`` run
+starts within its discovery time); a keep-last writer never waits for a
+reader, it drops its oldest sample instead. The recorded bytes are those of
+a run without it (``test/integration/test_live.py``).
 A message is decoded only while a viewer is subscribed to a channel that
 needs it, so the bridge costs little when nobody watches.
 
@@ -83,7 +85,7 @@ BACKLOG_MESSAGES = 16_384
 #: messages still arrive (the runner's SIGKILL comes 5 s after its SIGINT),
 #: and the pause in arrivals that ends it sooner.
 DRAIN_S = 3.0
-DRAIN_IDLE_S = 0.3
+DRAIN_IDLE_S = 0.5
 #: Seconds the server is given to send what it has queued before it stops.
 FLUSH_S = 0.3
 #: Steps a reference or an output waits for its partner before it is dropped.
@@ -416,7 +418,7 @@ class LiveBridge:
         from sensor_msgs.msg import JointState
 
         from servo_axis.core.feedback.output import controlled_output
-        from servo_axis.nodes.runtime import LATE_JOIN_QOS
+        from servo_axis.nodes.base import reader_qos
         from servo_axis.wire import messages as msgs
 
         period = msgs.period_ns(axis.control_period_s)
@@ -462,7 +464,9 @@ class LiveBridge:
                 if after is not None:
                     after(sample)
 
-            node.create_subscription(JointState, axis.topic(name), on_data, LATE_JOIN_QOS, raw=True)
+            node.create_subscription(
+                JointState, axis.topic(name), on_data, reader_qos(name), raw=True
+            )
 
         def on_state(sample: Any) -> None:
             ns = sample.step * period
@@ -537,15 +541,19 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     bridge.server = server
     try:
-        print(f"{READY} {url(server.port)} channels {', '.join(bridge.topics)}", flush=True)
-        return _spin(bridge)
+        return _spin(bridge, f"{READY} {url(server.port)} channels {', '.join(bridge.topics)}")
     finally:
         time.sleep(FLUSH_S)
         server.stop()
 
 
-def _spin(bridge: LiveBridge) -> int:
-    """Forward until SIGINT/SIGTERM, then what is still arriving (at most :data:`DRAIN_S`)."""
+def _spin(bridge: LiveBridge, ready: str) -> int:
+    """Subscribe, say ``ready``, forward until SIGINT/SIGTERM, then what still arrives.
+
+    The runner starts the nodes once ``ready`` is printed: the subscriptions
+    exist by then, so they are discovered while the nodes start. Forwarding
+    goes on for at most :data:`DRAIN_S` after the signal.
+    """
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
@@ -560,6 +568,7 @@ def _spin(bridge: LiveBridge) -> int:
     executor.add_node(node)
     try:
         bridge.subscribe(node)
+        print(ready, flush=True)
         while not stop:
             executor.spin_once(timeout_sec=0.1)
         # The runner stops the live view after the nodes: what they sent
