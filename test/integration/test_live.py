@@ -13,6 +13,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import signal
 import socket
 import struct
 import subprocess
@@ -27,6 +28,7 @@ from typing import Any
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
+from sensor_msgs.msg import JointState
 
 from servo_axis.params.factories import node_values, run_steps
 from servo_axis.params.scenario import find_scenario, load_scenario
@@ -223,3 +225,75 @@ def test_live_view_serves_the_run_on_the_simulation_timeline_and_changes_nothing
     without = payload_hashes(raw_payloads(tmp_path / "plain" / "bag"))
     assert with_live == without
     assert with_live["/state"][0] == steps
+
+
+def test_diagnostics_are_forwarded_at_the_simulation_time_the_bridge_has_seen(
+    ros_env: int, tmp_path: Path
+) -> None:
+    import rclpy
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+
+    from servo_axis.nodes.runtime import STREAM_QOS
+    from servo_axis.run.live import LiveAxis, module_args
+    from servo_axis.wire.messages import state_to_msg
+
+    axis = LiveAxis("/x", "x", 1e-3, "encoder", 0.00191, True)
+    viewer = Viewer(free_port())
+    give_up = threading.Event()
+    client = threading.Thread(target=viewer.watch, args=(give_up,), daemon=True)
+    client.start()
+    log = (tmp_path / "live.log").open("wb")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "servo_axis.run.live", *module_args(viewer.port, [axis])],
+        stdout=log,
+        stderr=subprocess.STDOUT,
+    )
+    context = rclpy.context.Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node("diagnostics_source", context=context)
+    try:
+        # A state stamped at step 7 (1 ms steps), then diagnostics stamped in wall time.
+        state = node.create_publisher(JointState, "/x/state", STREAM_QOS)
+        state.publish(
+            state_to_msg(StateSample(7, 0.5, 1e-3, 0.0, 0.0, 0.0, 0.0), axis="x", period_ns_=10**6)
+        )
+        diagnostics = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        msg = DiagnosticArray()
+        msg.header.stamp.sec = 1_700_000_000
+        msg.status = [
+            DiagnosticStatus(
+                level=DiagnosticStatus.WARN,
+                name="x/plant",
+                message="deadline misses",
+                hardware_id="x",
+                values=[KeyValue(key="deadline_misses", value="3")],
+            )
+        ]
+        deadline = time.monotonic() + 30
+        while "/diagnostics" not in viewer.messages and time.monotonic() < deadline:
+            diagnostics.publish(msg)
+            time.sleep(0.1)
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+        proc.send_signal(signal.SIGINT)
+        code = proc.wait(timeout=20)
+        log.close()
+        give_up.set()
+        client.join(timeout=30)
+    assert code == 0, (tmp_path / "live.log").read_text()
+    assert viewer.error is None, repr(viewer.error)
+    got = viewer.messages.get("/diagnostics", [])
+    assert got, (tmp_path / "live.log").read_text()
+    log_time, payload = got[0]
+    assert log_time == 7 * 10**6  # the simulation time of the last state, not the stamp
+    assert payload["header"]["stamp"] == {"sec": 1_700_000_000, "nsec": 0}
+    assert payload["status"] == [
+        {
+            "level": 1,
+            "name": "x/plant",
+            "message": "deadline misses",
+            "hardware_id": "x",
+            "values": [{"key": "deadline_misses", "value": "3"}],
+        }
+    ]

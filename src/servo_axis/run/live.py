@@ -34,8 +34,9 @@ history even when it is matched after they were sent (a ``--composed`` run
 starts within its discovery time); a keep-last writer never waits for a
 reader, it drops its oldest sample instead. The recorded bytes are those of
 a run without it (``test/integration/test_live.py``).
-A message is decoded only while a viewer is subscribed to a channel that
-needs it, so the bridge costs little when nobody watches.
+Apart from ``state`` (whose stamps are the simulation time) a message is
+decoded only while a viewer is subscribed to a channel that needs it, so
+the bridge costs little when nobody watches.
 
 Why a process of its own rather than a thread of the runner: the bridge
 receives and converts several thousand messages per simulated second in
@@ -444,14 +445,18 @@ class LiveBridge:
             error_ch.log(out, log_time=ns)
 
         def stream(
-            name: str, decode: Callable[[Any], Any], after: Callable[[Any], None] | None
+            name: str,
+            decode: Callable[[Any], Any],
+            after: Callable[[Any], None] | None,
+            always: bool = False,
         ) -> None:
             ch = self._channels[axis.topic(name)]
             gate = _Gate()
 
             def on_data(data: bytes) -> None:
                 self.last_message_s = time.monotonic()
-                if not (ch.has_sinks() or (after is not None and error_ch.has_sinks())):
+                needed = always or ch.has_sinks() or (after is not None and error_ch.has_sinks())
+                if not needed:
                     return
                 try:
                     sample = decode(deserialize_message(data, JointState))
@@ -486,7 +491,9 @@ class LiveBridge:
             emit_error(sample.step, pairs.reference(sample.step, sample.position_rad))
 
         kw = {"axis": axis.axis, "period_ns_": period}
-        stream("state", lambda m: msgs.state_from_msg(m, **kw), on_state)
+        # The state is decoded even when nobody watches it: its stamps are
+        # the simulation time of the server's clock and of /diagnostics.
+        stream("state", lambda m: msgs.state_from_msg(m, **kw), on_state, always=True)
         stream("reference", lambda m: msgs.reference_from_msg(m, **kw), on_reference)
         stream("command", lambda m: msgs.command_from_msg(m, **kw), None)
 
