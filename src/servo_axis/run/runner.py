@@ -446,11 +446,19 @@ def _run_nodes(
             restore_handlers(previous_handlers)
     finally:
         if live is not None and live.proc is not None:
-            stop_nodes([live.proc])
+            code = stop_nodes([live.proc])["live"]
+            if code != 0:  # the run went on without it
+                print(
+                    f"live view exited with code {code} (see {live.proc.log_path}); "
+                    "the run is not affected",
+                    file=sys.stderr,
+                )
         for run in runs:
             if run.watcher is not None:
                 run.watcher.close()
         procs = [p for run in runs for p in run.procs]
+        if live is not None and live.proc is not None:
+            procs.append(live.proc)
         if any((p.popen.returncode or 0) < 0 for p in procs):
             # Again once the watchers are closed: a killed participant never
             # lets go of the port segments it opened (the watchers' own
