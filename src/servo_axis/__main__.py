@@ -40,8 +40,12 @@ def _run(args: argparse.Namespace) -> int:
     from servo_axis.analysis.health import EXIT_FAILED, EXIT_FAULT, EXIT_OK
     from servo_axis.analysis.summary import AxesSummary
     from servo_axis.analysis.text import format_any_summary
+    from servo_axis.run.live import DEFAULT_PORT
     from servo_axis.run.runner import RunError, RunInterruptedError, run_scenario
 
+    live_port = args.live_port  # --live-port implies --live
+    if live_port is None and args.live:
+        live_port = DEFAULT_PORT
     try:
         result = run_scenario(
             args.scenario,
@@ -53,6 +57,7 @@ def _run(args: argparse.Namespace) -> int:
             external=tuple(args.external),
             external_timeout_s=args.external_timeout,
             **({} if args.respawn_limit is None else {"respawn_limit": args.respawn_limit}),
+            live_port=live_port,
         )
     except RunInterruptedError as err:
         print(f"\nrun {err}", file=sys.stderr)
@@ -390,6 +395,15 @@ def build_parser(prog: str = "python -m servo_axis") -> argparse.ArgumentParser:
         default=120.0,
         metavar="S",
         help="seconds to wait for the outside nodes before the first step (default 120)",
+    )
+    run.add_argument(
+        "--live",
+        action="store_true",
+        help="serve the run to Foxglove / Lichtblick while it runs on ws://127.0.0.1:8765 "
+        "(needs the extra: pip install -e '.[live]')",
+    )
+    run.add_argument(
+        "--live-port", type=int, default=None, help="port of the live view (implies --live)"
     )
     run.set_defaults(func=_run)
     ft = sub.add_parser("friction-table", help="build a friction table from a friction_id run")

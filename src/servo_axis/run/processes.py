@@ -160,11 +160,19 @@ def start_node(
         if role == "composed"
         else ["-m", f"servo_axis.nodes.{role}"]
     )
-    log_path = log_dir / f"{log_name or role}.log"
+    args = [*cmd, "--ros-args", "--params-file", str(params_path), *extra_args]
+    return start_process(role, args, env, log_dir / f"{log_name or role}.log")
+
+
+def start_process(role: str, args: list[str], env: dict[str, str], log_path: Path) -> Proc:
+    """Start ``python args...`` (this interpreter) as a process of the run, logging to ``log_path``.
+
+    In its own process group, pinned like ``role`` (:func:`cpu_set`).
+    """
     log = log_path.open("wb")
     cpus = cpu_set(role) if os.environ.get("SERVO_AXIS_PIN", "1") == "1" else None
     popen = subprocess.Popen(
-        [sys.executable, *cmd, "--ros-args", "--params-file", str(params_path), *extra_args],
+        [sys.executable, *args],
         preexec_fn=(lambda c=cpus: os.sched_setaffinity(0, c)) if cpus else None,
         stdout=log,
         stderr=subprocess.STDOUT,

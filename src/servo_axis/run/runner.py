@@ -57,6 +57,7 @@ from servo_axis.params.scenario import (
     roles_of,
     shared,
 )
+from servo_axis.run.live import LiveAxis, check_live, live_axis, module_args, wait_ready
 from servo_axis.run.plan import (
     REQUIRED_INPUTS,
     handshake_overrides,
@@ -73,6 +74,7 @@ from servo_axis.run.processes import (
     run_header,
     start_node,
     start_nodes,
+    start_process,
     stop_nodes,
 )
 from servo_axis.run.progress import ProgressLine, ProgressWatcher
@@ -228,6 +230,16 @@ class _Watch:
         return self.t_end - (self.t_first or self.t_start)
 
 
+@dataclass
+class _Live:
+    """The live view of a run (:mod:`servo_axis.run.live`): its port, axes, where it says so."""
+
+    port: int
+    axes: list[LiveAxis]
+    out: TextIO | None
+    proc: Proc | None = None
+
+
 def run_scenario(
     scenario: str | Path,
     *,
@@ -243,6 +255,7 @@ def run_scenario(
     respawn_limit: int = RESPAWN_LIMIT,
     external: tuple[str, ...] = (),
     external_timeout_s: float = EXTERNAL_TIMEOUT_S,
+    live_port: int | None = None,
 ) -> RunResult:
     """Run one scenario end to end and return where it was written.
 
@@ -278,6 +291,11 @@ def run_scenario(
         thread): the nodes are stopped, the bag written so far is closed and
         readable, and ``summary.json`` holds what was recorded (``health.outcome``
         ``interrupted``).
+
+    With ``live_port``, the run is also served to Foxglove / Lichtblick on
+    ``ws://127.0.0.1:<live_port>`` while it runs (:mod:`servo_axis.run.live`;
+    a :class:`ConfigError` before anything is written if the optional
+    package is missing or the port is taken); the run itself is the same.
     """
     # The options first: nothing is written or started for a bad one.
     namespace = check_namespace(namespace) if namespace else ""
@@ -288,6 +306,8 @@ def run_scenario(
     data = load_scenario(scenario_path)
     common = shared(data)
     steps = run_steps(node_values(data, "plant"))
+    if live_port is not None:
+        check_live(live_port)
     run_dir = _new_run_dir(out_dir, common.get("scenario", {}).get("name") or scenario_path.stem)
     outside = external_roles_of(data, external)
     runs = prepare_axis_runs(
@@ -311,6 +331,11 @@ def run_scenario(
             for role in run.external:
                 progress.write(describe_external(run, role))
         progress.flush()
+    live = (
+        None
+        if live_port is None
+        else _Live(live_port, [live_axis(run.scenario, run.namespace) for run in runs], progress)
+    )
     watch = _run_nodes(
         runs,
         domain,
@@ -322,6 +347,7 @@ def run_scenario(
         respawn_limit,
         external_timeout_s,
         progress,
+        live,
     )
     recovered = _recover_bags(runs)
     if watch.signals:
@@ -562,8 +588,13 @@ def _run_nodes(
     respawn_limit: int,
     external_timeout_s: float = 0.0,
     progress: TextIO | None = None,
+    live: _Live | None = None,
 ) -> _Watch:
-    """Start every axis's nodes, watch them until the plants are done, stop them all."""
+    """Start every axis's nodes, watch them until the plants are done, stop them all.
+
+    With ``live``, the live view is started first (the runner waits until it
+    listens and prints its URL) and stopped after the nodes.
+    """
     env = ros_environment(domain_id, runs[0].log_dir)
     settings = discovery_settings(runs[0].log_dir)
     watch = _Watch()
@@ -581,6 +612,8 @@ def _run_nodes(
         watch.t_start_epoch = started
         previous_handlers = catch_stop_signals(watch.signals)
         try:
+            if live is not None:
+                _start_live(live, env, runs[0].log_dir if len(runs) == 1 else run_dir, watch)
             for run in runs:
                 run.env = {**env, "ROS_LOG_DIR": str(run.log_dir)}
                 run.procs = start_nodes(
@@ -598,10 +631,20 @@ def _run_nodes(
             }
             restore_handlers(previous_handlers)
     finally:
+        if live is not None and live.proc is not None:
+            code = stop_nodes([live.proc])["live"]
+            if code != 0:  # the run went on without it
+                print(
+                    f"live view exited with code {code} (see {live.proc.log_path}); "
+                    "the run is not affected",
+                    file=sys.stderr,
+                )
         for run in runs:
             if run.watcher is not None:
                 run.watcher.close()
         procs = [p for run in runs for p in run.procs]
+        if live is not None and live.proc is not None:
+            procs.append(live.proc)
         if any((p.popen.returncode or 0) < 0 for p in procs):
             # Again once the watchers are closed: a killed participant never
             # lets go of the port segments it opened (the watchers' own
@@ -650,6 +693,27 @@ class _Outside:
         )
         return (
             f"the outside node did not come within --external-timeout {self.timeout_s:g} s: {names}"
+        )
+
+
+def _start_live(live: _Live, env: dict[str, str], log_dir: Path, watch: _Watch) -> None:
+    """Start the live view and wait until it listens; print its URL."""
+    live.proc = start_process(
+        "live",
+        ["-m", "servo_axis.run.live", *module_args(live.port, live.axes)],
+        {**env, "ROS_LOG_DIR": str(log_dir)},
+        log_dir / "live.log",
+    )
+    proc = live.proc
+    address = wait_ready(
+        proc.log_path, lambda: proc.popen.poll() is None, stopped=lambda: bool(watch.signals)
+    )
+    if address and live.out is not None:
+        print(
+            f"live view: {address}  (Foxglove / Lichtblick: open a connection, "
+            "Foxglove WebSocket, this URL)",
+            file=live.out,
+            flush=True,
         )
 
 

@@ -1,0 +1,123 @@
+"""The live view's pieces without ROS: axes, error pairing, schemas, the checks before a run."""
+
+from __future__ import annotations
+
+import json
+import socket
+import subprocess
+import sys
+from dataclasses import fields
+from pathlib import Path
+
+import pytest
+from numpy.testing import assert_allclose
+
+from servo_axis.core.errors import ConfigError
+from servo_axis.params.scenario import load_scenario
+from servo_axis.run.live import (
+    ErrorPairs,
+    LiveAxis,
+    check_live,
+    error_schema,
+    live_axis,
+    module_args,
+    sample_schema,
+    wait_ready,
+)
+from servo_axis.wire.messages import StateSample
+
+CONFIG = Path(__file__).resolve().parents[3] / "config"
+
+
+def test_the_axis_of_a_run_names_its_topics_sensor_and_units() -> None:
+    nominal = live_axis(load_scenario(CONFIG / "ptc_nominal.yaml"), "")
+    assert (nominal.sensor, nominal.linear, nominal.axis) == ("encoder", True, "x")
+    assert_allclose(nominal.control_period_s, 1e-3, rtol=0, atol=0)
+    assert nominal.topic("state") == "/state"
+    full_closed = live_axis(load_scenario(CONFIG / "fast_reversal_sigmoid.yaml"), "/x")
+    assert full_closed.sensor == "scale"
+    assert full_closed.topic("tracking_error") == "/x/tracking_error"
+    tilt = live_axis(load_scenario(CONFIG / "dlpid_tilt_pid.yaml"), "")
+    assert not tilt.linear  # a rotary table: the error in rad only
+    assert "error_m" not in error_schema(tilt)["properties"]
+    assert "error_m" in error_schema(nominal)["properties"]
+
+
+def test_the_axes_go_to_the_process_as_json_and_back() -> None:
+    axis = LiveAxis("/y", "y", 5e-4, "scale", 0.00191, True)
+    args = module_args(9000, [axis])
+    assert args[:2] == ["--port", "9000"]
+    assert [LiveAxis(**a) for a in json.loads(args[3])] == [axis]
+
+
+def test_error_pairs_match_reference_and_output_of_the_same_step_in_either_order() -> None:
+    pairs = ErrorPairs()
+    assert pairs.reference(0, 1.0) is None  # the reference comes ahead
+    assert pairs.reference(1, 2.0) is None
+    assert pairs.output(0, 0.25) == (1.0, 0.25)
+    assert pairs.output(2, 0.5) is None  # an output before its reference
+    assert pairs.output(1, 1.5) == (2.0, 1.5)
+    assert pairs.reference(2, 3.0) == (3.0, 0.5)
+    assert pairs.output(0, 9.0) is None  # step 0 was paired already
+
+
+def test_error_pairs_forget_values_whose_partner_never_comes() -> None:
+    pairs = ErrorPairs(window=10)
+    for k in range(100):
+        pairs.reference(k, float(k))  # no output ever
+    held = len(pairs._refs)
+    assert held <= 21, held
+    assert pairs.output(99, 0.0) == (99.0, 0.0)
+    assert pairs.output(5, 0.0) is None  # long forgotten
+
+
+def test_the_state_schema_names_every_field_with_its_type() -> None:
+    schema = sample_schema(StateSample, "state")
+    props = schema["properties"]
+    assert set(props) == {f.name for f in fields(StateSample)} | {"timestamp"}
+    assert props["step"] == {"type": "integer"}
+    assert props["encoder_rad"] == {"type": "number"}
+
+
+def test_a_busy_or_impossible_port_is_refused_in_one_line() -> None:
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        with pytest.raises(
+            ConfigError, match=rf"^--live-port {port}: cannot listen on 127\.0\.0\.1"
+        ):
+            check_live(port)
+    check_live(port)  # free again
+    for bad in (0, 70000):
+        with pytest.raises(ConfigError, match=rf"^--live-port {bad}: expected a TCP port 1..65535"):
+            check_live(bad)
+
+
+def test_without_the_extra_live_exits_2_with_how_to_install_it(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    code = (
+        "import sys; sys.modules['foxglove'] = None\n"  # as if foxglove-sdk were not installed
+        "from servo_axis.__main__ import main\n"
+        f"raise SystemExit(main(['run', 'ptc_nominal', '--live', '--out', {str(out)!r}]))"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=False
+    )
+    assert done.returncode == 2
+    assert done.stdout == ""
+    lines = done.stderr.splitlines()
+    assert len(lines) == 1, done.stderr
+    assert "foxglove-sdk" in lines[0] and "pip install" in lines[0] and "[live]" in lines[0]
+    assert not out.exists()
+
+
+def test_waiting_for_the_live_process_names_why_it_did_not_start(tmp_path: Path) -> None:
+    log = tmp_path / "live.log"
+    log.write_text("live: cannot serve on 127.0.0.1:1: permission denied\n")
+    with pytest.raises(ConfigError, match="live view exited: live: cannot serve on"):
+        wait_ready(log, lambda: False)
+    log.write_text("live view serving ws://127.0.0.1:8765 channels /state\n")
+    assert wait_ready(log, lambda: True) == "ws://127.0.0.1:8765"
+    log.write_text("")
+    assert wait_ready(log, lambda: True, stopped=lambda: True) == ""
