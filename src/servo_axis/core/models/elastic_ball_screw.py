@@ -42,7 +42,8 @@ both element sets is updated at the end of each sub-step from its
 displacement and held over the next one (its springs are far
 slower than the sub-step: about 45 Hz for the table on the guide's elements
 at the default values, against 10 us sub-steps of 50 us). ``i_a`` is
-evaluated exactly at each RK4 stage.
+evaluated exactly at each RK4 stage. The sub-step loop is compiled
+(:func:`servo_axis.core.kernels.elastic_ball_screw_period`).
 
 Sensors: the rotary encoder reads ``th`` (2^20 pulses/rev), the linear scale
 ``x_t`` (100 nm), both quantised to the nearest count (optional seeded
@@ -342,7 +343,31 @@ class ElasticBallScrewPlant:
         wc = 2.0 * math.pi * p.current_bandwidth_hz
         h = self._h
         # i_a at a stage time tau into the sub-step: i_c + (i_0 - i_c) e^{-wc tau}.
-        self._decay = (1.0, math.exp(-wc * h / 2.0), math.exp(-wc * h)) if wc > 0.0 else None
+        self._ideal_current = not wc > 0.0
+        self._decay1 = math.exp(-wc * h / 2.0) if wc > 0.0 else 1.0
+        self._decay2 = math.exp(-wc * h) if wc > 0.0 else 1.0
+        k = p.stiffness_N_per_m
+        self._coefficients = np.array(
+            [
+                r,
+                k,
+                p.screw_damping_Ns_per_m,
+                p.contact_zone_m,
+                (k - p.contact_stiffness_ratio * k) * p.contact_zone_m,
+                p.torque_constant_Nm_per_A,
+                p.motor_damping_Nms_per_rad,
+                p.motor_inertia_kgm2,
+                p.table_damping_Ns_per_m,
+                p.table_mass_kg,
+            ]
+        )
+        # The RK4 sub-steps and both friction sets, compiled (the plant's whole cost).
+        from servo_axis.core.kernels import elastic_ball_screw_period
+
+        self._kernel = elastic_ball_screw_period
+        self._state = np.zeros(7)
+        self._nut_elements = self._nut.elements()
+        self._guide_elements = self._guide.elements()
         self.reset()
 
     def reset(self) -> None:
@@ -376,57 +401,30 @@ class ElasticBallScrewPlant:
 
     def step(self, current_A: float) -> PlantOutput:
         """Hold ``current_A`` (A, saturated at ``+-current_limit_A``) over one control period."""
-        p = self.params
-        cmd = clipped_current(current_A, p.current_limit_A)
-        r = p.lead_m_per_rad
-        kt = p.torque_constant_Nm_per_A
-        jm, bm = p.motor_inertia_kgm2, p.motor_damping_Nms_per_rad
-        m, ct = p.table_mass_kg, p.table_damping_Ns_per_m
-        k = p.stiffness_N_per_m
-        g = p.contact_zone_m
-        soft = (k - p.contact_stiffness_ratio * k) * g
-        cs = p.screw_damping_Ns_per_m
-        tanh = math.tanh
-        h = self._h
-        half = h / 2.0
-        decay = self._decay
-        nut, guide = self._nut, self._guide
-        th, w, x, v, i = self._th, self._w, self._x, self._v, self._i
-        tf, fg = self._torque_friction, self._force_friction
-        if decay is None:
-            i = cmd
-
-        def accel(
-            th: float, w: float, x: float, v: float, i: float, tf: float, fg: float
-        ) -> tuple[float, float]:
-            d = r * th - x
-            fs = k * d + cs * (r * w - v)
-            if g > 0.0:
-                fs -= soft * tanh(d / g)
-            return (kt * i - bm * w - r * fs - tf) / jm, (fs - ct * v - fg) / m
-
-        for _ in range(self._n):
-            th_start, x_start = th, x
-            if decay is None:
-                i0 = i1 = i2 = i
-            else:
-                i0 = i
-                i1 = cmd + (i - cmd) * decay[1]
-                i2 = cmd + (i - cmd) * decay[2]
-            a1, b1 = accel(th, w, x, v, i0, tf, fg)
-            a2, b2 = accel(th + half * w, w + half * a1, x + half * v, v + half * b1, i1, tf, fg)
-            w2, v2 = w + half * a1, v + half * b1
-            a3, b3 = accel(th + half * w2, w + half * a2, x + half * v2, v + half * b2, i1, tf, fg)
-            w3, v3 = w + half * a2, v + half * b2
-            a4, b4 = accel(th + h * w3, w + h * a3, x + h * v3, v + h * b3, i2, tf, fg)
-            w4, v4 = w + h * a3, v + h * b3
-            th += h / 6.0 * (w + 2.0 * w2 + 2.0 * w3 + w4)
-            x += h / 6.0 * (v + 2.0 * v2 + 2.0 * v3 + v4)
-            w += h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
-            v += h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
-            i = i2
-            tf = nut.move(th - th_start)
-            fg = guide.move(x - x_start)
+        cmd = clipped_current(current_A, self.params.current_limit_A)
+        state = self._state
+        state[:] = (
+            self._th,
+            self._w,
+            self._x,
+            self._v,
+            self._i,
+            self._torque_friction,
+            self._force_friction,
+        )
+        self._kernel(
+            state,
+            cmd,
+            self._n,
+            self._h,
+            self._decay1,
+            self._decay2,
+            self._ideal_current,
+            self._coefficients,
+            self._nut_elements,
+            self._guide_elements,
+        )
+        th, w, x, v, i, tf, fg = state.tolist()
         self._th, self._w, self._x, self._v, self._i = th, w, x, v, i
         self._torque_friction, self._force_friction = tf, fg
         self._step += 1
