@@ -166,7 +166,7 @@ def _elastic_accel(
     fg: float,
     p: np.ndarray,
 ) -> tuple[float, float]:
-    # p: r, k, cs, g, soft, kt, bm, jm, ct, m (see elastic_ball_screw_period).
+    # p: r, k, cs, g, soft, kt, bm, jm, ct, m, ... (the config of elastic_ball_screw_period).
     r, k, cs, g, soft = p[0], p[1], p[2], p[3], p[4]
     d = r * th - x
     fs = k * d + cs * (r * w - v)
@@ -177,16 +177,7 @@ def _elastic_accel(
 
 @_compiled
 def elastic_ball_screw_period(
-    state: np.ndarray,
-    cmd: float,
-    substeps: int,
-    h: float,
-    decay1: float,
-    decay2: float,
-    ideal_current: bool,
-    p: np.ndarray,
-    nut: tuple[np.ndarray, np.ndarray, np.ndarray],
-    guide: tuple[np.ndarray, np.ndarray, np.ndarray],
+    state: np.ndarray, cmd: float, config: np.ndarray, nut: np.ndarray, guide: np.ndarray
 ) -> None:
     """The elastic ball screw over one control period: RK4 sub-steps and friction.
 
@@ -198,23 +189,22 @@ def elastic_ball_screw_period(
         (N); updated in place to the period's end.
     cmd : float
         The commanded current held over the period, A (saturated).
-    substeps : int
-        RK4 sub-steps per period.
-    h : float
-        Sub-step, s.
-    decay1, decay2 : float
-        ``e^{-w_c h/2}`` and ``e^{-w_c h}`` of the current loop.
-    ideal_current : bool
-        True: ``i = cmd`` over the whole period (no current loop).
-    p : ndarray, shape (10,)
+    config : ndarray, shape (15,)
         ``R`` (m/rad), ``k_h`` (N/m), ``c_s`` (N s/m), ``g`` (m),
         ``(k_h - k_0) g`` (N), ``K_T`` (N m/A), ``B_m`` (N m s/rad), ``J_m``
-        (kg m^2), ``C_t`` (N s/m), ``M`` (kg).
-    nut, guide : tuple of 3 ndarrays
-        ``(delta, stiffness, z)`` of the two Maxwell-slip sets (as
-        ``MaxwellSlip.elements`` hands them out); ``z`` in place.
+        (kg m^2), ``C_t`` (N s/m), ``M`` (kg); then the sub-steps per period,
+        the sub-step ``h`` (s), ``e^{-w_c h/2}``, ``e^{-w_c h}`` and 1.0 for
+        an ideal current loop (``i = cmd`` over the whole period), else 0.0.
+    nut, guide : ndarray, shape (3, N)
+        The two Maxwell-slip sets as ``MaxwellSlip.packed`` hands them out
+        (rows ``delta``, ``k``, ``z``); ``z`` in place.
     """
     th, w, x, v, i, tf, fg = state[0], state[1], state[2], state[3], state[4], state[5], state[6]
+    substeps = int(config[10])
+    h = config[11]
+    decay1 = config[12]
+    decay2 = config[13]
+    ideal_current = config[14] != 0.0
     half = h / 2.0
     if ideal_current:
         i = cmd
@@ -228,16 +218,16 @@ def elastic_ball_screw_period(
             i0 = i
             i1 = cmd + (i - cmd) * decay1
             i2 = cmd + (i - cmd) * decay2
-        a1, b1 = _elastic_accel(th, w, x, v, i0, tf, fg, p)
+        a1, b1 = _elastic_accel(th, w, x, v, i0, tf, fg, config)
         a2, b2 = _elastic_accel(
-            th + half * w, w + half * a1, x + half * v, v + half * b1, i1, tf, fg, p
+            th + half * w, w + half * a1, x + half * v, v + half * b1, i1, tf, fg, config
         )
         w2, v2 = w + half * a1, v + half * b1
         a3, b3 = _elastic_accel(
-            th + half * w2, w + half * a2, x + half * v2, v + half * b2, i1, tf, fg, p
+            th + half * w2, w + half * a2, x + half * v2, v + half * b2, i1, tf, fg, config
         )
         w3, v3 = w + half * a2, v + half * b2
-        a4, b4 = _elastic_accel(th + h * w3, w + h * a3, x + h * v3, v + h * b3, i2, tf, fg, p)
+        a4, b4 = _elastic_accel(th + h * w3, w + h * a3, x + h * v3, v + h * b3, i2, tf, fg, config)
         w4, v4 = w + h * a3, v + h * b3
         th += h / 6.0 * (w + 2.0 * w2 + 2.0 * w3 + w4)
         x += h / 6.0 * (v + 2.0 * v2 + 2.0 * v3 + v4)

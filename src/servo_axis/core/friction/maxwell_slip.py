@@ -45,9 +45,11 @@ class MaxwellSlip:
         if elements < 1:
             raise ConfigError(f"elements: expected >= 1, got {elements!r}")
         delta = [width_rad * (i + 1) / elements for i in range(elements)]
-        self._delta = np.array(delta)
-        self._stiffness = np.array([coulomb_Nm / elements / d for d in delta])
-        self._z = np.zeros(elements)
+        # One array, rows delta, stiffness, z: what the compiled loops take.
+        self._packed = np.zeros((3, elements))
+        self._packed[0] = delta
+        self._packed[1] = [coulomb_Nm / elements / d for d in delta]
+        self._delta, self._stiffness, self._z = self._packed
 
     def reset(self) -> None:
         """Relax every element (virgin state)."""
@@ -65,6 +67,14 @@ class MaxwellSlip:
         loop updates it in place.
         """
         return self._delta, self._stiffness, self._z
+
+    def packed(self) -> np.ndarray:
+        """The elements as one float64 array, shape (3, N): rows ``delta``, ``k``, live ``z``.
+
+        Rows as in :meth:`elements` (views of this array); the ``z`` row is
+        the element state itself.
+        """
+        return self._packed
 
     def move(self, displacement_rad: float) -> float:
         """Advance by ``displacement_rad`` and return the new torque, N m."""

@@ -343,11 +343,9 @@ class ElasticBallScrewPlant:
         wc = 2.0 * math.pi * p.current_bandwidth_hz
         h = self._h
         # i_a at a stage time tau into the sub-step: i_c + (i_0 - i_c) e^{-wc tau}.
-        self._ideal_current = not wc > 0.0
-        self._decay1 = math.exp(-wc * h / 2.0) if wc > 0.0 else 1.0
-        self._decay2 = math.exp(-wc * h) if wc > 0.0 else 1.0
+        ideal = not wc > 0.0
         k = p.stiffness_N_per_m
-        self._coefficients = np.array(
+        self._config = np.array(
             [
                 r,
                 k,
@@ -359,29 +357,29 @@ class ElasticBallScrewPlant:
                 p.motor_inertia_kgm2,
                 p.table_damping_Ns_per_m,
                 p.table_mass_kg,
+                self._n,
+                h,
+                1.0 if ideal else math.exp(-wc * h / 2.0),
+                1.0 if ideal else math.exp(-wc * h),
+                1.0 if ideal else 0.0,
             ]
         )
         # The RK4 sub-steps and both friction sets, compiled (the plant's whole cost).
         from servo_axis.core.kernels import elastic_ball_screw_period
 
         self._kernel = elastic_ball_screw_period
+        # th, w, x, v, i, T_f, f_g: the state, stepped in place by the kernel.
         self._state = np.zeros(7)
-        self._nut_elements = self._nut.elements()
-        self._guide_elements = self._guide.elements()
         self.reset()
 
     def reset(self) -> None:
         """Return to the initial state at step 0 (at rest, spring and friction relaxed)."""
         p = self.params
-        self._x = p.initial_position_m
-        self._th = p.initial_position_m / p.lead_m_per_rad
-        self._w = 0.0
-        self._v = 0.0
-        self._i = 0.0
+        self._state[:] = 0.0
+        self._state[0] = p.initial_position_m / p.lead_m_per_rad
+        self._state[2] = p.initial_position_m
         self._nut.reset()
         self._guide.reset()
-        self._torque_friction = 0.0
-        self._force_friction = 0.0
         self._step = 0
         self._sample()
 
@@ -393,7 +391,7 @@ class ElasticBallScrewPlant:
     @property
     def deformation_m(self) -> float:
         """``delta = R th - x_t``: the elastic deformation now, m."""
-        return self.params.lead_m_per_rad * self._th - self._x
+        return self.params.lead_m_per_rad * float(self._state[0]) - float(self._state[2])
 
     def output(self) -> PlantOutput:
         """Readings and true state at the current control sample."""
@@ -402,45 +400,22 @@ class ElasticBallScrewPlant:
     def step(self, current_A: float) -> PlantOutput:
         """Hold ``current_A`` (A, saturated at ``+-current_limit_A``) over one control period."""
         cmd = clipped_current(current_A, self.params.current_limit_A)
-        state = self._state
-        state[:] = (
-            self._th,
-            self._w,
-            self._x,
-            self._v,
-            self._i,
-            self._torque_friction,
-            self._force_friction,
-        )
-        self._kernel(
-            state,
-            cmd,
-            self._n,
-            self._h,
-            self._decay1,
-            self._decay2,
-            self._ideal_current,
-            self._coefficients,
-            self._nut_elements,
-            self._guide_elements,
-        )
-        th, w, x, v, i, tf, fg = state.tolist()
-        self._th, self._w, self._x, self._v, self._i = th, w, x, v, i
-        self._torque_friction, self._force_friction = tf, fg
+        self._kernel(self._state, cmd, self._config, self._nut.packed(), self._guide.packed())
         self._step += 1
         self._sample()
         return self._out
 
     def _sample(self) -> None:
         p = self.params
+        th, w, x, v, i, tf, fg = self._state.tolist()
         self._out = PlantOutput(
             step=self._step,
-            encoder_rad=self._encoder.measure(self._th),
-            scale_m=self._scale.measure(self._x),
-            angle_rad=self._th,
-            velocity_rad_s=self._w,
-            position_m=self._x,
-            velocity_m_s=self._v,
-            motor_torque_Nm=p.torque_constant_Nm_per_A * self._i,
-            friction_force_N=self._force_friction + self._torque_friction / p.lead_m_per_rad,
+            encoder_rad=self._encoder.measure(th),
+            scale_m=self._scale.measure(x),
+            angle_rad=th,
+            velocity_rad_s=w,
+            position_m=x,
+            velocity_m_s=v,
+            motor_torque_Nm=p.torque_constant_Nm_per_A * i,
+            friction_force_N=fg + tf / p.lead_m_per_rad,
         )
