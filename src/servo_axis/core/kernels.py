@@ -262,12 +262,41 @@ def tilting_rk4(
     )
 
 
+#: What ``config`` of the tilting table's kernels holds, by index.
+TILTING_CONFIG = (
+    "substeps",
+    "h_s",
+    "coulomb_Nm",
+    "inverse_inertia_per_kgm2",
+    "unbalance_Nm",
+    "damping_per_s",
+    "unbalance_per_s2",
+    "event_tolerance_s",
+    "event_iterations",
+    "events_per_substep",
+)
+
+
 @_compiled
-def tilting_smooth_period(
-    th: float, v: float, substeps: int, h: float, b: float, d: float, u: float
-) -> tuple[float, float]:
-    """``substeps`` RK4 steps of ``h`` (s) without friction: the angle (rad), velocity (rad/s)."""
-    for _ in range(substeps):
+def tilting_smooth_period(th: float, v: float, b: float, config: np.ndarray) -> tuple[float, float]:
+    """The tilting table without friction over one control period (RK4 sub-steps).
+
+    Parameters
+    ----------
+    th, v : float
+        Angle (rad) and velocity (rad/s) at the period's start.
+    b : float
+        ``T_m / J``, rad/s^2, held over the period.
+    config : ndarray
+        The plant's constants, in the order of :data:`TILTING_CONFIG`.
+
+    Returns
+    -------
+    th, v : float
+        Angle and velocity at the period's end.
+    """
+    h, d, u = config[1], config[5], config[6]
+    for _ in range(int(config[0])):
         th, v = tilting_rk4(th, v, h, b, d, u)
     return th, v
 
@@ -312,19 +341,7 @@ def _tilting_locate_stop(
 
 @_compiled
 def tilting_friction_period(
-    th: float,
-    v: float,
-    substeps: int,
-    h: float,
-    torque: float,
-    coulomb: float,
-    inv_j: float,
-    unbalance: float,
-    d: float,
-    u: float,
-    tol: float,
-    iterations: int,
-    events: int,
+    th: float, v: float, torque: float, config: np.ndarray
 ) -> tuple[float, float]:
     """The tilting table with Coulomb friction over one control period.
 
@@ -336,28 +353,23 @@ def tilting_friction_period(
     ----------
     th, v : float
         Angle (rad) and velocity (rad/s) at the period's start.
-    substeps : int
-        Sub-steps per period.
-    h : float
-        Sub-step, s.
     torque : float
         Motor torque held over the period, N m.
-    coulomb, unbalance : float
-        ``C`` and ``U``, N m.
-    inv_j : float
-        ``1 / J``, 1/(kg m^2).
-    d, u : float
-        ``D / J`` (1/s) and ``U / J`` (1/s^2).
-    tol : float
-        Newton's stopping step, s.
-    iterations, events : int
-        At most this many Newton iterations per event, events per sub-step.
+    config : ndarray
+        The plant's constants, in the order of :data:`TILTING_CONFIG`: the
+        sub-steps per period, the sub-step (s), ``C`` (N m), ``1 / J``
+        (1/(kg m^2)), ``U`` (N m), ``D / J`` (1/s), ``U / J`` (1/s^2),
+        Newton's stopping step (s), at most this many Newton iterations per
+        event and events per sub-step.
 
     Returns
     -------
     th, v : float
         Angle and velocity at the period's end.
     """
+    substeps, h, coulomb, inv_j = int(config[0]), config[1], config[2], config[3]
+    unbalance, d, u, tol = config[4], config[5], config[6], config[7]
+    iterations, events = int(config[8]), int(config[9])
     for _ in range(substeps):
         tau = h
         for _ in range(events):

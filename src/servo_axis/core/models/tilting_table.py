@@ -199,9 +199,28 @@ class TiltingTablePlant:
         self._d = params.damping_Nms_per_rad / params.inertia_kgm2
         self._u = params.unbalance_Nm / params.inertia_kgm2
         # The sub-step loops (RK4, the zero-velocity events), compiled.
-        from servo_axis.core import kernels
+        from servo_axis.core.kernels import tilting_friction_period, tilting_smooth_period
 
-        self._kernels = kernels
+        self._kernel = tilting_friction_period if params.coulomb_Nm > 0.0 else tilting_smooth_period
+        self._config = np.array(
+            [
+                self._n,
+                self._h,
+                params.coulomb_Nm,
+                1.0 / params.inertia_kgm2,
+                params.unbalance_Nm,
+                self._d,
+                self._u,
+                _EVENT_TOLERANCE * self._h,
+                _EVENT_ITERATIONS,
+                _EVENTS_PER_SUBSTEP,
+            ]
+        )
+        # Encoder noise uniform in [-noise, noise): numpy's Generator.uniform is
+        # low + (high - low) * random(), one double per draw; done here with
+        # random() that way (the same numbers, a third of the cost).
+        self._noise_low = -params.noise_rad
+        self._noise_span = params.noise_rad - -params.noise_rad
         self.reset()
 
     def reset(self) -> None:
@@ -252,38 +271,15 @@ class TiltingTablePlant:
         self._applied_A = cmd
         self._torque_Nm = torque
         if p.coulomb_Nm > 0.0:
-            self._integrate_with_friction(torque)
+            self._th, self._v = self._kernel(self._th, self._v, torque, self._config)
         else:
-            self._integrate_smooth(torque)
+            # C = 0: eq. (2) is smooth; plain RK4 (a table at rest with zero net
+            # torque is an exact equilibrium of the RK4 map too).
+            b = torque / p.inertia_kgm2
+            self._th, self._v = self._kernel(self._th, self._v, b, self._config)
         self._step += 1
         self._update_sample()
         return self.output()
-
-    def _integrate_smooth(self, torque: float) -> None:
-        # C = 0: eq. (2) is smooth; plain RK4 (a table at rest with zero net
-        # torque is an exact equilibrium of the RK4 map too).
-        b = torque / self.params.inertia_kgm2
-        self._th, self._v = self._kernels.tilting_smooth_period(
-            self._th, self._v, self._n, self._h, b, self._d, self._u
-        )
-
-    def _integrate_with_friction(self, torque: float) -> None:
-        p = self.params
-        self._th, self._v = self._kernels.tilting_friction_period(
-            self._th,
-            self._v,
-            self._n,
-            self._h,
-            torque,
-            p.coulomb_Nm,
-            1.0 / p.inertia_kgm2,
-            p.unbalance_Nm,
-            self._d,
-            self._u,
-            _EVENT_TOLERANCE * self._h,
-            _EVENT_ITERATIONS,
-            _EVENTS_PER_SUBSTEP,
-        )
 
     def _update_sample(self) -> None:
         # Friction torque at the sample (eq. (2) sign: it opposes the motion)
@@ -297,7 +293,7 @@ class TiltingTablePlant:
             self._friction_Nm = min(max(net, -c), c)
         value = self._th
         if p.noise_rad > 0.0:
-            value += float(self._rng.uniform(-p.noise_rad, p.noise_rad))
+            value += self._noise_low + self._noise_span * self._rng.random()
         res = p.encoder_resolution_rad
         if res > 0.0:
             value = math.floor(value / res + 0.5) * res
