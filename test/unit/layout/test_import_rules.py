@@ -6,7 +6,8 @@ hidden inside a function is still a circle.
 * no import circle between the modules of ``servo_axis``;
 * no node module imports another node module (the composed container aside);
 * ``servo_axis.core`` imports nothing of the project outside ``core``, and
-  nothing but numpy, scipy and the standard library;
+  nothing but numpy, scipy, numba (only ``core.kernels``, the compiled
+  sub-step loops) and the standard library;
 * ``simulate``, ``analysis``, ``friction_id``, ``gms_fit``, ``params``,
   ``wire.topics``,
   ``wire.cdr`` and ``recording.reader`` reach no rclpy and no ROS message
@@ -109,17 +110,35 @@ def test_no_node_module_imports_another() -> None:
         assert not (GRAPH[name] & roles), f"{name} imports {sorted(GRAPH[name] & roles)}"
 
 
-def test_core_imports_only_core_numpy_scipy_and_the_standard_library() -> None:
+def test_core_imports_only_core_numpy_scipy_numba_and_the_standard_library() -> None:
     allowed_third_party = {"numpy", "scipy"}
     for name in sorted(m for m in MODULES if m.startswith("servo_axis.core")):
         for imported in imports_of(name):
             top = imported.split(".")[0]
+            if top == "numba":
+                assert name == "servo_axis.core.kernels", f"{name} imports numba"
+                continue
             if top == PACKAGE:
                 assert imported.startswith("servo_axis.core"), f"{name} imports {imported}"
             else:
                 assert top in allowed_third_party or top in sys.stdlib_module_names, (
                     f"{name} imports {imported}"
                 )
+
+
+def test_the_kernels_are_imported_where_a_plant_is_built() -> None:
+    # numba costs about half a second to import: no module imports the kernels
+    # at its top, so that only a process that builds a plant (or moves a
+    # Maxwell-slip set) pays for it.
+    for name, path in sorted(MODULES.items()):
+        for node in ast.parse(path.read_text()).body:
+            if isinstance(node, ast.ImportFrom) and node.module:
+                names = {node.module, *(f"{node.module}.{a.name}" for a in node.names)}
+            elif isinstance(node, ast.Import):
+                names = {a.name for a in node.names}
+            else:
+                continue
+            assert "servo_axis.core.kernels" not in names, f"{name} imports the kernels at its top"
 
 
 def reach(name: str) -> set[str]:

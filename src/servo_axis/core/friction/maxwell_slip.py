@@ -2,14 +2,17 @@
 
 The model behind the "region A/B" characteristic of paper 000 Fig. 4 and
 paper 001 Sect. II: rate independent, a function of the displacement from
-the last reversal, with non-local memory. Written once; the plants use it
-(the ball screw inlines its update in the integration loop for speed, with
-the element lists :meth:`MaxwellSlip.elements` hands out).
+the last reversal, with non-local memory. Written once: the update is the
+compiled :func:`servo_axis.core.kernels.maxwell_slip_move`, which the plants'
+compiled sub-step loops call on the element arrays :meth:`MaxwellSlip.elements`
+hands out (the ball screw inlines it in its rigid-body loop).
 """
 
 from __future__ import annotations
 
 import math
+
+import numpy as np
 
 from servo_axis.core.errors import ConfigError, require_nonnegative, require_positive
 
@@ -41,36 +44,42 @@ class MaxwellSlip:
         require_positive("width_rad", width_rad)
         if elements < 1:
             raise ConfigError(f"elements: expected >= 1, got {elements!r}")
-        self._delta = [width_rad * (i + 1) / elements for i in range(elements)]
-        self._stiffness = [coulomb_Nm / elements / d for d in self._delta]
-        self._z = [0.0] * elements
+        delta = [width_rad * (i + 1) / elements for i in range(elements)]
+        # One array, rows delta, stiffness, z: what the compiled loops take.
+        self._packed = np.zeros((3, elements))
+        self._packed[0] = delta
+        self._packed[1] = [coulomb_Nm / elements / d for d in delta]
+        self._delta, self._stiffness, self._z = self._packed
 
     def reset(self) -> None:
         """Relax every element (virgin state)."""
-        self._z[:] = [0.0] * len(self._z)
+        self._z[:] = 0.0
 
     def torque(self) -> float:
         """Friction torque the elements exert against the motion, N m."""
-        return math.fsum(k * z for k, z in zip(self._stiffness, self._z, strict=True))
+        return math.fsum((self._stiffness * self._z).tolist())
 
-    def elements(self) -> tuple[list[float], list[float], list[float]]:
-        """Break-away deflections (rad), stiffnesses (N m/rad) and the live deflection list.
+    def elements(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Break-away deflections (rad), stiffnesses (N m/rad) and the live deflections.
 
-        The deflection list is the element state itself: a caller that steps
-        the elements inline (the plant's inner loop) updates it in place.
+        Float64 arrays of one element each; the deflection array is the
+        element state itself: a caller that steps the elements in a compiled
+        loop updates it in place.
         """
         return self._delta, self._stiffness, self._z
 
+    def packed(self) -> np.ndarray:
+        """The elements as one float64 array, shape (3, N): rows ``delta``, ``k``, live ``z``.
+
+        Rows as in :meth:`elements` (views of this array); the ``z`` row is
+        the element state itself.
+        """
+        return self._packed
+
     def move(self, displacement_rad: float) -> float:
         """Advance by ``displacement_rad`` and return the new torque, N m."""
-        z = self._z
-        total = 0.0
-        for i, (d, k) in enumerate(zip(self._delta, self._stiffness, strict=True)):
-            zi = z[i] + displacement_rad
-            if zi > d:
-                zi = d
-            elif zi < -d:
-                zi = -d
-            z[i] = zi
-            total += k * zi
-        return total
+        from servo_axis.core.kernels import maxwell_slip_move
+
+        return float(
+            maxwell_slip_move(self._z, self._delta, self._stiffness, float(displacement_rad))
+        )

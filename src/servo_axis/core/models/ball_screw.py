@@ -239,6 +239,15 @@ class BallScrewPlant:
             float(bd[1]),
         )
         self._has_friction = params.friction.enabled
+        if self._has_friction:
+            from servo_axis.core.kernels import ball_screw_rigid_with_friction
+
+            self._kernel = ball_screw_rigid_with_friction
+            rolling = self._friction.rolling
+            empty = np.zeros(0)
+            self._elements: tuple[np.ndarray, np.ndarray, np.ndarray] = (
+                rolling.elements() if rolling is not None else (empty, empty, empty)
+            )
         self._has_disturbance = params.disturbance.amplitude_Nm > 0.0
         self._substep_times = np.arange(n) * params.sim_step_s
         self.reset()
@@ -249,7 +258,7 @@ class BallScrewPlant:
         self._x = np.zeros(self._ad.shape[0])
         self._x[0] = p.initial_angle_rad
         self._x[1] = p.initial_velocity_rad_s
-        self._friction.reset()
+        self._friction.reset()  # in place: self._elements stays the live state
         self._step = 0
         # Commands still in the dead-time pipe, oldest first (zero before start).
         self._pipe: deque[float] = deque([0.0] * (self._delay_periods + 1))
@@ -328,47 +337,29 @@ class BallScrewPlant:
         # Friction acts on the rigid-body coordinates (theta_r, omega_r): the
         # rolling elements follow the screw's rigid motion, the modes are
         # structural vibration on top. So the rigid body and the friction are
-        # stepped together in scalar arithmetic (cheap), and the modes, which
-        # are linear, are advanced once per period from the input sequence.
-        kt = self.params.torque_constant_Nm_per_A
-        a00, a01, a11, b0, b1 = self._rigid
-        inputs = self._inputs(older, newer)
-        u_in = inputs.tolist()
-        x = self._x
-        th, w = float(x[0]), float(x[1])
-        prev = self._last_angle
+        # stepped together, sub-step by sub-step, in a compiled loop (it
+        # dominates the plant's cost), and the modes, which are linear, are
+        # advanced once per period from the input sequence net of friction.
         fp = self.params.friction
-        rolling = self._friction.rolling
-        delta, stiff, z = rolling.elements() if rolling is not None else ([], [], [])
-        elems = list(zip(range(len(z)), delta, stiff, strict=True))
-        coulomb, smooth, visc = fp.coulomb_Nm, fp.coulomb_smoothing_rad_s, fp.viscous_Nms_per_rad
-        tanh = math.tanh
-        fr = self._friction_Nm
-        # The Maxwell-slip update of friction.MaxwellSlip.move, inlined: this
-        # loop runs once per simulation step and dominates the plant's cost.
-        for j in range(self._n):
-            d = th - prev
-            prev = th
-            fr = 0.0
-            for i, di, ki in elems:
-                zi = z[i] + d
-                if zi > di:
-                    zi = di
-                elif zi < -di:
-                    zi = -di
-                z[i] = zi
-                fr += ki * zi
-            if coulomb > 0.0:
-                fr += coulomb * tanh(w / smooth)
-            if visc > 0.0:
-                fr += visc * w
-            u = u_in[j] - fr / kt
-            inputs[j] = u
-            th, w = a00 * th + a01 * w + b0 * u, a11 * w + b1 * u
+        inputs = self._inputs(older, newer)
+        x = self._x
+        delta, stiffness, z = self._elements
+        th, w, self._last_angle, self._friction_Nm = self._kernel(
+            inputs,
+            float(x[0]),
+            float(x[1]),
+            self._last_angle,
+            delta,
+            stiffness,
+            z,
+            fp.coulomb_Nm,
+            fp.coulomb_smoothing_rad_s,
+            fp.viscous_Nms_per_rad,
+            self.params.torque_constant_Nm_per_A,
+            self._rigid,
+        )
         modes = self._mode_phi @ x[2:] + self._mode_gain_seq @ inputs
         self._x = np.concatenate(([th, w], modes))
-        self._last_angle = prev
-        self._friction_Nm = fr
 
 
 def ball_screw_response(

@@ -42,7 +42,8 @@ both element sets is updated at the end of each sub-step from its
 displacement and held over the next one (its springs are far
 slower than the sub-step: about 45 Hz for the table on the guide's elements
 at the default values, against 10 us sub-steps of 50 us). ``i_a`` is
-evaluated exactly at each RK4 stage.
+evaluated exactly at each RK4 stage. The sub-step loop is compiled
+(:func:`servo_axis.core.kernels.elastic_ball_screw_period`).
 
 Sensors: the rotary encoder reads ``th`` (2^20 pulses/rev), the linear scale
 ``x_t`` (100 nm), both quantised to the nearest count (optional seeded
@@ -342,21 +343,43 @@ class ElasticBallScrewPlant:
         wc = 2.0 * math.pi * p.current_bandwidth_hz
         h = self._h
         # i_a at a stage time tau into the sub-step: i_c + (i_0 - i_c) e^{-wc tau}.
-        self._decay = (1.0, math.exp(-wc * h / 2.0), math.exp(-wc * h)) if wc > 0.0 else None
+        ideal = not wc > 0.0
+        k = p.stiffness_N_per_m
+        self._config = np.array(
+            [
+                r,
+                k,
+                p.screw_damping_Ns_per_m,
+                p.contact_zone_m,
+                (k - p.contact_stiffness_ratio * k) * p.contact_zone_m,
+                p.torque_constant_Nm_per_A,
+                p.motor_damping_Nms_per_rad,
+                p.motor_inertia_kgm2,
+                p.table_damping_Ns_per_m,
+                p.table_mass_kg,
+                self._n,
+                h,
+                1.0 if ideal else math.exp(-wc * h / 2.0),
+                1.0 if ideal else math.exp(-wc * h),
+                1.0 if ideal else 0.0,
+            ]
+        )
+        # The RK4 sub-steps and both friction sets, compiled (the plant's whole cost).
+        from servo_axis.core.kernels import elastic_ball_screw_period
+
+        self._kernel = elastic_ball_screw_period
+        # th, w, x, v, i, T_f, f_g: the state, stepped in place by the kernel.
+        self._state = np.zeros(7)
         self.reset()
 
     def reset(self) -> None:
         """Return to the initial state at step 0 (at rest, spring and friction relaxed)."""
         p = self.params
-        self._x = p.initial_position_m
-        self._th = p.initial_position_m / p.lead_m_per_rad
-        self._w = 0.0
-        self._v = 0.0
-        self._i = 0.0
+        self._state[:] = 0.0
+        self._state[0] = p.initial_position_m / p.lead_m_per_rad
+        self._state[2] = p.initial_position_m
         self._nut.reset()
         self._guide.reset()
-        self._torque_friction = 0.0
-        self._force_friction = 0.0
         self._step = 0
         self._sample()
 
@@ -368,7 +391,7 @@ class ElasticBallScrewPlant:
     @property
     def deformation_m(self) -> float:
         """``delta = R th - x_t``: the elastic deformation now, m."""
-        return self.params.lead_m_per_rad * self._th - self._x
+        return self.params.lead_m_per_rad * float(self._state[0]) - float(self._state[2])
 
     def output(self) -> PlantOutput:
         """Readings and true state at the current control sample."""
@@ -376,73 +399,23 @@ class ElasticBallScrewPlant:
 
     def step(self, current_A: float) -> PlantOutput:
         """Hold ``current_A`` (A, saturated at ``+-current_limit_A``) over one control period."""
-        p = self.params
-        cmd = clipped_current(current_A, p.current_limit_A)
-        r = p.lead_m_per_rad
-        kt = p.torque_constant_Nm_per_A
-        jm, bm = p.motor_inertia_kgm2, p.motor_damping_Nms_per_rad
-        m, ct = p.table_mass_kg, p.table_damping_Ns_per_m
-        k = p.stiffness_N_per_m
-        g = p.contact_zone_m
-        soft = (k - p.contact_stiffness_ratio * k) * g
-        cs = p.screw_damping_Ns_per_m
-        tanh = math.tanh
-        h = self._h
-        half = h / 2.0
-        decay = self._decay
-        nut, guide = self._nut, self._guide
-        th, w, x, v, i = self._th, self._w, self._x, self._v, self._i
-        tf, fg = self._torque_friction, self._force_friction
-        if decay is None:
-            i = cmd
-
-        def accel(
-            th: float, w: float, x: float, v: float, i: float, tf: float, fg: float
-        ) -> tuple[float, float]:
-            d = r * th - x
-            fs = k * d + cs * (r * w - v)
-            if g > 0.0:
-                fs -= soft * tanh(d / g)
-            return (kt * i - bm * w - r * fs - tf) / jm, (fs - ct * v - fg) / m
-
-        for _ in range(self._n):
-            th_start, x_start = th, x
-            if decay is None:
-                i0 = i1 = i2 = i
-            else:
-                i0 = i
-                i1 = cmd + (i - cmd) * decay[1]
-                i2 = cmd + (i - cmd) * decay[2]
-            a1, b1 = accel(th, w, x, v, i0, tf, fg)
-            a2, b2 = accel(th + half * w, w + half * a1, x + half * v, v + half * b1, i1, tf, fg)
-            w2, v2 = w + half * a1, v + half * b1
-            a3, b3 = accel(th + half * w2, w + half * a2, x + half * v2, v + half * b2, i1, tf, fg)
-            w3, v3 = w + half * a2, v + half * b2
-            a4, b4 = accel(th + h * w3, w + h * a3, x + h * v3, v + h * b3, i2, tf, fg)
-            w4, v4 = w + h * a3, v + h * b3
-            th += h / 6.0 * (w + 2.0 * w2 + 2.0 * w3 + w4)
-            x += h / 6.0 * (v + 2.0 * v2 + 2.0 * v3 + v4)
-            w += h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
-            v += h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
-            i = i2
-            tf = nut.move(th - th_start)
-            fg = guide.move(x - x_start)
-        self._th, self._w, self._x, self._v, self._i = th, w, x, v, i
-        self._torque_friction, self._force_friction = tf, fg
+        cmd = clipped_current(current_A, self.params.current_limit_A)
+        self._kernel(self._state, cmd, self._config, self._nut.packed(), self._guide.packed())
         self._step += 1
         self._sample()
         return self._out
 
     def _sample(self) -> None:
         p = self.params
+        th, w, x, v, i, tf, fg = self._state.tolist()
         self._out = PlantOutput(
             step=self._step,
-            encoder_rad=self._encoder.measure(self._th),
-            scale_m=self._scale.measure(self._x),
-            angle_rad=self._th,
-            velocity_rad_s=self._w,
-            position_m=self._x,
-            velocity_m_s=self._v,
-            motor_torque_Nm=p.torque_constant_Nm_per_A * self._i,
-            friction_force_N=self._force_friction + self._torque_friction / p.lead_m_per_rad,
+            encoder_rad=self._encoder.measure(th),
+            scale_m=self._scale.measure(x),
+            angle_rad=th,
+            velocity_rad_s=w,
+            position_m=x,
+            velocity_m_s=v,
+            motor_torque_Nm=p.torque_constant_Nm_per_A * i,
+            friction_force_N=fg + tf / p.lead_m_per_rad,
         )

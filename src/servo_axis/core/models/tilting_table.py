@@ -36,6 +36,9 @@ which is split into ``control_period_s / sim_step_s`` sub-steps of ``h``.
   sticking and sliding back for the rest of the sub-step. There is hence no
   chattering: a stopped table has ``th' == 0.0`` exactly and cannot creep.
 
+Both loops are compiled (:func:`servo_axis.core.kernels.tilting_friction_period`,
+:func:`~servo_axis.core.kernels.tilting_smooth_period`), the same arithmetic.
+
 Error: between events the RK4 local error is ``O((w h)^5)`` with ``w`` the
 largest rate of the motion (``sqrt(U/J) = 7.7 rad/s`` and ``D/J = 2.6 1/s``
 for Table I, plus ``|th'|`` through ``sin th``): about ``3e-18`` relative per
@@ -171,24 +174,6 @@ def nominal(params: TiltingTableParams) -> NominalModel:
     )
 
 
-def _rk4(th: float, v: float, dt: float, b: float, d: float, u: float) -> tuple[float, float]:
-    """One RK4 step of ``th' = v, v' = b - d v - u sin th`` over ``dt``."""
-    sin = math.sin
-    half = 0.5 * dt
-    a1 = b - d * v - u * sin(th)
-    v2 = v + half * a1
-    a2 = b - d * v2 - u * sin(th + half * v)
-    v3 = v + half * a2
-    a3 = b - d * v3 - u * sin(th + half * v2)
-    v4 = v + dt * a3
-    a4 = b - d * v4 - u * sin(th + dt * v3)
-    sixth = dt / 6.0
-    return (
-        th + sixth * (v + 2.0 * v2 + 2.0 * v3 + v4),
-        v + sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4),
-    )
-
-
 class TiltingTablePlant:
     """Simulator of the tilting table, advanced one control period per call.
 
@@ -213,6 +198,29 @@ class TiltingTablePlant:
         self._h = params.sim_step_s
         self._d = params.damping_Nms_per_rad / params.inertia_kgm2
         self._u = params.unbalance_Nm / params.inertia_kgm2
+        # The sub-step loops (RK4, the zero-velocity events), compiled.
+        from servo_axis.core.kernels import tilting_friction_period, tilting_smooth_period
+
+        self._kernel = tilting_friction_period if params.coulomb_Nm > 0.0 else tilting_smooth_period
+        self._config = np.array(
+            [
+                self._n,
+                self._h,
+                params.coulomb_Nm,
+                1.0 / params.inertia_kgm2,
+                params.unbalance_Nm,
+                self._d,
+                self._u,
+                _EVENT_TOLERANCE * self._h,
+                _EVENT_ITERATIONS,
+                _EVENTS_PER_SUBSTEP,
+            ]
+        )
+        # Encoder noise uniform in [-noise, noise): numpy's Generator.uniform is
+        # low + (high - low) * random(), one double per draw; done here with
+        # random() that way (the same numbers, a third of the cost).
+        self._noise_low = -params.noise_rad
+        self._noise_span = params.noise_rad - -params.noise_rad
         self.reset()
 
     def reset(self) -> None:
@@ -263,86 +271,15 @@ class TiltingTablePlant:
         self._applied_A = cmd
         self._torque_Nm = torque
         if p.coulomb_Nm > 0.0:
-            self._integrate_with_friction(torque)
+            self._th, self._v = self._kernel(self._th, self._v, torque, self._config)
         else:
-            self._integrate_smooth(torque)
+            # C = 0: eq. (2) is smooth; plain RK4 (a table at rest with zero net
+            # torque is an exact equilibrium of the RK4 map too).
+            b = torque / p.inertia_kgm2
+            self._th, self._v = self._kernel(self._th, self._v, b, self._config)
         self._step += 1
         self._update_sample()
         return self.output()
-
-    def _integrate_smooth(self, torque: float) -> None:
-        # C = 0: eq. (2) is smooth; plain RK4 (a table at rest with zero net
-        # torque is an exact equilibrium of the RK4 map too).
-        b = torque / self.params.inertia_kgm2
-        h, d, u = self._h, self._d, self._u
-        th, v = self._th, self._v
-        for _ in range(self._n):
-            th, v = _rk4(th, v, h, b, d, u)
-        self._th, self._v = th, v
-
-    def _integrate_with_friction(self, torque: float) -> None:
-        p = self.params
-        c = p.coulomb_Nm
-        inv_j = 1.0 / p.inertia_kgm2
-        h, d, u = self._h, self._d, self._u
-        unb = p.unbalance_Nm
-        th, v = self._th, self._v
-        for _ in range(self._n):
-            tau = h
-            for _ in range(_EVENTS_PER_SUBSTEP):
-                starts_at_rest = v == 0.0
-                if starts_at_rest:
-                    net = torque - unb * math.sin(th)
-                    if abs(net) <= c:
-                        # Sticks, and stays stuck to the end of the period.
-                        self._th, self._v = th, 0.0
-                        return
-                    s = 1.0 if net > 0.0 else -1.0
-                else:
-                    s = 1.0 if v > 0.0 else -1.0
-                b = (torque - c * s) * inv_j
-                th1, v1 = _rk4(th, v, tau, b, d, u)
-                if v1 * s > 0.0:
-                    th, v = th1, v1
-                    break
-                if starts_at_rest:
-                    # Breakaway below what RK4 resolves over tau: held (module docstring).
-                    self._th, self._v = th, 0.0
-                    return
-                dt, th = self._locate_stop(th, v, s, tau, b, v1)
-                v = 0.0
-                tau -= dt
-                if tau <= 0.0:
-                    break
-        self._th, self._v = th, v
-
-    def _locate_stop(
-        self, th: float, v: float, s: float, tau: float, b: float, v_end: float
-    ) -> tuple[float, float]:
-        """Time ``dt`` in ``(0, tau]`` where the RK4 velocity from ``(th, v)`` is 0; the angle there."""
-        d, u = self._d, self._u
-        tol = _EVENT_TOLERANCE * self._h
-        if v_end == 0.0:
-            return tau, _rk4(th, v, tau, b, d, u)[0]
-        lo, hi = 0.0, tau
-        dt = tau * v / (v - v_end)
-        for _ in range(_EVENT_ITERATIONS):
-            th_x, v_x = _rk4(th, v, dt, b, d, u)
-            if v_x == 0.0:
-                return dt, th_x
-            if v_x * s > 0.0:
-                lo = dt
-            else:
-                hi = dt
-            acc = b - d * v_x - u * math.sin(th_x)
-            new = dt - v_x / acc if acc != 0.0 else 0.5 * (lo + hi)
-            if not lo < new < hi:
-                new = 0.5 * (lo + hi)
-            if abs(new - dt) <= tol:
-                dt = new
-                break
-            dt = new
-        return dt, _rk4(th, v, dt, b, d, u)[0]
 
     def _update_sample(self) -> None:
         # Friction torque at the sample (eq. (2) sign: it opposes the motion)
@@ -356,7 +293,7 @@ class TiltingTablePlant:
             self._friction_Nm = min(max(net, -c), c)
         value = self._th
         if p.noise_rad > 0.0:
-            value += float(self._rng.uniform(-p.noise_rad, p.noise_rad))
+            value += self._noise_low + self._noise_span * self._rng.random()
         res = p.encoder_resolution_rad
         if res > 0.0:
             value = math.floor(value / res + 0.5) * res

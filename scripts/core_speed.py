@@ -1,0 +1,154 @@
+#!/usr/bin/env python3
+"""Speed of the core-only loop (plain calls, no ROS) for every shipped scenario.
+
+Each scenario runs through the function of :mod:`servo_axis.simulate` that
+reproduces its node graph: ``simulate_identification`` with an identifier
+section, ``simulate_learning`` with an input-side (trial) learning law, and
+``simulate`` otherwise. A target-side law (RPTC) has no plain-call loop (its
+corrections come from the learning node, off the per-sample path), so its
+scenarios run ``simulate`` on a copy with ``learning.enabled`` off: the same
+plant, feedback and PTC per sample, without the learned correction.
+A multi-axis scenario runs once per axis (``xy_circle/x``, ``xy_circle/y``).
+Before the timed run, a run of a few steps builds everything once (and
+compiles what is compiled); its time is the ``first s`` column. The table:
+
+    scenario | T_u ms | steps | wall s | steps/s | x real time | first s
+
+``x real time`` is simulated time over wall time (``steps * T_u / wall``).
+``--profile N`` adds a cProfile of the N slowest (by x real time) to stderr.
+
+    .venv/bin/python scripts/core_speed.py [--steps 2000] [--only NAME ...] [--profile 3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import io
+import pstats
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from servo_axis.params import factories
+from servo_axis.params.scenario import (
+    axes_of,
+    axis_view,
+    dump_params,
+    load_scenario,
+    resolve_table,
+    scenario_dir,
+    scenario_names,
+)
+from servo_axis.run.plan import learning_values
+
+
+def runner(path: Path) -> tuple[str, Callable[..., object]]:
+    """The plain-call loop that reproduces the scenario's node graph, and its name."""
+    from servo_axis.simulate import simulate, simulate_identification, simulate_learning
+
+    scenario = load_scenario(path)
+    if "identifier" in scenario:
+        return "identification", simulate_identification
+    if "learning" in scenario:
+        return "learning", simulate_learning
+    return "loop", simulate
+
+
+def without_target_learning(
+    scenario: dict[str, Any], path: Path, work: Path, stem: str
+) -> tuple[Path, str]:
+    """``(path, "")``, or a copy of ``scenario`` without its target-side learning, "no RPTC"."""
+    learning = scenario.get("feedforward", {}).get("ros__parameters", {}).get("learning", {})
+    if not learning.get("enabled"):
+        return path, ""
+    if factories.build_learning_law(learning_values(scenario, path)).side == "input":
+        return path, ""
+    ff = scenario["feedforward"]["ros__parameters"]
+    ff["learning"] = {**learning, "enabled": False}
+    for term in ("friction_table", "gms"):
+        if ff.get(term, {}).get("file"):
+            ff[term] = {**ff[term], "file": resolve_table(ff[term]["file"], path.parent)}
+    scenario.pop("learning", None)
+    copy = work / f"{stem}.yaml"
+    copy.write_text(dump_params(scenario))
+    return copy, ", no RPTC"
+
+
+def cases(names: list[str], work: Path) -> list[tuple[str, tuple[Path, str]]]:
+    """``(label, (scenario file, note))`` per scenario, one per axis of a multi-axis one."""
+    out = []
+    for name in names:
+        path = scenario_dir() / f"{name}.yaml"
+        scenario = load_scenario(path)
+        axes = axes_of(scenario)
+        if not axes:
+            out.append((name, without_target_learning(scenario, path, work, name)))
+            continue
+        for axis in axes:
+            view = axis_view(scenario, axis, path.parent)
+            axis_path = work / f"{name}_{axis}.yaml"
+            axis_path.write_text(dump_params(view))
+            stem = f"{name}_{axis}_loop"
+            out.append((f"{name}/{axis}", without_target_learning(view, axis_path, work, stem)))
+    return out
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--only", nargs="*", help="scenario names (default: every shipped one)")
+    parser.add_argument("--steps", type=int, default=None, help="cap the steps of each run")
+    parser.add_argument("--repeat", type=int, default=1, help="timed runs per case (best kept)")
+    parser.add_argument("--profile", type=int, default=0, help="profile the N slowest cases")
+    args = parser.parse_args()
+    names = args.only or scenario_names()
+    work = Path(tempfile.mkdtemp(prefix="servo_axis_core_speed_"))
+    rows = []
+    header = (
+        f"| {'scenario':<28} | {'loop':<14} | {'T_u ms':>6} | {'steps':>6} | {'wall s':>7} "
+        f"| {'steps/s':>9} | {'x real time':>11} | {'first s':>7} |"
+    )
+    print(header)
+    print("|" + "|".join("-" * (len(c)) for c in header.split("|")[1:-1]) + "|", flush=True)
+    for label, (path, note) in cases(names, work):
+        kind, fn = runner(path)
+        kind += note
+        pv = factories.node_values(load_scenario(path), "plant")
+        period = pv["control_period_s"]
+        steps = factories.run_steps(pv)
+        if args.steps is not None:
+            steps = min(steps, args.steps)
+        t0 = time.perf_counter()
+        fn(path, steps=min(steps, 4))
+        first = time.perf_counter() - t0
+        wall = float("inf")
+        for _ in range(args.repeat):
+            t0 = time.perf_counter()
+            fn(path, steps=steps)
+            wall = min(wall, time.perf_counter() - t0)
+        rate = steps / wall
+        rows.append((rate * period, label, path, fn, steps))
+        print(
+            f"| {label:<28} | {kind:<14} | {period * 1e3:>6g} | {steps:>6} | {wall:>7.3f} "
+            f"| {rate:>9,.0f} | {rate * period:>10.1f}x | {first:>7.3f} |",
+            flush=True,
+        )
+    rows.sort(key=lambda r: r[0])
+    print(f"slowest: {rows[0][1]} at {rows[0][0]:.1f}x real time", flush=True)
+    for factor, label, path, fn, steps in rows[: args.profile]:
+        prof = cProfile.Profile()
+        prof.runcall(fn, path, steps=steps)
+        text = io.StringIO()
+        pstats.Stats(prof, stream=text).sort_stats("tottime").print_stats(15)
+        print(f"\n=== profile: {label} ({factor:.1f}x real time) ===", file=sys.stderr)
+        print(text.getvalue(), file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,401 @@
+"""Compiled kernels of the plants' sub-step loops (numba).
+
+The plants advance one control period per call, and within it tens to a
+hundred integration sub-steps with friction; in plain Python those loops
+bound the whole core-only loop (7-15x real time). Here they are compiled
+with numba (``nopython`` mode, ``cache=True``). They are the same arithmetic
+as the Python they replaced, operation for operation and in the same order,
+with IEEE semantics (no ``fastmath``, no reassociation, no fused
+multiply-add), and ``math.sin``/``math.tanh`` go to the same C library as
+Python's ``math``: so a plant gives the same numbers bit for bit as the
+Python loops it replaced (every shipped scenario's plain-call loop was
+compared), and ``test/unit/core/test_kernels.py`` checks each plant compiled
+against the same code interpreted (``NUMBA_DISABLE_JIT=1``).
+
+Compiled code is cached on disk: ``$NUMBA_CACHE_DIR`` if set, else
+``__pycache__`` beside this file when that is writable (a source checkout),
+else the user's cache directory (``~/.cache/numba``), so an installed
+package compiles once per user. A process that finds the cache imports
+numba and loads the kernels in about 0.2 s; compiling them takes about
+0.5 s per plant model. This module is imported by the plants' constructors
+(and ``MaxwellSlip.move``) only, so a node that builds no plant never
+imports numba.
+
+Everything here works on float64 scalars and contiguous float64 arrays; the
+callers own the arrays (element deflections are updated in place).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any, TypeVar, cast
+
+import numba
+import numpy as np
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def _compiled(fn: F) -> F:
+    """``fn`` compiled by numba (nopython, cached on disk, IEEE arithmetic)."""
+    return cast(F, numba.njit(cache=True, fastmath=False, nogil=True)(fn))
+
+
+# --------------------------------------------------------------------- Maxwell slip
+
+
+@_compiled
+def maxwell_slip_move(
+    z: np.ndarray, delta: np.ndarray, stiffness: np.ndarray, displacement: float
+) -> float:
+    """Advance a Maxwell-slip element set by ``displacement``; its torque (or force).
+
+    Parameters
+    ----------
+    z : ndarray, shape (N,)
+        Element deflections (the state), updated in place; unit of ``delta``.
+    delta : ndarray, shape (N,)
+        Break-away deflections, > 0 (rad at the motor, or m).
+    stiffness : ndarray, shape (N,)
+        Element stiffnesses (N m/rad, or N/m).
+    displacement : float
+        The displacement since the last call, unit of ``delta``.
+
+    Returns
+    -------
+    float
+        ``sum_i k_i z_i`` after the move (N m, or N), summed in element order.
+    """
+    total = 0.0
+    for i in range(z.shape[0]):
+        zi = z[i] + displacement
+        di = delta[i]
+        if zi > di:
+            zi = di
+        elif zi < -di:
+            zi = -di
+        z[i] = zi
+        total += stiffness[i] * zi
+    return total
+
+
+# ------------------------------------------------------------------------- ball screw
+
+
+@_compiled
+def ball_screw_rigid_with_friction(
+    inputs: np.ndarray,
+    th: float,
+    w: float,
+    prev: float,
+    delta: np.ndarray,
+    stiffness: np.ndarray,
+    z: np.ndarray,
+    coulomb: float,
+    smooth: float,
+    viscous: float,
+    kt: float,
+    rigid: tuple[float, float, float, float, float],
+) -> tuple[float, float, float, float]:
+    """The ball screw's rigid body and friction over one control period.
+
+    Per sub-step: the Maxwell-slip elements move by the rigid angle's change
+    since the last sub-step, the friction (elements, ``T_c tanh(w / w_s)``,
+    ``b w``) is taken off the input current (as ``T_f / K_T``) and the rigid
+    states step by the exact ZOH matrices.
+
+    Parameters
+    ----------
+    inputs : ndarray, shape (n,)
+        Effective input current of each sub-step, A; overwritten with the
+        input net of friction (what the modes are driven by).
+    th, w : float
+        Rigid angle (rad) and velocity (rad/s) at the period's start.
+    prev : float
+        Rigid angle at the previous sub-step, rad (the elements' reference).
+    delta, stiffness, z : ndarray, shape (N,)
+        The rolling elements (see :func:`maxwell_slip_move`), in the order of
+        ``MaxwellSlip.elements``; ``z`` in place.
+    coulomb, smooth, viscous : float
+        ``T_c`` (N m), ``w_s`` (rad/s) and ``b`` (N m s/rad); 0 switches a term off.
+    kt : float
+        ``K_T``, N m/A.
+    rigid : tuple of 5 floats
+        ``(a00, a01, a11, b0, b1)``: the ZOH matrices of the rigid states.
+
+    Returns
+    -------
+    th, w, prev, friction : float
+        The rigid states at the period's end, the angle of the last
+        sub-step and the friction torque of the last sub-step (N m).
+    """
+    a00, a01, a11, b0, b1 = rigid
+    fr = 0.0
+    for j in range(inputs.shape[0]):
+        d = th - prev
+        prev = th
+        fr = 0.0
+        for i in range(z.shape[0]):
+            zi = z[i] + d
+            di = delta[i]
+            if zi > di:
+                zi = di
+            elif zi < -di:
+                zi = -di
+            z[i] = zi
+            fr += stiffness[i] * zi
+        if coulomb > 0.0:
+            fr += coulomb * math.tanh(w / smooth)
+        if viscous > 0.0:
+            fr += viscous * w
+        u = inputs[j] - fr / kt
+        inputs[j] = u
+        th, w = a00 * th + a01 * w + b0 * u, a11 * w + b1 * u
+    return th, w, prev, fr
+
+
+# ----------------------------------------------------------------- elastic ball screw
+
+
+@_compiled
+def _elastic_accel(
+    th: float,
+    w: float,
+    x: float,
+    v: float,
+    i: float,
+    tf: float,
+    fg: float,
+    p: np.ndarray,
+) -> tuple[float, float]:
+    # p: r, k, cs, g, soft, kt, bm, jm, ct, m, ... (the config of elastic_ball_screw_period).
+    r, k, cs, g, soft = p[0], p[1], p[2], p[3], p[4]
+    d = r * th - x
+    fs = k * d + cs * (r * w - v)
+    if g > 0.0:
+        fs -= soft * math.tanh(d / g)
+    return (p[5] * i - p[6] * w - r * fs - tf) / p[7], (fs - p[8] * v - fg) / p[9]
+
+
+@_compiled
+def elastic_ball_screw_period(
+    state: np.ndarray, cmd: float, config: np.ndarray, nut: np.ndarray, guide: np.ndarray
+) -> None:
+    """The elastic ball screw over one control period: RK4 sub-steps and friction.
+
+    Parameters
+    ----------
+    state : ndarray, shape (7,)
+        ``th`` (rad), ``w`` (rad/s), ``x`` (m), ``v`` (m/s), ``i`` (A), the
+        nut's friction torque ``T_f`` (N m) and the guide's force ``f_g``
+        (N); updated in place to the period's end.
+    cmd : float
+        The commanded current held over the period, A (saturated).
+    config : ndarray, shape (15,)
+        ``R`` (m/rad), ``k_h`` (N/m), ``c_s`` (N s/m), ``g`` (m),
+        ``(k_h - k_0) g`` (N), ``K_T`` (N m/A), ``B_m`` (N m s/rad), ``J_m``
+        (kg m^2), ``C_t`` (N s/m), ``M`` (kg); then the sub-steps per period,
+        the sub-step ``h`` (s), ``e^{-w_c h/2}``, ``e^{-w_c h}`` and 1.0 for
+        an ideal current loop (``i = cmd`` over the whole period), else 0.0.
+    nut, guide : ndarray, shape (3, N)
+        The two Maxwell-slip sets as ``MaxwellSlip.packed`` hands them out
+        (rows ``delta``, ``k``, ``z``); ``z`` in place.
+    """
+    th, w, x, v, i, tf, fg = state[0], state[1], state[2], state[3], state[4], state[5], state[6]
+    substeps = int(config[10])
+    h = config[11]
+    decay1 = config[12]
+    decay2 = config[13]
+    ideal_current = config[14] != 0.0
+    half = h / 2.0
+    if ideal_current:
+        i = cmd
+    for _ in range(substeps):
+        th_start, x_start = th, x
+        if ideal_current:
+            i0 = i
+            i1 = i
+            i2 = i
+        else:
+            i0 = i
+            i1 = cmd + (i - cmd) * decay1
+            i2 = cmd + (i - cmd) * decay2
+        a1, b1 = _elastic_accel(th, w, x, v, i0, tf, fg, config)
+        a2, b2 = _elastic_accel(
+            th + half * w, w + half * a1, x + half * v, v + half * b1, i1, tf, fg, config
+        )
+        w2, v2 = w + half * a1, v + half * b1
+        a3, b3 = _elastic_accel(
+            th + half * w2, w + half * a2, x + half * v2, v + half * b2, i1, tf, fg, config
+        )
+        w3, v3 = w + half * a2, v + half * b2
+        a4, b4 = _elastic_accel(th + h * w3, w + h * a3, x + h * v3, v + h * b3, i2, tf, fg, config)
+        w4, v4 = w + h * a3, v + h * b3
+        th += h / 6.0 * (w + 2.0 * w2 + 2.0 * w3 + w4)
+        x += h / 6.0 * (v + 2.0 * v2 + 2.0 * v3 + v4)
+        w += h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+        v += h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
+        i = i2
+        tf = maxwell_slip_move(nut[2], nut[0], nut[1], th - th_start)
+        fg = maxwell_slip_move(guide[2], guide[0], guide[1], x - x_start)
+    state[0], state[1], state[2], state[3], state[4], state[5], state[6] = th, w, x, v, i, tf, fg
+
+
+# ----------------------------------------------------------------------- tilting table
+
+
+@_compiled
+def tilting_rk4(
+    th: float, v: float, dt: float, b: float, d: float, u: float
+) -> tuple[float, float]:
+    """One RK4 step of ``th' = v, v' = b - d v - u sin th`` over ``dt`` (s)."""
+    half = 0.5 * dt
+    a1 = b - d * v - u * math.sin(th)
+    v2 = v + half * a1
+    a2 = b - d * v2 - u * math.sin(th + half * v)
+    v3 = v + half * a2
+    a3 = b - d * v3 - u * math.sin(th + half * v2)
+    v4 = v + dt * a3
+    a4 = b - d * v4 - u * math.sin(th + dt * v3)
+    sixth = dt / 6.0
+    return (
+        th + sixth * (v + 2.0 * v2 + 2.0 * v3 + v4),
+        v + sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4),
+    )
+
+
+#: What ``config`` of the tilting table's kernels holds, by index.
+TILTING_CONFIG = (
+    "substeps",
+    "h_s",
+    "coulomb_Nm",
+    "inverse_inertia_per_kgm2",
+    "unbalance_Nm",
+    "damping_per_s",
+    "unbalance_per_s2",
+    "event_tolerance_s",
+    "event_iterations",
+    "events_per_substep",
+)
+
+
+@_compiled
+def tilting_smooth_period(th: float, v: float, b: float, config: np.ndarray) -> tuple[float, float]:
+    """The tilting table without friction over one control period (RK4 sub-steps).
+
+    Parameters
+    ----------
+    th, v : float
+        Angle (rad) and velocity (rad/s) at the period's start.
+    b : float
+        ``T_m / J``, rad/s^2, held over the period.
+    config : ndarray
+        The plant's constants, in the order of :data:`TILTING_CONFIG`.
+
+    Returns
+    -------
+    th, v : float
+        Angle and velocity at the period's end.
+    """
+    h, d, u = config[1], config[5], config[6]
+    for _ in range(int(config[0])):
+        th, v = tilting_rk4(th, v, h, b, d, u)
+    return th, v
+
+
+@_compiled
+def _tilting_locate_stop(
+    th: float,
+    v: float,
+    s: float,
+    tau: float,
+    b: float,
+    v_end: float,
+    d: float,
+    u: float,
+    tol: float,
+    iterations: int,
+) -> tuple[float, float]:
+    # Time dt in (0, tau] where the RK4 velocity from (th, v) is 0, and the angle there
+    # (bracketed Newton on the step length; see models/tilting_table.py).
+    if v_end == 0.0:
+        return tau, tilting_rk4(th, v, tau, b, d, u)[0]
+    lo, hi = 0.0, tau
+    dt = tau * v / (v - v_end)
+    for _ in range(iterations):
+        th_x, v_x = tilting_rk4(th, v, dt, b, d, u)
+        if v_x == 0.0:
+            return dt, th_x
+        if v_x * s > 0.0:
+            lo = dt
+        else:
+            hi = dt
+        acc = b - d * v_x - u * math.sin(th_x)
+        new = dt - v_x / acc if acc != 0.0 else 0.5 * (lo + hi)
+        if not lo < new < hi:
+            new = 0.5 * (lo + hi)
+        if abs(new - dt) <= tol:
+            dt = new
+            break
+        dt = new
+    return dt, tilting_rk4(th, v, dt, b, d, u)[0]
+
+
+@_compiled
+def tilting_friction_period(
+    th: float, v: float, torque: float, config: np.ndarray
+) -> tuple[float, float]:
+    """The tilting table with Coulomb friction over one control period.
+
+    The stick/slip integration of :mod:`servo_axis.core.models.tilting_table`
+    (its docstring): RK4 while sliding, the zero-velocity instant located by
+    bracketed Newton, the stick test at rest.
+
+    Parameters
+    ----------
+    th, v : float
+        Angle (rad) and velocity (rad/s) at the period's start.
+    torque : float
+        Motor torque held over the period, N m.
+    config : ndarray
+        The plant's constants, in the order of :data:`TILTING_CONFIG`: the
+        sub-steps per period, the sub-step (s), ``C`` (N m), ``1 / J``
+        (1/(kg m^2)), ``U`` (N m), ``D / J`` (1/s), ``U / J`` (1/s^2),
+        Newton's stopping step (s), at most this many Newton iterations per
+        event and events per sub-step.
+
+    Returns
+    -------
+    th, v : float
+        Angle and velocity at the period's end.
+    """
+    substeps, h, coulomb, inv_j = int(config[0]), config[1], config[2], config[3]
+    unbalance, d, u, tol = config[4], config[5], config[6], config[7]
+    iterations, events = int(config[8]), int(config[9])
+    for _ in range(substeps):
+        tau = h
+        for _ in range(events):
+            starts_at_rest = v == 0.0
+            if starts_at_rest:
+                net = torque - unbalance * math.sin(th)
+                if abs(net) <= coulomb:
+                    # Sticks, and stays stuck to the end of the period.
+                    return th, 0.0
+                s = 1.0 if net > 0.0 else -1.0
+            else:
+                s = 1.0 if v > 0.0 else -1.0
+            b = (torque - coulomb * s) * inv_j
+            th1, v1 = tilting_rk4(th, v, tau, b, d, u)
+            if v1 * s > 0.0:
+                th, v = th1, v1
+                break
+            if starts_at_rest:
+                # Breakaway below what RK4 resolves over tau: held.
+                return th, 0.0
+            dt, th = _tilting_locate_stop(th, v, s, tau, b, v1, d, u, tol, iterations)
+            v = 0.0
+            tau -= dt
+            if tau <= 0.0:
+                break
+    return th, v
