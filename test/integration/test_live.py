@@ -38,7 +38,7 @@ from servo_axis.wire.messages import StateSample
 pytestmark = pytest.mark.integration
 
 SCENARIO = "ptc_nominal"
-CHANNELS = ("/state", "/reference", "/command", "/tracking_error", "/diagnostics")
+CHANNELS = ("/x/state", "/x/reference", "/x/command", "/x/tracking_error", "/diagnostics")
 SUBPROTOCOLS = ["foxglove.sdk.v1", "foxglove.websocket.v1"]
 
 
@@ -176,7 +176,7 @@ def test_live_view_serves_the_run_on_the_simulation_timeline_and_changes_nothing
         assert t % period_ns == 0 and t <= (steps - 1) * period_ns
 
     # A state message: every value named as the wire's sample fields, finite.
-    states = {m["step"]: m for _, m in viewer.messages["/state"]}
+    states = {m["step"]: m for _, m in viewer.messages["/x/state"]}
     names = {f.name for f in fields(StateSample)}
     for msg in states.values():
         assert set(msg) == names | {"timestamp"}
@@ -185,7 +185,7 @@ def test_live_view_serves_the_run_on_the_simulation_timeline_and_changes_nothing
 
     # The values are the run's: the recorded state at the same steps.
     recorded = {}
-    for data in raw_payloads(tmp_path / "live" / "bag")["/state"]:
+    for data in raw_payloads(tmp_path / "live" / "bag")["/x/state"]:
         js = decode_joint_state(data)
         recorded[js.stamp_ns // period_ns] = js.position[0]
     live_steps = sorted(states)
@@ -197,8 +197,8 @@ def test_live_view_serves_the_run_on_the_simulation_timeline_and_changes_nothing
     )
 
     # The tracking error: reference position minus the encoder angle (semi-closed loop).
-    refs = {m["step"]: m["position_rad"] for _, m in viewer.messages["/reference"]}
-    errors = [m for _, m in viewer.messages["/tracking_error"]]
+    refs = {m["step"]: m["position_rad"] for _, m in viewer.messages["/x/reference"]}
+    errors = [m for _, m in viewer.messages["/x/tracking_error"]]
     both = [e for e in errors if e["step"] in refs and e["step"] in states]
     assert len(both) == steps
     for e in both:
@@ -224,7 +224,7 @@ def test_live_view_serves_the_run_on_the_simulation_timeline_and_changes_nothing
     with_live = payload_hashes(raw_payloads(tmp_path / "live" / "bag"))
     without = payload_hashes(raw_payloads(tmp_path / "plain" / "bag"))
     assert with_live == without
-    assert with_live["/state"][0] == steps
+    assert with_live["/x/state"][0] == steps
 
 
 def test_diagnostics_are_forwarded_at_the_simulation_time_the_bridge_has_seen(

@@ -208,8 +208,10 @@ class FeedbackNode(ServoNode):
         timeout = self._v["input_timeout_s"]
         if self._lockstep:
             # Wait as long as the generator lives; a gone one gets
-            # input_timeout_s to come back.
-            waited = self._feedforward.gone_for(now)
+            # input_timeout_s to come back, counted from when a state began
+            # to wait (a generator that answers state[k] with reference[k]
+            # is not there before the first state).
+            waited = min(self._feedforward.gone_for(now), now - self._pending_since)
             detail = f"the feedforward generator (reference) has been gone for {waited:.3g} s"
         else:
             waited = now - self._pending_since
