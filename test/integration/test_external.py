@@ -275,6 +275,39 @@ def test_an_outside_learning_unit_gives_the_suites_own_result(
     assert payload_hashes(out / "bag", raw_payloads) == payload_hashes(alone / "bag", raw_payloads)
 
 
+def test_an_outside_plant_gives_the_suites_own_result(
+    ros_env: int, tmp_path: Path, raw_payloads: Any
+) -> None:
+    """servo_axis as the controller stack of an axis simulated elsewhere: the suite's plant
+    node started by hand as `my_axis_sim` plays `--external plant`; the run ends when the
+    recorder has every step, and the bag is the suite-alone run's, byte for byte."""
+    path = short("ptc_friction", tmp_path, duration_s=0.5)
+    alone = tmp_path / "alone"
+    assert finish(start_run(path, alone), RUN_TIMEOUT_S) == 0, tails(alone)
+
+    out = tmp_path / "outside"
+    proc = start_run(path, out, "--external", "plant")
+    deadline = time.monotonic() + 30
+    while not (out / "params.yaml").is_file():
+        assert time.monotonic() < deadline and proc.poll() is None, tails(out)
+        time.sleep(0.05)
+    params = yaml.safe_load((out / "params.yaml").read_text())
+    params["/**/my_axis_sim"] = params.pop("/**/plant")
+    mine = tmp_path / "my_axis_sim.yaml"
+    mine.write_text(yaml.safe_dump(params))
+    sim = start_outside(
+        ["-m", "servo_axis.nodes.plant", "--ros-args", "--params-file", str(mine),
+         "-r", "__node:=my_axis_sim", "-r", f"__ns:={NS}"],
+        tmp_path / "my_axis_sim.log",
+    )  # fmt: skip
+    try:
+        code = finish(proc, RUN_TIMEOUT_S)
+    finally:
+        stop(sim)
+    assert code == 0, tails(out)
+    assert payload_hashes(out / "bag", raw_payloads) == payload_hashes(alone / "bag", raw_payloads)
+
+
 # -- junk and silence from outside ------------------------------------------------------
 
 
