@@ -93,3 +93,34 @@ def run_and_kill(
             proc.kill()
             proc.wait()
     return proc.returncode, stderr
+
+
+def shm_names() -> set[str]:
+    """The names in /dev/shm now."""
+    return {p.name for p in Path("/dev/shm").iterdir()}
+
+
+def shm_left_behind(before: set[str]) -> set[str]:
+    """Fast DDS shared-memory files made since ``before`` that no live process holds.
+
+    A file another process of the machine maps (a run of someone else's on
+    the same host) is not left behind: only an orphan is. A segment's lock
+    file (``_el``) and a port's semaphore count as held when their segment is.
+    """
+    new = {n for n in shm_names() - before if "fastrtps" in n}
+    if not new:
+        return set()
+    mapped: set[str] = set()
+    for maps in Path("/proc").glob("[0-9]*/maps"):
+        try:
+            text = maps.read_text()
+        except OSError:
+            continue
+        mapped.update(line.rsplit("/", 1)[-1] for line in text.splitlines() if "/dev/shm/" in line)
+
+    def segment(name: str) -> str:
+        if name.startswith("sem.") and name.endswith("_mutex"):
+            return name[len("sem.") : -len("_mutex")]
+        return name.removesuffix("_el")
+
+    return {n for n in new if n not in mapped and segment(n) not in mapped}

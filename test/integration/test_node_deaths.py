@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from run_support import pids_of
+from run_support import pids_of, shm_left_behind, shm_names
 
 from servo_axis.analysis.health import EXIT_FAILED, EXIT_FAULT, EXIT_NOT_DETERMINISTIC
 from servo_axis.nodes.runtime import LIVELINESS_LEASE_S
@@ -56,7 +56,7 @@ class Killed:
 def run_and_kill(role: str, tmp_path: Path, domain: int) -> Killed:
     """Run the scenario, SIGKILL ``role`` once the plant runs, follow what happens."""
     run_dir = tmp_path / "run"
-    shm_before = {p.name for p in Path("/dev/shm").iterdir()}
+    shm_before = shm_names()
     proc = subprocess.Popen(
         [sys.executable, "-m", "servo_axis", "run", SCENARIO, "--out", str(run_dir),
          "--domain-id", str(domain), "--no-plots"],
@@ -115,7 +115,7 @@ def _assert_reaped_and_readable(k: Killed) -> None:
     for role in ("plant", "feedback", "feedforward", "learning", "recorder"):
         assert pids_of(k.run_dir, role) == [], f"{role} left running"
     # The killed participant's Fast DDS shared-memory files are gone too.
-    left = {p.name for p in Path("/dev/shm").iterdir()} - k.shm_before
+    left = shm_left_behind(k.shm_before)
     assert not left, left
     from rosbags.rosbag2 import Reader
 

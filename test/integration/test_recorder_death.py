@@ -32,6 +32,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from run_support import shm_left_behind, shm_names
 
 from servo_axis.params.scenario import load_scenario
 from servo_axis.run.processes import clean_stale_shm
@@ -72,7 +73,7 @@ def test_sigkilled_recorder_loses_at_most_half_a_second_and_the_bag_recovers(
     scenario.write_text(yaml.safe_dump(data))
     out = tmp_path / "run"
     started = time.time()
-    shm_before = {p.name for p in Path("/dev/shm").iterdir()}
+    shm_before = shm_names()
     command = ["run", str(scenario), "--out", str(out), "--domain-id", str(ros_env), "--no-plots"]
     runner = subprocess.Popen(
         [sys.executable, "-m", "servo_axis", *command],
@@ -109,7 +110,7 @@ def test_sigkilled_recorder_loses_at_most_half_a_second_and_the_bag_recovers(
         # port segment outlives it (the runner cleans only after its own).
         clean_stale_shm(since=started)
     assert left == [], "node processes outlived the runner"
-    assert {p.name for p in Path("/dev/shm").iterdir()} <= shm_before
+    assert shm_left_behind(shm_before) == set()
     # A node died: the run failed (exit 1 today; whatever the runner's policy, not 0).
     assert runner.returncode not in (0, None), stderr
     assert "recorder" in stderr and "Traceback" not in stderr, stderr

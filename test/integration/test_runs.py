@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 import yaml
 from mcap.reader import make_reader
+from run_support import shm_left_behind, shm_names
 
 from servo_axis.__main__ import main as cli
 from servo_axis.friction_id import table_from_run
@@ -202,7 +203,7 @@ def test_killed_feedforward_trips_the_feedback_and_the_bag_survives(
 
     from servo_axis.nodes.runtime import LATCHED_QOS
 
-    shm_before = {p.name for p in Path("/dev/shm").glob("fastrtps_*")}
+    shm_before = shm_names()
     scenario_path = scenario_copy(CONFIG / "ptc_nominal.yaml", tmp_path, duration_s=600.0)
     scenario = load_scenario(scenario_path)
     roles = ["recorder", "feedforward", "feedback", "plant"]
@@ -267,7 +268,7 @@ def test_killed_feedforward_trips_the_feedback_and_the_bag_survives(
     assert codes["feedforward"] == -signal.SIGKILL
     # The killed node's shared-memory files were cleaned up by stop_nodes
     # (the test's own rclpy contexts are shut down cleanly above).
-    assert {p.name for p in Path("/dev/shm").glob("fastrtps_*")} - shm_before == set()
+    assert shm_left_behind(shm_before) == set()
     assert codes["recorder"] == 0 and codes["plant"] == 0 and codes["feedback"] == 0
     for log in log_dir.rglob("*.log"):  # stopped mid-run, between callbacks
         text = log.read_text()
@@ -356,7 +357,7 @@ def test_realtime_mode_keeps_wall_time_and_counts_misses(ros_env: int, tmp_path:
 
 
 def test_namespaced_composed_run_leaves_nothing_behind(ros_env: int, tmp_path: Path) -> None:
-    shm_before = {p.name for p in Path("/dev/shm").glob("fastrtps_*")}
+    shm_before = shm_names()
     scenario = scenario_copy(CONFIG / "ptc_nominal.yaml", tmp_path, duration_s=0.3)
     result = run_scenario(
         scenario,
@@ -383,7 +384,7 @@ def test_namespaced_composed_run_leaves_nothing_behind(ros_env: int, tmp_path: P
     assert counts["/state"] == counts["/command"] == counts["/reference"] == 300
     assert result.exit_codes == root.exit_codes == {"composed": 0}
     # UDP transport: no shared-memory files, so none can be left behind.
-    assert {p.name for p in Path("/dev/shm").glob("fastrtps_*")} - shm_before == set()
+    assert shm_left_behind(shm_before) == set()
     leftovers = subprocess.run(
         ["pgrep", "-f", str(scenario)], capture_output=True, text=True
     ).stdout.split()
