@@ -26,7 +26,8 @@ Topics (relative to the namespace):
 
 It publishes the first window as soon as its ``reference`` publisher is
 matched with its ``wait_for_reference_subscribers`` consumers (the feedback
-and the recorder, by name: :meth:`~servo_axis.nodes.base.ServoNode.consumers_matched`),
+and the recorder, counted by topic whatever their node names:
+:meth:`~servo_axis.nodes.base.ServoNode.consumers_matched`),
 then tops the window up whenever the plant has used half of it. It never
 publishes past the end of the run, so that every run records the same
 messages. A ``plant/status`` must carry a whole step, not below the last
