@@ -1,9 +1,9 @@
 """A PD position controller for the servo_axis emulated axis, in plain rclpy.
 
-It plays the `feedback` role and imports nothing from servo_axis. It answers each
-`state` sample with one `command` stamped like it (lockstep waits for exactly that):
-effort = motor torque (N m) = feedforward torque + Kp (r - y) + Kd (r' - y'), with
-r, r' and the feedforward torque from `reference` and y, y' from `state`.
+It plays the `feedback` role and imports nothing from servo_axis: each `state` sample is
+answered with one `command` stamped like it (lockstep waits for exactly that), effort =
+motor torque (N m) = feedforward torque + Kp (r - y) + Kd (r' - y'), with r, r' and the
+feedforward torque from `reference` and y, y' from `state`.
 
     python examples/pd_controller.py --ros-args -r __ns:=/x -p bandwidth_hz:=20.0 -p inertia_kgm2:=0.01
 """
@@ -25,31 +25,23 @@ class PdController(Node):
         self.states: dict[tuple[int, int], JointState] = {}
         self.references: dict[tuple[int, int], JointState] = {}
         self.pub = self.create_publisher(JointState, "command", 10)
-        self.create_subscription(JointState, "state", self.on_state, 10)
+        self.create_subscription(JointState, "state", lambda m: self.take(self.states, m), 10)
         # The reference comes ahead of the samples, in bursts: a deep queue keeps them all.
-        self.create_subscription(JointState, "reference", self.on_reference, 1000)
+        self.create_subscription(
+            JointState, "reference", lambda m: self.take(self.references, m), 1000
+        )
 
-    def on_state(self, msg: JointState) -> None:
-        self.states[stamp(msg)] = msg
-        self.answer(stamp(msg))
-
-    def on_reference(self, msg: JointState) -> None:
-        self.references[stamp(msg)] = msg
-        self.answer(stamp(msg))
-
-    def answer(self, key: tuple[int, int]) -> None:
+    def take(self, store: dict[tuple[int, int], JointState], msg: JointState) -> None:
+        key = (msg.header.stamp.sec, msg.header.stamp.nanosec)
+        store[key] = msg
         if key not in self.states or key not in self.references:
-            return
+            return  # answer state[k] once both it and reference[k] are in
         state, ref = self.states.pop(key), self.references.pop(key)
         error = ref.position[0] - state.position[0]  # encoder angle (rad)
         rate = ref.velocity[0] - state.velocity[0]
         command = JointState(header=state.header, name=[state.name[0]])
         command.effort = [ref.effort[0] + self.kp * error + self.kd * rate]
         self.pub.publish(command)
-
-
-def stamp(msg: JointState) -> tuple[int, int]:
-    return (msg.header.stamp.sec, msg.header.stamp.nanosec)
 
 
 def main() -> None:
