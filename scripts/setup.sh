@@ -12,7 +12,7 @@ stamp=.venv/.servo_axis-installed
 if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
   echo "Installing servo_axis and ROS 2 Jazzy from PyPI into .venv (log: .venv/install.log) ..."
   if ! { .venv/bin/python -m pip install --upgrade pip &&
-         .venv/bin/python -m pip install -e '.[test,dev]'; } > .venv/install.log 2>&1; then
+         .venv/bin/python -m pip install -e '.[test,dev,sweep]'; } > .venv/install.log 2>&1; then
     tail -30 .venv/install.log
     echo "installation failed; the whole log is .venv/install.log" >&2
     exit 1
