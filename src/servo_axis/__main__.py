@@ -135,7 +135,7 @@ def _sweep(args: argparse.Namespace) -> int:
     from servo_axis.study.engine import VersionMismatchError, run_study
     from servo_axis.study.spec import load_study
 
-    study = load_study(Path(args.study))
+    study = load_study(args.study)
     out = Path(args.out) if args.out else Path("studies") / study.name
     try:
         rows = run_study(
@@ -481,7 +481,10 @@ def build_parser(prog: str = "python -m servo_axis") -> argparse.ArgumentParser:
         "results.csv, manifest.json (a second call resumes) and a PNG per figure and "
         "swept parameter.",
     )
-    sw.add_argument("study", help="study file (YAML; see README, Studies)")
+    sw.add_argument(
+        "study",
+        help="study file (YAML; README, Studies) or a shipped study's name, e.g. reversal_004",
+    )
     sw.add_argument("--out", help="study directory (default studies/<name>)")
     sw.add_argument(
         "--scheduler",

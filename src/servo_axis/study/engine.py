@@ -23,7 +23,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from servo_axis.study.point import run_point
+from servo_axis.study.point import cell, run_point
 from servo_axis.study.spec import Study, StudyError
 
 MANIFEST = "manifest.json"
@@ -222,7 +222,7 @@ def run_study(
                 except Exception as err:  # e.g. KilledWorker: died on too many workers
                     row = {
                         "point": i,
-                        **study.points[i],
+                        **{k: cell(v) for k, v in study.points[i].items()},
                         **dict.fromkeys(study.figures, math.nan),
                         "status": "failed",
                         "error": f"{type(err).__name__}: {err}",

@@ -133,7 +133,7 @@ def nodes_summary(scenario_path: Path, out_dir: Path, *, domain_id: int) -> dict
     return data
 
 
-def _cell(value: Any) -> Any:
+def cell(value: Any) -> Any:
     """A table cell: numbers and strings as they are, anything else as JSON."""
     if value is None or isinstance(value, bool | int | str):
         return value
@@ -174,7 +174,7 @@ def run_point(
         ``error`` (empty when ok) and ``wall_time_s`` (s).
     """
     t0 = time.perf_counter()
-    row: dict[str, Any] = {"point": index, **{k: _cell(v) for k, v in overrides.items()}}
+    row: dict[str, Any] = {"point": index, **{k: cell(v) for k, v in overrides.items()}}
     values: dict[str, Any] = dict.fromkeys(figures, math.nan)
     status, error = "ok", ""
     try:
@@ -188,7 +188,7 @@ def run_point(
                 out = Path(run_root) / f"point_{index:05d}" if run_root else Path(tmp) / "run"
                 summary = nodes_summary(path, out, domain_id=DOMAIN_BASE + index % 100)
             for name, where in figures.items():
-                values[name] = _cell(figure(summary, where))
+                values[name] = cell(figure(summary, where))
     except Exception as err:  # a point's failure is a result: recorded, the study goes on
         status = "failed"
         detail = str(err.args[0]) if isinstance(err, KeyError) and err.args else str(err)

@@ -107,18 +107,38 @@ def _fail(path: Path, key: str, problem: str) -> StudyError:
 
 
 def _scalar(value: Any) -> bool:
+    """A parameter value: a number, a string, a bool, or a list of them (``forgetting: [...]``)."""
+    if isinstance(value, list):
+        return all(isinstance(v, bool | int | float | str) for v in value)
     return value is None or isinstance(value, bool | int | float | str)
 
 
-def load_study(path: Path) -> Study:
-    """Read and check a study file (every point's overrides are applied to the scenario once).
+def study_dir() -> Path:
+    """The shipped studies' folder (``src/servo_axis/studies/``)."""
+    return Path(__file__).resolve().parents[1] / "studies"
+
+
+def find_study(name_or_path: str | Path) -> Path:
+    """A study file from a path, or from the name of a shipped study (``reversal_004``)."""
+    path = Path(name_or_path)
+    if path.is_file():
+        return path
+    shipped = study_dir() / f"{path.stem}.yaml"
+    if path.parent == Path(".") and shipped.is_file():
+        return shipped
+    names = ", ".join(sorted(p.stem for p in study_dir().glob("*.yaml")))
+    raise StudyError(f"study {name_or_path}: neither a file nor a shipped study ({names})")
+
+
+def load_study(path: Path | str) -> Study:
+    """Read and check a study file or shipped study (each point's overrides are checked once).
 
     Raises
     ------
     StudyError
         One line that names the file and the key.
     """
-    path = Path(path)
+    path = find_study(path)
     try:
         data = yaml.safe_load(path.read_text())
     except OSError as err:
