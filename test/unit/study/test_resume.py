@@ -35,3 +35,26 @@ def test_a_second_call_runs_only_the_points_the_manifest_lacks(tmp_path: Path) -
     path.write_text(path.read_text().replace("50.0", "60.0"))
     with pytest.raises(StudyError, match="holds another study's results"):
         run_study(load_study(path), out, workers=1, progress=False)
+
+
+class _Client:
+    """What :func:`check_workers` asks of a dask client: ``run(f)`` on every worker."""
+
+    def __init__(self, answers: dict[str, dict[str, str]]) -> None:
+        self.answers = answers
+
+    def run(self, function: object) -> dict[str, dict[str, str]]:
+        return self.answers
+
+
+def test_a_worker_with_other_versions_is_refused_by_name() -> None:
+    from servo_axis.study.engine import VersionMismatchError, check_workers, versions
+
+    mine = versions()
+    assert check_workers(_Client({"tcp://a:1": mine, "tcp://b:2": mine})) == 2
+    other = {**mine, "scipy": "1.11.0"}
+    with pytest.raises(
+        VersionMismatchError,
+        match=rf"worker tcp://b:2 refused: .*scipy 1\.11\.0 \(client {mine['scipy']}\)",
+    ):
+        check_workers(_Client({"tcp://a:1": mine, "tcp://b:2": other}))
