@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
-# Create .venv (Python 3.11) and install servo_axis with ROS 2 Jazzy from PyPI.
-# Idempotent: a second call only re-checks the install.
+# Create .venv (Python 3.11) and install servo_axis with ROS 2 Jazzy from PyPI:
+# the exact versions and hashes of requirements.lock (pyproject's dependencies and
+# the test, dev and sweep extras; refresh it with scripts/lock.sh), then the
+# package itself without dependencies. Idempotent: a second call only re-checks.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PYTHON:-python3.11}
@@ -9,10 +11,11 @@ if [ ! -x .venv/bin/python ]; then
   "$PY" -m venv .venv
 fi
 stamp=.venv/.servo_axis-installed
-if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
+if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ] || [ requirements.lock -nt "$stamp" ]; then
   echo "Installing servo_axis and ROS 2 Jazzy from PyPI into .venv (log: .venv/install.log) ..."
   if ! { .venv/bin/python -m pip install --upgrade pip &&
-         .venv/bin/python -m pip install -e '.[test,dev]'; } > .venv/install.log 2>&1; then
+         .venv/bin/python -m pip install --require-hashes -r requirements.lock &&
+         .venv/bin/python -m pip install --no-deps --no-build-isolation -e .; } > .venv/install.log 2>&1; then
     tail -30 .venv/install.log
     echo "installation failed; the whole log is .venv/install.log" >&2
     exit 1

@@ -9,6 +9,9 @@
     a run's summary again, runs side by side, a friction table from a run;
 ``python -m servo_axis gms-fit RUN_DIR --out FILE [--elements N] [--plot PNG]``
     a GMS friction model fitted to a friction_id run (paper 004 Fig. 4(b));
+``python -m servo_axis sweep STUDY.yaml [--out DIR] [--scheduler tcp://HOST:PORT] [--workers N]``
+    a parameter sweep (a study) on dask.distributed: results.parquet/.csv,
+    manifest.json (an interrupted study resumes), a PNG per figure and parameter;
 ``python -m servo_axis bag recover BAG_DIR``
     make a bag whose recorder died readable again (a complete bag is left as it is).
 
@@ -126,6 +129,33 @@ def _gms_fit(args: argparse.Namespace) -> int:
             plot_fit(fit, data.position_m, data.torque_Nm, Path(args.plot))
         print(f"figure written to {args.plot}")
     return 0
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    from servo_axis.study.engine import VersionMismatchError, run_study
+    from servo_axis.study.spec import load_study
+
+    study = load_study(args.study)
+    out = Path(args.out) if args.out else Path("studies") / study.name
+    try:
+        rows = run_study(
+            study,
+            out,
+            scheduler=args.scheduler,
+            workers=args.workers,
+            retry_failed=args.retry_failed,
+            plots=not args.no_plots,
+        )
+    except VersionMismatchError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    failed = [r for r in rows if r["status"] != "ok"]
+    for r in failed[:5]:
+        print(f"point {r['point']} failed: {r['error']}", file=sys.stderr)
+    print(
+        f"study {study.name}: {len(rows) - len(failed)} ok, {len(failed)} failed; results in {out}"
+    )
+    return 1 if failed else 0
 
 
 def _summary(args: argparse.Namespace) -> int:
@@ -443,6 +473,35 @@ def build_parser(prog: str = "python -m servo_axis") -> argparse.ArgumentParser:
         help="PNG to write: measured and model torque against displacement",
     )
     gms.set_defaults(func=_gms_fit)
+    sw = sub.add_parser(
+        "sweep",
+        help="run a study (a parameter sweep of a scenario) on dask.distributed",
+        description="Run a study: the points of a grid or list of overrides of a base "
+        "scenario, on a LocalCluster or a running dask scheduler; write results.parquet, "
+        "results.csv, manifest.json (a second call resumes) and a PNG per figure and "
+        "swept parameter.",
+    )
+    sw.add_argument(
+        "study",
+        help="study file (YAML; README, Studies) or a shipped study's name, e.g. reversal_004",
+    )
+    sw.add_argument("--out", help="study directory (default studies/<name>)")
+    sw.add_argument(
+        "--scheduler",
+        metavar="tcp://HOST:PORT",
+        help="address of a running dask scheduler (default: a LocalCluster)",
+    )
+    sw.add_argument(
+        "--workers",
+        type=_int_at_least(1),
+        default=None,
+        help="worker processes of the LocalCluster, one thread each (default: the cores)",
+    )
+    sw.add_argument(
+        "--retry-failed", action="store_true", help="run again the points that failed before"
+    )
+    sw.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    sw.set_defaults(func=_sweep)
     sm = sub.add_parser("summary", help="print the summary of a run directory")
     sm.add_argument("run_dir", help="run directory (holds summary.json)")
     sm.set_defaults(func=_summary)

@@ -8,7 +8,7 @@ hidden inside a function is still a circle.
 * ``servo_axis.core`` imports nothing of the project outside ``core``, and
   nothing but numpy, scipy, numba (only ``core.kernels``, the compiled
   sub-step loops) and the standard library;
-* ``simulate``, ``analysis``, ``friction_id``, ``gms_fit``, ``params``,
+* ``simulate``, ``analysis``, ``friction_id``, ``gms_fit``, ``params``, ``study``,
   ``wire.topics``,
   ``wire.cdr`` and ``recording.reader`` reach no rclpy and no ROS message
   package, directly or through other modules of the project.
@@ -171,7 +171,11 @@ ROS_FREE = [
     "servo_axis.wire.topics",
     "servo_axis.wire.cdr",
     "servo_axis.recording.reader",
-    *sorted(m for m in MODULES if m.startswith(("servo_axis.analysis", "servo_axis.params"))),
+    *sorted(
+        m
+        for m in MODULES
+        if m.startswith(("servo_axis.analysis", "servo_axis.params", "servo_axis.study"))
+    ),
 ]
 
 

@@ -1,0 +1,329 @@
+"""A study file: a base scenario, the points (a grid or a list), the figures, the backend.
+
+A study is a YAML mapping::
+
+    name: pid_bandwidth            # optional; default: the file's stem
+    scenario: pid_disturbance      # a shipped scenario's name or a path (relative to the study)
+    backend: plain                 # plain (default: the plain-call loops) or nodes
+    set:                           # optional: overrides of every point
+      /**.duration_s: 0.5
+    grid:                          # the product of the lists ...
+      feedback.bandwidth_hz: [20, 40, 80]
+      plant.disturbance.frequency_hz: [2, 4]
+    # points:                      # ... or a list of override mappings
+    #   - {feedback.bandwidth_hz: 20}
+    figures:                       # paths into the summary of a run
+      - tracking_error.all_samples.max_m
+      - tracking_error.cycles[-1].rms_m
+
+An override key is dotted. Its first component names the section of the
+scenario file when it is one (``/**``, ``plant``, ``feedback``,
+``feedforward``, ``learning``, ``identifier``, ``recorder`` or
+``/<axis>/<role>``): ``feedforward.learning.cycle_s`` is the key
+``learning.cycle_s`` of the ``feedforward`` section, ``/**.duration_s`` the
+shared ``duration_s``. Otherwise the whole key must be present in exactly one
+section of the base scenario and is set there (``disturbance.amplitude_Nm``
+is the plant's). Nothing here imports rclpy.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import itertools
+import json
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from servo_axis.core.errors import ConfigError
+from servo_axis.params.scenario import (
+    ROLES,
+    SHARED_SECTION,
+    axis_section,
+    find_scenario,
+    load_scenario,
+    resolve_table,
+)
+
+BACKENDS = ("plain", "nodes")
+_KEYS = {"name", "scenario", "backend", "set", "grid", "points", "figures"}
+_FIGURE = re.compile(r"^[A-Za-z_][\w]*(\[-?\d+\])*(\.[A-Za-z_][\w]*(\[-?\d+\])*)*$")
+_PART = re.compile(r"([A-Za-z_]\w*)|\[(-?\d+)\]")
+
+
+class StudyError(ConfigError):
+    """A study file that cannot be run (the message names the key)."""
+
+
+@dataclass(frozen=True)
+class Study:
+    """A checked study.
+
+    Attributes
+    ----------
+    name : str
+        The study's name.
+    scenario : str
+        The base scenario: a shipped name, or an absolute path.
+    backend : str
+        ``plain`` or ``nodes``.
+    parameters : tuple of str
+        The swept keys (the columns of the table), in order.
+    points : tuple of dict
+        Per point, the overrides (``set`` first, then the point's own).
+    figures : dict
+        Column name -> path into the summary.
+    """
+
+    name: str
+    scenario: str
+    backend: str
+    parameters: tuple[str, ...]
+    points: tuple[dict[str, Any], ...]
+    figures: dict[str, str]
+    fixed: dict[str, Any] = field(default_factory=dict)
+
+    def fingerprint(self) -> str:
+        """A hash of what the results depend on (base scenario bytes, points, figures, backend)."""
+        text = json.dumps(
+            {
+                "scenario": find_scenario(self.scenario).read_text(),
+                "backend": self.backend,
+                "points": list(self.points),
+                "figures": self.figures,
+            },
+            sort_keys=True,
+            default=str,
+        )
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def _fail(path: Path, key: str, problem: str) -> StudyError:
+    return StudyError(f"study {path}: '{key}': {problem}")
+
+
+def _scalar(value: Any) -> bool:
+    """A parameter value: a number, a string, a bool, or a list of them (``forgetting: [...]``)."""
+    if isinstance(value, list):
+        return all(isinstance(v, bool | int | float | str) for v in value)
+    return value is None or isinstance(value, bool | int | float | str)
+
+
+def study_dir() -> Path:
+    """The shipped studies' folder (``src/servo_axis/studies/``)."""
+    return Path(__file__).resolve().parents[1] / "studies"
+
+
+def find_study(name_or_path: str | Path) -> Path:
+    """A study file from a path, or from the name of a shipped study (``reversal_004``)."""
+    path = Path(name_or_path)
+    if path.is_file():
+        return path
+    shipped = study_dir() / f"{path.stem}.yaml"
+    if path.parent == Path(".") and shipped.is_file():
+        return shipped
+    names = ", ".join(sorted(p.stem for p in study_dir().glob("*.yaml")))
+    raise StudyError(f"study {name_or_path}: neither a file nor a shipped study ({names})")
+
+
+def load_study(path: Path | str) -> Study:
+    """Read and check a study file or shipped study (each point's overrides are checked once).
+
+    Raises
+    ------
+    StudyError
+        One line that names the file and the key.
+    """
+    path = find_study(path)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except OSError as err:
+        raise StudyError(f"study {path}: cannot read it: {err.strerror}") from err
+    except yaml.YAMLError as err:
+        raise StudyError(f"study {path}: not valid YAML: {str(err).splitlines()[0]}") from err
+    if not isinstance(data, dict):
+        raise StudyError(f"study {path}: expected a mapping")
+    for key in data:
+        if key not in _KEYS:
+            raise _fail(path, str(key), f"unknown key; expected one of {sorted(_KEYS)}")
+    if "scenario" not in data or not isinstance(data["scenario"], str):
+        raise _fail(path, "scenario", "required: a shipped scenario's name or a path")
+    scenario_text = data["scenario"]
+    candidate = path.parent / scenario_text
+    scenario = str(candidate.resolve()) if candidate.is_file() else scenario_text
+    try:
+        base = load_scenario(find_scenario(scenario))
+    except ConfigError as err:
+        raise _fail(path, "scenario", str(err)) from err
+    backend = data.get("backend", "plain")
+    if backend not in BACKENDS:
+        raise _fail(path, "backend", f"{backend!r}; expected one of {list(BACKENDS)}")
+    fixed = data.get("set") or {}
+    if not isinstance(fixed, dict) or not all(_scalar(v) for v in fixed.values()):
+        raise _fail(path, "set", "expected a mapping of dotted keys to values")
+    if ("grid" in data) == ("points" in data):
+        raise _fail(path, "grid", "give either 'grid' or 'points' (one of them)")
+    own: list[dict[str, Any]]
+    if "grid" in data:
+        grid = data["grid"]
+        if not isinstance(grid, dict) or not grid:
+            raise _fail(path, "grid", "expected a mapping of dotted keys to lists of values")
+        for key, values in grid.items():
+            if not isinstance(values, list) or not values or not all(_scalar(v) for v in values):
+                raise _fail(path, f"grid.{key}", "expected a non-empty list of values")
+        keys = list(grid)
+        own = [dict(zip(keys, combo, strict=True)) for combo in itertools.product(*grid.values())]
+    else:
+        raw = data["points"]
+        if not isinstance(raw, list) or not raw:
+            raise _fail(path, "points", "expected a non-empty list of override mappings")
+        own = []
+        for i, point in enumerate(raw):
+            if not isinstance(point, dict) or not all(_scalar(v) for v in point.values()):
+                raise _fail(path, f"points[{i}]", "expected a mapping of dotted keys to values")
+            own.append(dict(point))
+        keys = list(dict.fromkeys(k for p in own for k in p))
+    figures = _figures(path, data.get("figures"))
+    points = tuple({**fixed, **p} for p in own)
+    for i, point in enumerate(points):
+        trial = copy.deepcopy(base)
+        for key, value in point.items():
+            where = f"points[{i}].{key}" if "points" in data else key
+            try:
+                apply_override(trial, key, value)
+                _check_section(trial, _section_of(trial, key)[0])
+            except ConfigError as err:
+                raise _fail(path, where, f"{err} (value {value!r})") from err
+    return Study(
+        name=str(data.get("name") or path.stem),
+        scenario=scenario,
+        backend=backend,
+        parameters=tuple(str(k) for k in keys),
+        points=points,
+        figures=figures,
+        fixed=dict(fixed),
+    )
+
+
+def _figures(path: Path, raw: Any) -> dict[str, str]:
+    if isinstance(raw, list):
+        raw = {str(f): f for f in raw}
+    if not isinstance(raw, dict) or not raw:
+        raise _fail(path, "figures", "expected a non-empty list of summary paths (or name: path)")
+    for name, figure in raw.items():
+        if not isinstance(figure, str) or not _FIGURE.match(figure):
+            raise _fail(path, f"figures.{name}", f"{figure!r} is not a path like a.b[-1].c")
+    return {str(k): str(v) for k, v in raw.items()}
+
+
+def _section_of(scenario: dict[str, Any], key: str) -> tuple[str, str]:
+    """``(section, key within it)`` of an override key (see the module's docstring)."""
+    head, _, rest = key.partition(".")
+    if rest and (head == SHARED_SECTION or head in ROLES or axis_section(head) is not None):
+        return head, rest
+    holders = [s for s, v in scenario.items() if _has(v.get("ros__parameters") or {}, key)]
+    if len(holders) != 1:
+        raise ConfigError(
+            f"in no section of the scenario; name it: '<section>.{key}' "
+            f"(sections: {', '.join(scenario)})"
+            if not holders
+            else f"in several sections ({', '.join(holders)}); name one: '<section>.{key}'"
+        )
+    return holders[0], key
+
+
+def _check_section(scenario: dict[str, Any], section: str) -> None:
+    """Check the parameters of the roles a section sets (names, types, ranges)."""
+    from servo_axis.params.factories import node_values
+
+    roles = [r for r in ROLES if r in scenario] if section == SHARED_SECTION else [section]
+    for role in roles:
+        if role in ROLES and role != "recorder":
+            node_values(scenario, role)
+
+
+def _has(params: dict[str, Any], dotted: str) -> bool:
+    node: Any = params
+    for part in dotted.split("."):
+        if not isinstance(node, dict) or part not in node:
+            return False
+        node = node[part]
+    return True
+
+
+def apply_override(
+    scenario: dict[str, Any], key: str, value: Any, *, check_only: bool = False
+) -> None:
+    """Set one dotted override in a scenario mapping (in place, unless ``check_only``)."""
+    section, inner = _section_of(scenario, key)
+    if check_only:
+        scenario = copy.deepcopy(scenario)
+    params = scenario.setdefault(section, {"ros__parameters": {}}).setdefault("ros__parameters", {})
+    parts = inner.split(".")
+    node = params
+    for part in parts[:-1]:
+        child = node.setdefault(part, {})
+        if not isinstance(child, dict):
+            raise ConfigError(f"'{part}' of section '{section}' is a value, not a mapping")
+        node = child
+    old = node.get(parts[-1])
+    if isinstance(old, dict):
+        raise ConfigError(f"section '{section}' has a mapping at '{inner}', not a value")
+    node[parts[-1]] = value
+
+
+def scenario_for(study_scenario: str, overrides: dict[str, Any]) -> tuple[dict[str, Any], Path]:
+    """The base scenario with the overrides applied, and the base file.
+
+    Relative ``file`` keys are made absolute (relative to the base file's
+    directory), so the result may be written anywhere.
+    """
+    base_path = find_scenario(study_scenario)
+    scenario = load_scenario(base_path)
+    for key, value in overrides.items():
+        apply_override(scenario, key, value)
+    _absolute_files(scenario, base_path.parent)
+    return scenario, base_path
+
+
+def _absolute_files(node: Any, directory: Path) -> None:
+    if isinstance(node, dict):
+        for key, value in node.items():
+            if key == "file" and isinstance(value, str):
+                node[key] = resolve_table(value, directory)
+            else:
+                _absolute_files(value, directory)
+
+
+def figure(summary: Any, path: str) -> Any:
+    """The value at ``path`` (``a.b[-1].c``) of a summary mapping.
+
+    Raises
+    ------
+    KeyError
+        With the part of the path that is not there.
+    """
+    node = summary
+    done = ""
+    for name, index in _PART.findall(path):
+        if name:
+            if not isinstance(node, dict) or name not in node:
+                raise KeyError(f"figure {path!r}: no '{name}' in the summary at '{done or '.'}'")
+            node = node[name]
+            done = f"{done}.{name}" if done else name
+        else:
+            i = int(index)
+            if not isinstance(node, list) or not -len(node) <= i < len(node):
+                raise KeyError(f"figure {path!r}: no [{i}] at '{done}'")
+            node = node[i]
+            done = f"{done}[{i}]"
+    return node
+
+
+def dump_scenario(scenario: dict[str, Any], path: Path) -> None:
+    """Write a scenario mapping as YAML."""
+    path.write_text(yaml.safe_dump(scenario, sort_keys=False))

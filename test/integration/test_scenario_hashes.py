@@ -1,0 +1,43 @@
+"""The committed scenario hashes hold on this machine, for a fast subset of scenarios.
+
+``scripts/scenario_hashes.py --check`` runs each scenario through
+``python -m servo_axis run`` and compares the SHA-256 of every recorded
+topic with ``test/data/scenario_hashes.txt``: with the versions of
+``requirements.lock`` (``scripts/setup.sh``) a fresh machine records the same
+bytes. The whole file is checked by the script itself (README, Development);
+here two scenarios of 2 s each.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.integration
+
+REPO = Path(__file__).resolve().parents[2]
+FAST = ("pid_disturbance", "ptc_nominal")
+
+
+def test_the_committed_hashes_of_fast_scenarios_are_reproduced(ros_env: int) -> None:
+    proc = subprocess.run(
+        [
+            sys.executable,
+            str(REPO / "scripts" / "scenario_hashes.py"),
+            "--domain-id",
+            str(ros_env),
+            "--check",
+            str(REPO / "test" / "data" / "scenario_hashes.txt"),
+            *(str(REPO / "config" / f"{name}.yaml") for name in FAST),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
+    differ = [ln for ln in proc.stderr.splitlines() if ln.startswith(("expected ", "got "))]
+    assert proc.returncode == 0, "\n".join(differ) or proc.stderr[-2000:]
+    assert "identical: 12 topics of 2 scenarios" in proc.stderr
