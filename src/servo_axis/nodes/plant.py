@@ -30,8 +30,11 @@ once the feedback has been gone for ``command_timeout_s`` does it apply
 zero current (every step while it stays gone; a fallback, counted as
 command timeouts), and only once the recorder has been gone that long does
 it switch flow control off (a fallback).
-Realtime: a thread of the plant's own steps at absolute deadlines
-``d_j = start + j T_u`` of the monotonic clock (it sleeps until shortly
+Realtime: the plant publishes state 0 and, once its command is in (the loop
+has closed once, every node has its inputs: a clock started earlier counts
+misses of a loop still starting up), a thread of the plant's own steps at
+absolute deadlines ``d_j = start + j T_u`` of the monotonic clock (``start``:
+the arrival of command 0) (it sleeps until shortly
 before each, then spins to it; an rclpy timer slips), so the executor's
 callbacks never delay a tick by more than the interpreter's switch interval,
 set short. A command that has not arrived by its tick's deadline is a
@@ -234,9 +237,14 @@ class PlantNode(ServoNode):
         for _ in range(3):
             spare.step(0.0)
         sys.setswitchinterval(SWITCH_INTERVAL_S)
+        # State 0 goes out; the clock starts when its command is in (the
+        # loop has closed once: every node has its inputs), d_0 = then.
         with self._lock:
-            self._rt_start_ns = time.monotonic_ns()  # d_0: state 0 goes out now
             self._publish(self.plant.output())
+
+    def _start_clock(self, now_ns: int) -> None:
+        """Realtime: the first command is in at ``now_ns``: d_0, and the clock thread starts."""
+        self._rt_start_ns = now_ns
         self._rt_thread = threading.Thread(
             target=self._realtime_loop, name="plant-clock", daemon=True
         )
@@ -295,6 +303,8 @@ class PlantNode(ServoNode):
         with self._lock:
             now = time.monotonic_ns()
             k = cmd.step
+            if self._rt_thread is None:
+                self._start_clock(now)  # command 0: the only one the plant can wait for
             if 0 <= k < self._steps:
                 self._command_late_ns[k] = now - (self._rt_start_ns + k * self._period_ns)
             if k < self.plant.step_index:
