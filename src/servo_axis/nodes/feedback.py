@@ -55,28 +55,15 @@ from __future__ import annotations
 import time
 from typing import Any
 
-from rclpy.qos import HistoryPolicy, QoSProfile
-
 from servo_axis.core.drive import current_from_torque, torque_from_current
 from servo_axis.core.errors import SignalError
 from servo_axis.core.feedback.loop import Fault, LoopOutput
 from servo_axis.nodes.base import ServoNode
 from servo_axis.nodes.lockstep import PeerWatch, SampleBuffer, stream_window
-from servo_axis.nodes.runtime import STREAM_QOS, run_main, steady_clock
+from servo_axis.nodes.runtime import run_main, steady_clock
 from servo_axis.params.factories import build_deformation, build_loop
 from servo_axis.wire import messages as msgs
 from servo_axis.wire.streams import StreamGate
-
-#: Realtime: the feedback's reader of ``state`` keeps this many samples.
-REALTIME_STATE_DEPTH = 3
-REALTIME_STATE_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=REALTIME_STATE_DEPTH,
-    reliability=STREAM_QOS.reliability,
-    durability=STREAM_QOS.durability,
-    liveliness=STREAM_QOS.liveliness,
-    liveliness_lease_duration=STREAM_QOS.liveliness_lease_duration,
-)
 
 
 class FeedbackNode(ServoNode):
@@ -140,10 +127,6 @@ class FeedbackNode(ServoNode):
             lambda m: msgs.state_from_msg(m, axis=axis, period_ns_=period_ns),
             self._on_state,
             gate=self._states,
-            # Realtime: a state the feedback could not answer in time is worth
-            # nothing once a newer one is in; the reader keeps the newest few,
-            # so a stall leaves no backlog of late answers behind it.
-            qos=None if self._lockstep else REALTIME_STATE_QOS,
         )
         self.subscribe(
             "reference",
