@@ -419,8 +419,13 @@ def core_rate(scenario: Path, data: dict) -> float | str:
         except ValueError:  # a target-side law: no plain-call loop with learning
             if fn is sim.simulate:
                 raise
+            plain = copy.deepcopy(data)
+            del plain["learning"]
+            plain["feedforward"]["ros__parameters"]["learning"]["enabled"] = False
+            without = scenario.with_name(f"no_learning_{scenario.name}")
+            without.write_text(yaml.safe_dump(plain, sort_keys=False))
             t0 = time.perf_counter()
-            sim.simulate(scenario, steps=steps)
+            sim.simulate(without, steps=steps)
             return f"{steps / (time.perf_counter() - t0) * period:.1f}x (no learning)"
         return steps / (time.perf_counter() - t0)
     except Exception as err:  # a cell of the table says why
