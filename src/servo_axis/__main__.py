@@ -267,9 +267,10 @@ examples:
   python -m servo_axis bag recover runs/ptc/bag
 (`servo-axis` is the same command as `python -m servo_axis`.)
 
-Exit codes of run: 0 complete and deterministic, 1 failed, 2 bad option or
-configuration (nothing started or written), 3 not the deterministic result,
-4 the feedback loop tripped, 130/143 interrupted by SIGINT/SIGTERM.
+Exit codes of run: 0 complete and deterministic (realtime: complete, never
+deterministic), 1 failed, 2 bad option or configuration (nothing started or
+written), 3 not the deterministic result, 4 the feedback loop tripped,
+130/143 interrupted by SIGINT/SIGTERM.
 """
 
 
