@@ -16,12 +16,26 @@ period (1.0x = as fast as the real axis) and as a ratio to the baseline
 measured in the same run, and written to docs/benchmarks.md.
 
     .venv/bin/python scripts/benchmark.py [--scenario config/ptc_nominal.yaml] [--duration 10]
+
+``--all`` runs every shipped scenario (learning, identifier and two-axis ones
+included) in lockstep as separate processes, composed and core only, and in
+realtime as separate processes, next to the real-time floor of this machine
+(the shared tools' ``rt_floor.py``, EventsExecutor, measured in the same
+invocation at each period, or read with ``--floor FILE``: its ``--json``
+lines). ``--quick`` does the same for the four scenarios of issue 23 only.
+``--budget`` profiles one lockstep run (separate processes) and prints where
+a step's time goes in each node process.
+
+    .venv/bin/python scripts/benchmark.py --all [--duration 1] [--floor floor.jsonl]
+    .venv/bin/python scripts/benchmark.py --quick
+    .venv/bin/python scripts/benchmark.py --budget [--scenario config/ptc_nominal.yaml]
 """
 
 from __future__ import annotations
 
 import argparse
 import copy
+import json
 import os
 import platform
 import subprocess
@@ -312,6 +326,358 @@ def law_cost_ms(data: dict, scenario: Path) -> float:
     return 1e3 * float(sorted(times)[len(times) // 2])
 
 
+#: The scenarios of issue 23's realtime target (``--quick``).
+QUICK = ("ptc_nominal", "rptc_detailed", "fast_reversal_sigmoid", "dlpid_tilt_lpf2")
+#: rt_floor.py of the shared tools (the floor of a bare pair of rclpy processes).
+RT_FLOOR = REPO.parent / "shared" / "tools" / "rt_floor.py"
+
+
+def prepared(src: Path, tmp: Path, duration: float, **shared: Any) -> tuple[Path, dict]:
+    """``src`` written to ``tmp`` with ``duration_s`` capped at ``duration``, files by absolute
+    path and ``shared`` set under ``/**`` (e.g. ``mode="realtime"``)."""
+    from servo_axis.params.scenario import load_scenario
+
+    data = load_scenario(src)
+    common = data.setdefault("/**", {"ros__parameters": {}})["ros__parameters"]
+    common["duration_s"] = min(float(common.get("duration_s", duration)), duration)
+    common.update(shared)
+    for section in data.values():
+        params = section.get("ros__parameters", {}) if isinstance(section, dict) else {}
+        for sub in params.values():
+            if isinstance(sub, dict):
+                name = sub.get("file")
+                if isinstance(name, str) and name and not Path(name).is_absolute():
+                    if (src.parent / name).exists():
+                        sub["file"] = str(src.resolve().parent / name)
+    suffix = "_".join(f"{k}" for k in shared) or "lockstep"
+    out = tmp / f"{src.stem}_{suffix}.yaml"
+    out.write_text(yaml.safe_dump(data, sort_keys=False))
+    return out, data
+
+
+def measure_floor(periods_us: list[int], ticks: int) -> dict[int, dict]:
+    """rt_floor.py (EventsExecutor) at each period: its JSON result by period in us."""
+    out: dict[int, dict] = {}
+    if not RT_FLOOR.exists():
+        print(f"no {RT_FLOOR}: no floor", flush=True)
+        return out
+    for p in periods_us:
+        print(f"real-time floor at {p} us (rt_floor.py, events) ...", flush=True)
+        done = subprocess.run(
+            [sys.executable, str(RT_FLOOR), "--period-us", str(p), "--ticks", str(ticks),
+             "--executor", "events", "--json"],
+            capture_output=True, text=True, check=False,
+        )  # fmt: skip
+        lines = [ln for ln in done.stdout.splitlines() if ln.startswith("{")]
+        if done.returncode == 0 and lines:
+            out[p] = json.loads(lines[-1])
+        else:
+            print(f"rt_floor.py failed at {p} us: {done.stderr[-500:]}", flush=True)
+    return out
+
+
+def read_floor(path: Path) -> dict[int, dict]:
+    """The floor from a file of rt_floor.py ``--json`` lines, by period in us."""
+    out = {}
+    for line in path.read_text().splitlines():
+        if line.strip().startswith("{"):
+            r = json.loads(line)
+            out[int(r["period_us"])] = r
+    return out
+
+
+def one_run(scenario: Path, out_dir: Path, domain: int, composed: bool = False) -> Any:
+    """A run's summary, or the first line of why it failed (a string)."""
+    from servo_axis.run.runner import run_scenario
+
+    try:
+        r = run_scenario(
+            scenario, out_dir=out_dir, composed=composed, domain_id=domain, progress=None,
+            plots=False,
+        )  # fmt: skip
+    except Exception as err:  # a row of the table says why
+        return f"{type(err).__name__}: {str(err).splitlines()[0] if str(err) else ''}"[:90]
+    return r.summary
+
+
+def core_rate(scenario: Path, data: dict) -> float | str:
+    """Steps/s of the scenario's loop as plain calls (the simulate function that fits it)."""
+    from servo_axis import simulate as sim
+
+    fn = sim.simulate
+    if "identifier" in data:
+        fn = sim.simulate_identification  # type: ignore[assignment]
+    elif "learning" in data:
+        fn = sim.simulate_learning  # type: ignore[assignment]
+    common = data["/**"]["ros__parameters"]
+    period = float(common.get("control_period_s", 1e-3))
+    steps = round(common["duration_s"] / period)
+    try:
+        t0 = time.perf_counter()
+        try:
+            fn(scenario, steps=steps)
+        except ValueError:  # a target-side law: no plain-call loop with learning
+            if fn is sim.simulate:
+                raise
+            plain = copy.deepcopy(data)
+            del plain["learning"]
+            plain["feedforward"]["ros__parameters"]["learning"]["enabled"] = False
+            without = scenario.with_name(f"no_learning_{scenario.name}")
+            without.write_text(yaml.safe_dump(plain, sort_keys=False))
+            t0 = time.perf_counter()
+            sim.simulate(without, steps=steps)
+            return f"{steps / (time.perf_counter() - t0) * period:.1f}x (no learning)"
+        return steps / (time.perf_counter() - t0)
+    except Exception as err:  # a cell of the table says why
+        return f"{type(err).__name__}"
+
+
+def steps_per_s(s: Any) -> float:
+    """Steps/s of a summary (a two-axis one: its slowest axis)."""
+    axes = getattr(s, "axes", None)
+    if isinstance(axes, dict) and axes:
+        return min(float(a.steps_per_s) for a in axes.values())
+    return float(s.steps_per_s)
+
+
+def realtime_cells(s: Any) -> dict[str, Any]:
+    """Misses and lateness of a realtime summary (single or two-axis)."""
+    rts = [s.realtime] if getattr(s, "realtime", None) else []
+    rts += [a.realtime for a in getattr(s, "axes", {}).values() if getattr(a, "realtime", None)]
+    if not rts:
+        return status_misses(s)
+    rt = max(rts, key=lambda r: r.misses)
+    return {
+        "misses": rt.misses,
+        "ticks": rt.ticks,
+        "miss_pct": 100 * rt.misses / max(rt.ticks, 1),
+        "tick": rt.tick_late_us,
+        "command": rt.command_late_us,
+        "rate": rt.timer_rate,
+    }
+
+
+def status_misses(s: Any) -> dict[str, Any]:
+    """Misses from the last ``plant/status`` of the bag (a summary without ``realtime``)."""
+    from servo_axis.recording.deserialize import read_messages
+
+    run_dir = getattr(s, "_run_dir", None)
+    if run_dir is None:
+        return {}
+    topics = [t for t in s.message_counts if t.endswith("plant/status")]
+    last = None
+    for m in read_messages(Path(run_dir) / "bag", topics=topics):
+        last = m.message.data
+    if last is None:
+        return {}
+    ticks = round(s.steps)
+    return {
+        "misses": int(last[1]), "ticks": ticks, "miss_pct": 100 * last[1] / max(ticks, 1),
+        "tick": None, "command": None, "rate": float("nan"),
+    }  # fmt: skip
+
+
+def _pct(d: dict | None) -> str:
+    if not d:
+        return "-"
+    return f"{d['p50']:.0f}/{d['p99']:.0f}/{d['max']:.0f}"
+
+
+def run_all(args: argparse.Namespace) -> int:
+    """``--all`` / ``--quick``: the one table of every scenario and the realtime figures."""
+    from servo_axis.run.processes import ros_environment
+
+    names = QUICK if args.quick else tuple(sorted(p.stem for p in (REPO / "config").glob("*.yaml")))
+    if args.only:
+        names = tuple(args.only.split(","))
+    tmp = Path(tempfile.mkdtemp(prefix="servo_axis_bench_all_"))
+    domain = 60 + os.getpid() % 30
+    env = ros_environment(domain, tmp)
+    started = time.monotonic()
+    print("ping-pong baseline (2 processes) ...", flush=True)
+    base = ping_pong(env)
+    rows = []
+    periods: set[int] = set()
+    for name in names:
+        src = REPO / "config" / f"{name}.yaml"
+        lock, data = prepared(src, tmp, args.duration)
+        rt, _ = prepared(src, tmp, args.duration, mode="realtime")
+        common = data["/**"]["ros__parameters"]
+        period = float(common.get("control_period_s", 1e-3))
+        periods.add(round(period * 1e6))
+        row: dict[str, Any] = {"name": name, "period": period}
+        for case, composed in (("separate", False), ("composed", True)):
+            print(f"{name}: lockstep {case} ...", flush=True)
+            s = one_run(lock, tmp / f"{name}_{case}", domain, composed)
+            row[case] = s if isinstance(s, str) else steps_per_s(s)
+            if case == "separate" and not isinstance(s, str):
+                row["lock_rms"] = (
+                    s.tracking_error.all_samples.rms_m if hasattr(s, "tracking_error") else None
+                )
+        print(f"{name}: core only ...", flush=True)
+        row["core"] = core_rate(lock, data)
+        print(f"{name}: realtime separate ...", flush=True)
+        s = one_run(rt, tmp / f"{name}_rt", domain)
+        if not isinstance(s, str):
+            object.__setattr__(s, "_run_dir", tmp / f"{name}_rt")
+        if isinstance(s, str):
+            row["rt"] = s
+        else:
+            row["rt"] = realtime_cells(s)
+            row["rt_exit"] = s.health.exit_code if s.health else None
+            row["rt_rms"] = (
+                s.tracking_error.all_samples.rms_m if hasattr(s, "tracking_error") else None
+            )
+            row["rt_factor"] = steps_per_s(s) * period
+        rows.append(row)
+    floor = read_floor(Path(args.floor)) if args.floor else measure_floor(sorted(periods), 10000)
+    elapsed = time.monotonic() - started
+
+    def rate(v: Any, period: float) -> str:
+        if isinstance(v, str):
+            return v
+        return f"{v * period:.2f}x ({v / base:.2f})"
+
+    lock_lines = [
+        "| scenario | T_u (ms) | separate: x real time (x baseline) | composed | core only |",
+        "| --- | --- | --- | --- | --- |",
+    ]
+    rt_lines = [
+        "| scenario | T_u (ms) | misses | floor misses | tick late p50/p99/max (us) "
+        "| command late p50/p99/max (us) | rate | exit | RMS error rt / lockstep (um) |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for row in rows:
+        per = row["period"]
+        core = row["core"]
+        core_text = core if isinstance(core, str) else f"{core * per:.1f}x"
+        lock_lines.append(
+            f"| {row['name']} | {per * 1e3:g} | {rate(row['separate'], per)} | "
+            f"{rate(row['composed'], per)} | {core_text} |"
+        )
+        rt = row["rt"]
+        fl = floor.get(round(per * 1e6))
+        fl_text = f"{fl['miss_pct']:.2f} %" if fl else "-"
+        if isinstance(rt, str) or not rt:
+            rt_lines.append(
+                f"| {row['name']} | {per * 1e3:g} | {rt or 'no figures'} | {fl_text} | | | | | |"
+            )
+            continue
+        errs = "/".join(
+            "-" if v is None else f"{1e6 * v:.3g}" for v in (row.get("rt_rms"), row.get("lock_rms"))
+        )
+        rt_lines.append(
+            f"| {row['name']} | {per * 1e3:g} | {rt['misses']} of {rt['ticks']} "
+            f"({rt['miss_pct']:.2f} %) | {fl_text} | {_pct(rt['tick'])} | {_pct(rt['command'])} | "
+            f"{rt['rate']:.4f} | {row['rt_exit']} | {errs} |"
+        )
+    floor_lines = [
+        "| period (us) | misses | tick late p50/p99/max (us) | round trip p50/p99/max (us) |",
+        "| --- | --- | --- | --- |",
+        *(
+            f"| {p} | {f['misses']} of {f['ticks']} ({f['miss_pct']:.2f} %) | "
+            f"{_pct(f['tick_late_us'])} | {_pct(f['round_trip_us'])} |"
+            for p, f in sorted(floor.items())
+        ),
+    ]
+    text = (
+        f"Baseline (2-process ping-pong): {base:,.0f} round trips/s. Lockstep cells: x real time "
+        f"(x baseline).\n\n" + "\n".join(lock_lines) + "\n\nRealtime, separate processes, "
+        "recorder on (misses: ticks whose command had not arrived by the deadline; lateness: "
+        "tick = when the plant stepped after its deadline, command = arrival after the tick of "
+        "the state it answers; rate = ticks per period of wall time):\n\n"
+        + "\n".join(rt_lines)
+        + "\n\nFloor (rt_floor.py, EventsExecutor, "
+        + ("read from " + Path(args.floor).name if args.floor else "measured in this invocation")
+        + "):\n\n"
+        + "\n".join(floor_lines)
+        + "\n"
+    )
+    print()
+    print(text)
+    print(f"({elapsed:.0f} s)")
+    which = "--quick" if args.quick else "--all"
+    when = time.strftime("%Y-%m-%d %H:%M")
+    title = f"## every scenario ({which})\n"
+    section = (
+        f"{title}\nMeasured {when} on {platform.node()} ({os.cpu_count()} cores), at most "
+        f"{args.duration:g} simulated s per run, {elapsed / 60:.1f} min in all.\n"
+        f"Command: `.venv/bin/python scripts/benchmark.py {which} --duration {args.duration:g}"
+        f"{' --floor ' + Path(args.floor).name if args.floor else ''}`\n\n{text}"
+    )
+    write_section(Path(args.out), title, section)
+    return 0
+
+
+#: Budget categories: (label, test on a pstats key ``(file, line, name)``), first match wins.
+BUDGET = (
+    ("wait + transport (executor, C)", lambda f, n: f == "~" and "spin_once" in n),
+    ("publish (serialise + write, C)", lambda f, n: f == "~" and "publish" in n),
+    ("messages: decode/encode/validate", lambda f, n: "servo_axis/wire/" in f),
+    ("physics + control laws (core)", lambda f, n: "servo_axis/core/" in f),
+    (
+        "recorder writing (recording, mcap)",
+        lambda f, n: "servo_axis/recording/" in f or "/mcap/" in f,
+    ),
+    ("node logic (nodes)", lambda f, n: "servo_axis/nodes/" in f),
+    ("rclpy Python", lambda f, n: "/rclpy/" in f),
+)
+
+
+def budget_of(prof: Path, steps: int) -> dict[str, float]:
+    """Microseconds per step of each :data:`BUDGET` category in one profile (``other``: the rest)."""
+    import pstats
+
+    st = pstats.Stats(str(prof))
+    out = {label: 0.0 for label, _ in BUDGET}
+    out["other Python"] = 0.0
+    for (file, _line, name), (_cc, _nc, tt, _ct, _callers) in st.stats.items():  # type: ignore[attr-defined]
+        label = next((lb for lb, test in BUDGET if test(file, name)), "other Python")
+        out[label] += 1e6 * tt / steps
+    return out
+
+
+def budget(args: argparse.Namespace) -> int:
+    """``--budget``: a lockstep run (separate processes) under cProfile; us per step per node."""
+    from servo_axis.run.runner import run_scenario
+
+    tmp = Path(tempfile.mkdtemp(prefix="servo_axis_budget_"))
+    scenario, data = prepared(Path(args.scenario), tmp, args.duration)
+    common = data["/**"]["ros__parameters"]
+    steps = round(common["duration_s"] / common.get("control_period_s", 1e-3))
+    prof_dir = tmp / "profiles"
+    prof_dir.mkdir()
+    domain = 60 + os.getpid() % 30
+    plain = run_scenario(
+        scenario, out_dir=tmp / "plain", domain_id=domain, progress=None, plots=False
+    )
+    os.environ["SERVO_AXIS_PROFILE"] = str(prof_dir)
+    try:
+        r = run_scenario(
+            scenario, out_dir=tmp / "prof", domain_id=domain, progress=None, plots=False
+        )
+    finally:
+        del os.environ["SERVO_AXIS_PROFILE"]
+    profs = sorted(prof_dir.glob("*.prof"))
+    per = {p.stem.split(".")[0]: budget_of(p, steps) for p in profs}
+    roles = sorted(per)
+    labels = [lb for lb, _ in BUDGET] + ["other Python"]
+    lines = [
+        "| us per step | " + " | ".join(roles) + " |",
+        "| --- |" + " --- |" * len(roles),
+        *(f"| {lb} | " + " | ".join(f"{per[r][lb]:.0f}" for r in roles) + " |" for lb in labels),
+        "| total (profiled) | " + " | ".join(f"{sum(per[r].values()):.0f}" for r in roles) + " |",
+    ]
+    text = (
+        f"Unprofiled: {plain.summary.steps_per_s:,.0f} steps/s ({1e6 / plain.summary.steps_per_s:.0f} "
+        f"us per step); profiled: {r.summary.steps_per_s:,.0f} steps/s. cProfile inflates "
+        "Python-heavy items (about 2x); read the table as shares.\n\n" + "\n".join(lines) + "\n"
+    )
+    print()
+    print(text)
+    return 0
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -331,10 +697,27 @@ def main() -> int:
     )
     parser.add_argument("--repeat", type=int, default=3, help="runs per case for the costs")
     parser.add_argument("--pong", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument(
+        "--all", action="store_true", help="every shipped scenario, lockstep and realtime"
+    )
+    parser.add_argument(
+        "--quick", action="store_true", help="as --all for the four scenarios of issue 23"
+    )
+    parser.add_argument("--floor", help="rt_floor.py --json output to use instead of measuring")
+    parser.add_argument("--only", help="with --all: these scenarios (comma-separated names)")
+    parser.add_argument(
+        "--budget", action="store_true", help="where a lockstep step's time goes (profiled run)"
+    )
     args = parser.parse_args()
     if args.pong:
         pong()
         return 0
+    if args.all or args.quick:
+        if args.duration == 10.0:
+            args.duration = 1.0
+        return run_all(args)
+    if args.budget:
+        return budget(args)
 
     from servo_axis.params.scenario import load_scenario
     from servo_axis.run.processes import ros_environment

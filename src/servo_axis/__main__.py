@@ -39,6 +39,17 @@ from servo_axis.params.names import domain_id_problem, namespace_problem
 DEFAULT_SCENARIO = "rptc_friction_table"
 
 
+def _read_floor(path: str) -> dict[int, dict]:
+    """rt_floor.py ``--json`` results by period in us (one clear line if the file is not that)."""
+    import json
+
+    try:
+        rows = [json.loads(ln) for ln in Path(path).read_text().splitlines() if ln.strip()]
+        return {int(r["period_us"]): r for r in rows if {"miss_pct", "round_trip_us"} <= set(r)}
+    except (OSError, ValueError, KeyError, TypeError) as err:
+        raise ConfigError(f"--floor {path}: not rt_floor.py --json output ({err})") from err
+
+
 def _run(args: argparse.Namespace) -> int:
     from servo_axis.analysis.health import EXIT_FAILED, EXIT_FAULT, EXIT_OK
     from servo_axis.analysis.summary import AxesSummary
@@ -46,6 +57,9 @@ def _run(args: argparse.Namespace) -> int:
     from servo_axis.run.live import DEFAULT_PORT
     from servo_axis.run.runner import RunError, RunInterruptedError, run_scenario
 
+    floor = None
+    if args.floor:
+        floor = _read_floor(args.floor)
     live_port = args.live_port  # --live-port implies --live
     if live_port is None and args.live:
         live_port = DEFAULT_PORT
@@ -61,6 +75,7 @@ def _run(args: argparse.Namespace) -> int:
             external_timeout_s=args.external_timeout,
             **({} if args.respawn_limit is None else {"respawn_limit": args.respawn_limit}),
             live_port=live_port,
+            floor=floor,
         )
     except RunInterruptedError as err:
         print(f"\nrun {err}", file=sys.stderr)
@@ -282,9 +297,10 @@ examples:
   python -m servo_axis bag recover runs/ptc/bag
 (`servo-axis` is the same command as `python -m servo_axis`.)
 
-Exit codes of run: 0 complete and deterministic, 1 failed, 2 bad option or
-configuration (nothing started or written), 3 not the deterministic result,
-4 the feedback loop tripped, 130/143 interrupted by SIGINT/SIGTERM.
+Exit codes of run: 0 complete and deterministic (realtime: complete, never
+deterministic), 1 failed, 2 bad option or configuration (nothing started or
+written), 3 not the deterministic result, 4 the feedback loop tripped,
+130/143 interrupted by SIGINT/SIGTERM.
 """
 
 
@@ -404,6 +420,12 @@ def build_parser(prog: str = "python -m servo_axis") -> argparse.ArgumentParser:
         "(default /<axis>, e.g. /x; / for the root)",
     )
     run.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    run.add_argument(
+        "--floor",
+        metavar="FILE",
+        help="a realtime run's summary shows this host's floor next to its misses: the "
+        "output of the shared tools' rt_floor.py --json (one result a line, by period)",
+    )
     run.add_argument(
         "--respawn-limit",
         type=_int_at_least(0),

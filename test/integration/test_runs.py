@@ -354,6 +354,21 @@ def test_realtime_mode_keeps_wall_time_and_counts_misses(ros_env: int, tmp_path:
     ]
     assert status, "plant/status was not published"
     assert status[-1][0] == 1000 and status[-1][1] >= 0  # the final status, at step N
+    # The summary's realtime figures: the plant's own count, consistent with
+    # the commands' lateness, percentiles in order, never "deterministic".
+    rt = s["realtime"]
+    assert rt["ticks"] == 1000 and rt["period_ns"] == 1_000_000
+    assert rt["misses"] == status[-1][1]
+    assert rt["misses"] == rt["commands_late"] + rt["commands_missing"]
+    for late in (rt["tick_late_us"], rt["command_late_us"]):
+        assert 0.0 <= late["p50"] <= late["p99"] <= late["max"]
+    if rt["commands_late"] == 0:
+        assert rt["command_late_us"]["max"] <= 1000.0
+    else:
+        assert rt["command_late_us"]["max"] > 1000.0
+    assert 0.9 < rt["timer_rate"] < 1.01
+    assert not s["health"]["deterministic"]
+    assert s["health"]["exit_code"] in (0, 4)  # 4: tripped on a loaded host
 
 
 def test_namespaced_composed_run_leaves_nothing_behind(ros_env: int, tmp_path: Path) -> None:

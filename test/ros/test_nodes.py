@@ -293,26 +293,39 @@ def test_realtime_plant_holds_the_newest_command_and_counts_misses(context: Cont
     def command(step: int, torque: float) -> JointState:
         return msgs.command_to_msg(msgs.CommandSample(step, torque), axis="x", period_ns_=period_ns)
 
-    # What the probe sends when it sees state k: late, on time, or older
-    # than the command the plant already holds.
-    answers = {1: command(0, 2.0), 2: command(2, 3.0), 3: command(1, 5.0)}
+    # What the probe sends when it sees state k: command 0 (it starts the
+    # plant's clock), nothing, a late one, on time, one older than the held
+    # one, on time.
+    answers = {
+        0: [command(0, 1.0)],
+        2: [command(1, 2.0)],
+        3: [command(3, 3.0)],
+        4: [command(2, 5.0)],
+        5: [command(5, 4.0)],
+    }
     states: list[msgs.StateSample] = []
 
     def on_state(m: JointState) -> None:
         states.append(msgs.state_from_msg(m, axis="x", period_ns_=period_ns))
-        if states[-1].step in answers:
-            cmd_pub.publish(answers[states[-1].step])
+        for answer in answers.get(states[-1].step, []):
+            cmd_pub.publish(answer)
 
     probe.create_subscription(JointState, "state", on_state, STREAM_QOS)
-    spin_until(context, [plant, probe], lambda: len(states) >= 5, timeout_s=30)
-    assert [s.step for s in states[:5]] == [0, 1, 2, 3, 4]
-    # tick 1: nothing yet (0 N m); tick 2: the late command of step 0 is the
-    # newest, held; tick 3: on time; tick 4: step 1's command is older than
-    # the held one: stale, rejected, changes nothing.
+    spin_until(context, [plant, probe], lambda: bool(plant.health.realtime), timeout_s=30)
+    assert [s.step for s in states] == [0, 1, 2, 3, 4, 5]
+    # tick 1: command 0, in at d_0; tick 2: nothing (held 1.0); tick 3: step
+    # 1's command came after its tick, yet is the newest: held; tick 4: on
+    # time; tick 5: step 2's command is older than the held one: stale,
+    # rejected, changes nothing; tick 6 (no state after the last): on time.
     assert_allclose(
-        [s.motor_torque_Nm for s in states[1:5]], [0.0, 2.0, 3.0, 3.0], rtol=1e-15, atol=0.0
+        [s.motor_torque_Nm for s in states[1:6]], [1.0, 1.0, 2.0, 3.0, 3.0], rtol=1e-15, atol=0.0
     )
     assert plant._deadline_misses == 3 and plant.rejected == 1
+    report = plant.health.realtime
+    assert report["ticks"] == 6 and report["misses"] == 3
+    # Step 1 came late, steps 2 (rejected) and 4 never: the misses of ticks 2, 3, 5.
+    assert report["commands_late"] == 1 and report["commands_missing"] == 2
+    assert report["command_late_us"]["max"] > 100_000.0  # step 1's, after its tick
     plant.destroy_node()
     probe.destroy_node()
 

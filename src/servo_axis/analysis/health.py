@@ -8,7 +8,9 @@ servo_axis run``:
 ====  ==========================================================================
 code  meaning
 ====  ==========================================================================
-0     complete, and the deterministic result of the scenario
+0     complete, and the deterministic result of the scenario (lockstep); in
+      realtime: complete, no fallback, death or stranger (a realtime run is
+      never deterministic: its deadline misses depend on the host)
 1     failed: a node the run cannot do without died or stalled (the summary
       of what was recorded is written if the bag allows it)
 2     bad configuration or option (nothing started, nothing written)
@@ -81,7 +83,8 @@ class RunHealth:
         of ``reasons``); ``interrupted`` (SIGINT or SIGTERM stopped it: why is
         the first of ``reasons``).
     deterministic : bool
-        No fallback, no death, no stranger: the result is the scenario's.
+        Lockstep, and no fallback, no death, no stranger: the result is the
+        scenario's. Never true of a realtime run.
     exit_code : int
         See the module's table.
     reasons : tuple of str
@@ -126,6 +129,7 @@ def assess(
     reports: dict[str, NodeHealth],
     faults: int,
     bag_recovered: bool = False,
+    realtime: bool = False,
 ) -> RunHealth:
     """The run's health from what the runner saw and the nodes reported.
 
@@ -144,6 +148,9 @@ def assess(
         Trips of the feedback loop recorded in the bag.
     bag_recovered : bool
         Whether the bag had to be recovered.
+    realtime : bool
+        A realtime run: never deterministic; exit code 0 if nothing else
+        went wrong.
     """
     reasons: list[str] = []
     for death in deaths:
@@ -157,7 +164,8 @@ def assess(
             reasons.append(f"{role}: {len(who)} stranger publisher(s) on {name}: {', '.join(who)}")
     if bag_recovered:
         reasons.append("the recorder died: the bag was recovered up to its last flushed chunk")
-    deterministic = not reasons and failure is None and interrupted is None
+    clean = not reasons and failure is None and interrupted is None
+    deterministic = clean and not realtime
     if interrupted is not None:
         code, outcome = _signal_exit_code(interrupted), "interrupted"
         reasons.insert(0, interrupted.splitlines()[0])
@@ -167,7 +175,7 @@ def assess(
     elif faults:
         code, outcome = EXIT_FAULT, "complete"
         reasons.append(f"the feedback loop tripped ({faults} fault(s))")
-    elif not deterministic:
+    elif not clean:
         code, outcome = EXIT_NOT_DETERMINISTIC, "complete"
     else:
         code, outcome = EXIT_OK, "complete"

@@ -716,6 +716,70 @@ def deformation_summary(
 
 
 @dataclass(frozen=True)
+class Realtime:
+    """How the plant's clock kept time in a realtime run (its report, ``health.realtime``).
+
+    A realtime run is never deterministic: which commands miss their
+    deadline depends on the host. These figures say how far it was from
+    the lockstep result (:mod:`servo_axis.core.deadlines`).
+
+    Attributes
+    ----------
+    period_ns : int
+        ``T_u``, ns.
+    ticks : int
+        Ticks of the clock (one step each).
+    misses : int
+        Ticks whose command had not arrived by the tick's deadline (the last
+        current was held).
+    commands_missing : int
+        Steps whose command never arrived (counted in ``misses``).
+    commands_late : int
+        Commands that arrived more than a period after their state's tick
+        (``misses = commands_late + commands_missing``).
+    timer_rate : float
+        Ticks per period of wall time from the start to the last tick (1.0:
+        the clock kept time).
+    tick_late_us, command_late_us : dict or None
+        ``p50``, ``p99`` and ``max`` in us of the ticks' lateness (when the
+        plant stepped after the deadline) and of the commands' (arrival after
+        the tick of the state they answer: more than one period is a miss).
+    floor : dict or None
+        The floor of the host at this period (``rt_floor.py --json``'s result,
+        ``run --floor FILE``); None (not written) if not given.
+    """
+
+    period_ns: int
+    ticks: int
+    misses: int
+    commands_missing: int
+    commands_late: int
+    timer_rate: float
+    tick_late_us: dict[str, float] | None
+    command_late_us: dict[str, float] | None
+    floor: dict[str, Any] | None = field(default=None, metadata={"omit_none": True})
+
+    @property
+    def miss_fraction(self) -> float:
+        """``misses / ticks`` (0 without ticks)."""
+        return self.misses / self.ticks if self.ticks else 0.0
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> Realtime:
+        return cls(
+            period_ns=int(data["period_ns"]),
+            ticks=int(data["ticks"]),
+            misses=int(data["misses"]),
+            commands_missing=int(data["commands_missing"]),
+            commands_late=int(data.get("commands_late", 0)),
+            timer_rate=float(data["timer_rate"]),
+            tick_late_us=data.get("tick_late_us"),
+            command_late_us=data.get("command_late_us"),
+            floor=data.get("floor"),
+        )
+
+
+@dataclass(frozen=True)
 class RunSummary:
     """Summary of a single-axis run (``summary.json``).
 
@@ -767,6 +831,9 @@ class RunSummary:
     deformation : Deformation or None
         With the ``deformation`` topic in the bag (paper 004); None (not
         written) otherwise.
+    realtime : Realtime or None
+        A realtime run's deadline misses and lateness (the plant's report);
+        None (not written) in lockstep or without the report.
     """
 
     scenario: str
@@ -792,6 +859,7 @@ class RunSummary:
     error_unit: str | None = field(default=None, metadata={"omit_none": True})
     identification: Identification | None = field(default=None, metadata={"omit_none": True})
     deformation: Deformation | None = field(default=None, metadata={"omit_none": True})
+    realtime: Realtime | None = field(default=None, metadata={"omit_none": True})
 
     @property
     def unit(self) -> str:
@@ -845,6 +913,7 @@ class RunSummary:
             deformation=(
                 Deformation.from_dict(data["deformation"]) if "deformation" in data else None
             ),
+            realtime=Realtime.from_dict(data["realtime"]) if "realtime" in data else None,
         )
 
     @classmethod

@@ -18,6 +18,7 @@ from servo_axis.analysis.summary import (
     Deformation,
     ErrorStats,
     Identification,
+    Realtime,
     RunSummary,
     cycle_errors,
 )
@@ -131,11 +132,16 @@ def deformation_lines(deformation: Deformation) -> list[str]:
     return lines
 
 
-def _health_lines(health: RunHealth | None) -> list[str]:
+def _health_lines(health: RunHealth | None, realtime: bool = False) -> list[str]:
     """The run's health: outcome, determinism, rejected messages, strangers, deaths."""
     if health is None:
         return []
-    verdict = "deterministic" if health.deterministic else "NOT the deterministic result"
+    if realtime:  # never deterministic: its misses depend on the host
+        verdict = "realtime, not deterministic" + (
+            "" if health.exit_code == 0 else " and not clean"
+        )
+    else:
+        verdict = "deterministic" if health.deterministic else "NOT the deterministic result"
     rejected: dict[str, int] = {}
     for report in health.nodes.values():
         for name, n in report.get("rejected", {}).items():
@@ -146,6 +152,33 @@ def _health_lines(health: RunHealth | None) -> list[str]:
             "rejected messages " + ", ".join(f"{k}: {v}" for k, v in sorted(rejected.items()))
         )
     lines += [f"                  - {reason}" for reason in health.reasons]
+    return lines
+
+
+def _late(d: dict[str, float] | None) -> str:
+    return "none" if d is None else f"p50 {d['p50']:.0f}  p99 {d['p99']:.0f}  max {d['max']:.0f}"
+
+
+def _realtime_lines(rt: Realtime | None) -> list[str]:
+    """A realtime run's clock: deadline misses, lateness (us), the host's floor if given."""
+    if rt is None:
+        return []
+    period_us = rt.period_ns / 1000
+    lines = [
+        f"deadline misses   {rt.misses} of {rt.ticks} ticks ({100 * rt.miss_fraction:.2f} %), "
+        f"{rt.commands_missing} command(s) never came; clock rate {rt.timer_rate:.4f}x",
+        f"tick late (us)    {_late(rt.tick_late_us)}",
+        f"command late (us) {_late(rt.command_late_us)}  (after its state's tick; a miss: > "
+        f"{period_us:g})",
+    ]
+    if rt.floor is not None:
+        f = rt.floor
+        trip = f.get("round_trip_us") or {}
+        lines.append(
+            f"floor (rt_floor)  {f['miss_pct']:.2f} % misses at {f['period_us']} us "
+            f"({f.get('executor', '?')}), round trip p50 {trip.get('p50')}  p99 {trip.get('p99')}"
+            f"  max {trip.get('max')}"
+        )
     return lines
 
 
@@ -162,7 +195,8 @@ def format_summary(summary: RunSummary) -> str:
         "messages          " + ", ".join(f"{k}: {v}" for k, v in sorted(s.message_counts.items())),
         "faults            "
         + (", ".join(f"{f.name} at step {f.step}" for f in s.faults) or "none"),
-        *_health_lines(s.health),
+        *_health_lines(s.health, s.time_mode == "realtime"),
+        *_realtime_lines(s.realtime),
         *(
             [
                 f"ILC eq. (7)       max |Q(1 - S L P)| = {s.ilc_convergence['nominal']:.4g} "
@@ -210,7 +244,9 @@ def format_axes_summary(summary: AxesSummary) -> str:
     """A multi-axis summary as text: each axis, then the contour per cycle (um)."""
     lines = [
         f"scenario          {summary.scenario}  (axes {', '.join(summary.axes)})",
-        *_health_lines(summary.health),
+        *_health_lines(
+            summary.health, any(a.time_mode == "realtime" for a in summary.axes.values())
+        ),
     ]
     for axis, s in summary.axes.items():
         lines += ["", f"== axis {axis}", format_summary(s)]

@@ -30,20 +30,41 @@ once the feedback has been gone for ``command_timeout_s`` does it apply
 zero current (every step while it stays gone; a fallback, counted as
 command timeouts), and only once the recorder has been gone that long does
 it switch flow control off (a fallback).
-Realtime: a wall-clock timer steps at the control period; a command that has
-not arrived is a deadline miss and the newest current received is held, as a
-drive holds its last set-point: a command that arrives after its tick is not
-applied for its own step but replaces the held value (it is newer than what
-is held), and the miss was counted at the tick.
+Realtime: the plant publishes state 0 and, once its command is in (the loop
+has closed once, every node has its inputs: a clock started earlier counts
+misses of a loop still starting up), a thread of the plant's own steps at
+absolute deadlines ``d_j = start + j T_u`` of the monotonic clock (``start``:
+the arrival of command 0) (it sleeps until shortly
+before each, then spins to it; an rclpy timer slips), so the executor's
+callbacks never delay a tick by more than the interpreter's switch interval,
+set short. A command that has not arrived by its tick's deadline is a
+deadline miss and the newest current received is held, as a drive holds its
+last set-point: a command that arrives after its deadline is not applied
+for its own step but replaces the held value (it is newer than what is
+held), and the miss was counted at the tick. A tick that wakes more than a
+period late runs at once with those that are due (:mod:`servo_axis.core.deadlines`).
+The command arrives in the executor's thread: the state both threads touch
+is guarded by a lock. The garbage collector is off while the clock runs
+(start-up objects are frozen, :func:`servo_axis.nodes.runtime.run_main`),
+with a young-generation collection every :data:`GC_EVERY_TICKS` ticks where
+the next deadline leaves room. The plant's report (``realtime``) holds the
+ticks, the misses and the lateness of ticks and commands (p50, p99, max).
 
 Run: ``python -m servo_axis.nodes.plant --ros-args --params-file config/<scenario>.yaml``
 """
 
 from __future__ import annotations
 
+import copy
+import gc
+import sys
+import threading
 import time
 from typing import Any
 
+import numpy as np
+
+from servo_axis.core import deadlines
 from servo_axis.core.drive import current_from_torque
 from servo_axis.core.errors import ParameterFileError, SignalError
 from servo_axis.core.models.base import PlantOutput
@@ -61,6 +82,16 @@ FINISH_TIMEOUT_S = 10.0
 #: the feedback is gone: the executor stays free for the recorder and for a
 #: feedback that comes back.
 ZERO_STEPS_PER_LOOK = 100
+#: Realtime: the clock thread sleeps until this long before a deadline, then
+#: spins to it, releasing the GIL (time.sleep wakes up to ~100 us late on a
+#: loaded host, even with the thread's timer slack at 1 us).
+SPIN_NS = 200_000
+#: Realtime: the interpreter's switch interval while the clock runs, s: how
+#: long the clock thread may wait for the GIL held by a callback (default 5 ms).
+SWITCH_INTERVAL_S = 5e-5
+#: Realtime: a young-generation collection every this many ticks, when the
+#: next deadline is at least half a period away.
+GC_EVERY_TICKS = 256
 
 
 def state_sample(out: PlantOutput) -> msgs.StateSample:
@@ -74,6 +105,17 @@ def state_sample(out: PlantOutput) -> msgs.StateSample:
         motor_torque_Nm=out.motor_torque_Nm,
         friction_force_N=out.friction_force_N,
     )
+
+
+def _least_timer_slack() -> None:
+    """Linux: the calling thread's sleeps end within 1 us of their time, not 50 us (best effort)."""
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(29, 1000, 0, 0, 0)  # PR_SET_TIMERSLACK, ns
+    except (OSError, AttributeError):
+        pass
 
 
 class PlantNode(ServoNode):
@@ -141,7 +183,16 @@ class PlantNode(ServoNode):
         )
 
         self._start_timer = self.create_timer(0.01, self._try_start, clock=steady_clock())
-        self._rt_timer: Any = None
+        # Realtime: the clock thread and what it shares with the executor's thread.
+        self._lock = threading.Lock()
+        self._rt_thread: threading.Thread | None = None
+        self._rt_stop = threading.Event()
+        self._rt_error: BaseException | None = None
+        self._rt_start_ns = 0
+        self._command_arrival_ns = 0
+        self._tick_late_ns = np.full(self._steps + 1, np.nan)  # by tick j (1 .. steps)
+        self._command_late_ns = np.full(self._steps, np.nan)  # by step k (0 .. steps - 1)
+        self._last_tick_ns = 0
         self.create_timer(0.05, self._watchdog, clock=steady_clock())
 
     # -- start ---------------------------------------------------------------
@@ -172,10 +223,13 @@ class PlantNode(ServoNode):
             self._clock_pub, "/clock", v["wait_for_clock_subscribers"]
         ):
             return False
-        if self._lockstep and not self.input_matched("command"):
+        if not self.input_matched("command"):
             # Whoever answers state[k] must be there before step 0: a stranger
             # subscribed to state must not stand in for an outside feedback
-            # node that would miss what was sent before it matched.
+            # node that would miss what was sent before it matched. In
+            # realtime too: a clock that starts before the commands can
+            # reach it counts misses that are no one's and holds zero
+            # current while the feedback winds up.
             return False
         return self._flow.ready
 
@@ -185,18 +239,39 @@ class PlantNode(ServoNode):
         self._start_timer.cancel()
         self.started = True
         self.get_logger().info(f"connected; running {self._steps} steps ({self._v['mode']})")
-        self._publish(self.plant.output())
         if self._lockstep:
+            self._publish(self.plant.output())
             self._awaiting = 0
-        else:
-            self._rt_timer = self.create_timer(
-                self._v["control_period_s"], self._realtime_tick, clock=steady_clock()
-            )
+            return
+        # The compiled kernels load (or compile) on their first call: on a
+        # copy, before the clock starts, not in its first tick (0.2-0.5 s).
+        spare = copy.deepcopy(self.plant)
+        for _ in range(3):
+            spare.step(0.0)
+        sys.setswitchinterval(SWITCH_INTERVAL_S)
+        # State 0 goes out; the clock starts when its command is in (the
+        # loop has closed once: every node has its inputs), d_0 = then.
+        with self._lock:
+            self._publish(self.plant.output())
+
+    def _start_clock(self, now_ns: int) -> None:
+        """Realtime: the first command is in at ``now_ns``: d_0, and the clock thread starts."""
+        self._rt_start_ns = now_ns
+        self._rt_thread = threading.Thread(
+            target=self._realtime_loop, name="plant-clock", daemon=True
+        )
+        self._rt_thread.start()
 
     # -- input checks (nothing changes before a message is known good) ----------
     def _awaited_command(self, cmd: msgs.CommandSample) -> msgs.CommandSample:
         """Lockstep: the command of the step the plant waits for, once; realtime: a
         command not older than the held one and not ahead of the plant."""
+        if self._lockstep:
+            return self._checked_command(cmd)
+        with self._lock:
+            return self._checked_command(cmd)
+
+    def _checked_command(self, cmd: msgs.CommandSample) -> msgs.CommandSample:
         expected = self.plant.step_index
         if self._lockstep:
             if self._awaiting is None:
@@ -233,20 +308,39 @@ class PlantNode(ServoNode):
     # -- callbacks -------------------------------------------------------------
     def _on_command(self, cmd: msgs.CommandSample) -> None:
         current = current_from_torque(cmd.torque_Nm, torque_constant_Nm_per_A=self._kt)
-        if not self._lockstep and cmd.step < self.plant.step_index:
-            # Late, but newer than the held current: it replaces it.
-            self._last_current, self._held_step = current, cmd.step
-            return
-        self._command = current
         if self._lockstep:
+            self._command = current
             self._advance()
+            return
+        with self._lock:
+            now = time.monotonic_ns()
+            k = cmd.step
+            if self._rt_thread is None:
+                self._start_clock(now)  # command 0: the only one the plant can wait for
+            if 0 <= k < self._steps:
+                self._command_late_ns[k] = now - (self._rt_start_ns + k * self._period_ns)
+            if k < self.plant.step_index:
+                # Late (its tick has run), but newer than the held current: it replaces it.
+                if k > self._held_step:
+                    self._last_current, self._held_step = current, k
+                return
+            self._command = current
+            self._command_arrival_ns = now
 
     def _on_progress(self, recorded: int) -> None:
-        self._flow.acknowledge(recorded)
-        if self.started:
-            self._advance()
+        if self._lockstep:
+            self._flow.acknowledge(recorded)
+            if self.started:
+                self._advance()
+            return
+        with self._lock:
+            self._flow.acknowledge(recorded)
+            if self.started:
+                self._advance()
 
     def _watchdog(self) -> None:
+        if self._rt_error is not None:
+            raise RuntimeError(f"the plant's realtime clock failed: {self._rt_error!r}")
         now = time.monotonic()
         grace = self._v["command_timeout_s"]
         self._feedback.look(self.peer_alive("command"), now)
@@ -339,23 +433,85 @@ class PlantNode(ServoNode):
         self._awaiting = out.step
         self._publish(out)
 
-    def _realtime_tick(self) -> None:
-        if self._finishing:
-            return
-        if self._command is None:
-            self._deadline_misses += 1
-            current = self._last_current
-        else:
-            current = self._command
-            self._held_step = self.plant.step_index
-        self._command = None
-        self._last_current = current
-        out = self.plant.step(current)
-        if out.step >= self._steps:
-            self._rt_timer.cancel()
-            self._finish()
-            return
-        self._publish(out)
+    def _realtime_loop(self) -> None:
+        """The clock thread: tick ``j`` at ``d_j`` until the last step or a stop."""
+        period, start, spin = self._period_ns, self._rt_start_ns, SPIN_NS
+        clock, sleep = time.monotonic_ns, time.sleep
+        _least_timer_slack()
+        gc.disable()
+        try:
+            tick = 1
+            while not self._rt_stop.is_set():
+                deadline = start + tick * period
+                now = clock()
+                if now < deadline:
+                    pause = deadlines.sleep_s(now, deadline, spin)
+                    if pause > 0.0:
+                        sleep(pause)
+                    while clock() < deadline:
+                        sleep(0)  # spin, but let the executor's thread have the GIL
+                if self._realtime_tick(tick, deadline):
+                    break
+                tick += 1
+                if tick % GC_EVERY_TICKS == 0 and deadline + period - clock() > period // 2:
+                    gc.collect(0)
+        except BaseException as err:  # reported by the watchdog, in the executor's thread
+            self._rt_error = err
+        finally:
+            gc.enable()
+
+    def _realtime_tick(self, tick: int, deadline: int) -> bool:
+        """Step ``tick`` (due at ``deadline``, ns); True after the last step."""
+        with self._lock:
+            if self._finishing:
+                return True
+            now = time.monotonic_ns()
+            self._tick_late_ns[tick] = now - deadline
+            self._last_tick_ns = now
+            command, self._command = self._command, None
+            if command is not None and deadlines.command_on_time(
+                self._command_arrival_ns, deadline
+            ):
+                current = command
+            else:
+                self._deadline_misses += 1
+                current = self._last_current
+            if command is not None:
+                # On time, or after the deadline yet before the tick ran: the
+                # newest current, held from now on.
+                self._held_step = self.plant.step_index
+                self._last_current = command
+            out = self.plant.step(current)
+            if out.step >= self._steps:
+                self.health.realtime = self.realtime_report()
+                self._finish()
+                return True
+            self._publish(out)
+            return False
+
+    def realtime_report(self) -> dict[str, Any]:
+        """The clock's ticks, deadline misses and lateness (``health.realtime``)."""
+        ticks = self.plant.step_index
+        command_late = self._command_late_ns[:ticks]
+        return {
+            "period_ns": self._period_ns,
+            "ticks": int(ticks),
+            "misses": int(self._deadline_misses),
+            "commands_missing": int(np.count_nonzero(np.isnan(command_late))),
+            "commands_late": int(np.count_nonzero(command_late > self._period_ns)),
+            "timer_rate": deadlines.timer_rate(
+                ticks, self._period_ns, self._rt_start_ns, self._last_tick_ns
+            ),
+            "tick_late_us": deadlines.lateness_stats(self._tick_late_ns[1 : ticks + 1]),
+            "command_late_us": deadlines.lateness_stats(command_late),
+        }
+
+    def close(self) -> None:
+        """Stop the clock thread (a run stopped from outside), then the base's close."""
+        self._rt_stop.set()
+        if self._rt_thread is not None:
+            self._rt_thread.join(timeout=2.0)
+        super().close()
 
     def _finish(self) -> None:
         """After the last step: wait for the recorder to have everything.

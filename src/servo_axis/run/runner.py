@@ -256,6 +256,7 @@ def run_scenario(
     external: tuple[str, ...] = (),
     external_timeout_s: float = EXTERNAL_TIMEOUT_S,
     live_port: int | None = None,
+    floor: dict[int, dict[str, Any]] | None = None,
 ) -> RunResult:
     """Run one scenario end to end and return where it was written.
 
@@ -368,7 +369,14 @@ def run_scenario(
     if line is not None:
         line.show(steps, watch.wall_time_s, final=True)
     summary = summarise_run(
-        runs, data, run_dir, watch, composed=composed, plots=plots, recovered=recovered
+        runs,
+        data,
+        run_dir,
+        watch,
+        composed=composed,
+        plots=plots,
+        recovered=recovered,
+        floor=floor,
     )
     return RunResult(run_dir, steps, watch.wall_time_s, watch.exit_codes, summary)
 
@@ -807,8 +815,14 @@ def summarise_run(
     composed: bool,
     plots: bool,
     recovered: set[str] | None = None,
+    floor: dict[int, dict[str, Any]] | None = None,
 ) -> RunSummary | AxesSummary:
-    """Write each axis's ``summary.json`` (with its health) and plots, and the contour of a multi-axis run."""
+    """Write each axis's ``summary.json`` (with its health) and plots, and the contour of a multi-axis run.
+
+    A realtime run's summary holds the plant's report on its clock
+    (``realtime``), with the host's floor at its period from ``floor``
+    (``rt_floor.py --json`` results by period in us) if given.
+    """
     from servo_axis.analysis import plots as figures
     from servo_axis.analysis import summary as summaries
 
@@ -832,8 +846,14 @@ def summarise_run(
             reports=reports,
             faults=len(summary.faults),
             bag_recovered=run.axis in recovered,
+            realtime=summary.time_mode == "realtime",
         )
         summary = dataclasses.replace(summary, health=health)
+        plant = reports.get("plant")
+        if plant is not None and plant.realtime:
+            rt = summaries.Realtime.from_dict(plant.realtime)
+            at = (floor or {}).get(round(rt.period_ns / 1000))
+            summary = dataclasses.replace(summary, realtime=dataclasses.replace(rt, floor=at))
         (run.out_dir / summaries.SUMMARY_FILE).write_text(summary.to_json())
         per_axis[run.axis] = summary
         all_deaths += run.deaths
@@ -849,6 +869,7 @@ def summarise_run(
         reports=all_reports,
         faults=sum(len(s.faults) for s in per_axis.values()),
         bag_recovered=bool(recovered),
+        realtime=any(s.time_mode == "realtime" for s in per_axis.values()),
     )
     axes_summary = summaries.summarise_axes(
         run_dir, scenario=scenario, axes=per_axis, wall_time_s=watch.wall_time_s, health=health

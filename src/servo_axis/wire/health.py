@@ -60,12 +60,17 @@ class NodeHealth:
         Per topic, the publishers the run did not start
         (``"<namespace>/<node> <gid>"``), as the ROS graph showed them.
     fallbacks : list of Fallback
+    realtime : dict
+        The plant of a realtime run: its clock's ticks, deadline misses and
+        lateness (:class:`servo_axis.analysis.summary.Realtime` as a
+        mapping); empty otherwise.
     """
 
     role: str
     rejected: dict[str, int] = field(default_factory=dict)
     strangers: dict[str, list[str]] = field(default_factory=dict)
     fallbacks: list[Fallback] = field(default_factory=list)
+    realtime: dict[str, Any] = field(default_factory=dict)
 
     @property
     def deterministic(self) -> bool:
@@ -73,7 +78,11 @@ class NodeHealth:
         return not self.fallbacks
 
     def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        """As a mapping (``realtime`` only if it holds something)."""
+        out = asdict(self)
+        if not out["realtime"]:
+            del out["realtime"]
+        return out
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> NodeHealth:
@@ -82,6 +91,7 @@ class NodeHealth:
             rejected={str(k): int(v) for k, v in data.get("rejected", {}).items()},
             strangers={str(k): [str(x) for x in v] for k, v in data.get("strangers", {}).items()},
             fallbacks=[Fallback(**f) for f in data.get("fallbacks", [])],
+            realtime=dict(data.get("realtime", {})),
         )
 
 

@@ -99,7 +99,9 @@ def test_run_summary_fields_are_typed() -> None:
         "error_unit",
         "identification",
         "deformation",
+        "realtime",
     }
+    assert summary.realtime is None and "realtime" not in summary.to_dict()
     assert summary.ilc_convergence is None and "ilc_convergence" not in summary.to_dict()
     assert summary.period_name is None and "period_name" not in summary.to_dict()
     # error_unit (rad for a rotary table) and identification (paper 003) likewise

@@ -163,3 +163,47 @@ def test_cycle_errors_of_a_run_without_cycles_are_empty() -> None:
         "max_at_tr_m": 0,
     }
     assert compare_table([s], ["a"]).splitlines()[1].split() == ["cycle", "a"]
+
+
+REALTIME = {
+    "period_ns": 1_000_000,
+    "ticks": 1000,
+    "misses": 7,
+    "commands_missing": 2,
+    "commands_late": 5,
+    "timer_rate": 0.9996,
+    "tick_late_us": {"p50": 3.1, "p99": 240.0, "max": 1800.0},
+    "command_late_us": {"p50": 310.0, "p99": 980.0, "max": 4200.0},
+}
+
+
+def test_a_realtime_summary_reports_misses_and_lateness_and_is_never_deterministic() -> None:
+    from servo_axis.analysis.health import assess
+    from servo_axis.analysis.summary import Realtime
+
+    base = demo_summary().to_dict()
+    floor = {"period_us": 1000, "executor": "events", "miss_pct": 0.25, "ticks": 10000,
+             "misses": 25, "round_trip_us": {"p50": 140.0, "p99": 279.0, "max": 900.0}}  # fmt: skip
+    health = assess(failure=None, deaths=[], reports={}, faults=0, realtime=True)
+    assert not health.deterministic and health.exit_code == 0
+    data = dict(
+        base, time_mode="realtime", faults=[], realtime=dict(REALTIME, floor=floor),
+        health=health.to_dict(),
+    )  # fmt: skip
+    s = RunSummary.from_dict(data)
+    assert s.realtime == Realtime.from_dict(dict(REALTIME, floor=floor))
+    assert RunSummary.from_json(s.to_json()) == s
+    rt = s.realtime
+    assert rt is not None
+    assert rt.misses == rt.commands_late + rt.commands_missing
+    assert_allclose(rt.miss_fraction, 0.007, rtol=1e-12)
+    text = format_summary(s)
+    assert "deterministic" not in text.replace("not deterministic", "")
+    assert "realtime, not deterministic (exit 0)" in text
+    assert "deadline misses   7 of 1000 ticks (0.70 %), 2 command(s) never came" in text
+    assert "tick late (us)    p50 3  p99 240  max 1800" in text
+    assert "command late (us) p50 310  p99 980  max 4200" in text
+    assert "floor (rt_floor)  0.25 % misses at 1000 us (events)" in text
+    # A lockstep summary has no realtime entry and says nothing of one.
+    assert "realtime" not in demo_summary().to_dict()
+    assert "deadline misses" not in format_summary(demo_summary())

@@ -1,0 +1,83 @@
+"""Absolute deadlines of a realtime clock, its misses and its lateness (no ROS, no threads).
+
+The plant's realtime clock steps at ``d_j = start + j T`` (``T`` the control
+period, monotonic nanoseconds). Its state ``k`` goes out at tick ``k``
+(``d_0 = start``: the first state goes out at the start); the command that
+answers it is due at the next tick, ``d_{k+1}``. A tick whose command has not
+arrived by its deadline is a deadline miss: the plant holds the last current,
+as a drive holds its last set-point, and goes on. A tick that wakes more
+than a period late is not skipped: the ticks that are due run at once
+(their commands cannot be in, so each is a miss), so that simulated time
+stays with wall time.
+
+Lateness, as cyclictest reports it: a tick's is the time from its deadline
+to when it stepped; a command's is the time from the tick of the state it
+answers to its arrival, so that a command later than one period is exactly
+a missed deadline (:func:`misses_of`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+#: Percentiles reported of each lateness (cyclictest's p50, p99 and the max).
+PERCENTILES = (50.0, 99.0)
+
+
+def deadline_ns(start_ns: int, period_ns: int, tick: int) -> int:
+    """``d_tick = start + tick T``, ns."""
+    return start_ns + tick * period_ns
+
+
+def due_ticks(now_ns: int, start_ns: int, period_ns: int, next_tick: int) -> int:
+    """How many ticks, from ``next_tick`` on, have their deadline at or before ``now_ns``.
+
+    0 while the clock waits for ``next_tick``; more than 1 after a stall
+    (a scheduler that woke the clock more than a period late).
+    """
+    passed = (now_ns - start_ns) // period_ns  # the last tick whose deadline has passed
+    return max(0, passed - next_tick + 1)
+
+
+def sleep_s(now_ns: int, deadline: int, spin_ns: int) -> float:
+    """Seconds to sleep before spinning the last ``spin_ns`` to ``deadline`` (0: spin now)."""
+    return max(0, deadline - now_ns - spin_ns) * 1e-9
+
+
+def command_on_time(arrival_ns: int | None, tick_deadline_ns: int) -> bool:
+    """A command counts for a tick if it arrived by the tick's deadline (not merely by
+    the time the tick ran: a clock that woke late must not excuse a late command)."""
+    return arrival_ns is not None and arrival_ns <= tick_deadline_ns
+
+
+def misses_of(command_late_ns: ArrayLike, period_ns: int) -> int:
+    """Deadline misses implied by the commands' lateness (NaN: never arrived).
+
+    ``command_late_ns[k]`` is the arrival of command ``k`` after the tick of
+    state ``k``; it was on time for tick ``k + 1`` iff it is <= one period.
+    """
+    late = np.asarray(command_late_ns, dtype=float)
+    return int(np.count_nonzero(~(late <= period_ns)))  # NaN counts as a miss
+
+
+def lateness_stats(late_ns: ArrayLike) -> dict[str, float] | None:
+    """``p50``, ``p99`` and ``max`` of a lateness series, us (NaNs left out; None if none)."""
+    values = np.asarray(late_ns, dtype=float)
+    values = values[~np.isnan(values)]
+    if values.size == 0:
+        return None
+    p50, p99 = np.percentile(values, PERCENTILES)
+    return {
+        "p50": round(float(p50) * 1e-3, 1),
+        "p99": round(float(p99) * 1e-3, 1),
+        "max": round(float(values.max()) * 1e-3, 1),
+    }
+
+
+def timer_rate(ticks: int, period_ns: int, start_ns: int, last_tick_ns: int) -> float:
+    """Ticks per period of wall time from the start to the last tick (1.0: on time)."""
+    wall = last_tick_ns - start_ns
+    return ticks * period_ns / wall if wall > 0 else math.nan

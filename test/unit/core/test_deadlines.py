@@ -1,0 +1,65 @@
+"""The realtime clock's scheduling arithmetic (servo_axis.core.deadlines), without ROS."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.testing import assert_allclose
+
+from servo_axis.core import deadlines as dl
+
+P = 1_000_000  # 1 ms in ns
+START = 5_000_000_000
+
+
+def test_deadlines_are_absolute_and_do_not_drift_with_late_ticks() -> None:
+    # Tick j is due at start + j T whatever the lateness of the ticks before.
+    assert dl.deadline_ns(START, P, 0) == START
+    assert dl.deadline_ns(START, P, 1000) == START + 1_000_000_000
+    assert dl.deadline_ns(START, 400_000, 2501) == START + 1_000_400_000
+
+
+def test_due_ticks_counts_the_ticks_a_stall_left_behind() -> None:
+    assert dl.due_ticks(START + P - 1, START, P, 1) == 0  # 1 ns before d_1: wait
+    assert dl.due_ticks(START + P, START, P, 1) == 1  # at d_1
+    assert dl.due_ticks(START + P + 999_999, START, P, 1) == 1
+    # Woken 3.5 periods after d_1: ticks 1, 2, 3 and 4 are due at once.
+    assert dl.due_ticks(START + 4 * P + P // 2, START, P, 1) == 4
+    # After they ran, tick 5 waits again.
+    assert dl.due_ticks(START + 4 * P + P // 2, START, P, 5) == 0
+
+
+def test_sleep_leaves_the_spin_margin_and_never_goes_negative() -> None:
+    assert_allclose(dl.sleep_s(START, START + P, 200_000), 800e-6, rtol=0, atol=1e-12)
+    assert dl.sleep_s(START + 900_000, START + P, 200_000) == 0.0
+    assert dl.sleep_s(START + 2 * P, START + P, 200_000) == 0.0  # already late
+
+
+def test_a_command_counts_only_if_it_arrived_by_the_deadline() -> None:
+    assert dl.command_on_time(START + P, START + P)
+    assert not dl.command_on_time(START + P + 1, START + P)  # the tick may run later
+    assert not dl.command_on_time(None, START + P)
+
+
+def test_misses_of_the_command_lateness_are_the_late_and_the_missing() -> None:
+    late = np.array([150e3, 999_999, 1_000_000, 1_000_001, 2.5e6, np.nan, 400e3])
+    # > one period: 1_000_001 and 2.5e6; never arrived: the NaN.
+    assert dl.misses_of(late, P) == 3
+    assert dl.misses_of(np.full(10, 300e3), P) == 0
+
+
+def test_lateness_stats_in_us_leave_out_what_never_came() -> None:
+    late_ns = np.concatenate([np.arange(1, 101) * 1000.0, [np.nan, np.nan]])
+    stats = dl.lateness_stats(late_ns)
+    assert stats is not None
+    assert_allclose(stats["p50"], 50.5, rtol=0, atol=0.05)
+    assert_allclose(stats["p99"], 99.0, rtol=0, atol=0.05)
+    assert stats["max"] == 100.0
+    assert dl.lateness_stats(np.array([np.nan])) is None
+
+
+def test_timer_rate_is_one_for_a_clock_that_kept_time() -> None:
+    assert_allclose(dl.timer_rate(1000, P, START, START + 1000 * P), 1.0, rtol=1e-12)
+    assert_allclose(dl.timer_rate(1000, P, START, START + 1001 * P), 1000 / 1001, rtol=1e-12)
+    assert math.isnan(dl.timer_rate(0, P, START, START))
