@@ -93,7 +93,7 @@ def main() -> int:
     parser.add_argument("scenarios", nargs="*", help="scenario files (default: config/*.yaml)")
     parser.add_argument("--composed", action="store_true", help="single-axis runs in one process")
     parser.add_argument("--check", metavar="FILE", help="compare with a committed output")
-    parser.add_argument("--domain-id", type=int, default=90 + os.getpid() % 10)
+    parser.add_argument("--domain-id", type=int, default=150 + os.getpid() % 80)
     args = parser.parse_args()
     scenarios = [Path(s) for s in args.scenarios] or sorted((REPO / "config").glob("*.yaml"))
     lines: list[str] = []

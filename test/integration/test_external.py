@@ -340,7 +340,9 @@ class OutsideNode:
         self.context = rclpy.context.Context()
         rclpy.init(args=[], context=self.context, domain_id=domain)
         self.node = rclpy.create_node("not_a_servo_node", namespace=NS, context=self.context)
-        self.pub = self.node.create_publisher(JointState, "command", 10) if answer else None
+        # Answers and junk share one publisher: at 200 Hz of junk a depth-10 queue may drop
+        # an answer before a loaded plant reads it (keep-last), so this one keeps 1000.
+        self.pub = self.node.create_publisher(JointState, "command", 1000) if answer else None
         w = 2 * math.pi * bandwidth_hz
         self.kp, self.kd = inertia * w * w, 2 * 0.7 * inertia * w
         self.states: dict[int, Any] = {}

@@ -134,6 +134,7 @@ class RecorderNode(ServoNode):
         self._period_ns = msgs.period_ns(values["control_period_s"])
         self._axis = values["axis"]
         self._subs: dict[str, Any] = {}
+        self._leaseless: set[str] = set()
         self._topics = list(topics)
         self.timeline = SimTimeline()
         for topic, type_name, cls in zip(topics, types, classes, strict=True):
@@ -223,6 +224,9 @@ class RecorderNode(ServoNode):
         self._subs[topic] = self.create_subscription(
             cls, topic, callback, profile, raw=True, event_callbacks=events
         )
+        if profile.liveliness_lease_duration.nanoseconds == 0:
+            # Its publisher offers no lease: the graph says when it is gone.
+            self._leaseless.add(topic)
 
     def _required(self, topic: str) -> bool:
         """Whether ``topic`` must have a publisher before the recorder reports ready.
@@ -282,11 +286,16 @@ class RecorderNode(ServoNode):
         return on_liveliness
 
     def _check_gone(self) -> None:
-        """A counted stream's publisher that offers no lease is gone when it left the graph."""
-        for topic, sub in self._subs.items():
+        """A counted stream's publisher that offers no lease is gone when it left the graph.
+
+        A publisher with a lease is followed by its liveliness, which a clean
+        exit at the end of the run does not lapse; only the lease-less ones
+        (an outside node's default profile) are looked at here.
+        """
+        running = 0 <= self.recorded < self._steps  # not after the end: the plant exits
+        for topic in self._leaseless:
             name = self.resolve_topic_name(topic)
-            running = 0 <= self.recorded < self._steps  # not after the end: the plant exits
-            if name in self._gates and running and sub.get_publisher_count() == 0:
+            if name in self._gates and running and self._subs[topic].get_publisher_count() == 0:
                 self._publisher_gone(name)
 
     def _publisher_gone(self, name: str) -> None:
