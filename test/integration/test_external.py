@@ -239,73 +239,60 @@ def test_the_example_reference_generator_feeds_the_axis(
     assert max(abs(e) for e in err[250:]) < 0.01 * 2 * a
 
 
-# -- an outside learning unit ------------------------------------------------------------
+# -- the suite's own nodes as outside nodes ---------------------------------------------
 
 
-def test_an_outside_learning_unit_gives_the_suites_own_result(
-    ros_env: int, tmp_path: Path, raw_payloads: Any
+def outside_suite_node_gives_the_suites_own_result(
+    scenario: str, duration_s: float, role: str, name: str, tmp_path: Path, raw_payloads: Any
 ) -> None:
-    """The suite's learning node started by hand under another name (`my_learner`) with the
-    run's parameter file plays `--external learning`: the bag is the one of the same
-    scenario run by the suite alone, topic for topic, byte for byte."""
-    path = short("rptc_detailed", tmp_path, duration_s=1.5)
+    """Run ``scenario`` by the suite alone, then with ``--external role`` played by the
+    suite's own node of that role started by hand as ``name`` with the run's parameter file
+    (its section renamed, as a user would); the two bags must be equal, byte for byte."""
+    path = short(scenario, tmp_path, duration_s=duration_s)
     alone = tmp_path / "alone"
     assert finish(start_run(path, alone), RUN_TIMEOUT_S) == 0, tails(alone)
 
     out = tmp_path / "outside"
-    proc = start_run(path, out, "--external", "learning")
+    proc = start_run(path, out, "--external", role)
     deadline = time.monotonic() + 30
     while not (out / "params.yaml").is_file():
         assert time.monotonic() < deadline and proc.poll() is None, tails(out)
         time.sleep(0.05)
     params = yaml.safe_load((out / "params.yaml").read_text())
-    params["/**/my_learner"] = params.pop("/**/learning")
-    mine = tmp_path / "my_learner.yaml"
+    params[f"/**/{name}"] = params.pop(f"/**/{role}")
+    mine = tmp_path / f"{name}.yaml"
     mine.write_text(yaml.safe_dump(params))
-    learner = start_outside(
-        ["-m", "servo_axis.nodes.learning", "--ros-args", "--params-file", str(mine),
-         "-r", "__node:=my_learner", "-r", f"__ns:={NS}"],
-        tmp_path / "my_learner.log",
+    node = start_outside(
+        ["-m", f"servo_axis.nodes.{role}", "--ros-args", "--params-file", str(mine),
+         "-r", f"__node:={name}", "-r", f"__ns:={NS}"],
+        tmp_path / f"{name}.log",
     )  # fmt: skip
     try:
         code = finish(proc, RUN_TIMEOUT_S)
     finally:
-        stop(learner)
+        stop(node)
     assert code == 0, tails(out)
     assert payload_hashes(out / "bag", raw_payloads) == payload_hashes(alone / "bag", raw_payloads)
+
+
+def test_an_outside_learning_unit_gives_the_suites_own_result(
+    ros_env: int, tmp_path: Path, raw_payloads: Any
+) -> None:
+    """The suite's learning node as `my_learner` plays `--external learning` (RPTC)."""
+    outside_suite_node_gives_the_suites_own_result(
+        "rptc_detailed", 1.5, "learning", "my_learner", tmp_path, raw_payloads
+    )
 
 
 def test_an_outside_plant_gives_the_suites_own_result(
     ros_env: int, tmp_path: Path, raw_payloads: Any
 ) -> None:
     """servo_axis as the controller stack of an axis simulated elsewhere: the suite's plant
-    node started by hand as `my_axis_sim` plays `--external plant`; the run ends when the
-    recorder has every step, and the bag is the suite-alone run's, byte for byte."""
-    path = short("ptc_friction", tmp_path, duration_s=0.5)
-    alone = tmp_path / "alone"
-    assert finish(start_run(path, alone), RUN_TIMEOUT_S) == 0, tails(alone)
-
-    out = tmp_path / "outside"
-    proc = start_run(path, out, "--external", "plant")
-    deadline = time.monotonic() + 30
-    while not (out / "params.yaml").is_file():
-        assert time.monotonic() < deadline and proc.poll() is None, tails(out)
-        time.sleep(0.05)
-    params = yaml.safe_load((out / "params.yaml").read_text())
-    params["/**/my_axis_sim"] = params.pop("/**/plant")
-    mine = tmp_path / "my_axis_sim.yaml"
-    mine.write_text(yaml.safe_dump(params))
-    sim = start_outside(
-        ["-m", "servo_axis.nodes.plant", "--ros-args", "--params-file", str(mine),
-         "-r", "__node:=my_axis_sim", "-r", f"__ns:={NS}"],
-        tmp_path / "my_axis_sim.log",
-    )  # fmt: skip
-    try:
-        code = finish(proc, RUN_TIMEOUT_S)
-    finally:
-        stop(sim)
-    assert code == 0, tails(out)
-    assert payload_hashes(out / "bag", raw_payloads) == payload_hashes(alone / "bag", raw_payloads)
+    node as `my_axis_sim` plays `--external plant`; the run ends when the recorder has
+    every step."""
+    outside_suite_node_gives_the_suites_own_result(
+        "ptc_friction", 0.5, "plant", "my_axis_sim", tmp_path, raw_payloads
+    )
 
 
 # -- junk and silence from outside ------------------------------------------------------
