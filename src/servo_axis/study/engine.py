@@ -275,6 +275,8 @@ def plot_figures(rows: list[dict[str, Any]], study: Study, out: Path) -> list[Pa
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from servo_axis.analysis.plots import error_scale
+
     ok = [r for r in rows if r["status"] == "ok"]
     written = []
     for name in study.figures:
@@ -289,6 +291,11 @@ def plot_figures(rows: list[dict[str, Any]], study: Study, out: Path) -> list[Pa
             if not groups:
                 continue
             fig, ax = plt.subplots(figsize=(6.5, 4))
+            # A length or angle in a unit its values read in (um, nm, urad, ...), as the
+            # run's own error plots do; anything else as it is, without an offset.
+            unit = next((u for u in ("m", "rad") if name.endswith(f"_{u}")), None)
+            values = [v for pts in groups.values() for _, v in pts]
+            factor, shown = error_scale(values, unit) if unit else (1.0, "")
             numeric = all(
                 isinstance(x, int | float) and not isinstance(x, bool)
                 for pts in groups.values()
@@ -298,9 +305,10 @@ def plot_figures(rows: list[dict[str, Any]], study: Study, out: Path) -> list[Pa
                 pts.sort(key=lambda p: p[0] if numeric else str(p[0]))
                 xs = [p[0] if numeric else str(p[0]) for p in pts]
                 label = ", ".join(f"{p}={v}" for p, v in zip(others, key, strict=True)) or None
-                ax.plot(xs, [p[1] for p in pts], "o-", label=label)
+                ax.plot(xs, [factor * p[1] for p in pts], "o-", label=label)
             ax.set_xlabel(param)
-            ax.set_ylabel(name)
+            ax.set_ylabel(f"{name} ({shown})" if unit else name)
+            ax.ticklabel_format(axis="y", style="plain", useOffset=False)
             ax.set_title(f"{study.name}: {name}", fontsize=9)
             ax.grid(True, alpha=0.4)
             if others and len(groups) <= 12:
