@@ -45,16 +45,26 @@ def find_scenario(name_or_path: str | Path) -> Path:
         If ``name_or_path`` is neither an existing file nor a shipped
         scenario's name (the message lists the names).
     """
-    path = Path(name_or_path)
-    if path.is_file():
-        return path
-    shipped = scenario_dir() / f"{path.stem if path.suffix == '.yaml' else path.name}.yaml"
-    if path.parent == Path(".") and shipped.is_file():
-        return shipped
+    found = shipped_file(name_or_path, scenario_dir())
+    if found is not None:
+        return found
     raise ConfigError(
         f"scenario: {str(name_or_path)!r} is neither a file nor a shipped scenario "
         f"({', '.join(scenario_names())})"
     )
+
+
+def shipped_file(name_or_path: str | Path, folder: Path) -> Path | None:
+    """``name_or_path`` if it is a file, else ``folder/<name>.yaml`` if it is one; None otherwise.
+
+    A bare name (no folder part), with or without ``.yaml``, names a file of
+    ``folder`` (the shipped scenarios, studies, ...).
+    """
+    path = Path(name_or_path)
+    if path.is_file():
+        return path
+    shipped = folder / f"{path.stem if path.suffix == '.yaml' else path.name}.yaml"
+    return shipped if path.parent == Path(".") and shipped.is_file() else None
 
 
 def load_scenario(path: Path) -> dict[str, Any]:

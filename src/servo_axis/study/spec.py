@@ -47,6 +47,7 @@ from servo_axis.params.scenario import (
     find_scenario,
     load_scenario,
     resolve_table,
+    shipped_file,
 )
 
 BACKENDS = ("plain", "nodes")
@@ -120,12 +121,9 @@ def study_dir() -> Path:
 
 def find_study(name_or_path: str | Path) -> Path:
     """A study file from a path, or from the name of a shipped study (``reversal_004``)."""
-    path = Path(name_or_path)
-    if path.is_file():
-        return path
-    shipped = study_dir() / f"{path.stem}.yaml"
-    if path.parent == Path(".") and shipped.is_file():
-        return shipped
+    found = shipped_file(name_or_path, study_dir())
+    if found is not None:
+        return found
     names = ", ".join(sorted(p.stem for p in study_dir().glob("*.yaml")))
     raise StudyError(f"study {name_or_path}: neither a file nor a shipped study ({names})")
 
