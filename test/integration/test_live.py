@@ -254,8 +254,8 @@ def test_diagnostics_are_forwarded_at_the_simulation_time_the_bridge_has_seen(
     try:
         # A state stamped at step 7 (1 ms steps), then diagnostics stamped in wall time.
         state = node.create_publisher(JointState, "/x/state", STREAM_QOS)
-        state.publish(
-            state_to_msg(StateSample(7, 0.5, 1e-3, 0.0, 0.0, 0.0, 0.0), axis="x", period_ns_=10**6)
+        state_msg = state_to_msg(
+            StateSample(7, 0.5, 1e-3, 0.0, 0.0, 0.0, 0.0), axis="x", period_ns_=10**6
         )
         diagnostics = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
         msg = DiagnosticArray()
@@ -271,7 +271,12 @@ def test_diagnostics_are_forwarded_at_the_simulation_time_the_bridge_has_seen(
         ]
         deadline = time.monotonic() + 30
         while "/diagnostics" not in viewer.messages and time.monotonic() < deadline:
-            diagnostics.publish(msg)
+            # Diagnostics only once the viewer has the state back: the bridge
+            # matches the two topics in either order, and diagnostics ahead of
+            # the first state are rightly at time 0.
+            state.publish(state_msg)
+            if "/x/state" in viewer.messages:
+                diagnostics.publish(msg)
             time.sleep(0.1)
     finally:
         node.destroy_node()
