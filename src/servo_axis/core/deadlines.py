@@ -81,3 +81,39 @@ def timer_rate(ticks: int, period_ns: int, start_ns: int, last_tick_ns: int) -> 
     """Ticks per period of wall time from the start to the last tick (1.0: on time)."""
     wall = last_tick_ns - start_ns
     return ticks * period_ns / wall if wall > 0 else math.nan
+
+
+def answer_useful(
+    now_ns: int, start_ns: int, period_ns: int, step: int, last_answered: int, max_gap: int
+) -> bool:
+    """Whether a realtime controller should still answer ``state[step]`` now.
+
+    ``command[k]`` counts for tick ``k + 1`` if it is in by ``d_{k+1}``, and
+    after that it is the newest current the plant holds, from tick ``k + 2``
+    on, only if it is in before ``d_{k+2}``: by then ``state[k + 1]`` has gone
+    out, so a controller that is behind (states queued after a stall)
+    answers the newer state instead and catches up, rather than answering
+    a backlog of states whose commands the plant can no longer use. It
+    still answers at least every ``max_gap`` steps, so the command stream
+    never skips more than ``max_gap - 1`` samples (readers of a realtime
+    stream take jumps of a bounded size).
+
+    Parameters
+    ----------
+    now_ns : int
+        Monotonic time, ns.
+    start_ns : int
+        The clock's start ``d_0``, ns (the controller's estimate: when it
+        answered ``state[0]``, which starts the plant's clock).
+    period_ns : int
+        The control period ``T``, ns, > 0.
+    step : int
+        The state's step ``k``, >= 0.
+    last_answered : int
+        The step of the last state answered (-1 before the first).
+    max_gap : int
+        Answer whenever ``step - last_answered >= max_gap``, >= 1.
+    """
+    if step - last_answered >= max_gap:
+        return True
+    return now_ns < deadline_ns(start_ns, period_ns, step + 2)

@@ -47,6 +47,15 @@ or of the first state it leaves unanswered, whichever is later. In realtime
 the wall-clock rule stays: ``input_timeout_s`` after a state came without
 its reference.
 
+Catching up (realtime): every state goes through the loop, in order, but a
+state whose command could no longer reach the plant in time to be used
+(:func:`~servo_axis.core.deadlines.answer_useful`: after a stall, while
+newer states wait in the queue) is not answered, so that the node catches
+up with the clock instead of answering a backlog; it still answers at least
+every :data:`ANSWER_GAP` steps, and always the last state of the run. The skipped ones are counted
+(``skipped_answers`` on ``/diagnostics``); in the plant's report they are
+commands missing.
+
 Run: ``python -m servo_axis.nodes.feedback --ros-args --params-file config/<scenario>.yaml``
 """
 
@@ -55,15 +64,20 @@ from __future__ import annotations
 import time
 from typing import Any
 
+from servo_axis.core.deadlines import answer_useful
 from servo_axis.core.drive import current_from_torque, torque_from_current
 from servo_axis.core.errors import SignalError
 from servo_axis.core.feedback.loop import Fault, LoopOutput
 from servo_axis.nodes.base import ServoNode
-from servo_axis.nodes.lockstep import PeerWatch, SampleBuffer, stream_window
+from servo_axis.nodes.lockstep import REALTIME_WINDOW, PeerWatch, SampleBuffer, stream_window
 from servo_axis.nodes.runtime import run_main, steady_clock
-from servo_axis.params.factories import build_deformation, build_loop
+from servo_axis.params.factories import build_deformation, build_loop, run_steps
 from servo_axis.wire import messages as msgs
 from servo_axis.wire.streams import StreamGate
+
+#: Realtime: the most steps between two answered states (half the realtime
+#: window, so the readers of ``command`` take every jump).
+ANSWER_GAP = REALTIME_WINDOW // 2
 
 
 class FeedbackNode(ServoNode):
@@ -98,6 +112,10 @@ class FeedbackNode(ServoNode):
         self._pending_since = 0.0
         self._feedforward = PeerWatch()
         self.missed_references = 0
+        self.skipped_answers = 0
+        self._start_ns = 0  # realtime: when state[0] was answered (the plant's clock starts)
+        self._answered = -1
+        self._last_step = run_steps(values) - 1  # always answered: the recorder counts to it
         self.inputs_subscribed = False
         # The plant starts only once this node subscribes to `state`; doing so
         # only after `command` is matched with its consumers means that no
@@ -114,6 +132,7 @@ class FeedbackNode(ServoNode):
             ("tripped", self.loop.tripped),
             ("fault", "none" if fault is None else fault.name.lower()),
             ("missed_references", self.missed_references),
+            ("skipped_answers", self.skipped_answers),
         ]
 
     def diagnostic_error(self) -> str | None:
@@ -181,6 +200,10 @@ class FeedbackNode(ServoNode):
             self._publish_fault(state.step, out.fault, out.fault_value)
         if self._deformation is not None:
             d = self._deformation.update(state.encoder_rad, state.scale_m)
+        if not self._lockstep and not self._answer_now(state.step):
+            self.skipped_answers += 1
+            return
+        if self._deformation is not None:
             sample = msgs.DeformationSample(
                 state.step,
                 d.d_r_m_per_rad,
@@ -199,6 +222,18 @@ class FeedbackNode(ServoNode):
                 period_ns_=self._period_ns,
             )
         )
+
+    def _answer_now(self, step: int) -> bool:
+        """Realtime: whether state ``step``'s command can still be used (see the module)."""
+        now = time.monotonic_ns()
+        if step == 0:
+            self._start_ns = now
+        elif step < self._last_step and not answer_useful(
+            now, self._start_ns, self._period_ns, step, self._answered, ANSWER_GAP
+        ):
+            return False
+        self._answered = step
+        return True
 
     def _watchdog(self) -> None:
         now = time.monotonic()

@@ -63,3 +63,62 @@ def test_timer_rate_is_one_for_a_clock_that_kept_time() -> None:
     assert_allclose(dl.timer_rate(1000, P, START, START + 1000 * P), 1.0, rtol=1e-12)
     assert_allclose(dl.timer_rate(1000, P, START, START + 1001 * P), 1000 / 1001, rtol=1e-12)
     assert math.isnan(dl.timer_rate(0, P, START, START))
+
+
+def test_an_answer_is_useful_until_the_tick_after_next() -> None:
+    start, period = 1_000, 1_000_000
+    d = lambda k: dl.deadline_ns(start, period, k)  # noqa: E731
+    # command[7] counts for tick 8, and is held from tick 9 only if in before d_9.
+    assert dl.answer_useful(d(7) + 10, start, period, 7, 6, 5)
+    assert dl.answer_useful(d(9) - 1, start, period, 7, 6, 5)
+    assert not dl.answer_useful(d(9), start, period, 7, 6, 5)
+    # ... but never more than max_gap - 1 states in a row go unanswered.
+    assert dl.answer_useful(d(30), start, period, 7, 2, 5)
+    assert not dl.answer_useful(d(30), start, period, 7, 3, 5)
+
+
+def simulate_backlog(
+    *, stall_periods: int, answer_cost: float, skip_cost: float, useful: bool
+) -> tuple[list[int], int | None]:
+    """A controller that stalls, then works off the states queued meanwhile.
+
+    State ``k`` goes out at ``d_k = k T``; the controller takes them in order,
+    an answer costs ``answer_cost`` periods, a skipped state ``skip_cost``.
+    Returns the answered steps and the first state after the stall whose
+    answer is on time (in by ``d_{k+1}``), or None.
+    """
+    period = 1_000_000
+    now = stall_periods * period  # woke up: states 0 .. stall_periods are queued
+    answered: list[int] = []
+    last = -1
+    first_on_time = None
+    for k in range(stall_periods + 200):
+        now = max(now, k * period)  # state k is not out before d_k
+        if k == 0 or not useful or dl.answer_useful(now, 0, period, k, last, 5):
+            now += round(answer_cost * period)
+            answered.append(k)
+            last = k
+            if k > 0 and now <= (k + 1) * period and first_on_time is None:
+                first_on_time = k
+        else:
+            now += round(skip_cost * period)
+    return answered, first_on_time
+
+
+def test_skipping_unusable_answers_catches_up_after_a_stall() -> None:
+    # 30 periods stalled; an answer costs 0.6 T (publish), a skip 0.1 T (decode).
+    answered, on_time = simulate_backlog(
+        stall_periods=30, answer_cost=0.6, skip_cost=0.1, useful=True
+    )
+    assert on_time is not None
+    # The backlog drains at 1 - c T per state, c the mean cost of a state:
+    # one answer in every 5 (0.6 + 4 x 0.1 = 1.0 T per 5 states, 0.2 T each),
+    # so the 30 queued periods are gone after about 30 / 0.8 = 37.5 states.
+    assert abs(on_time - 30 / (1 - (0.6 + 4 * 0.1) / 5)) <= 3
+    gaps = np.diff(answered)
+    assert gaps.max() <= 5
+    # Answering every state, the same controller gains only 1 - 0.6 T per
+    # state: on time again after about 30 / 0.4 = 75 states, twice as late.
+    _, always = simulate_backlog(stall_periods=30, answer_cost=0.6, skip_cost=0.1, useful=False)
+    assert always is not None
+    assert abs(always - 30 / (1 - 0.6)) <= 3
