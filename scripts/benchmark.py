@@ -414,19 +414,7 @@ def core_rate(scenario: Path, data: dict) -> float | str:
     steps = round(common["duration_s"] / period)
     try:
         t0 = time.perf_counter()
-        try:
-            fn(scenario, steps=steps)
-        except ValueError:  # a target-side law: no plain-call loop with learning
-            if fn is sim.simulate:
-                raise
-            plain = copy.deepcopy(data)
-            del plain["learning"]
-            plain["feedforward"]["ros__parameters"]["learning"]["enabled"] = False
-            without = scenario.with_name(f"no_learning_{scenario.name}")
-            without.write_text(yaml.safe_dump(plain, sort_keys=False))
-            t0 = time.perf_counter()
-            sim.simulate(without, steps=steps)
-            return f"{steps / (time.perf_counter() - t0) * period:.1f}x (no learning)"
+        fn(scenario, steps=steps)
         return steps / (time.perf_counter() - t0)
     except Exception as err:  # a cell of the table says why
         return f"{type(err).__name__}"

@@ -3,11 +3,8 @@
 
 Each scenario runs through the function of :mod:`servo_axis.simulate` that
 reproduces its node graph: ``simulate_identification`` with an identifier
-section, ``simulate_learning`` with an input-side (trial) learning law, and
-``simulate`` otherwise. A target-side law (RPTC) has no plain-call loop (its
-corrections come from the learning node, off the per-sample path), so its
-scenarios run ``simulate`` on a copy with ``learning.enabled`` off: the same
-plant, feedback and PTC per sample, without the learned correction.
+section, ``simulate_learning`` with a learning law (RPTC's cycles or an ILC's
+trials), and ``simulate`` otherwise.
 A multi-axis scenario runs once per axis (``xy_circle/x``, ``xy_circle/y``).
 Before the timed run, a run of a few steps builds everything once (and
 compiles what is compiled); its time is the ``first s`` column. The table:
@@ -31,7 +28,6 @@ import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 from servo_axis.params import factories
 from servo_axis.params.scenario import (
@@ -39,11 +35,9 @@ from servo_axis.params.scenario import (
     axis_view,
     dump_params,
     load_scenario,
-    resolve_table,
     scenario_dir,
     scenario_names,
 )
-from servo_axis.run.plan import learning_values
 
 
 def runner(path: Path) -> tuple[str, Callable[..., object]]:
@@ -58,26 +52,6 @@ def runner(path: Path) -> tuple[str, Callable[..., object]]:
     return "loop", simulate
 
 
-def without_target_learning(
-    scenario: dict[str, Any], path: Path, work: Path, stem: str
-) -> tuple[Path, str]:
-    """``(path, "")``, or a copy of ``scenario`` without its target-side learning, "no RPTC"."""
-    learning = scenario.get("feedforward", {}).get("ros__parameters", {}).get("learning", {})
-    if not learning.get("enabled"):
-        return path, ""
-    if factories.build_learning_law(learning_values(scenario, path)).side == "input":
-        return path, ""
-    ff = scenario["feedforward"]["ros__parameters"]
-    ff["learning"] = {**learning, "enabled": False}
-    for term in ("friction_table", "gms"):
-        if ff.get(term, {}).get("file"):
-            ff[term] = {**ff[term], "file": resolve_table(ff[term]["file"], path.parent)}
-    scenario.pop("learning", None)
-    copy = work / f"{stem}.yaml"
-    copy.write_text(dump_params(scenario))
-    return copy, ", no RPTC"
-
-
 def cases(names: list[str], work: Path) -> list[tuple[str, tuple[Path, str]]]:
     """``(label, (scenario file, note))`` per scenario, one per axis of a multi-axis one."""
     out = []
@@ -86,14 +60,13 @@ def cases(names: list[str], work: Path) -> list[tuple[str, tuple[Path, str]]]:
         scenario = load_scenario(path)
         axes = axes_of(scenario)
         if not axes:
-            out.append((name, without_target_learning(scenario, path, work, name)))
+            out.append((name, (path, "")))
             continue
         for axis in axes:
             view = axis_view(scenario, axis, path.parent)
             axis_path = work / f"{name}_{axis}.yaml"
             axis_path.write_text(dump_params(view))
-            stem = f"{name}_{axis}_loop"
-            out.append((f"{name}/{axis}", without_target_learning(view, axis_path, work, stem)))
+            out.append((f"{name}/{axis}", (axis_path, "")))
     return out
 
 

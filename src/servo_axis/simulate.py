@@ -110,19 +110,24 @@ class LearningRun:
     """A core-only run with its learning unit (:func:`simulate_learning`)."""
 
     trajectory: Trajectory
-    error_m: (
-        np.ndarray
-    )  #: per period, the error the law learned from (m at the table for trial laws)
+    error_m: np.ndarray  #: per period, the error the law learned from (m at the table)
     law: object  #: the learning law after the run
 
 
 def simulate_learning(scenario_path: Path, *, steps: int | None = None) -> LearningRun:
-    """Run the loop of a scenario with an input-side (trial) learning law, as plain calls.
+    """Run the loop of a scenario with its learning law, as plain calls.
 
-    What the node graph does in lockstep, in the same order: at the last
+    What the node graph does in lockstep, in the same order
+    (``docs/learning_protocol.md``). An input-side (trial) law: at the last
     sample of period ``j`` the law learns from the error of period ``j``
-    (from ``start_cycle``) and the correction for period ``j + 1`` is set
-    before its first sample; the run's last period is not learned from.
+    (m at the table, every control sample) and the correction for period
+    ``j + 1`` is set before its first sample. A target-side (cycle) law,
+    RPTC of paper 000: at the last reference instant ``k_last`` of cycle
+    ``j`` the law learns from the cycle's error at the reference instants
+    (rad at the motor, against the original target), and ``c_{j+1}`` is set
+    before ``reference[k_last]``, which needs ``x_d`` one instant into cycle
+    ``j + 1`` (the boundary protocol). Either way learning starts with
+    ``start_cycle`` and the run's last period is not learned from.
     """
     scenario = load_scenario(scenario_path)
     pv = factories.node_values(scenario, "plant")
@@ -130,8 +135,6 @@ def simulate_learning(scenario_path: Path, *, steps: int | None = None) -> Learn
     ffv = factories.feedforward_values(scenario, scenario_path)
     lv = learning_values(scenario, scenario_path)
     law = factories.build_learning_law(lv)
-    if law.side != "input":
-        raise ValueError(f"law {law.name!r}: simulate_learning runs input-side laws")
     n = factories.run_steps(pv) if steps is None else steps
     sim = factories.build_plant(pv)
     loop = factories.build_loop(fbv)
@@ -140,37 +143,57 @@ def simulate_learning(scenario_path: Path, *, steps: int | None = None) -> Learn
     tu = pv["control_period_s"]
     lead = pv["lead_m_per_rad"]
     sensor = fbv["sensor"]
-    period = law.samples_per_period
+    target_side = law.side == "target"
+    # The learning unit's samples: the reference instants for a target-side law.
+    stride = factories.grid(pv).ratio if target_side else 1
+    period = law.samples_per_period * stride  # control samples per period
     drive = _Drive.of(ffv, fbv, pv)
     kt_learning = lv["nominal.torque_constant_Nm_per_A"]
     out = np.empty((n, 5))
     errors = []
     y = sim.output()
+
+    def end_of_period(j: int, last: int) -> None:
+        """Learn from period ``j`` (0-based; its samples up to ``last``) and set period ``j + 1``'s."""
+        ks = np.arange(j * period, (j + 1) * period, stride)
+        target = reference.sample(ks * tu)[0] / lead
+        measured = controlled_output(
+            sensor, encoder_rad=out[ks, 0], scale_m=out[ks, 1], lead_m_per_rad=lead
+        )
+        error = target - measured  # rad at the motor
+        errors.append(lead * error)
+        if j + 2 >= lv["start_cycle"]:
+            law.learn(error if target_side else lead * error, period=j + 1)
+        if target_side:
+            position, velocity = law.next_correction(period=j + 2)
+            gen.set_correction(j + 1, np.asarray(position, float), np.asarray(velocity, float))
+            return
+        (learned,) = law.next_correction(period=j + 2)
+        # learning/input_correction: a torque with the learning unit's
+        # K_T, a current again with the feedforward's.
+        torque = torque_from_current(
+            np.asarray(learned, dtype=float), torque_constant_Nm_per_A=kt_learning
+        )
+        gen.set_correction(
+            j + 1, current_from_torque(torque, torque_constant_Nm_per_A=drive.feedforward)
+        )
+
     for k in range(n):
+        if target_side:
+            # state[k_last] is in: c_{j+1} before reference[k_last].
+            j, idx = divmod(k, period)
+            out[k, :2] = (y.encoder_rad, y.scale_m)
+            if idx == period - stride and (j + 1) * period < n:
+                end_of_period(j, k)
+            gen.repeat_past_run(n)
         ((r, _, u_ff),) = gen.samples(k, k + 1)
         tau_ff, tau, current = drive.step(loop, y, r, u_ff)
         out[k] = (y.encoder_rad, y.scale_m, r, tau_ff, tau)
         y = sim.step(current)
-        j, idx = divmod(k, period)
-        if idx == period - 1 and k + 1 < n:
-            ks = np.arange(j * period, (j + 1) * period)
-            target = reference.sample(ks * tu)[0] / lead
-            measured = controlled_output(
-                sensor, encoder_rad=out[ks, 0], scale_m=out[ks, 1], lead_m_per_rad=lead
-            )
-            error = lead * (target - measured)
-            errors.append(error)
-            if j + 2 >= lv["start_cycle"]:
-                law.learn(error, period=j + 1)
-            (learned,) = law.next_correction(period=j + 2)
-            # learning/input_correction: a torque with the learning unit's
-            # K_T, a current again with the feedforward's.
-            torque = torque_from_current(
-                np.asarray(learned, dtype=float), torque_constant_Nm_per_A=kt_learning
-            )
-            gen.set_correction(
-                j + 1, current_from_torque(torque, torque_constant_Nm_per_A=drive.feedforward)
-            )
+        if not target_side:
+            j, idx = divmod(k, period)
+            if idx == period - 1 and k + 1 < n:
+                end_of_period(j, k)
     return LearningRun(Trajectory(*(out[:, i].copy() for i in range(5))), np.array(errors), law)
 
 

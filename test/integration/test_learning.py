@@ -7,10 +7,14 @@ import re
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
 from servo_axis.analysis.summary import RunSummary
+from servo_axis.recording.reader import read_raw
 from servo_axis.run.runner import run_scenario
+from servo_axis.simulate import simulate_learning
+from servo_axis.wire import cdr
 
 pytestmark = pytest.mark.integration
 
@@ -54,6 +58,16 @@ def test_n_times_filter_learns_n_times_faster_through_the_node_graph(
     assert (q3.run_dir / "learning_memory.json").is_file()
 
 
+def recorded_effort(run_dir: Path, topic: str, field: str) -> np.ndarray:
+    """The first value of ``field`` of each step's message on ``topic`` (1 ms steps)."""
+    by_step = {}
+    for m in read_raw(run_dir / "bag", topics=[topic]):
+        js = cdr.decode("sensor_msgs/msg/JointState", m.data)
+        by_step[js.stamp_ns // 10**6] = getattr(js, field)[0]
+    assert sorted(by_step) == list(range(len(by_step)))
+    return np.array([by_step[k] for k in range(len(by_step))])
+
+
 def max_per_cycle(summary: RunSummary) -> list[float]:
     return [float(c.max_m) for c in summary.tracking_error.cycles]
 
@@ -82,6 +96,14 @@ def test_detailed_axis_learns_and_is_deterministic(
         assert all(b < a for a, b in itertools.pairwise(peaks)), peaks
         assert not run.summary.faults
     assert max_per_cycle(q5.summary)[2] < 0.75 * max_per_cycle(q1.summary)[2]
+    # The node graph is the plain-call loop with its learning law, bit for
+    # bit, across every cycle boundary.
+    for name, run in (("rptc_detailed", q5), ("rptc_detailed_q", q1)):
+        core = simulate_learning(CONFIG / f"{name}.yaml").trajectory
+        assert np.array_equal(
+            recorded_effort(run.run_dir, "/x/state", "position"), core.encoder_rad
+        )
+        assert np.array_equal(recorded_effort(run.run_dir, "/x/command", "effort"), core.command_Nm)
     # Determinism across cycle boundaries: separate processes vs composed,
     # learning messages included.
     a, b = raw_payloads(q5.run_dir / "bag"), raw_payloads(again.run_dir / "bag")

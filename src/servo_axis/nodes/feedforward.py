@@ -352,15 +352,8 @@ class FeedforwardNode(ServoNode):
 
     def _fill(self, until: int) -> None:
         until = min(until, self._steps)
+        self.generator.repeat_past_run(self._steps)
         ready = self.generator.ready_until()
-        # Only a target-side correction is needed one reference interval early.
-        ratio = self._grid.ratio if self._learning and self._stride > 1 else 0
-        if ready is not None and ready < self._steps <= ready + ratio:
-            # The run's last samples look one instant into the cycle after
-            # it, whose correction the learning unit never publishes: repeat
-            # the last one at once (what the timeout would do, without the wait).
-            self.generator.repeat_correction((ready + ratio) // self._cycle_steps)
-            ready = self.generator.ready_until()
         if ready is not None:
             until = min(until, ready)
         if until <= self.published:

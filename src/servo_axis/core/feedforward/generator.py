@@ -254,6 +254,21 @@ class FeedforwardGenerator:
             limits.append(cycle * self._cycle_steps - lead)
         return min(limits) if limits else None
 
+    def repeat_past_run(self, steps: int) -> None:
+        """Set the correction of the period after a run of ``steps`` samples (the last one again).
+
+        A target-side law's last reference interval of the run looks one
+        instant into the period after it, whose correction no learning unit
+        will make (nothing after the run would use it): the last correction
+        is repeated at once, what a learning timeout would do without the
+        wait. Nothing happens unless the next sample that waits is one of
+        those last ones.
+        """
+        ready = self.ready_until()
+        lead = self._grid.ratio if self._side == "target" and self._cycle_steps else 0
+        if ready is not None and self._cycle_steps and ready < steps <= ready + lead:
+            self.repeat_correction((ready + lead) // self._cycle_steps)
+
     def _block_end(self, k0: int) -> int:
         end = k0 - (k0 % BLOCK_STEPS) + BLOCK_STEPS
         if self._cycle_steps is not None:
