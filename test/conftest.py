@@ -11,6 +11,9 @@ from pathlib import Path
 
 import pytest
 
+# Before any test loads numpy: one BLAS thread, as the suite's own processes.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
 REPO = Path(__file__).resolve().parents[1]
 CONFIG = REPO / "config"
 
