@@ -367,6 +367,22 @@ def test_realtime_mode_keeps_wall_time_and_counts_misses(ros_env: int, tmp_path:
     else:
         assert rt["command_late_us"]["max"] > 1000.0
     assert 0.9 < rt["timer_rate"] < 1.01
+    # The per-sample pair asked for SCHED_FIFO at the default thread_priority.
+    permitted = (
+        subprocess.run(
+            [
+                sys.executable,
+                "-c",
+                "import os; os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(50))",
+            ],
+            capture_output=True,
+        ).returncode
+        == 0
+    )
+    if permitted:
+        assert rt["scheduling"]["policy"] == "fifo" and rt["scheduling"]["priority"] == 50
+    else:
+        assert rt["scheduling"]["policy"] == "other" and "refused" in rt["scheduling"]
     assert not s["health"]["deterministic"]
     assert s["health"]["exit_code"] in (0, 4)  # 4: tripped on a loaded host
 

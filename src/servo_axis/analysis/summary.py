@@ -747,6 +747,10 @@ class Realtime:
     floor : dict or None
         The floor of the host at this period (``rt_floor.py --json``'s result,
         ``run --floor FILE``); None (not written) if not given.
+    scheduling : dict or None
+        The plant process's scheduling: ``policy`` (``fifo`` or ``other``),
+        ``priority`` and, where the system refused ``thread_priority``,
+        ``refused`` (why); None from a plant that did not report it.
     """
 
     period_ns: int
@@ -758,6 +762,7 @@ class Realtime:
     tick_late_us: dict[str, float] | None
     command_late_us: dict[str, float] | None
     floor: dict[str, Any] | None = field(default=None, metadata={"omit_none": True})
+    scheduling: dict[str, Any] | None = field(default=None, metadata={"omit_none": True})
 
     @property
     def miss_fraction(self) -> float:
@@ -776,6 +781,7 @@ class Realtime:
             tick_late_us=data.get("tick_late_us"),
             command_late_us=data.get("command_late_us"),
             floor=data.get("floor"),
+            scheduling=data.get("scheduling"),
         )
 
 

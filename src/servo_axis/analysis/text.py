@@ -171,6 +171,15 @@ def _realtime_lines(rt: Realtime | None) -> list[str]:
         f"command late (us) {_late(rt.command_late_us)}  (after its state's tick; a miss: > "
         f"{period_us:g})",
     ]
+    if rt.scheduling is not None:
+        sched = rt.scheduling
+        how = (
+            f"SCHED_FIFO priority {sched['priority']}"
+            if sched["policy"] == "fifo"
+            else "default scheduler"
+            + (f" (refused: {sched['refused']})" if "refused" in sched else "")
+        )
+        lines.append(f"scheduling        {how} (plant and feedback)")
     if rt.floor is not None:
         f = rt.floor
         trip = f.get("round_trip_us") or {}

@@ -84,6 +84,7 @@ from servo_axis.nodes.runtime import (
     STREAM_QOS,
     Throttle,
     matching_reader_qos,
+    realtime_scheduling,
     steady_clock,
 )
 from servo_axis.params.factories import checked_values, external_roles, node_schema
@@ -325,6 +326,22 @@ class ServoNode(Node):
             self.get_logger().warning(f"{text} ({self.rejected} rejected so far)")
 
     # -- peers -------------------------------------------------------------------
+    def realtime_scheduling(self) -> dict[str, object] | None:
+        """Realtime mode: ``SCHED_FIFO`` at ``thread_priority`` for this process's threads
+        (:func:`~servo_axis.nodes.runtime.realtime_scheduling`; a warning if refused).
+
+        None in lockstep, where nothing waits on the wall clock.
+        """
+        if self.values["mode"] == "lockstep":
+            return None
+        priority = self.values["thread_priority"]
+        got = realtime_scheduling(priority)
+        if "refused" in got:
+            self.get_logger().warning(
+                f"thread_priority {priority}: refused ({got['refused']}); the default scheduler"
+            )
+        return got
+
     def peer_alive(self, name: str) -> bool:
         """Whether a publisher of subscribed topic ``name`` is alive (liveliness).
 

@@ -93,6 +93,7 @@ class FeedbackNode(ServoNode):
         self._period_ns = msgs.period_ns(values["control_period_s"])
         self._lockstep = values["mode"] == "lockstep"
         self._kt = values["nominal.torque_constant_Nm_per_A"]
+        self.scheduling = self.realtime_scheduling()
 
         self._command_msg = msgs.joint_state_template(msgs.motor_names(self._axis), ("effort",))
         self._command_pub = self.publisher("command")
@@ -133,6 +134,7 @@ class FeedbackNode(ServoNode):
             ("fault", "none" if fault is None else fault.name.lower()),
             ("missed_references", self.missed_references),
             ("skipped_answers", self.skipped_answers),
+            ("scheduling", "lockstep" if self.scheduling is None else self.scheduling["policy"]),
         ]
 
     def diagnostic_error(self) -> str | None:

@@ -137,6 +137,7 @@ class PlantNode(ServoNode):
         self._lockstep = values["mode"] == "lockstep"
         self._kt = values["torque_constant_Nm_per_A"]
         self._v = values
+        self.scheduling = self.realtime_scheduling()
         self._flow = FlowControl(
             enabled=values["flow_control"],
             max_lag_steps=values["max_recorder_lag_steps"],
@@ -504,6 +505,7 @@ class PlantNode(ServoNode):
             ),
             "tick_late_us": deadlines.lateness_stats(self._tick_late_ns[1 : ticks + 1]),
             "command_late_us": deadlines.lateness_stats(command_late),
+            "scheduling": self.scheduling,
         }
 
     def close(self) -> None:

@@ -157,6 +157,40 @@ def make_executor() -> rclpy.executors.Executor:
     return EventsExecutor()
 
 
+def realtime_scheduling(priority: int) -> dict[str, object]:
+    """Put every thread of this process under ``SCHED_FIFO`` at ``priority`` (1-99; 0: leave it).
+
+    The realtime per-sample pair (plant and feedback) asks for it, as
+    ros2_control's controller manager does with its ``thread_priority``: the
+    middleware's receive threads, the executor and the plant's clock then
+    preempt everything else on the host (the recorder, the learning unit,
+    other users' work). Threads made later inherit it. Where the system
+    refuses (no ``CAP_SYS_NICE``, an ``RLIMIT_RTPRIO`` below ``priority``, not
+    Linux), nothing changes and the reason is returned.
+
+    Returns
+    -------
+    dict
+        ``{"policy": "fifo", "priority": p, "threads": n}``, or
+        ``{"policy": "other", "priority": 0}`` plus ``"refused": reason``.
+    """
+    if priority <= 0:
+        return {"policy": "other", "priority": 0}
+    done: list[int] = []
+    try:
+        for tid in sorted(int(t) for t in os.listdir("/proc/self/task")):
+            os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(priority))
+            done.append(tid)
+    except (OSError, AttributeError) as err:
+        for tid in done:  # all or nothing
+            try:
+                os.sched_setscheduler(tid, os.SCHED_OTHER, os.sched_param(0))
+            except OSError:
+                pass
+        return {"policy": "other", "priority": 0, "refused": f"{type(err).__name__}: {err}"}
+    return {"policy": "fifo", "priority": priority, "threads": len(done)}
+
+
 class Throttle:
     """At most one log line per ``period_s`` of wall time for a repeated complaint."""
 

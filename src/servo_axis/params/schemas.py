@@ -114,6 +114,15 @@ SHARED: dict[str, Param] = {
         "`run`): their topics' first publisher is the declared one, not a stranger; a subset "
         "of plant, feedback, feedforward, learning, identifier",
     ),
+    "thread_priority": Param(
+        50,
+        minimum=0,
+        maximum=99,
+        meaning="realtime mode: SCHED_FIFO priority of every thread of the plant and the "
+        "feedback (the per-sample pair), as ros2_control's thread_priority; 0: the default "
+        "scheduler. Where the system refuses (no CAP_SYS_NICE or rtprio limit), a warning "
+        "and the default scheduler; ignored in lockstep",
+    ),
     "report_dir": Param(
         "",
         meaning="folder where each node writes `<node>.health.json` (rejected messages, "
