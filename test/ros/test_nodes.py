@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -285,6 +286,8 @@ def test_realtime_plant_holds_the_newest_command_and_counts_misses(context: Cont
             Parameter("duration_s", value=0.6),
             Parameter("flow_control", value=False),
             Parameter("wait_for_state_subscribers", value=1),
+            # In the test's own process: not under SCHED_FIFO (test_scheduling).
+            Parameter("thread_priority", value=0),
         ],
     )
     probe = Node("feedback", context=context)
@@ -326,6 +329,8 @@ def test_realtime_plant_holds_the_newest_command_and_counts_misses(context: Cont
     # Step 1 came late, steps 2 (rejected) and 4 never: the misses of ticks 2, 3, 5.
     assert report["commands_late"] == 1 and report["commands_missing"] == 2
     assert report["command_late_us"]["max"] > 100_000.0  # step 1's, after its tick
+    assert report["scheduling"] is None  # thread_priority 0: the default scheduler
+    assert os.sched_getscheduler(0) == os.SCHED_OTHER
     plant.destroy_node()
     probe.destroy_node()
 

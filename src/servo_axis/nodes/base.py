@@ -326,15 +326,17 @@ class ServoNode(Node):
             self.get_logger().warning(f"{text} ({self.rejected} rejected so far)")
 
     # -- peers -------------------------------------------------------------------
-    def realtime_scheduling(self) -> dict[str, object] | None:
-        """Realtime mode: ``SCHED_FIFO`` at ``thread_priority`` for this process's threads
-        (:func:`~servo_axis.nodes.runtime.realtime_scheduling`; a warning if refused).
+    def realtime_scheduling(self, below: int = 0) -> dict[str, object] | None:
+        """Realtime mode: ``SCHED_FIFO`` at ``thread_priority - below`` (at least 1) for this
+        process's threads (:func:`~servo_axis.nodes.runtime.realtime_scheduling`; a
+        warning if refused).
 
-        None in lockstep, where nothing waits on the wall clock.
+        None in lockstep, where nothing waits on the wall clock, and with a
+        ``thread_priority`` of 0.
         """
-        if self.values["mode"] == "lockstep":
+        if self.values["mode"] == "lockstep" or self.values["thread_priority"] == 0:
             return None
-        priority = self.values["thread_priority"]
+        priority = max(1, self.values["thread_priority"] - below)
         got = realtime_scheduling(priority)
         if "refused" in got:
             self.get_logger().warning(

@@ -134,7 +134,7 @@ class FeedbackNode(ServoNode):
             ("fault", "none" if fault is None else fault.name.lower()),
             ("missed_references", self.missed_references),
             ("skipped_answers", self.skipped_answers),
-            ("scheduling", "lockstep" if self.scheduling is None else self.scheduling["policy"]),
+            ("scheduling", "other" if self.scheduling is None else self.scheduling["policy"]),
         ]
 
     def diagnostic_error(self) -> str | None:

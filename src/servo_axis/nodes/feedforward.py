@@ -40,8 +40,15 @@ correction as long as the learning unit lives (liveliness of
 fallback) only once the unit has been gone for ``learning.timeout_s``, or
 once it went away during the wait (a respawned unit did not see the cycle
 end it owed a correction for) and the plant has then stood still for
-``learning.timeout_s``. In realtime: once the plant has stood still at the
-boundary for ``learning.timeout_s``.
+``learning.timeout_s``.
+
+In realtime the references never wait for a correction: a learning unit
+cannot have ``c_{j+1}`` in before the boundary it is learned at, and the
+plant does not wait. The boundary goes by with the last correction
+(``repeat_correction``) and ``c_{j+1}`` applies from the first sample not
+yet published once it is in (``replace_correction``; counted as
+``late_corrections`` on ``/diagnostics``), a few preview windows into its
+period; the law's fixed point (``c_{j+1} = c_j``) is the same.
 
 Identifier fallback (``adaptive.timeout_s``): the same rule with the
 identifier as the peer (liveliness of ``identifier/estimates``); on it the
@@ -96,8 +103,12 @@ class FeedforwardNode(ServoNode):
         self._pub = self.publisher("reference")
         self._learning = values["learning.enabled"]
         self._lockstep = values["mode"] == "lockstep"
+        # Realtime: the references must be out before the feedback needs
+        # them, so the generator preempts other work too, below the pair.
+        self.scheduling = self.realtime_scheduling(below=1)
         self._corrections: dict[int, dict[int, tuple[float, ...]]] = {}
         self.missed_corrections = 0
+        self.late_corrections = 0  # realtime: applied from a sample into their period
         self._waiting_since: float | None = None
         self._learner = PeerWatch()
         self.started = False
@@ -154,6 +165,7 @@ class FeedforwardNode(ServoNode):
             ("published_up_to_step", self.published),
             ("plant_step", self._plant_step),
             ("missed_corrections", self.missed_corrections),
+            ("late_corrections", self.late_corrections),
             ("estimates_taken", self.estimates_taken),
         ]
 
@@ -197,10 +209,13 @@ class FeedforwardNode(ServoNode):
         nd = self._cycle_steps // self._stride
         cycle, idx = divmod(c.step // self._stride, nd)
         ready = self.generator.ready_until()
-        # A target-side correction is first needed one reference interval early.
-        lead = self._stride if self._stride > 1 else 0
-        if cycle < 1 or (ready is not None and cycle * self._cycle_steps - lead < ready):
+        lead = self.generator.boundary_lead()
+        if cycle < 1:
             raise SignalError(f"cycle {cycle + 1} is already under way")
+        if self._lockstep and ready is not None and cycle * self._cycle_steps - lead < ready:
+            raise SignalError(f"cycle {cycle + 1} is already under way")
+        if not self._lockstep and (cycle + 1) * self._cycle_steps - lead <= self.published:
+            raise SignalError(f"cycle {cycle + 1} is over")
         under_way = 0 if ready is None else ready // self._cycle_steps
         if cycle * self._cycle_steps >= self._steps or cycle > under_way + 2:
             raise SignalError(f"cycle {cycle + 1} is too far in the future")
@@ -216,7 +231,15 @@ class FeedforwardNode(ServoNode):
         if len(part) == nd:
             del self._corrections[cycle]
             values = np.array([part[i] for i in range(nd)])
-            self.generator.set_correction(cycle, *(values[:, c] for c in range(values.shape[1])))
+            columns = [values[:, c] for c in range(values.shape[1])]
+            if not self._lockstep and cycle * self._cycle_steps - self.generator.boundary_lead() < (
+                self.published
+            ):
+                # Realtime: the boundary went by with the last correction.
+                self.generator.replace_correction(cycle, *columns)
+                self.late_corrections += 1
+            else:
+                self.generator.set_correction(cycle, *columns)
             self._waiting_since = None
             self._learner.forget()
             self._fill(self._plant_step + self._window)
@@ -354,6 +377,19 @@ class FeedforwardNode(ServoNode):
         until = min(until, self._steps)
         self.generator.repeat_past_run(self._steps)
         ready = self.generator.ready_until()
+        if not self._lockstep and self._learning:
+            # Realtime: the references never wait for a correction (it cannot
+            # be in before the boundary it is learned at); the last one goes
+            # on, and the new one applies once it is in (_on_correction).
+            lead = self.generator.boundary_lead()
+            while (
+                ready is not None
+                and ready < until
+                and ready != self.generator.next_estimate_step
+                and ready + lead < self._steps
+            ):
+                self.generator.repeat_correction((ready + lead) // self._cycle_steps)
+                ready = self.generator.ready_until()
         if ready is not None:
             until = min(until, ready)
         if until <= self.published:

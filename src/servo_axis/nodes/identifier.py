@@ -59,6 +59,9 @@ class IdentifierNode(ServoNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("identifier", **kwargs)
         values = self.values
+        # Realtime: what it sends the generator is on the reference path, so
+        # it preempts other work, below the generator and the pair.
+        self.scheduling = self.realtime_scheduling(below=2)
         self.identifier = build_identifier(values)
         _, self._latency = estimate_schedule(values, "rls_period_s", "latency_s")
         self._v = values

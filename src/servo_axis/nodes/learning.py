@@ -73,6 +73,9 @@ class LearningNode(ServoNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("learning", **kwargs)
         values = self.values
+        # Realtime: what it sends the generator is on the reference path, so
+        # it preempts other work, below the generator and the pair.
+        self.scheduling = self.realtime_scheduling(below=2)
         self._grid = grid(values)
         self.law = build_learning_law(values)
         self._kt = values["nominal.torque_constant_Nm_per_A"]

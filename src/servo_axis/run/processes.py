@@ -45,9 +45,9 @@ def ros_environment(domain_id: int, log_dir: Path) -> dict[str, str]:
 def discovery_settings(log_dir: Path) -> dict[str, str]:
     """The variables rcl and Fast DDS read when a context and its participant are made.
 
-    Localhost discovery, the 100 ms discovery announcement profile shipped
-    with the package (UDP only, which rmw_fastrtps extends with shared memory
-    under localhost discovery), and the ROS log directory.
+    Localhost discovery, the profile shipped with the package (100 ms
+    discovery announcements, UDP and shared memory with 8 MB segments), and
+    the ROS log directory.
     """
     profile = resources.files("servo_axis") / "data" / "fastdds_localhost.xml"
     return {

@@ -171,6 +171,32 @@ class FeedforwardGenerator:
         for old in [c for c in self._corrections if c < cycle - 2]:
             del self._corrections[old]
 
+    def replace_correction(self, cycle: int, *values: np.ndarray) -> int:
+        """Realtime: the correction of period ``cycle``, which may be under way already.
+
+        It applies from the next sample not yet given (the ones given used
+        what was set before, :meth:`repeat_correction` at the boundary): a
+        realtime learning unit's correction cannot be in before the boundary
+        it is learned at, so it takes effect a little into its period. The
+        law's fixed point is unchanged (there ``c_{j+1} = c_j``).
+
+        Returns
+        -------
+        int
+            The first control sample that uses it.
+        """
+        self.set_correction(cycle, *values)
+        self._block_start, self._block = 0, np.zeros((0, 3))  # recompute from here
+        return self._next
+
+    def boundary_lead(self) -> int:
+        """Control samples before a period's start that first need its correction.
+
+        A target-side correction is needed one reference interval early (``x_d``
+        one instant ahead), an input-side one at the period's first sample.
+        """
+        return self._grid.ratio if self._side == "target" and self._cycle_steps else 0
+
     def repeat_correction(self, cycle: int) -> None:
         """Use the correction of period ``cycle - 1`` (zero for period 1) for ``cycle`` as well."""
         n, columns = self._correction_shape()
@@ -265,7 +291,7 @@ class FeedforwardGenerator:
         those last ones.
         """
         ready = self.ready_until()
-        lead = self._grid.ratio if self._side == "target" and self._cycle_steps else 0
+        lead = self.boundary_lead()
         if ready is not None and self._cycle_steps and ready < steps <= ready + lead:
             self.repeat_correction((ready + lead) // self._cycle_steps)
 
