@@ -174,6 +174,33 @@ def test_input_side_corrections_add_a_current_from_their_period_on() -> None:
         gen.set_correction(4, f[:50])
 
 
+def test_a_late_target_correction_applies_from_the_next_sample_given() -> None:
+    """Realtime (RPTC, 000): c_2 comes after the boundary went by with c_1 repeated."""
+    ref = SineReference(amplitude_m=0.01, frequency_hz=2.0)
+
+    def make() -> FeedforwardGenerator:
+        return FeedforwardGenerator(
+            reference=ref, grid=GRID, lead_m_per_rad=R, nominal=P_N, learning_period_steps=100
+        )
+
+    nd = 50  # reference instants per period
+    c1 = (np.full(nd, 1e-4), np.zeros(nd))
+    c2 = (np.linspace(0.0, 2e-4, nd), np.full(nd, 1e-3))
+    late, timely, repeated = make(), make(), make()
+    for gen in (late, timely, repeated):
+        gen.set_correction(1, *c1)
+    assert late.ready_until() == 198  # x_d one instant into period 2 from sample 198 on
+    late.repeat_correction(2)
+    repeated.repeat_correction(2)
+    timely.set_correction(2, *c2)
+    first = late.samples(0, 230)  # the boundary went by: 32 samples with c_1 again
+    assert late.replace_correction(2, *c2) == 230
+    rest = late.samples(230, 298)
+    np.testing.assert_array_equal(first, repeated.samples(0, 230))
+    np.testing.assert_array_equal(rest, timely.samples(0, 298)[230:])
+    assert np.max(np.abs(np.subtract(rest, repeated.samples(230, 298)))) > 1e-6  # c_2 counts
+
+
 def test_the_sample_grid() -> None:
     g = SampleGrid(control_period_s=1e-3)
     assert g.reference_period_s == 2e-3 and g.steps(2.0) == 2000
