@@ -86,6 +86,11 @@ ZERO_STEPS_PER_LOOK = 100
 #: spins to it, releasing the GIL (time.sleep wakes up to ~100 us late on a
 #: loaded host, even with the thread's timer slack at 1 us).
 SPIN_NS = 200_000
+#: The same under SCHED_FIFO (``thread_priority``), where a sleep wakes within
+#: tens of us: a shorter spin, because a realtime thread's busy time counts
+#: against the kernel's realtime budget (95 % of each second; past it every
+#: realtime thread is stopped for the remaining 50 ms).
+SPIN_FIFO_NS = 50_000
 #: Realtime: the interpreter's switch interval while the clock runs, s: how
 #: long the clock thread may wait for the GIL held by a callback (default 5 ms).
 SWITCH_INTERVAL_S = 5e-5
@@ -436,7 +441,9 @@ class PlantNode(ServoNode):
 
     def _realtime_loop(self) -> None:
         """The clock thread: tick ``j`` at ``d_j`` until the last step or a stop."""
-        period, start, spin = self._period_ns, self._rt_start_ns, SPIN_NS
+        period, start = self._period_ns, self._rt_start_ns
+        fifo = self.scheduling is not None and self.scheduling["policy"] == "fifo"
+        spin = SPIN_FIFO_NS if fifo else SPIN_NS
         clock, sleep = time.monotonic_ns, time.sleep
         _least_timer_slack()
         gc.disable()

@@ -100,10 +100,6 @@ class RecorderNode(ServoNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("recorder", **kwargs)
         values = self.values
-        # Realtime: the plant's reliable writers wait for this reader's acks
-        # once their history is full (2,000 samples), so a recorder starved
-        # by other work stalls the clock; below every other node.
-        self.scheduling = self.realtime_scheduling(below=3)
         # One type per topic, the latched and counted ones among them, one period
         # per scheduled topic: checked with the values (factories.check_recorder_topics).
         topics, types = values["topics"], values["types"]

@@ -121,9 +121,10 @@ SHARED: dict[str, Param] = {
         meaning="realtime mode: SCHED_FIFO priority of every thread of the plant and the "
         "feedback (the per-sample pair), as ros2_control's thread_priority; one below it for "
         "the feedforward generator, two below for the learning unit and the identifier (on "
-        "the reference path); the recorder keeps the default scheduler. 0: the default "
-        "scheduler for all. Where the system refuses (no "
-        "CAP_SYS_NICE or rtprio limit), a warning and the default scheduler; ignored in lockstep",
+        "the reference path); the recorder keeps the default scheduler (its CPU would count "
+        "against the kernel's realtime budget, 95 % of each second). 0: the default scheduler "
+        "for all. Where the system refuses (no CAP_SYS_NICE or rtprio limit), a warning and "
+        "the default scheduler; ignored in lockstep",
     ),
     "report_dir": Param(
         "",
