@@ -267,6 +267,15 @@ class JointLayout(Generic[S]):
             Naming the first thing wrong: the joint names, an array's length,
             a value that is not finite, the stamp off the control grid.
         """
+        return self.sample(step_of_stamp_ns(stamp_ns, period_ns), *self._values(name, msg, axis))
+
+    def step(self, name: Sequence[str], msg: Any, stamp_ns: int, axis: str, period_ns: int) -> int:
+        """The step of a JointState after the checks of :meth:`decode` (no sample is built)."""
+        self._values(name, msg, axis)
+        return step_of_stamp_ns(stamp_ns, period_ns)
+
+    def _values(self, name: Sequence[str], msg: Any, axis: str) -> list[float]:
+        """The values of the arrays in use, after checking the names, lengths and finiteness."""
         names = self._names.get(axis) or self.names(axis)
         if list(name) != names:
             raise SignalError(f"name: expected {names}, got {list(name)}")
@@ -277,7 +286,7 @@ class JointLayout(Generic[S]):
             if len(got) != n:
                 raise SignalError(f"{array}: expected {n} values, got {len(got)}")
             values += check_finite(array, got)
-        return self.sample(step_of_stamp_ns(stamp_ns, period_ns), *values)
+        return values
 
 
 #: The rules a :class:`Field`'s value obeys.

@@ -152,7 +152,14 @@ def decode_array_stream(name: str, data: bytes) -> tuple[int, Any]:
 
 
 def decode_step_stream(name: str, data: bytes, *, axis: str, period_ns: int) -> tuple[int, Any]:
-    """Step and sample of a recorded sample of any :data:`STEP_STREAMS` stream (checked)."""
+    """Step and decoded payload of a recorded sample of any :data:`STEP_STREAMS` stream.
+
+    The checks of :func:`decode_joint_stream` and :func:`decode_array_stream`,
+    without building the sample (the recorder counts with it, every step).
+    """
     if name in ARRAY_STREAMS:
-        return decode_array_stream(name, data)
-    return decode_joint_stream(name, data, axis=axis, period_ns=period_ns)
+        array = cdr.decode_float64_multi_array(data)
+        values = ARRAY_STREAMS[name].values(array.labels, array.sizes, array.data, array.strides)
+        return int(values[0]), array
+    msg = cdr.decode_joint_state(data)
+    return JOINT_STREAMS[name].step(msg.name, msg, msg.stamp_ns, axis, period_ns), msg

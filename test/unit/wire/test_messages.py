@@ -12,7 +12,7 @@ from std_msgs.msg import Float64MultiArray
 from servo_axis.core.errors import SignalError
 from servo_axis.wire import layouts
 from servo_axis.wire import messages as msgs
-from servo_axis.wire.streams import decode_joint_stream
+from servo_axis.wire.streams import decode_joint_stream, decode_step_stream
 
 PERIOD_NS = 1_000_000
 
@@ -90,6 +90,7 @@ def test_every_joint_layout_round_trips_through_rclpy_and_the_bag_decoder(topic:
     data = serialize_message(msg)
     assert from_msg(deserialize_message(data, JointState), axis="z", period_ns_=PERIOD_NS) == sample
     assert decode_joint_stream(topic, data, axis="z", period_ns=PERIOD_NS) == (41, sample)
+    assert decode_step_stream(topic, data, axis="z", period_ns=PERIOD_NS)[0] == 41
     # A publisher's template refilled in place carries the same message.
     template = to_msg(layout.sample(0, *[0.0] * len(values)), axis="z", period_ns_=PERIOD_NS)
     assert write(template, sample, period_ns_=PERIOD_NS) is template
@@ -97,6 +98,16 @@ def test_every_joint_layout_round_trips_through_rclpy_and_the_bag_decoder(topic:
     assert template == msg
     with pytest.raises(SignalError, match=r"name: expected \['x_motor"):
         from_msg(msg, axis="x", period_ns_=PERIOD_NS)
+    # The recorder's count refuses what the node refuses, with the same words.
+    getattr(msg, layout.arrays[-1]).append(1.0)
+    with pytest.raises(SignalError) as node_err:
+        from_msg(msg, axis="z", period_ns_=PERIOD_NS)
+    with pytest.raises(SignalError) as bag_err:
+        decode_step_stream(topic, serialize_message(msg), axis="z", period_ns=PERIOD_NS)
+    assert str(bag_err.value) == str(node_err.value)
+    assert str(node_err.value).startswith(
+        f"{layout.arrays[-1]}: expected {len(layout.joints)} values"
+    )
 
 
 def test_state_rejects_nan_wrong_length_and_wrong_names() -> None:
