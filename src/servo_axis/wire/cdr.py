@@ -20,8 +20,9 @@ Supported types: ``sensor_msgs/msg/JointState`` (:class:`JointStateData`),
 The checks of a message's content are not here: the layout of every topic
 and its rules are declared once in :mod:`servo_axis.wire.layouts` and apply
 to these decoded payloads and to rclpy messages alike. This module re-exports
-the few names other modules take from it (:data:`PROGRESS_LABELS`,
-:data:`ESTIMATE_LABELS`, :class:`EstimateData`, :func:`check_labelled_values`).
+the few names other modules and documents take from it
+(:data:`PROGRESS_LABELS`, :data:`ESTIMATE_LABELS`, :class:`EstimateData`,
+:func:`check_estimate_values`, :func:`check_labelled_values`).
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ from servo_axis.core.errors import SignalError
 from servo_axis.wire.checks import check_labelled_values as check_labelled_values
 from servo_axis.wire.layouts import ESTIMATES, PROGRESS
 from servo_axis.wire.layouts import EstimateData as EstimateData
+from servo_axis.wire.layouts import check_estimate_values as check_estimate_values
 
 __all__ = [
     "ESTIMATE_LABELS",
@@ -44,6 +46,7 @@ __all__ = [
     "EstimateData",
     "JointStateData",
     "MultiArrayData",
+    "check_estimate_values",
     "check_labelled_values",
     "clock_ns_from_cdr",
     "decode",
