@@ -28,6 +28,7 @@ from servo_axis.recording.reader import read_raw
 from servo_axis.run.processes import ros_environment
 from servo_axis.simulate import simulate
 from servo_axis.wire import cdr
+from servo_axis.wire.streams import decode_array_stream
 
 pytestmark = pytest.mark.integration
 
@@ -74,8 +75,8 @@ def joint_streams(run_dir: Path) -> dict[str, dict[int, Any]]:
             out.setdefault(m.topic, {})[js.stamp_ns // TU_NS] = js
         elif m.topic == "/x/deformation":
             array = cdr.decode("std_msgs/msg/Float64MultiArray", m.data)
-            values = cdr.labelled_values(array, cdr.DEFORMATION_LABELS)
-            out.setdefault(m.topic, {})[cdr.check_deformation_values(values)] = array
+            step, _ = decode_array_stream("deformation", m.data)
+            out.setdefault(m.topic, {})[step] = array
     return out
 
 

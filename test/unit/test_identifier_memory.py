@@ -17,7 +17,7 @@ from servo_axis.core.identification.base import OnlineIdentifier
 from servo_axis.params import factories
 from servo_axis.params.scenario import load_scenario
 from servo_axis.storage import load_identifier_memory, save_identifier_memory
-from servo_axis.wire.cdr import EstimateData, check_estimate_values
+from servo_axis.wire.layouts import EstimateData, check_estimate_values
 
 CONFIG = Path(__file__).resolve().parents[2] / "config"
 SCENARIOS = {"dlpid": "dlpid_tilt_lpf2", "marc": "dlpid_tilt_marc"}

@@ -14,7 +14,8 @@ from servo_axis.core.identification.dlpid import Dlpid
 from servo_axis.params import factories
 from servo_axis.params.scenario import load_scenario
 from servo_axis.simulate import IdentificationRun, simulate_identification
-from servo_axis.wire.cdr import ESTIMATE_LABELS, check_estimate_values
+from servo_axis.wire.cdr import ESTIMATE_LABELS
+from servo_axis.wire.layouts import check_estimate_values
 
 CONFIG = Path(__file__).resolve().parents[2] / "config"
 DURATION_S = 1.0

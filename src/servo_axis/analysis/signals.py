@@ -7,50 +7,42 @@ the table of topics (:mod:`servo_axis.wire.topics`) under any namespace (so
 
 The recorder writes every message it gets, a stranger's junk included. Only
 validated samples become signals (:func:`read_streams`): each message is
-checked as the nodes check it, with the same functions
-(:mod:`servo_axis.wire.cdr`: joint names of the axis, one finite value per
-joint in each array the topic uses, the stamp on the control grid; the
-labels and finite values of a Float64MultiArray), and then one sample per
-step and stream is kept by a :class:`~servo_axis.wire.streams.StreamGate`
-applied in recording order: exactly the next step in lockstep, at most
-:data:`REALTIME_WINDOW` samples ahead in realtime, never beyond the run.
-What fails is dropped and counted (:attr:`Signals.dropped`): junk in a bag
-changes no figure. The rules per topic (:class:`StreamRules`):
+checked as the nodes check it, by its topic's layout
+(:mod:`servo_axis.wire.layouts`, the table the nodes' conversions come from:
+joint names of the axis, one finite value per joint in each array the topic
+uses, the stamp on the control grid; the labels, finite values and each
+field's rule of a Float64MultiArray), and then one sample per step and stream
+is kept by a :class:`~servo_axis.wire.streams.StreamGate` applied in recording
+order: exactly the next step in lockstep, at most :data:`REALTIME_WINDOW`
+samples ahead in realtime, never beyond the run. What fails is dropped and
+counted (:attr:`Signals.dropped`): junk in a bag changes no figure. The rules
+per topic beyond its layout (:class:`StreamRules`, :func:`stream_for`):
 
-* ``state`` (JointState ``[<axis>_motor, <axis>_table]``; ``position`` =
-  [encoder angle (rad), scale (m)], ``velocity``, ``effort``): steps 0, 1, ...
-* ``reference`` (JointState ``[<axis>_motor]``: ``position[0]`` = feedback
-  reference (rad), ``velocity``, ``effort[0]`` = feedforward torque (N m)): steps 0, 1, ...
-* ``command`` (JointState ``[<axis>_motor]``, ``effort[0]`` = motor torque
-  reference ``K_T,n i`` (N m)): steps 0, 1, ...
-* ``deformation`` (Float64MultiArray
-  :data:`~servo_axis.wire.cdr.DEFORMATION_LABELS`: ``[step, d_r_m_per_rad,
-  scale_increment_m, encoder_increment_rad, valid]``, ``valid`` 1 or 0 as
-  the nodes' decoder requires): steps 0, 1, ... like ``state``; none in a
-  run whose feedback has ``deformation.enabled`` false.
-* ``learning/correction`` (JointState ``[<axis>_motor]``, ``position``,
-  ``velocity``): the reference instants from the second cycle on, one after
-  the other; none in a run without learning.
-* ``learning/cycle_stats`` (``[cycle, rms_m, max_m, cycles_learned]``):
-  cycles 1, 2, ... of the run, ``rms_m, max_m >= 0``, ``cycles_learned`` a
-  whole number, never decreasing; none in a run without learning.
-* ``fault`` (``[step, code, value]``): a step of the run, later than the
-  previous fault's, a code of :class:`~servo_axis.core.feedback.loop.Fault`.
-* ``plant/status`` (``[step, deadline_misses, rejected_commands,
-  command_timeouts]``): whole numbers >= 0, the counters never decreasing;
-  in lockstep the steps 0, ``status_every_steps``, ...; in realtime increasing
-  (a last one at the end of the run).
+* ``state``, ``reference``, ``command``: steps 0, 1, ...
+* ``deformation``: steps 0, 1, ... like ``state``; none in a run whose
+  feedback has ``deformation.enabled`` false.
+* ``learning/correction``: the reference instants from the second cycle on,
+  one after the other; ``learning/input_correction``: the control samples
+  from the second trial on; none in a run without learning.
+* ``learning/cycle_stats``: cycles 1, 2, ... of the run, ``cycles_learned``
+  never decreasing and at most the cycle; none in a run without learning.
+* ``fault``: a step of the run, later than the previous fault's, a code of
+  :class:`~servo_axis.core.feedback.loop.Fault`.
+* ``plant/status``: the counters never decreasing; in lockstep the steps 0,
+  ``status_every_steps``, ...; in realtime increasing (a last one at the end
+  of the run).
 * ``/clock``: the steps 0, ``clock_every_steps``, ...
-* ``recorder/progress`` (if recorded): a whole number of steps, never
-  decreasing, at most the run's steps.
-* ``identifier/estimates`` (:data:`~servo_axis.wire.cdr.ESTIMATE_LABELS`,
-  checked by :func:`~servo_axis.wire.cdr.check_estimate_values`): a step of
-  the run; none in a run without an ``identifier`` section. Estimates carry
-  no stamp and a restarted identifier may publish again one that was already
-  recorded, so there is no gate: the first estimate of each step is kept, a
-  later one with the same values is a repeat (counted in
-  :attr:`BagStreams.repeated`, not junk) and one with other values is
-  dropped like junk. :attr:`Signals.estimates` are in order of step.
+* ``recorder/progress`` (if recorded): never decreasing, at most the run's
+  steps.
+* ``identifier/estimates`` (checked by
+  :func:`~servo_axis.wire.layouts.check_estimate_values`): a step of the
+  run on the identifier's schedule; none in a run without an ``identifier``
+  section. Estimates carry no stamp and a restarted identifier may publish
+  again one that was already recorded, so there is no gate: the first
+  estimate of each step is kept, a later one with the same values is a
+  repeat (counted in :attr:`BagStreams.repeated`, not junk) and one with
+  other values is dropped like junk. :attr:`Signals.estimates` are in order
+  of step.
 
 The rules come from the run's parameters: the scenario if given, else the
 run's ``params.yaml`` next to the bag (what the nodes ran with), else the
@@ -86,7 +78,9 @@ from servo_axis.params.factories import (
 )
 from servo_axis.params.scenario import ROLES, SHARED_SECTION
 from servo_axis.recording.reader import RawMessage, read_raw
-from servo_axis.wire import cdr, topics
+from servo_axis.wire import cdr, layouts, topics
+from servo_axis.wire.checks import step_of_stamp_ns
+from servo_axis.wire.layouts import ArrayLayout, EstimateData
 from servo_axis.wire.streams import StreamGate, decode_array_stream, decode_joint_stream
 
 #: The scenario's section of the parameter identifier (paper 003), present
@@ -184,7 +178,7 @@ class Signals:
     faults: list[FaultRecord] = field(default_factory=list)
     counts: dict[str, int] = field(default_factory=dict)
     dropped: dict[str, int] = field(default_factory=dict)
-    estimates: tuple[cdr.EstimateData, ...] = ()
+    estimates: tuple[EstimateData, ...] = ()
     repeated: dict[str, int] = field(default_factory=dict)
     deformation: DeformationTrace | None = None
 
@@ -324,7 +318,9 @@ class Kept(NamedTuple):
 
     step: int  #: control step (cycle number of cycle_stats, value of recorder/progress)
     data: bytes  #: the CDR payload as recorded
-    msg: Any  #: the decoded message (wire.cdr; an EstimateData for identifier/estimates)
+    #: the layout's sample (StateSample, DeformationSample, EstimateData, ...),
+    #: the checked values of an array topic without one, the ClockData of /clock
+    msg: Any
 
 
 @dataclass(frozen=True, eq=False)
@@ -399,26 +395,26 @@ class _Stream:
         return step, msg
 
 
-def _whole(name: str, value: float, minimum: int = 0) -> int:
-    if not float(value).is_integer() or value < minimum:
-        raise SignalError(f"{name}: expected a whole number >= {minimum}, got {value!r}")
-    return int(value)
+def _values(layout: ArrayLayout[Any], data: bytes) -> list[float]:
+    """The values of a recorded Float64MultiArray of ``layout``, checked by its layout."""
+    msg = cdr.decode_float64_multi_array(data)
+    return layout.values(msg.labels, msg.sizes, msg.data, msg.strides)
 
 
 def _joint_stream(rules: StreamRules, name: str) -> _Check:
     def check(data: bytes) -> tuple[int, Any, None]:
-        step, msg = decode_joint_stream(name, data, axis=rules.axis, period_ns=rules.period_ns)
-        return step, msg, None
+        step, sample = decode_joint_stream(name, data, axis=rules.axis, period_ns=rules.period_ns)
+        return step, sample, None
 
     return check
 
 
 def _deformation_stream(rules: StreamRules) -> _Check:
     def check(data: bytes) -> tuple[int, Any, None]:
-        # The subscribers' own checks (wire.messages.deformation_from_msg):
-        # the fields, finite values, a whole step, valid 0 or 1.
-        step, msg = decode_array_stream("deformation", data)
-        return step, msg, None
+        # The subscribers' own checks (the layout's: fields, finite values,
+        # a whole step, valid 0 or 1).
+        step, sample = decode_array_stream("deformation", data)
+        return step, sample, None
 
     return check
 
@@ -434,30 +430,25 @@ def _stats_stream(rules: StreamRules) -> _Check:
     learned = [0]
 
     def check(data: bytes) -> tuple[int, Any, Callable[[], None]]:
-        msg = cdr.decode_float64_multi_array(data)
-        cycle, rms, peak, count = cdr.labelled_values(msg, cdr.STATS_LABELS)
-        step = _whole("cycle", cycle, 1)
-        n = _whole("cycles_learned", count)
-        if rms < 0 or peak < 0:
-            raise SignalError(f"rms_m, max_m: expected >= 0, got {rms!r}, {peak!r}")
+        values = _values(layouts.CYCLE_STATS, data)
+        step, n = int(values[0]), int(values[3])
         if n < learned[0] or n > step:
             raise SignalError(f"cycles_learned: {n} after {learned[0]}, in cycle {step}")
 
         def commit() -> None:
             learned[0] = n
 
-        return step, msg, commit
+        return step, values, commit
 
     return check
 
 
 def _fault_stream(rules: StreamRules) -> _Check:
     def check(data: bytes) -> tuple[int, Any, None]:
-        msg = cdr.decode_float64_multi_array(data)
-        step, code, _ = cdr.labelled_values(msg, cdr.FAULT_LABELS)
-        if _whole("code", code) not in FAULT_NAMES:
-            raise SignalError(f"code: expected one of {sorted(FAULT_NAMES)}, got {code!r}")
-        return _whole("step", step), msg, None
+        values = _values(layouts.FAULT, data)
+        if int(values[1]) not in FAULT_NAMES:
+            raise SignalError(f"code: expected one of {sorted(FAULT_NAMES)}, got {values[1]!r}")
+        return int(values[0]), values, None
 
     return check
 
@@ -466,17 +457,15 @@ def _status_stream(rules: StreamRules) -> _Check:
     last = [0, 0, 0]
 
     def check(data: bytes) -> tuple[int, Any, Callable[[], None]]:
-        msg = cdr.decode_float64_multi_array(data)
-        values = cdr.labelled_values(msg, cdr.STATUS_LABELS)
-        step = _whole("step", values[0])
-        counters = [_whole(n, v) for n, v in zip(cdr.STATUS_LABELS[1:], values[1:], strict=True)]
+        values = _values(layouts.STATUS, data)
+        counters = [int(v) for v in values[1:]]
         if any(c < p for c, p in zip(counters, last, strict=True)):
             raise SignalError(f"counters decrease: {counters} after {last}")
 
         def commit() -> None:
             last[:] = counters
 
-        return step, msg, commit
+        return int(values[0]), values, commit
 
     return check
 
@@ -484,7 +473,7 @@ def _status_stream(rules: StreamRules) -> _Check:
 def _clock_stream(rules: StreamRules) -> _Check:
     def check(data: bytes) -> tuple[int, Any, None]:
         msg = cdr.decode_clock(data)
-        return cdr.step_of_stamp_ns(msg.stamp_ns, rules.period_ns), msg, None
+        return step_of_stamp_ns(msg.stamp_ns, rules.period_ns), msg, None
 
     return check
 
@@ -493,16 +482,15 @@ def _progress_stream(rules: StreamRules) -> _Check:
     last = [0]
 
     def check(data: bytes) -> tuple[int, Any, Callable[[], None]]:
-        msg = cdr.decode_float64_multi_array(data)
-        (value,) = cdr.labelled_values(msg, cdr.PROGRESS_LABELS)
-        done = _whole("steps_recorded", value)
+        values = _values(layouts.PROGRESS, data)
+        done = int(values[0])
         if done < last[0] or (rules.steps is not None and done > rules.steps):
             raise SignalError(f"steps_recorded: {done} after {last[0]} (run of {rules.steps})")
 
         def commit() -> None:
             last[0] = done
 
-        return done, msg, commit
+        return done, values, commit
 
     return check
 
@@ -511,9 +499,8 @@ def _estimate_stream(rules: StreamRules) -> _Check:
     seen: dict[int, list[float]] = {}
 
     def check(data: bytes) -> tuple[int, Any, Callable[[], None]]:
-        msg = cdr.decode_float64_multi_array(data)
-        values = cdr.labelled_values(msg, cdr.ESTIMATE_LABELS)
-        estimate = cdr.check_estimate_values(values)
+        values = _values(layouts.ESTIMATES, data)
+        estimate = layouts.check_estimate_values(values)
         step = estimate.step
         if rules.steps is not None and step >= rules.steps:
             raise SignalError(f"step {step} beyond the run's last step {rules.steps - 1}")
@@ -674,12 +661,14 @@ def load_signals(
     """
     rules = StreamRules.for_bag(Path(bag_dir), period_s, scenario)
     streams = read_streams(Path(bag_dir), rules)
-    state = {k.step: (k.msg.position[0], k.msg.position[1]) for k in streams.by_table_name("state")}
-    ref = {k.step: (k.msg.position[0], k.msg.effort[0]) for k in streams.by_table_name("reference")}
-    cmd = {k.step: k.msg.effort[0] for k in streams.by_table_name("command")}
+    state = {k.step: (k.msg.encoder_rad, k.msg.scale_m) for k in streams.by_table_name("state")}
+    ref = {
+        k.step: (k.msg.position_rad, k.msg.torque_Nm) for k in streams.by_table_name("reference")
+    }
+    cmd = {k.step: k.msg.torque_Nm for k in streams.by_table_name("command")}
     faults = []
     for k in streams.by_table_name("fault"):
-        step, code, value = k.msg.data
+        step, code, value = k.msg
         faults.append(
             FaultRecord(step=int(step), code=int(code), name=FAULT_NAMES[int(code)], value=value)
         )
@@ -706,7 +695,15 @@ def load_signals(
 
 def _deformation_trace(kept: list[Kept], steps: list[int]) -> DeformationTrace:
     """The kept ``deformation`` samples at ``steps`` (missing ones: 0.0, NaN, NaN, invalid)."""
-    by_step = {k.step: k.msg.data[1:5] for k in kept}
+    by_step = {
+        k.step: (
+            k.msg.d_r_m_per_rad,
+            k.msg.scale_increment_m,
+            k.msg.encoder_increment_rad,
+            1.0 if k.msg.valid else 0.0,
+        )
+        for k in kept
+    }
     missing = (0.0, math.nan, math.nan, 0.0)
     rows = np.array([by_step.get(s, missing) for s in steps], dtype=float).reshape(-1, 4)
     return DeformationTrace(
@@ -717,7 +714,7 @@ def _deformation_trace(kept: list[Kept], steps: list[int]) -> DeformationTrace:
     )
 
 
-def _step(estimate: cdr.EstimateData) -> int:
+def _step(estimate: EstimateData) -> int:
     return estimate.step
 
 

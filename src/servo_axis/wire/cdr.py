@@ -17,47 +17,35 @@ Supported types: ``sensor_msgs/msg/JointState`` (:class:`JointStateData`),
 ``rosgraph_msgs/msg/Clock`` (:class:`ClockData`). Every malformed payload raises
 :class:`~servo_axis.core.errors.SignalError`.
 
-The checks the nodes apply to a message's content are here too, as pure
-functions of plain values, so that the nodes (through
-:mod:`servo_axis.wire.messages`, on rclpy messages) and the analysis (on the
-decoded payloads of a bag) validate with the same code: joint names
-(:func:`state_names`, :func:`motor_names`), array lengths and finiteness
-(:func:`check_joint_arrays`, :func:`check_finite`), the stamp on the control
-grid (:func:`step_of_stamp_ns`) and the layout of a Float64MultiArray
-(:func:`check_labelled_values`, with the ``*_LABELS`` of each topic).
-
-Every Float64MultiArray of the project has one ``MultiArrayDimension`` per
-field, in order: ``label`` = the field's name with its unit (``step``,
-``d_r_m_per_rad``, ``rms_m``), ``size`` = the number of values of the field
-(1 for a scalar, ``n`` for a segment such as ``x_r_m`` of the friction
-table), ``stride`` = ``size``; the sizes add up to ``len(data)``
-(``data_offset`` is written 0). A vector that belongs to a control step carries that
-step as its first field, ``step``.
+The checks of a message's content are not here: the layout of every topic
+and its rules are declared once in :mod:`servo_axis.wire.layouts` and apply
+to these decoded payloads and to rclpy messages alike. This module re-exports
+the few names other modules and documents take from it
+(:data:`PROGRESS_LABELS`, :data:`ESTIMATE_LABELS`, :class:`EstimateData`,
+:func:`check_estimate_values`, :func:`check_labelled_values`).
 """
 
 from __future__ import annotations
 
-import math
 import struct
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 from servo_axis.core.errors import SignalError
+from servo_axis.wire.checks import check_labelled_values as check_labelled_values
+from servo_axis.wire.layouts import ESTIMATES, PROGRESS
+from servo_axis.wire.layouts import EstimateData as EstimateData
+from servo_axis.wire.layouts import check_estimate_values as check_estimate_values
 
 __all__ = [
-    "DEFORMATION_LABELS",
     "ESTIMATE_LABELS",
-    "FAULT_LABELS",
     "PROGRESS_LABELS",
-    "STATS_LABELS",
-    "STATUS_LABELS",
     "SUPPORTED_TYPES",
     "ClockData",
     "EstimateData",
     "JointStateData",
     "MultiArrayData",
-    "check_deformation_values",
     "check_estimate_values",
     "check_labelled_values",
     "clock_ns_from_cdr",
@@ -65,12 +53,12 @@ __all__ = [
     "decode_clock",
     "decode_float64_multi_array",
     "decode_joint_state",
-    "joint_state_step",
-    "labelled_values",
-    "motor_names",
-    "state_names",
-    "step_of_stamp_ns",
 ]
+
+#: Labels of ``recorder/progress`` and ``identifier/estimates``
+#: (:data:`servo_axis.wire.layouts.PROGRESS`, :data:`~servo_axis.wire.layouts.ESTIMATES`).
+PROGRESS_LABELS: tuple[str, ...] = PROGRESS.labels
+ESTIMATE_LABELS: tuple[str, ...] = ESTIMATES.labels
 
 _NS_PER_S = 1_000_000_000
 _HEADER = 4
@@ -389,301 +377,3 @@ def decode(type_name: str, data: bytes) -> JointStateData | MultiArrayData | Clo
         )
     result: JointStateData | MultiArrayData | ClockData = decoder(data)
     return result
-
-
-# -- checks shared by the nodes and the analysis -------------------------------
-
-#: Field labels of the Float64MultiArray topics (one dimension per field,
-#: each of size 1 unless a topic says otherwise).
-STATUS_LABELS: tuple[str, ...] = (
-    "step",
-    "deadline_misses",
-    "rejected_commands",
-    "command_timeouts",
-)
-PROGRESS_LABELS: tuple[str, ...] = ("steps_recorded",)
-FAULT_LABELS: tuple[str, ...] = (
-    "step",
-    "code(1=following_error;2=travel;3=current;4=input_timeout)",
-    "value(m_or_A_or_s)",
-)
-STATS_LABELS: tuple[str, ...] = ("cycle", "rms_m", "max_m", "cycles_learned")
-#: ``deformation`` (004 eqs. (5)-(7)): the control step, ``d_r`` (0 where not
-#: defined), the scale's increment ``x_t[k] - x_t[k-p]``, the encoder's
-#: ``th_m[k] - th_m[k-p]`` and whether ``d_r`` is defined (1/0).
-DEFORMATION_LABELS: tuple[str, ...] = (
-    "step",
-    "d_r_m_per_rad",
-    "scale_increment_m",
-    "encoder_increment_rad",
-    "valid",
-)
-#: ``identifier/estimates``: the last control sample the estimate was computed
-#: from, the first it applies to, ``J, D, U, C`` (003 eq. (2)), the PE index
-#: of eq. (7) and whether each parameter was updated at this RLS step (1/0).
-ESTIMATE_LABELS: tuple[str, ...] = (
-    "step",
-    "applies_from_step",
-    "inertia_kgm2",
-    "damping_Nms_per_rad",
-    "unbalance_Nm",
-    "coulomb_Nm",
-    "kappa",
-    "updated_inertia",
-    "updated_damping",
-    "updated_unbalance",
-    "updated_coulomb",
-)
-
-
-@dataclass(frozen=True)
-class EstimateData:
-    """One online estimate of the identifier (topic ``identifier/estimates``).
-
-    Attributes
-    ----------
-    step : int
-        The last control sample the estimate was computed from (>= 0).
-    applies_from_step : int
-        The first control sample whose feedforward uses it (> ``step``).
-    inertia_kgm2, damping_Nms_per_rad, unbalance_Nm, coulomb_Nm : float
-        ``J`` (> 0), ``D``, ``U``, ``C`` (>= 0) of 003 eq. (2).
-    kappa : float
-        PE index of 003 eq. (7) (0 until its window is full).
-    updated : tuple of 4 bool
-        Whether ``J``, ``D``, ``U`` (eq. (16)) and ``C`` (eq. (8)) were updated.
-    """
-
-    step: int
-    applies_from_step: int
-    inertia_kgm2: float
-    damping_Nms_per_rad: float
-    unbalance_Nm: float
-    coulomb_Nm: float
-    kappa: float
-    updated: tuple[bool, bool, bool, bool]
-
-    def values(self) -> list[float]:
-        """The message's data, in :data:`ESTIMATE_LABELS` order."""
-        return [
-            float(self.step),
-            float(self.applies_from_step),
-            self.inertia_kgm2,
-            self.damping_Nms_per_rad,
-            self.unbalance_Nm,
-            self.coulomb_Nm,
-            self.kappa,
-            *(1.0 if u else 0.0 for u in self.updated),
-        ]
-
-
-def check_estimate_values(values: Sequence[float]) -> EstimateData:
-    """An :class:`EstimateData` of the values of an ``identifier/estimates`` message.
-
-    The values are in :data:`ESTIMATE_LABELS` order (:func:`check_labelled_values`
-    checks the layout); ``kappa``, an eigenvalue, may be a rounding below 0.
-
-    Raises
-    ------
-    SignalError
-        A value that is not finite, a step that is not whole and >= 0, an
-        application step not after it,
-        ``J <= 0``, a negative ``D``, ``U`` or ``C``, or a flag not 0 or 1.
-    """
-    if len(values) != len(ESTIMATE_LABELS):
-        raise SignalError(f"data: expected {len(ESTIMATE_LABELS)} values, got {len(values)}")
-    check_finite("data", values)
-    step, applies, j, d, u, c, kappa = (float(v) for v in values[:7])
-    if step != int(step) or step < 0:
-        raise SignalError(f"step: expected a whole number >= 0, got {step!r}")
-    if applies != int(applies) or applies <= step:
-        raise SignalError(
-            f"applies_from_step: expected a whole number after step {int(step)}, got {applies!r}"
-        )
-    if not j > 0.0:
-        raise SignalError(f"inertia_kgm2: expected a value > 0, got {j!r}")
-    for name, v in (("damping_Nms_per_rad", d), ("unbalance_Nm", u), ("coulomb_Nm", c)):
-        if v < 0.0:
-            raise SignalError(f"{name}: expected a value >= 0, got {v!r}")
-    flags = [float(v) for v in values[7:]]
-    for label, f in zip(ESTIMATE_LABELS[7:], flags, strict=True):
-        if f not in (0.0, 1.0):
-            raise SignalError(f"{label}: expected 0 or 1, got {f!r}")
-    return EstimateData(
-        step=int(step),
-        applies_from_step=int(applies),
-        inertia_kgm2=j,
-        damping_Nms_per_rad=d,
-        unbalance_Nm=u,
-        coulomb_Nm=c,
-        kappa=kappa,
-        updated=(flags[0] == 1.0, flags[1] == 1.0, flags[2] == 1.0, flags[3] == 1.0),
-    )
-
-
-def state_names(axis: str) -> list[str]:
-    """Joint names of the ``state`` topic: ``[<axis>_motor, <axis>_table]``."""
-    return [f"{axis}_motor", f"{axis}_table"]
-
-
-def motor_names(axis: str) -> list[str]:
-    """Joint names of the ``command``, ``reference`` and ``learning/correction`` topics."""
-    return [f"{axis}_motor"]
-
-
-def check_finite(name: str, values: Sequence[float]) -> Sequence[float]:
-    """``values`` if every one is finite, else :class:`SignalError` naming ``name[i]``.
-
-    Sums beyond 1e308 are no physical signal either and are refused too.
-    """
-    # Fast path: the sum of finite values is finite.
-    total = sum(values)
-    if total - total == 0.0:
-        return values
-    for i, v in enumerate(values):
-        if not math.isfinite(v):
-            raise SignalError(f"{name}[{i}]: expected a finite number, got {v!r}")
-    raise SignalError(f"{name}: values too large to be a physical signal, got {list(values)}")
-
-
-def check_joint_arrays(
-    got_names: Sequence[str],
-    names: Sequence[str],
-    arrays: Iterable[tuple[str, Sequence[float]]],
-) -> None:
-    """Check a JointState's names and arrays as every subscriber does.
-
-    Parameters
-    ----------
-    got_names : sequence of str
-        The message's ``name``.
-    names : sequence of str
-        The names it must have, in order.
-    arrays : iterable of (field, values)
-        The arrays the topic uses (``position``, ...): each must hold one
-        finite value per name.
-
-    Raises
-    ------
-    SignalError
-        Naming the first field that is wrong.
-    """
-    if list(got_names) != list(names):
-        raise SignalError(f"name: expected {list(names)}, got {list(got_names)}")
-    for field, values in arrays:
-        if len(values) != len(names):
-            raise SignalError(f"{field}: expected {len(names)} values, got {len(values)}")
-        check_finite(field, values)
-
-
-def step_of_stamp_ns(ns: int, period_ns: int) -> int:
-    """Control sample of a stamp of ``ns`` nanoseconds; :class:`SignalError` off the grid."""
-    step, rem = divmod(ns, period_ns)
-    if rem != 0 or ns < 0:
-        raise SignalError(f"header.stamp: {ns} ns is not on the control grid of {period_ns} ns")
-    return int(step)
-
-
-def check_labelled_values(
-    dim_labels: Sequence[str],
-    dim_sizes: Sequence[int],
-    data: Sequence[float],
-    labels: Sequence[str],
-    *,
-    dim_strides: Sequence[int] | None = None,
-    sizes: Sequence[int | None] | None = None,
-) -> list[float]:
-    """The values of a labelled Float64MultiArray after checking its layout.
-
-    The layout has one dimension per field, in order: ``label`` = the
-    field's name, ``size`` = its number of values, ``stride`` = ``size``;
-    the sizes add up to ``len(data)``.
-
-    Parameters
-    ----------
-    dim_labels, dim_sizes : sequence
-        ``layout.dim[i].label`` and ``.size`` of the message.
-    data : sequence of float
-        ``data``.
-    labels : sequence of str
-        The fields the topic has, in order.
-    dim_strides : sequence of int or None
-        ``layout.dim[i].stride`` (checked equal to the sizes); None: not checked.
-    sizes : sequence of (int or None) or None
-        The size each field must have (None for a segment of any length);
-        None: every field is a scalar (size 1).
-
-    Returns
-    -------
-    list of float
-        ``data``, every value finite.
-
-    Raises
-    ------
-    SignalError
-        Naming what is wrong: the fields, a size, a stride, the total length
-        or a value that is not finite.
-    """
-    if list(dim_labels) != list(labels):
-        raise SignalError(
-            f"layout.dim: expected one dimension per field {list(labels)}, got {list(dim_labels)}"
-        )
-    want = [1] * len(labels) if sizes is None else list(sizes)
-    for label, got, expected in zip(labels, dim_sizes, want, strict=True):
-        if expected is not None and got != expected:
-            raise SignalError(f"layout.dim {label!r}: expected size {expected}, got {got}")
-    if dim_strides is not None and list(dim_strides) != list(dim_sizes):
-        raise SignalError(
-            f"layout.dim: expected strides equal to the sizes {list(dim_sizes)}, "
-            f"got {list(dim_strides)}"
-        )
-    if sum(dim_sizes) != len(data):
-        raise SignalError(
-            f"data: expected {sum(dim_sizes)} values (sizes {list(dim_sizes)} of "
-            f"{list(labels)}), got {len(data)}"
-        )
-    return [float(v) for v in check_finite("data", data)]
-
-
-def check_deformation_values(values: Sequence[float]) -> int:
-    """The step of the values of a ``deformation`` message (:data:`DEFORMATION_LABELS` order).
-
-    Raises
-    ------
-    SignalError
-        A step that is not a whole number >= 0, or ``valid`` neither 0 nor 1
-        (:func:`check_labelled_values` checks the layout and finiteness).
-    """
-    step, valid = values[0], values[4]
-    if step != int(step) or step < 0:
-        raise SignalError(f"step: expected a whole number >= 0, got {step!r}")
-    if valid not in (0.0, 1.0):
-        raise SignalError(f"valid: expected 0 or 1, got {valid!r}")
-    return int(step)
-
-
-def joint_state_step(
-    msg: JointStateData, names: Sequence[str], fields: Sequence[str], period_ns: int
-) -> int:
-    """The control step of a decoded JointState that passes the subscribers' checks.
-
-    ``names`` are the joint names the topic must carry (:func:`state_names`,
-    :func:`motor_names`) and ``fields`` the arrays it uses (one finite value
-    per name each); the stamp must be on the grid of ``period_ns``.
-
-    Raises
-    ------
-    SignalError
-        Naming what is wrong (as :mod:`servo_axis.wire.messages` does).
-    """
-    check_joint_arrays(msg.name, names, ((f, getattr(msg, f)) for f in fields))
-    return step_of_stamp_ns(msg.stamp_ns, period_ns)
-
-
-def labelled_values(
-    msg: MultiArrayData, labels: Sequence[str], *, sizes: Sequence[int | None] | None = None
-) -> list[float]:
-    """The values of a decoded labelled Float64MultiArray (:func:`check_labelled_values`)."""
-    return check_labelled_values(
-        msg.labels, msg.sizes, msg.data, labels, dim_strides=msg.strides, sizes=sizes
-    )

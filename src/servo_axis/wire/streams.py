@@ -9,18 +9,20 @@ or behind it (a replay) is refused and leaves the gate as it was, so it
 never displaces the real stream. The nodes apply it after a message's
 payload is validated (:mod:`servo_axis.wire.messages`), and the analysis
 applies the same gate to the bag in arrival order, so that junk a recorder
-wrote changes no figure.
+wrote changes no figure. The streams and their checks are those of the
+topic layouts (:mod:`servo_axis.wire.layouts`).
 
 Nothing here imports rclpy.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Iterator, Sequence
-from typing import TypeVar
+from collections.abc import Iterable, Iterator
+from typing import Any, TypeVar
 
 from servo_axis.core.errors import SignalError
-from servo_axis.wire import cdr
+from servo_axis.wire import cdr, layouts
+from servo_axis.wire.layouts import ArrayLayout, JointLayout
 
 T = TypeVar("T")
 
@@ -103,31 +105,25 @@ def gated(items: Iterable[tuple[int, T]], gate: StreamGate) -> Iterator[tuple[in
         yield step, item
 
 
-#: The JointState streams of the table: their joint names (of the axis) and
-#: the arrays each carries (one finite value per joint in each).
-JOINT_STREAMS: dict[str, tuple[Callable[[str], list[str]], tuple[str, ...]]] = {
-    "state": (cdr.state_names, ("position", "velocity", "effort")),
-    "command": (cdr.motor_names, ("effort",)),
-    "reference": (cdr.motor_names, ("position", "velocity", "effort")),
-    "learning/correction": (cdr.motor_names, ("position", "velocity")),
-    "learning/input_correction": (cdr.motor_names, ("effort",)),
-}
+#: The JointState streams of the table, by topic (:mod:`servo_axis.wire.layouts`).
+JOINT_STREAMS: dict[str, JointLayout[Any]] = layouts.JOINT_LAYOUTS
 
 #: The per-sample Float64MultiArray streams of the table (a vector per control
-#: step that carries the step as its first field): their fields and the check
-#: that gives the step of the values.
-ARRAY_STREAMS: dict[str, tuple[tuple[str, ...], Callable[[Sequence[float]], int]]] = {
-    "deformation": (cdr.DEFORMATION_LABELS, cdr.check_deformation_values),
+#: step that carries the step as its first field), by topic.
+ARRAY_STREAMS: dict[str, ArrayLayout[Any]] = {
+    name: layout
+    for name, layout in layouts.LAYOUTS.items()
+    if isinstance(layout, ArrayLayout) and layout.per_step
 }
 
 #: Every stream with one message per control step (what a recorder may count).
 STEP_STREAMS: frozenset[str] = frozenset(JOINT_STREAMS) | frozenset(ARRAY_STREAMS)
 
 
-def decode_joint_stream(
-    name: str, data: bytes, *, axis: str, period_ns: int
-) -> tuple[int, cdr.JointStateData]:
-    """Step and message of a recorded JointState of stream ``name`` that passes the subscribers' checks.
+def decode_joint_stream(name: str, data: bytes, *, axis: str, period_ns: int) -> tuple[int, Any]:
+    """Step and sample of a recorded JointState of stream ``name`` that passes the subscribers' checks.
+
+    The sample is the layout's (:class:`~servo_axis.wire.layouts.StateSample`, ...).
 
     Raises
     ------
@@ -135,29 +131,35 @@ def decode_joint_stream(
         For a payload that does not decode, the wrong joints, a missing or
         non-finite value, a stamp off the control grid.
     """
-    names_of, fields = JOINT_STREAMS[name]
     msg = cdr.decode_joint_state(data)  # SignalError for a payload that does not decode
-    return cdr.joint_state_step(msg, names_of(axis), fields, period_ns), msg
+    sample = JOINT_STREAMS[name].decode(msg.name, msg, msg.stamp_ns, axis, period_ns)
+    return sample.step, sample
 
 
-def decode_array_stream(name: str, data: bytes) -> tuple[int, cdr.MultiArrayData]:
-    """Step and message of a recorded per-sample Float64MultiArray of stream ``name``.
+def decode_array_stream(name: str, data: bytes) -> tuple[int, Any]:
+    """Step and sample of a recorded per-sample Float64MultiArray of stream ``name``.
 
     Raises
     ------
     SignalError
         For a payload that does not decode, a layout other than the topic's
-        fields, a non-finite value or a value its check refuses.
+        fields, a non-finite value or a value its field's rule refuses.
     """
-    labels, step_of = ARRAY_STREAMS[name]
+    layout = ARRAY_STREAMS[name]
     msg = cdr.decode_float64_multi_array(data)
-    return step_of(cdr.labelled_values(msg, labels)), msg
+    sample = layout.sample_of(layout.values(msg.labels, msg.sizes, msg.data, msg.strides))
+    return sample.step, sample
 
 
-def decode_step_stream(
-    name: str, data: bytes, *, axis: str, period_ns: int
-) -> tuple[int, cdr.JointStateData | cdr.MultiArrayData]:
-    """Step and message of a recorded sample of any :data:`STEP_STREAMS` stream (checked)."""
+def decode_step_stream(name: str, data: bytes, *, axis: str, period_ns: int) -> tuple[int, Any]:
+    """Step and decoded payload of a recorded sample of any :data:`STEP_STREAMS` stream.
+
+    The checks of :func:`decode_joint_stream` and :func:`decode_array_stream`,
+    without building the sample (the recorder counts with it, every step).
+    """
     if name in ARRAY_STREAMS:
-        return decode_array_stream(name, data)
-    return decode_joint_stream(name, data, axis=axis, period_ns=period_ns)
+        array = cdr.decode_float64_multi_array(data)
+        values = ARRAY_STREAMS[name].values(array.labels, array.sizes, array.data, array.strides)
+        return int(values[0]), array
+    msg = cdr.decode_joint_state(data)
+    return JOINT_STREAMS[name].step(msg.name, msg, msg.stamp_ns, axis, period_ns), msg

@@ -31,7 +31,7 @@ from servo_axis.analysis.summary import summarise
 from servo_axis.core.errors import SignalError
 from servo_axis.params.scenario import load_scenario
 from servo_axis.recording.writer import BagWriter
-from servo_axis.wire.cdr import FAULT_LABELS, STATS_LABELS, STATUS_LABELS
+from servo_axis.wire import layouts
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"
@@ -145,16 +145,18 @@ def clean_messages() -> list[tuple[str, bytes]]:
         out.append(("/x/state", state(k)))
         if k % 50 == 0:
             status = [float(k), 0.0, 0.0, 0.0]
-            out.append(("/x/plant/status", CDR.multi_array(STATUS_LABELS, status)))
+            out.append(("/x/plant/status", CDR.multi_array(layouts.STATUS.labels, status)))
         out.append(("/x/command", command(k)))
         if k == 120:
-            out.append(("/x/fault", CDR.multi_array(FAULT_LABELS, [120.0, 1.0, 2.5e-3])))
+            out.append(("/x/fault", CDR.multi_array(layouts.FAULT.labels, [120.0, 1.0, 2.5e-3])))
         if k % CYCLE == CYCLE - 1 and k + 1 < N:  # end of a cycle: the next one's corrections
             cycle = k // CYCLE + 1
             for j in range(k + 1, k + 1 + CYCLE, RATIO):
                 out.append(("/x/learning/correction", correction(j)))
             stats = [float(cycle), 1e-6 * cycle, 3e-6 * cycle, float(cycle - 1)]
-            out.append(("/x/learning/cycle_stats", CDR.multi_array(STATS_LABELS, stats)))
+            out.append(
+                ("/x/learning/cycle_stats", CDR.multi_array(layouts.CYCLE_STATS.labels, stats))
+            )
     return out
 
 
@@ -206,9 +208,12 @@ def junk_for(topic: str, k: int) -> list[bytes]:
             b"\x00\x01",
         ]
     labels, good = {
-        "/x/plant/status": (STATUS_LABELS, [float(k + 2), 0.0, 0.0, 0.0]),  # off the stride
-        "/x/learning/cycle_stats": (STATS_LABELS, [1.0, 1e-6, 1e-6, 5.0]),  # learned > cycle
-        "/x/fault": (FAULT_LABELS, [float(k), 9.0, 1.0]),
+        "/x/plant/status": (layouts.STATUS.labels, [float(k + 2), 0.0, 0.0, 0.0]),  # off the stride
+        "/x/learning/cycle_stats": (
+            layouts.CYCLE_STATS.labels,
+            [1.0, 1e-6, 1e-6, 5.0],
+        ),  # learned > cycle
+        "/x/fault": (layouts.FAULT.labels, [float(k), 9.0, 1.0]),
     }[topic]
     wrong = ",".join(labels).replace("_", "-")
     return [
@@ -399,8 +404,8 @@ def test_short_and_empty_joint_states_are_dropped_not_raised(tmp_path: Path) -> 
         ("/x/reference", CDR.joint_state(0, [])),
         ("/x/reference", CDR.joint_state(0, MOTOR, position=[1.0])),
         ("/x/command", CDR.joint_state(0, MOTOR)),
-        ("/x/fault", CDR.multi_array(FAULT_LABELS, [])),
-        ("/x/fault", CDR.multi_array(FAULT_LABELS, [3.0])),
+        ("/x/fault", CDR.multi_array(layouts.FAULT.labels, [])),
+        ("/x/fault", CDR.multi_array(layouts.FAULT.labels, [3.0])),
         ("/x/state", b""),
     ]
     write(tmp_path / "bag", msgs)

@@ -25,7 +25,7 @@ from servo_axis.params.factories import build_generator, feedforward_values
 from servo_axis.params.scenario import load_scenario
 from servo_axis.params.schemas import SHARED
 from servo_axis.recording.writer import BagWriter
-from servo_axis.wire.cdr import FAULT_LABELS, STATUS_LABELS
+from servo_axis.wire import layouts
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"
@@ -144,9 +144,12 @@ def write_bag(directory: Path) -> dict[str, int]:
             if k not in MISSING_COMMAND:
                 put("/x/command", cdr.joint_state(k, ["x_motor"], effort=[v["command_Nm"]]))
             if k == int(FAULT[0]):
-                put("/x/fault", cdr.multi_array(FAULT_LABELS, list(FAULT)))
+                put("/x/fault", cdr.multi_array(layouts.FAULT.labels, list(FAULT)))
             if k % 50 == 0:
-                put("/x/plant/status", cdr.multi_array(STATUS_LABELS, [float(k), 0.0, 0.0, 0.0]))
+                put(
+                    "/x/plant/status",
+                    cdr.multi_array(layouts.STATUS.labels, [float(k), 0.0, 0.0, 0.0]),
+                )
     return counts
 
 
@@ -210,11 +213,11 @@ def test_load_signals_drops_a_fault_of_an_unknown_code_or_layout(tmp_path: Path)
     cdr = Cdr()
     with BagWriter(tmp_path / "bag") as bag:
         bag.add_topic("fault", MULTI_ARRAY)
-        bag.write("fault", cdr.multi_array(FAULT_LABELS, [4.0, 99.0, -1.0]), log_time_ns=5)
+        bag.write("fault", cdr.multi_array(layouts.FAULT.labels, [4.0, 99.0, -1.0]), log_time_ns=5)
         bag.write("fault", cdr.multi_array("step,code,value", [5.0, 1.0, -1.0]), log_time_ns=6)
-        bag.write("fault", cdr.multi_array(FAULT_LABELS, [6.5, 1.0, -1.0]), log_time_ns=7)
-        bag.write("fault", cdr.multi_array(FAULT_LABELS, [7.0, 3.0, -1.0]), log_time_ns=8)
-        bag.write("fault", cdr.multi_array(FAULT_LABELS, [7.0, 3.0, -2.0]), log_time_ns=9)
+        bag.write("fault", cdr.multi_array(layouts.FAULT.labels, [6.5, 1.0, -1.0]), log_time_ns=7)
+        bag.write("fault", cdr.multi_array(layouts.FAULT.labels, [7.0, 3.0, -1.0]), log_time_ns=8)
+        bag.write("fault", cdr.multi_array(layouts.FAULT.labels, [7.0, 3.0, -2.0]), log_time_ns=9)
     sig = load_signals(tmp_path / "bag", PERIOD_S)
     assert sig.step.size == 0 and sig.command_Nm.size == 0
     # Unknown code, wrong labels, a step that is no whole number, the same step again.

@@ -9,7 +9,7 @@ hidden inside a function is still a circle.
   nothing but numpy, scipy, numba (only ``core.kernels``, the compiled
   sub-step loops) and the standard library;
 * ``simulate``, ``analysis``, ``friction_id``, ``gms_fit``, ``params``, ``study``,
-  ``wire.topics``,
+  ``wire.topics``, ``wire.layouts``, ``wire.checks``, ``wire.streams``,
   ``wire.cdr`` and ``recording.reader`` reach no rclpy and no ROS message
   package, directly or through other modules of the project.
 """
@@ -169,6 +169,9 @@ ROS_FREE = [
     "servo_axis.gms_fit",
     "servo_axis.storage",
     "servo_axis.wire.topics",
+    "servo_axis.wire.layouts",
+    "servo_axis.wire.checks",
+    "servo_axis.wire.streams",
     "servo_axis.wire.cdr",
     "servo_axis.recording.reader",
     *sorted(

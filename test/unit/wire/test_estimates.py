@@ -13,7 +13,8 @@ from std_msgs.msg import Float64MultiArray
 
 from servo_axis.core.errors import SignalError
 from servo_axis.wire import messages as msgs
-from servo_axis.wire.cdr import ESTIMATE_LABELS, EstimateData, check_estimate_values
+from servo_axis.wire.layouts import EstimateData, check_estimate_values
+from servo_axis.wire.messages import ESTIMATE_LABELS
 
 FLAG_LABELS = ESTIMATE_LABELS[7:]
 

@@ -10,7 +10,9 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 from servo_axis.core.errors import SignalError
+from servo_axis.wire import layouts
 from servo_axis.wire import messages as msgs
+from servo_axis.wire.streams import decode_joint_stream, decode_step_stream
 
 PERIOD_NS = 1_000_000
 
@@ -56,6 +58,11 @@ def test_period_ns_requires_whole_nanoseconds() -> None:
             msgs.input_correction_to_msg,
             msgs.input_correction_from_msg,
         ),
+        (
+            msgs.CorrectionSample(12, -1e-7, 3e-5),
+            msgs.correction_to_msg,
+            msgs.correction_from_msg,
+        ),
     ],
 )
 def test_round_trip_through_cdr(sample: object, encode: object, decode: object) -> None:
@@ -63,6 +70,44 @@ def test_round_trip_through_cdr(sample: object, encode: object, decode: object) 
     wire = deserialize_message(serialize_message(msg), type(msg))
     assert decode(wire, axis="x", period_ns_=PERIOD_NS) == sample  # type: ignore[operator]
     assert all(name.startswith("x_") for name in wire.name)
+
+
+@pytest.mark.parametrize("topic", sorted(layouts.JOINT_LAYOUTS))
+def test_every_joint_layout_round_trips_through_rclpy_and_the_bag_decoder(topic: str) -> None:
+    """Each value lands where the layout says; the node's and the bag's decoders agree."""
+    layout = layouts.JOINT_LAYOUTS[topic]
+    short = topic.rpartition("/")[2]
+    to_msg = getattr(msgs, f"{short}_to_msg")
+    write = getattr(msgs, f"write_{short}")
+    from_msg = getattr(msgs, f"{short}_from_msg")
+    values = [(-1) ** i * 0.25 * (i + 1) for i in range(len(layout.values))]
+    sample = layout.sample(41, *values)
+    msg = to_msg(sample, axis="z", period_ns_=PERIOD_NS)
+    assert list(msg.name) == layout.names("z") == [f"z_{j}" for j in layout.joints]
+    for array in ("position", "velocity", "effort"):
+        assert list(getattr(msg, array)) == [getattr(sample, f) for f in getattr(layout, array)]
+    assert msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec == 41 * PERIOD_NS
+    data = serialize_message(msg)
+    assert from_msg(deserialize_message(data, JointState), axis="z", period_ns_=PERIOD_NS) == sample
+    assert decode_joint_stream(topic, data, axis="z", period_ns=PERIOD_NS) == (41, sample)
+    assert decode_step_stream(topic, data, axis="z", period_ns=PERIOD_NS)[0] == 41
+    # A publisher's template refilled in place carries the same message.
+    template = to_msg(layout.sample(0, *[0.0] * len(values)), axis="z", period_ns_=PERIOD_NS)
+    assert write(template, sample, period_ns_=PERIOD_NS) is template
+    assert from_msg(template, axis="z", period_ns_=PERIOD_NS) == sample
+    assert template == msg
+    with pytest.raises(SignalError, match=r"name: expected \['x_motor"):
+        from_msg(msg, axis="x", period_ns_=PERIOD_NS)
+    # The recorder's count refuses what the node refuses, with the same words.
+    getattr(msg, layout.arrays[-1]).append(1.0)
+    with pytest.raises(SignalError) as node_err:
+        from_msg(msg, axis="z", period_ns_=PERIOD_NS)
+    with pytest.raises(SignalError) as bag_err:
+        decode_step_stream(topic, serialize_message(msg), axis="z", period_ns=PERIOD_NS)
+    assert str(bag_err.value) == str(node_err.value)
+    assert str(node_err.value).startswith(
+        f"{layout.arrays[-1]}: expected {len(layout.joints)} values"
+    )
 
 
 def test_state_rejects_nan_wrong_length_and_wrong_names() -> None:
