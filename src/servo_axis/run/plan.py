@@ -21,6 +21,7 @@ from servo_axis.params.factories import (
     feedforward_overrides,
     learning_law,
 )
+from servo_axis.params.registry import term_files
 from servo_axis.params.scenario import (
     ROLES,
     SHARED_SECTION,
@@ -203,7 +204,7 @@ def handshake_overrides(
     if "feedforward" in roles:
         ff: dict[str, Any] = {"wait_for_reference_subscribers": count("reference", roles, recorded)}
         given = node_params(scenario, "feedforward")
-        for key in ("friction_table.file", "gms.file"):
+        for key in term_files():
             if given.get(key, ""):
                 ff[key] = resolve_table(given[key], scenario_dir)
         ff.update(feedforward_overrides(scenario, given))
