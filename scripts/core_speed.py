@@ -33,7 +33,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from servo_axis.params import factories
+from servo_axis.params import factories, resolve
 from servo_axis.params.scenario import (
     axes_of,
     axis_view,
@@ -43,7 +43,6 @@ from servo_axis.params.scenario import (
     scenario_dir,
     scenario_names,
 )
-from servo_axis.run.plan import learning_values
 
 
 def runner(path: Path) -> tuple[str, Callable[..., object]]:
@@ -65,7 +64,7 @@ def without_target_learning(
     learning = scenario.get("feedforward", {}).get("ros__parameters", {}).get("learning", {})
     if not learning.get("enabled"):
         return path, ""
-    if factories.build_learning_law(learning_values(scenario, path)).side == "input":
+    if factories.build_learning_law(resolve.node_values(scenario, "learning")).side == "input":
         return path, ""
     ff = scenario["feedforward"]["ros__parameters"]
     ff["learning"] = {**learning, "enabled": False}
@@ -118,7 +117,7 @@ def main() -> int:
     for label, (path, note) in cases(names, work):
         kind, fn = runner(path)
         kind += note
-        pv = factories.node_values(load_scenario(path), "plant")
+        pv = resolve.node_values(load_scenario(path), "plant")
         period = pv["control_period_s"]
         steps = factories.run_steps(pv)
         if args.steps is not None:

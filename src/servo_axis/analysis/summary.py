@@ -8,7 +8,7 @@ the contour). ``to_json()`` writes the text layout the runs have always had
 and ``from_json()`` / :func:`load_summary` read it back.
 
 Every parameter (control period, lead, flags, names) is the checked value of
-the scenario (:func:`servo_axis.params.factories.node_values`), its default
+the scenario (:func:`servo_axis.params.resolve.node_values`), its default
 where the scenario does not set it.
 
 Units follow the plant model: the tracking error is the error of the table's
@@ -57,13 +57,8 @@ from servo_axis.analysis.signals import (
 )
 from servo_axis.core.deformation import DeformationTrace
 from servo_axis.core.errors import ConfigError
-from servo_axis.params.factories import (
-    build_reference,
-    feedforward_values,
-    learning_law,
-    node_values,
-    plant_model,
-)
+from servo_axis.params.factories import build_reference, learning_law, plant_model
+from servo_axis.params.resolve import feedforward_values, node_values
 from servo_axis.params.scenario import load_scenario
 from servo_axis.wire.cdr import EstimateData
 
@@ -1196,9 +1191,7 @@ def ilc_convergence(scenario: dict[str, Any], scenario_path: Path) -> dict[str, 
     """
     if "learning" not in scenario or "plant" not in scenario:
         return None
-    from servo_axis.run.plan import learning_values
-
-    values = learning_values(scenario, scenario_path)
+    values = node_values(scenario, "learning")
     convergence = learning_law(values["law"]).convergence
     if convergence is None:
         return None

@@ -15,10 +15,7 @@ Nothing here imports rclpy.
 
 from __future__ import annotations
 
-import hashlib
-import json
 from collections.abc import Callable, Mapping
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -44,8 +41,7 @@ from servo_axis.params.registry import FeedforwardTermEntry as FeedforwardTermEn
 from servo_axis.params.registry import IdentifierEntry as IdentifierEntry
 from servo_axis.params.registry import LearningLawEntry as LearningLawEntry
 from servo_axis.params.registry import PlantModelEntry as PlantModelEntry
-from servo_axis.params.registry import Values, feedforward_terms, term_files
-from servo_axis.params.scenario import node_params, resolve_table
+from servo_axis.params.registry import Values, feedforward_terms
 from servo_axis.params.schema import Param, build, check_values, section
 
 #: The keys of the ``nominal.*`` values, by the names the core constructors give them.
@@ -150,20 +146,6 @@ def build_plant(values: Values) -> Plant:
     """The plant model of checked plant values, its sensor noise seeded by ``noise_seed``."""
     entry = plant_model(values["model"])
     return entry.build(values, np.random.default_rng(values["noise_seed"]))
-
-
-def plant_fingerprint(scenario: dict[str, Any]) -> str:
-    """``<model>:<16 hex>``: which plant a file identified on it belongs to.
-
-    The SHA-256 of the checked values of the plant model's own keys (its
-    physics, not the node's run settings) and the lead, as sorted JSON with
-    floats in ``repr``; a GMS parameter file carries it, and the feedforward
-    refuses a file of another plant.
-    """
-    values = node_values(scenario, "plant")
-    keys = [*sorted(plant_model(values["model"]).schema), "lead_m_per_rad"]
-    text = json.dumps({k: values[k] for k in keys}, sort_keys=True)
-    return f"{values['model']}:{hashlib.sha256(text.encode()).hexdigest()[:16]}"
 
 
 # --------------------------------------------------------------------------- feedback
@@ -454,34 +436,6 @@ def build_identifier(values: Values) -> OnlineIdentifier:
     return identifier_method(values["method"]).build(values)
 
 
-def adaptive_overrides(scenario: dict[str, Any]) -> dict[str, Any]:
-    """What the feedforward generator copies from the identifier section (one source each).
-
-    The estimates' schedule (``adaptive.rls_period_s``, ``adaptive.latency_s``),
-    the initial ``U``, ``C`` of the MNC until the first estimate applies, and
-    whether it compensates friction (``mnc.friction``: the method estimates
-    ``C``, DLPID, or not, the previous MARC, eq. (17)).
-    """
-    ident = node_params(scenario, "identifier")
-    schema = schemas.IDENTIFIER
-    method = ident.get("method", schema["method"].default)
-    entry = identifier_method(method, "identifier.method")
-
-    def value(key: str) -> Any:
-        return ident.get(key, {**schema, **entry.schema}[key].default)
-
-    out: dict[str, Any] = {
-        "adaptive.enabled": True,
-        "adaptive.rls_period_s": value("rls_period_s"),
-        "adaptive.latency_s": value("latency_s"),
-        "mnc.unbalance_Nm": value("initial.unbalance_Nm"),
-        "mnc.friction": entry.estimates_friction,
-    }
-    if entry.estimates_friction:
-        out["mnc.coulomb_Nm"] = value("initial.coulomb_Nm")
-    return out
-
-
 # --------------------------------------------------------------------------- schemas and values
 
 #: Schema of each node (shared keys included), before its extensions' keys
@@ -609,49 +563,3 @@ def check_recorder_topics(values: Values) -> None:
             f"parameter 'final_every_steps': expected one period per final topic "
             f"({len(finals)} topics), got {len(every)}"
         )
-
-
-def node_values(scenario: dict[str, Any], role: str) -> dict[str, Any]:
-    """Checked parameter values of one node of a scenario (no ROS).
-
-    The feedforward generator's ``learning.law`` is the learning section's
-    ``law`` and, with an identifier, its ``adaptive.*`` and initial
-    ``mnc.*`` come from the identifier section (:func:`adaptive_overrides`;
-    one source, the runner passes them on the same way).
-    """
-    given = node_params(scenario, role)
-    if role == "feedforward" and "learning.law" not in given:
-        law = node_params(scenario, "learning").get("law")
-        if law is not None:
-            given = {**given, "learning.law": law}
-    if role == "feedforward" and "identifier" in scenario:
-        given = {**given, **adaptive_overrides(scenario)}
-    if role == "feedforward":
-        given = {**given, **feedforward_overrides(scenario, given)}
-    return checked_values(role, given)
-
-
-def feedforward_overrides(scenario: dict[str, Any], given: Values) -> dict[str, Any]:
-    """What the feedforward copies from the other sections: one source for each value.
-
-    ``dob.enabled`` and ``dob.cutoff_hz`` of the feedback, which the
-    compensation terms bypass (:func:`build_terms`), and what each
-    installed term takes from other sections (``FeedforwardTermEntry.overrides``:
-    ``gms.plant``, the plant a GMS file must come from, when the GMS term is on).
-    """
-    feedback = node_params(scenario, "feedback")
-    out = {
-        key: feedback.get(key, schemas.FEEDBACK[key].default)
-        for key in ("dob.enabled", "dob.cutoff_hz")
-    }
-    for _, term in feedforward_terms():
-        out.update(term.overrides(scenario, given))
-    return out
-
-
-def feedforward_values(scenario: dict[str, Any], scenario_path: Path) -> dict[str, Any]:
-    """Checked feedforward values, the terms' file paths made absolute."""
-    values = node_values(scenario, "feedforward")
-    for key in term_files():
-        values[key] = resolve_table(values[key], Path(scenario_path).resolve().parent)
-    return values

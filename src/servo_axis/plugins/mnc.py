@@ -5,7 +5,7 @@ model of eq. (14), at ``T_r`` (eqs. (12)-(15); eq. (17) without friction:
 the previous MARC) (:class:`servo_axis.core.feedforward.mnc.NonlinearityCompensator`).
 Its ``U`` and ``C`` follow the online estimates when ``adaptive.enabled``;
 with an identifier the resolver copies its initial ``U``, ``C`` and whether
-it estimates ``C`` (:func:`servo_axis.params.factories.adaptive_overrides`).
+it estimates ``C`` (:func:`servo_axis.params.resolve.adaptive_overrides`).
 """
 
 from __future__ import annotations
