@@ -103,7 +103,8 @@ SHARED: dict[str, Param] = {
 PLANT: dict[str, Param] = {
     "model": Param(
         "ball_screw",
-        meaning="plant model (registered name): ball_screw = rigid ball-screw axis with "
+        meaning="plant model: the name of an installed entry point of servo_axis.plant_models "
+        "(`python -m servo_axis list` shows them); ball_screw = rigid ball-screw axis with "
         "resonance modes, dead time and friction, eq. (30) of 000",
     ),
     "noise_seed": Param(
@@ -452,7 +453,8 @@ LEARNING: dict[str, Param] = {
     **REFERENCE,
     "law": Param(
         "rptc",
-        meaning="learning law (registered name): rptc = repetitive PTC with the n-times "
+        meaning="learning law: the name of an installed entry point of servo_axis.learning_laws; "
+        "rptc = repetitive PTC with the n-times "
         "filter (000); silc = standard ILC, pilc_bf / pilc_bfft = projection-based ILC with "
         "basis functions / and the data-based friction table (001)",
     ),
@@ -521,7 +523,8 @@ LEARNING: dict[str, Param] = {
 IDENTIFIER: dict[str, Param] = {
     "method": Param(
         "dlpid",
-        meaning="identification method (registered name): dlpid = double-layer parameter "
+        meaning="identification method: the name of an installed entry point of "
+        "servo_axis.identification_methods; dlpid = double-layer parameter "
         "identification, RLS of J, D, U plus the friction layer of eq. (8) (003); marc = the "
         "previous MARC, RLS of J, D, U only, friction unmodelled (003 [11])",
     ),
