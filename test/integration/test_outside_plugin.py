@@ -240,7 +240,7 @@ def test_list_and_the_parameter_reference_show_the_outside_extensions(
     bad.write_text(yaml.safe_dump(data))
     code = (
         "import sys\n"
-        "from servo_axis.params.factories import node_values\n"
+        "from servo_axis.params.resolve import node_values\n"
         "from servo_axis.params.scenario import load_scenario\n"
         "try:\n"
         f"    node_values(load_scenario({str(bad)!r}), 'plant')\n"
