@@ -314,10 +314,9 @@ def law_cost_ms(data: dict, scenario: Path) -> float:
     """Median wall time (ms) of one ``learn`` + ``next_correction`` of the scenario's law, in-process."""
     import numpy as np
 
-    from servo_axis.params import factories
-    from servo_axis.run.plan import learning_values
+    from servo_axis.params import factories, resolve
 
-    law = factories.build_learning_law(learning_values(data, scenario))
+    law = factories.build_learning_law(resolve.node_values(data, "learning"))
     rng = np.random.default_rng(0)
     times = []
     for trial in range(1, 21):

@@ -34,7 +34,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from servo_axis.params import factories
+from servo_axis.params import factories, resolve
 from servo_axis.params.scenario import (
     axes_of,
     axis_view,
@@ -96,7 +96,7 @@ def main() -> int:
     for label, (path, note) in cases(names, work):
         kind, fn = runner(path)
         kind += note
-        pv = factories.node_values(load_scenario(path), "plant")
+        pv = resolve.node_values(load_scenario(path), "plant")
         period = pv["control_period_s"]
         steps = factories.run_steps(pv)
         if args.steps is not None:

@@ -23,7 +23,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from servo_axis.params.factories import build_reference, node_values
+from servo_axis.params.factories import build_reference
+from servo_axis.params.resolve import node_values
 from servo_axis.params.scenario import load_scenario
 from servo_axis.simulate import simulate_identification
 

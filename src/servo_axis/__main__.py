@@ -271,7 +271,27 @@ def _list(args: argparse.Namespace) -> int:
     for path in found:
         about = shared(load_scenario(path)).get("scenario", {})
         print(f"{path.stem:<24} {about.get('description', '')}")
+    _list_extensions()
     return 0
+
+
+def _list_extensions() -> None:
+    """The installed plant models, feedforward terms, learning laws and identification methods."""
+    from servo_axis.params.registry import REGISTRIES
+
+    selected_by = {
+        "plant model": "plant.model",
+        "feedforward term": "its <term>.enabled",
+        "learning law": "learning.law",
+        "identification method": "identifier.method",
+    }
+    for kind, registry in REGISTRIES.items():
+        print(f"\n{kind}s (selected by {selected_by[kind]}; entry points {registry.group}):")
+        for name in sorted(registry):
+            entry = registry[name]
+            print(f"  {name:<22} {entry.description} [{registry.source(name)}]")
+            if entry.schema:
+                print(f"  {'':<22} keys: {', '.join(entry.schema)}")
 
 
 #: What the top-level help says first.
@@ -527,7 +547,11 @@ def build_parser(prog: str = "python -m servo_axis") -> argparse.ArgumentParser:
     sm = sub.add_parser("summary", help="print the summary of a run directory")
     sm.add_argument("run_dir", help="run directory (holds summary.json)")
     sm.set_defaults(func=_summary)
-    ls = sub.add_parser("list", help="the shipped scenarios and what each runs")
+    ls = sub.add_parser(
+        "list",
+        help="the shipped scenarios and what each runs, then the installed plant models, "
+        "feedforward terms, learning laws and identification methods with their keys",
+    )
     ls.add_argument(
         "--config-dir",
         type=_existing_dir,

@@ -24,7 +24,7 @@ from servo_axis.analysis.signals import load_signals
 from servo_axis.analysis.summary import RunSummary, load_summary
 from servo_axis.core.errors import ConfigError, SignalError
 from servo_axis.core.feedforward.friction_table import FrictionTable, build_friction_table
-from servo_axis.params.factories import node_values
+from servo_axis.params.resolve import node_values
 from servo_axis.params.scenario import load_scenario
 
 

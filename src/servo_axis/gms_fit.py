@@ -30,8 +30,8 @@ import numpy as np
 from servo_axis.core.errors import SignalError
 from servo_axis.core.friction.gms import GmsFit, fit_gms
 from servo_axis.friction_id import measured_friction
-from servo_axis.params import factories
-from servo_axis.params.factories import node_values
+from servo_axis.params import resolve
+from servo_axis.params.resolve import node_values
 
 
 @dataclass(frozen=True)
@@ -63,10 +63,10 @@ def plant_fingerprint(scenario: dict[str, Any]) -> str:
     The first 16 hex digits of the SHA-256 of the JSON (keys sorted, floats
     as ``repr``) of the scenario's checked plant values of the plant
     model's own schema keys and the lead. One definition, the feedforward's
-    (:func:`servo_axis.params.factories.plant_fingerprint`), so that the
+    (:func:`servo_axis.params.resolve.plant_fingerprint`), so that the
     GMS term accepts exactly the files fitted on its plant.
     """
-    return factories.plant_fingerprint(scenario)
+    return resolve.plant_fingerprint(scenario)
 
 
 def load_fit_data(run_dir: Path) -> RunFitData:

@@ -30,9 +30,8 @@ from servo_axis.core.drive import current_from_torque, torque_from_current
 from servo_axis.core.feedback.loop import FeedbackLoop
 from servo_axis.core.feedback.output import controlled_output
 from servo_axis.core.models.base import PlantOutput
-from servo_axis.params import factories
+from servo_axis.params import factories, resolve
 from servo_axis.params.scenario import load_scenario
-from servo_axis.run.plan import learning_values
 
 
 @dataclass(frozen=True)
@@ -86,9 +85,9 @@ class _Drive:
 def simulate(scenario_path: Path, *, steps: int | None = None) -> Trajectory:
     """Run the scenario's loop (plant, feedback, feedforward) as plain calls."""
     scenario = load_scenario(scenario_path)
-    pv = factories.node_values(scenario, "plant")
-    fbv = factories.node_values(scenario, "feedback")
-    ffv = factories.feedforward_values(scenario, scenario_path)
+    pv = resolve.node_values(scenario, "plant")
+    fbv = resolve.node_values(scenario, "feedback")
+    ffv = resolve.feedforward_values(scenario, scenario_path)
     n = factories.run_steps(pv) if steps is None else steps
     sim = factories.build_plant(pv)
     loop = factories.build_loop(fbv)
@@ -130,10 +129,10 @@ def simulate_learning(scenario_path: Path, *, steps: int | None = None) -> Learn
     ``start_cycle`` and the run's last period is not learned from.
     """
     scenario = load_scenario(scenario_path)
-    pv = factories.node_values(scenario, "plant")
-    fbv = factories.node_values(scenario, "feedback")
-    ffv = factories.feedforward_values(scenario, scenario_path)
-    lv = learning_values(scenario, scenario_path)
+    pv = resolve.node_values(scenario, "plant")
+    fbv = resolve.node_values(scenario, "feedback")
+    ffv = resolve.feedforward_values(scenario, scenario_path)
+    lv = resolve.node_values(scenario, "learning")
     law = factories.build_learning_law(lv)
     n = factories.run_steps(pv) if steps is None else steps
     sim = factories.build_plant(pv)
@@ -222,12 +221,12 @@ def simulate_identification(scenario_path: Path, *, steps: int | None = None) ->
     identifier section it is the plain loop, with the true angle.
     """
     scenario = load_scenario(scenario_path)
-    pv = factories.node_values(scenario, "plant")
-    fbv = factories.node_values(scenario, "feedback")
-    ffv = factories.feedforward_values(scenario, scenario_path)
+    pv = resolve.node_values(scenario, "plant")
+    fbv = resolve.node_values(scenario, "feedback")
+    ffv = resolve.feedforward_values(scenario, scenario_path)
     identifier = None
     if "identifier" in scenario:
-        iv = factories.node_values(scenario, "identifier")
+        iv = resolve.node_values(scenario, "identifier")
         identifier = factories.build_identifier(iv)
         _, latency = factories.estimate_schedule(iv, "rls_period_s", "latency_s")
     n = factories.run_steps(pv) if steps is None else steps

@@ -20,7 +20,8 @@ from run_support import CONFIG, pids_of, run_and_kill
 
 from servo_axis.analysis.health import EXIT_NOT_DETERMINISTIC
 from servo_axis.analysis.summary import RunSummary
-from servo_axis.params.factories import build_reference, node_values
+from servo_axis.params.factories import build_reference
+from servo_axis.params.resolve import node_values
 from servo_axis.params.scenario import load_scenario
 from servo_axis.recording.reader import read_raw
 from servo_axis.run.runner import run_scenario

@@ -30,7 +30,8 @@ import pytest
 from numpy.testing import assert_allclose
 from sensor_msgs.msg import JointState
 
-from servo_axis.params.factories import node_values, run_steps
+from servo_axis.params.factories import run_steps
+from servo_axis.params.resolve import node_values
 from servo_axis.params.scenario import find_scenario, load_scenario
 from servo_axis.wire.cdr import decode_joint_state
 from servo_axis.wire.messages import StateSample

@@ -34,12 +34,8 @@ from servo_axis.nodes.identifier import IdentifierNode
 from servo_axis.nodes.plant import PlantNode
 from servo_axis.nodes.recorder import RecorderNode
 from servo_axis.nodes.runtime import STREAM_QOS
-from servo_axis.params.factories import (
-    build_generator,
-    build_identifier,
-    checked_values,
-    node_values,
-)
+from servo_axis.params.factories import build_generator, build_identifier, checked_values
+from servo_axis.params.resolve import node_values
 from servo_axis.params.scenario import load_scenario, node_params, roles_of
 from servo_axis.recording.deserialize import read_messages
 from servo_axis.simulate import simulate_identification

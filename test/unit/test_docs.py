@@ -7,7 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from servo_axis.params.schemas import SECTIONS
+from servo_axis.params.registry import parameter_sections
 
 REPO = Path(__file__).resolve().parents[2]
 SCRIPT = REPO / "scripts" / "parameter_docs.py"
@@ -25,7 +25,7 @@ def test_parameter_reference_lists_every_key_with_its_meaning() -> None:
     text = (REPO / "docs" / "parameters.md").read_text()
     # Two plant models may share a key name: look for each in its own section.
     sections = {chunk.split("\n", 1)[0].strip(): chunk for chunk in text.split("\n## ")[1:]}
-    for title, schema in SECTIONS.items():
+    for title, schema in parameter_sections().items():
         assert f"## {title}" in text or title == "/**"
         body = next((c for head, c in sections.items() if head.startswith(title)), text)
         for name, param in schema.items():

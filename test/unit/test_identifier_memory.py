@@ -14,7 +14,7 @@ from numpy.testing import assert_array_equal
 from servo_axis import storage
 from servo_axis.core.errors import SignalError
 from servo_axis.core.identification.base import OnlineIdentifier
-from servo_axis.params import factories
+from servo_axis.params import factories, resolve
 from servo_axis.params.scenario import load_scenario
 from servo_axis.storage import load_identifier_memory, save_identifier_memory
 from servo_axis.wire.layouts import EstimateData, check_estimate_values
@@ -28,7 +28,7 @@ J, D, U, C = 50e-4, 130e-4, 0.3, 0.02
 
 def identifier_values(method: str) -> dict[str, Any]:
     scenario = load_scenario(CONFIG / f"{SCENARIOS[method]}.yaml")
-    values: dict[str, Any] = factories.node_values(scenario, "identifier")
+    values: dict[str, Any] = resolve.node_values(scenario, "identifier")
     return values
 
 

@@ -11,7 +11,7 @@ import yaml
 from numpy.testing import assert_allclose, assert_array_equal
 
 from servo_axis.core.identification.dlpid import Dlpid
-from servo_axis.params import factories
+from servo_axis.params import factories, resolve
 from servo_axis.params.scenario import load_scenario
 from servo_axis.simulate import IdentificationRun, simulate_identification
 from servo_axis.wire.cdr import ESTIMATE_LABELS
@@ -40,7 +40,7 @@ def short_copy(
 def schedule(path: Path) -> tuple[int, int, int]:
     """``(steps, R, L)``: run length, RLS period and latency in control samples."""
     scenario = load_scenario(path)
-    iv = factories.node_values(scenario, "identifier")
+    iv = resolve.node_values(scenario, "identifier")
     tu = iv["control_period_s"]
     steps = round(iv["duration_s"] / tu)
     return steps, round(iv["rls_period_s"] / tu), round(iv["latency_s"] / tu)
@@ -107,7 +107,7 @@ def test_no_update_before_the_filters_warm_up(
     runs: dict[str, tuple[Path, IdentificationRun]], name: str
 ) -> None:
     path, run = runs[name]
-    iv = factories.node_values(load_scenario(path), "identifier")
+    iv = resolve.node_values(load_scenario(path), "identifier")
     ident = factories.build_identifier(iv)
     assert isinstance(ident, Dlpid)
     warmup = ident.params.warmup_samples

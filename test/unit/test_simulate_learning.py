@@ -36,13 +36,13 @@ def test_n_times_filter_equals_n_cycles_of_the_plain_filter_eq27() -> None:
 def test_before_learning_the_loop_is_the_loop_without_learning(tmp_path: Path) -> None:
     import yaml
 
+    from servo_axis.params.resolve import node_values
     from servo_axis.params.scenario import load_scenario
-    from servo_axis.run.plan import learning_values
 
     path = find_scenario("rptc_detailed")
     run = simulate_learning(path)
     data = load_scenario(path)
-    start = learning_values(data, path)["start_cycle"]
+    start = node_values(data, "learning")["start_cycle"]
     ff = data["feedforward"]["ros__parameters"]
     ff["learning"]["enabled"] = False
     data.pop("learning")

@@ -21,7 +21,8 @@ import yaml
 
 from servo_axis.analysis.summary import RunSummary
 from servo_axis.core.errors import ServoAxisError
-from servo_axis.params.factories import REFERENCE_KEYS, node_values
+from servo_axis.params.factories import REFERENCE_KEYS
+from servo_axis.params.resolve import node_values
 from servo_axis.params.scenario import load_scenario
 
 #: The run directory's parameter file (written by the runner).

@@ -70,12 +70,11 @@ from servo_axis.params.factories import (
     build_generator,
     checked_values,
     estimate_schedule,
-    feedforward_values,
     grid,
     learning_period_steps,
-    node_values,
     run_steps,
 )
+from servo_axis.params.resolve import feedforward_values, node_values
 from servo_axis.params.scenario import ROLES, SHARED_SECTION
 from servo_axis.recording.reader import RawMessage, read_raw
 from servo_axis.wire import cdr, layouts, topics

@@ -8,13 +8,14 @@ the contour). ``to_json()`` writes the text layout the runs have always had
 and ``from_json()`` / :func:`load_summary` read it back.
 
 Every parameter (control period, lead, flags, names) is the checked value of
-the scenario (:func:`servo_axis.params.factories.node_values`), its default
+the scenario (:func:`servo_axis.params.resolve.node_values`), its default
 where the scenario does not set it.
 
 Units follow the plant model: the tracking error is the error of the table's
 position, ``R (r - y)`` in m for a table that moves along a line (a ball
-screw), ``r - y`` in rad for one that turns (:data:`ROTARY_MODELS`: the
-tilting table of paper 003, whose position is its angle); the keys keep
+screw), ``r - y`` in rad for one that turns (a plant model whose registry
+entry says ``rotary``: the tilting table of paper 003, whose position is its
+angle); the keys keep
 their ``_m`` names and a rotary run's summary says ``"error_unit": "rad"``.
 The RMS over every sample of the run (``tracking_error.all_samples.rms_m``)
 is the RMSD paper 003 compares (Figs. 7, 9).
@@ -56,16 +57,12 @@ from servo_axis.analysis.signals import (
 )
 from servo_axis.core.deformation import DeformationTrace
 from servo_axis.core.errors import ConfigError
-from servo_axis.params.factories import build_reference, feedforward_values, node_values
+from servo_axis.params.factories import build_reference, learning_law, plant_model
+from servo_axis.params.resolve import feedforward_values, node_values
 from servo_axis.params.scenario import load_scenario
 from servo_axis.wire.cdr import EstimateData
 
 SUMMARY_FILE = "summary.json"
-
-#: Plant models whose table turns: their table position is the table angle,
-#: so the tracking error is ``r - y`` in rad (no lead). Every other model's
-#: table moves along a line, ``x = R theta``: the error ``R (r - y)`` is in m.
-ROTARY_MODELS: frozenset[str] = frozenset({"tilting_table"})
 
 #: The parameters an identifier estimates (003 eq. (2)): ``J, D, U, C``, as
 #: named in the plant's parameters and in ``identifier/estimates``.
@@ -829,7 +826,7 @@ class RunSummary:
         at 1 or above) and on the rigid-body part of the scenario's plant
         (``plant``); None (not written) otherwise.
     error_unit : str or None
-        ``rad`` for a plant whose table turns (:data:`ROTARY_MODELS`): every
+        ``rad`` for a plant whose table turns (its model's ``rotary``): every
         ``*_m`` error is then in rad of table angle; None (not written): m.
     identification : Identification or None
         With an identifier whose estimates the bag holds (paper 003); None
@@ -1078,8 +1075,13 @@ def _axis_values(scenario: dict[str, Any]) -> dict[str, Any]:
 
 
 def error_unit(plant_values: dict[str, Any]) -> str:
-    """``rad`` for a plant model whose table turns (:data:`ROTARY_MODELS`), else ``m``."""
-    return "rad" if plant_values["model"] in ROTARY_MODELS else "m"
+    """``rad`` for a plant model whose table turns (its registry entry's ``rotary``), else ``m``.
+
+    A rotary table's position is its angle, so the tracking error is
+    ``r - y`` in rad (no lead); every other model's table moves along a
+    line, ``x = R theta``: the error ``R (r - y)`` is in m.
+    """
+    return "rad" if plant_model(plant_values["model"], "plant.model").rotary else "m"
 
 
 def position_scale(plant_values: dict[str, Any]) -> float:
@@ -1189,31 +1191,17 @@ def summarise(
 def ilc_convergence(scenario: dict[str, Any], scenario_path: Path) -> dict[str, float] | None:
     """``{"nq", "nominal", "plant"}``: the measure of 001 eq. (7) for a trial law, else None.
 
-    ``plant`` is the ball screw's rigid-body part (``J``, ``D``, ``K_T`` of
-    the plant section) under the same PID and ``L``.
+    The law's registry entry computes it (``LearningLawEntry.convergence``;
+    None for a law without one): ``plant`` is the plant's rigid-body part
+    (``J``, ``D``, ``K_T`` of the plant section) under the same PID and ``L``.
     """
     if "learning" not in scenario or "plant" not in scenario:
         return None
-    from servo_axis.core.learning.ilc import convergence_measure
-    from servo_axis.core.models.base import NominalModel
-    from servo_axis.params.factories import ilc_params, learning_law
-    from servo_axis.run.plan import learning_values
-
-    values = learning_values(scenario, scenario_path)
-    if learning_law(values["law"]).period != "trial":
+    values = node_values(scenario, "learning")
+    convergence = learning_law(values["law"]).convergence
+    if convergence is None:
         return None
-    pv = node_values(scenario, "plant")
-    params = ilc_params(values)
-    plant = NominalModel(
-        inertia_kgm2=pv["inertia_kgm2"],
-        damping_Nms_per_rad=pv["damping_Nms_per_rad"],
-        torque_constant_Nm_per_A=pv["torque_constant_Nm_per_A"],
-    )
-    return {
-        "nq": params.nq,
-        "nominal": convergence_measure(params=params),
-        "plant": convergence_measure(params=params, plant=plant),
-    }
+    return convergence(values, node_values(scenario, "plant"))
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,7 +1,7 @@
 """Summaries and comparisons of runs as plain-text tables.
 
 Errors are shown in um, or in urad for a rotary table (a summary with
-``error_unit: rad``, :data:`~servo_axis.analysis.summary.ROTARY_MODELS`).
+``error_unit: rad``, the plant model's ``rotary``).
 Runs are compared per cycle (:func:`compare_table`, 000 Fig. 15) or, when
 cycles do not apply (a rotary table, an identifier, no periodic reference),
 by the RMSD of the whole run (:func:`rmsd_table`, 003 Fig. 9).

@@ -18,6 +18,7 @@ from typing import Any
 import yaml
 
 from servo_axis.core.errors import ConfigError
+from servo_axis.params.registry import term_files
 
 #: Node roles, in the order of the sections of a scenario file.
 ROLES = ("plant", "feedback", "feedforward", "learning", "identifier", "recorder")
@@ -157,8 +158,9 @@ def axis_view(scenario: dict[str, Any], axis: str, scenario_dir: Path) -> dict[s
 
     Each ``/<axis>/<node>`` section is merged into the node's common section
     (nested keys merge, the axis wins), ``axis`` is set to the axis name and
-    a relative friction-table path is made absolute, so that the result runs
-    and is reported like any single-axis scenario.
+    a relative file path of a feedforward term (``friction_table.file``, ...)
+    is made absolute, so that the result runs and is reported like any
+    single-axis scenario.
     """
     view: dict[str, Any] = {}
     common = shared(scenario)
@@ -173,9 +175,12 @@ def axis_view(scenario: dict[str, Any], axis: str, scenario_dir: Path) -> dict[s
             base = scenario.get(role, {}).get("ros__parameters", {})
             view[role] = {"ros__parameters": merge(base, own)}
     ff = view.get("feedforward", {}).get("ros__parameters", {})
-    if ff.get("friction_table", {}).get("file"):
-        table = resolve_table(ff["friction_table"]["file"], scenario_dir)
-        ff["friction_table"] = {**ff["friction_table"], "file": table}
+    for key in term_files():  # friction_table.file, gms.file, an outside term's
+        term, _, leaf = key.rpartition(".")
+        if isinstance(ff.get(term), dict) and ff[term].get(leaf):
+            ff[term] = {**ff[term], leaf: resolve_table(ff[term][leaf], scenario_dir)}
+        elif ff.get(key):
+            ff[key] = resolve_table(ff[key], scenario_dir)
     return view
 
 

@@ -14,6 +14,7 @@ headless simulation and the reports check a scenario the same way.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -215,6 +216,13 @@ def build(
         field, _, detail = str(err).partition(": ")
         name = (keys or {}).get(field, prefix + field)
         raise ParameterFileError(f"parameter '{name}': {detail}") from err
+
+
+def dataclass_defaults(cls: type) -> dict[str, Any]:
+    """Field defaults of a core parameter dataclass (an axis preset is stated there once)."""
+    return {
+        f.name: f.default for f in dataclasses.fields(cls) if f.default is not dataclasses.MISSING
+    }
 
 
 def section(values: Mapping[str, Any], prefix: str) -> dict[str, Any]:

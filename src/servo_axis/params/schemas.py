@@ -1,14 +1,17 @@
 """Every node parameter, once: default, SI unit, allowed range and meaning.
 
 One :class:`~servo_axis.params.schema.Param` per (dotted) key, per section of
-a scenario file: :data:`SHARED` (``/**``), :data:`PLANT` and the keys of its
-model (:data:`BALL_SCREW` for ``model: ball_screw``), :data:`FEEDBACK`,
-:data:`FEEDFORWARD`, :data:`LEARNING` and :data:`RECORDER`. The ranges are
-what each value means physically (a period is > 0, a gain >= 0); what
-depends on several keys at once (``sim_step_s`` divides
-``control_period_s``, ``n Nq + 2 < Nd``, ...) is checked by the objects the
-values build. :data:`SECTIONS` lists them for the parameter reference
-(``scripts/parameter_docs.py`` -> ``docs/parameters.md``).
+a scenario file: :data:`SHARED` (``/**``), :data:`PLANT`, :data:`FEEDBACK`,
+:data:`FEEDFORWARD`, :data:`LEARNING`, :data:`IDENTIFIER` and
+:data:`RECORDER`: the nodes' own keys. The keys of a plant model, a
+feedforward term, a learning law or an identification method are in the
+extension's own module (:mod:`servo_axis.plugins`, or an outside package's),
+beside its builder. The ranges are what each value means physically (a
+period is > 0, a gain >= 0); what depends on several keys at once
+(``sim_step_s`` divides ``control_period_s``, ``n Nq + 2 < Nd``, ...) is
+checked by the objects the values build.
+:func:`servo_axis.params.registry.parameter_sections` lists every section for
+the parameter reference (``scripts/parameter_docs.py`` -> ``docs/parameters.md``).
 
 Paper numbers refer to the papers of ``docs/papers.md`` (000: Fujimoto &
 Takemura, RPTC with the n-times learning filter; 001: Hayashi et al.; 003:
@@ -18,39 +21,13 @@ presets of the design intent.
 
 from __future__ import annotations
 
-import dataclasses
-import math
-from collections.abc import Mapping
-
 from servo_axis.core.feedback.loop import SafetyLimits
-from servo_axis.core.feedforward.sigmoid import (
-    PAPER_PRESLIDING_M,
-    PAPER_SIGMA_M2_PER_RAD,
-    gamma_for_width,
-)
-from servo_axis.core.friction.model import FrictionParams
-from servo_axis.core.models.ball_screw import BallScrewParams, DisturbanceParams
-from servo_axis.core.models.elastic_ball_screw import ElasticBallScrewParams
-from servo_axis.core.models.tilting_table import TiltingTableParams
-from servo_axis.params.schema import Param
+from servo_axis.core.models.ball_screw import BallScrewParams
+from servo_axis.params.schema import Param, dataclass_defaults
 from servo_axis.wire import topics
 
-
-def _dataclass_defaults(cls: type) -> dict[str, object]:
-    """Field defaults of a core parameter dataclass (the axis preset is stated there once)."""
-    return {
-        f.name: f.default for f in dataclasses.fields(cls) if f.default is not dataclasses.MISSING
-    }
-
-
-_BALL_SCREW = _dataclass_defaults(BallScrewParams)
-_FRICTION = _dataclass_defaults(FrictionParams)
-_DISTURBANCE = _dataclass_defaults(DisturbanceParams)
-_LIMITS = _dataclass_defaults(SafetyLimits)
-_ELASTIC = _dataclass_defaults(ElasticBallScrewParams)
-_SIGMOID_GAMMA = gamma_for_width(
-    sigma_m2_per_rad=PAPER_SIGMA_M2_PER_RAD, half_width_m=PAPER_PRESLIDING_M / 2
-)
+_BALL_SCREW = dataclass_defaults(BallScrewParams)
+_LIMITS = dataclass_defaults(SafetyLimits)
 
 #: Keys every node accepts (the ``/**`` block of a scenario file).
 SHARED: dict[str, Param] = {
@@ -138,7 +115,8 @@ SHARED: dict[str, Param] = {
 PLANT: dict[str, Param] = {
     "model": Param(
         "ball_screw",
-        meaning="plant model (registered name): ball_screw = rigid ball-screw axis with "
+        meaning="plant model: the name of an installed entry point of servo_axis.plant_models "
+        "(`python -m servo_axis list` shows them); ball_screw = rigid ball-screw axis with "
         "resonance modes, dead time and friction, eq. (30) of 000",
     ),
     "noise_seed": Param(
@@ -197,333 +175,6 @@ PLANT: dict[str, Param] = {
         unit="steps",
         minimum=1,
         meaning="publish plant/status (the feedforward's progress signal) every this many samples",
-    ),
-}
-
-#: Keys of the plant with ``model: ball_screw``: eq. (30) of 000 with docs/design.md section 7 defaults.
-BALL_SCREW: dict[str, Param] = {
-    "torque_constant_Nm_per_A": Param(
-        _BALL_SCREW["torque_constant_Nm_per_A"],
-        unit="N m/A",
-        above=0.0,
-        meaning="K_T of eq. (30) of 000: motor torque per ampere of current (0.715)",
-    ),
-    "inertia_kgm2": Param(
-        _BALL_SCREW["inertia_kgm2"],
-        unit="kg m^2",
-        above=0.0,
-        meaning="J of eq. (30): rigid-body inertia at the motor (0.01)",
-    ),
-    "damping_Nms_per_rad": Param(
-        _BALL_SCREW["damping_Nms_per_rad"],
-        unit="N m s/rad",
-        minimum=0.0,
-        meaning="D of eq. (30): viscous damping at the motor (0.1)",
-    ),
-    "modes.frequency_hz": Param(
-        [0.0],
-        unit="Hz",
-        minimum=0.0,
-        meaning="resonance frequencies f_i of eq. (30), one per mode (> 0); "
-        "all three modes.* lists [0.0] = no mode",
-    ),
-    "modes.zeta": Param(
-        [0.0],
-        minimum=0.0,
-        meaning="damping ratios zeta_i of the modes of eq. (30) (> 0 for a mode)",
-    ),
-    "modes.a": Param(
-        [0.0],
-        meaning="relative gains a_i of the modes of eq. (30): K_i = a_i K_T / J (docs/design.md section 7)",
-    ),
-    "dead_time_s": Param(
-        _BALL_SCREW["dead_time_s"],
-        unit="s",
-        minimum=0.0,
-        meaning="dead time T_d of eq. (30) (000: 70 us), a whole number of sim_step_s",
-    ),
-    "sim_step_s": Param(
-        _BALL_SCREW["sim_step_s"],
-        unit="s",
-        above=0.0,
-        meaning="integration step h of the plant (exact ZOH); divides control_period_s",
-    ),
-    "current_limit_A": Param(
-        _BALL_SCREW["current_limit_A"],
-        unit="A",
-        above=0.0,
-        meaning="amplifier saturation: the current command is clipped to +-current_limit_A",
-    ),
-    "initial_angle_rad": Param(0.0, unit="rad", meaning="motor angle at step 0"),
-    "initial_velocity_rad_s": Param(0.0, unit="rad/s", meaning="motor velocity at step 0"),
-    "friction.rolling_coulomb_Nm": Param(
-        _FRICTION["rolling_coulomb_Nm"],
-        unit="N m",
-        minimum=0.0,
-        meaning="rolling (Maxwell-slip) friction level T_c at the motor once the balls roll "
-        "(region B, 000 Fig. 4; 001: 3.2 N m); 0 = off",
-    ),
-    "friction.presliding_width_m": Param(
-        _FRICTION["presliding_width_m"],
-        unit="m",
-        above=0.0,
-        meaning="pre-sliding width at the table: displacement from a reversal at which rolling "
-        "friction reaches T_c (region A; about 10 um)",
-    ),
-    "friction.elements": Param(
-        _FRICTION["elements"],
-        minimum=1,
-        maximum=200,
-        meaning="number of Maxwell-slip elements (knots of the piecewise-linear virgin curve)",
-    ),
-    "friction.coulomb_Nm": Param(
-        _FRICTION["coulomb_Nm"],
-        unit="N m",
-        minimum=0.0,
-        meaning="plain Coulomb friction level at the motor, T_c tanh(w / w_s); 0 = off",
-    ),
-    "friction.coulomb_smoothing_rad_s": Param(
-        _FRICTION["coulomb_smoothing_rad_s"],
-        unit="rad/s",
-        above=0.0,
-        meaning="velocity w_s of the tanh regularisation of the Coulomb term",
-    ),
-    "friction.viscous_Nms_per_rad": Param(
-        _FRICTION["viscous_Nms_per_rad"],
-        unit="N m s/rad",
-        minimum=0.0,
-        meaning="viscous friction at the motor, in addition to the damping D",
-    ),
-    "disturbance.amplitude_Nm": Param(
-        _DISTURBANCE["amplitude_Nm"],
-        unit="N m",
-        minimum=0.0,
-        meaning="amplitude A of the input disturbance torque A sin(2 pi f t + phi) at the motor "
-        "(000 Fig. 13); 0 = none",
-    ),
-    "disturbance.frequency_hz": Param(
-        _DISTURBANCE["frequency_hz"],
-        unit="Hz",
-        above=0.0,
-        meaning="frequency f of the input disturbance torque",
-    ),
-    "disturbance.phase_rad": Param(
-        _DISTURBANCE["phase_rad"],
-        unit="rad",
-        meaning="phase phi of the input disturbance torque at t = 0",
-    ),
-    "encoder.resolution": Param(
-        2.0 * math.pi / 2**20,
-        unit="rad",
-        minimum=0.0,
-        meaning="rotary-encoder count on the motor angle (2 pi / 2^20 rad, docs/design.md section 7); 0 = ideal",
-    ),
-    "encoder.noise_std": Param(
-        0.0,
-        unit="rad",
-        minimum=0.0,
-        meaning="standard deviation of Gaussian encoder noise before quantisation",
-    ),
-    "scale.resolution": Param(
-        100e-9,
-        unit="m",
-        minimum=0.0,
-        meaning="linear-scale count on the table position (100 nm, docs/design.md section 7); 0 = ideal",
-    ),
-    "scale.noise_std": Param(
-        0.0,
-        unit="m",
-        minimum=0.0,
-        meaning="standard deviation of Gaussian scale noise before quantisation",
-    ),
-}
-
-#: Keys of the plant model ``tilting_table`` (paper 003 eq. (2); defaults: its Table I).
-_TILT = _dataclass_defaults(TiltingTableParams)
-TILTING_TABLE: dict[str, Param] = {
-    "torque_constant_Nm_per_A": Param(
-        _TILT["torque_constant_Nm_per_A"],
-        unit="N m/A",
-        above=0.0,
-        meaning="K_T: the wire carries a current i, the motor torque is T_m = K_T i",
-    ),
-    "inertia_kgm2": Param(
-        _TILT["inertia_kgm2"], unit="kg m^2", above=0.0, meaning="J of 003 eq. (2) (50e-4)"
-    ),
-    "damping_Nms_per_rad": Param(
-        _TILT["damping_Nms_per_rad"],
-        unit="N m s/rad",
-        minimum=0.0,
-        meaning="D of 003 eq. (2) (130e-4)",
-    ),
-    "unbalance_Nm": Param(
-        _TILT["unbalance_Nm"],
-        unit="N m",
-        minimum=0.0,
-        meaning="U = F R of 003 eq. (1)-(2), the largest unbalance torque (0.3)",
-    ),
-    "coulomb_Nm": Param(
-        _TILT["coulomb_Nm"],
-        unit="N m",
-        minimum=0.0,
-        meaning="C of 003 eq. (2): Coulomb friction that sticks at zero velocity (0.02)",
-    ),
-    "sim_step_s": Param(
-        _TILT["sim_step_s"],
-        unit="s",
-        above=0.0,
-        meaning="RK4 sub-step of the integration; divides control_period_s",
-    ),
-    "current_limit_A": Param(
-        _TILT["current_limit_A"],
-        unit="A",
-        above=0.0,
-        meaning="amplifier saturation (15.27: the test bench's peak torque at K_T = 1)",
-    ),
-    "initial_angle_rad": Param(0.0, unit="rad", meaning="table angle at step 0"),
-    "initial_velocity_rad_s": Param(0.0, unit="rad/s", meaning="table velocity at step 0"),
-    "noise_rad": Param(
-        _TILT["noise_rad"],
-        unit="rad",
-        minimum=0.0,
-        meaning="half-width of the uniform encoder noise, seeded by noise_seed (003: 1e-5)",
-    ),
-    "encoder.resolution": Param(
-        _TILT["encoder_resolution_rad"],
-        unit="rad",
-        minimum=0.0,
-        meaning="encoder count applied after the noise; 0 = ideal",
-    ),
-}
-
-#: Keys of the plant model ``elastic_ball_screw`` (paper 004; defaults and the
-#: choices behind them: :mod:`servo_axis.core.models.elastic_ball_screw`).
-ELASTIC_BALL_SCREW: dict[str, Param] = {
-    "torque_constant_Nm_per_A": Param(
-        _ELASTIC["torque_constant_Nm_per_A"], unit="N m/A", above=0.0, meaning="K_T (004 Table I)"
-    ),
-    "motor_inertia_kgm2": Param(
-        _ELASTIC["motor_inertia_kgm2"],
-        unit="kg m^2",
-        above=0.0,
-        meaning="J_m: motor and screw rotation (J_n - M_t R^2 = 1.604e-3, so that the rigid "
-        "body is J_n = 2.6e-3 of 004 eq. (1))",
-    ),
-    "motor_damping_Nms_per_rad": Param(
-        _ELASTIC["motor_damping_Nms_per_rad"],
-        unit="N m s/rad",
-        minimum=0.0,
-        meaning="B_m (B_n - C_t R^2 = 0.0335, so that the rigid body has B_n = 0.070)",
-    ),
-    "table_mass_kg": Param(
-        _ELASTIC["table_mass_kg"],
-        unit="kg",
-        above=0.0,
-        meaning="M: nut and table (004 Table I: 273)",
-    ),
-    "table_damping_Ns_per_m": Param(
-        _ELASTIC["table_damping_Ns_per_m"],
-        unit="N s/m",
-        minimum=0.0,
-        meaning="C_t: viscosity of the linear guide (004 Table I: 1e4)",
-    ),
-    "axial_stiffness_N_per_m": Param(
-        _ELASTIC["axial_stiffness_N_per_m"],
-        unit="N/m",
-        above=0.0,
-        meaning="k_a: screw axial, nut and bearings in series (1.55e8: first axial mode 150 Hz); "
-        "a mode outside 100-200 Hz is logged as a warning",
-    ),
-    "torsional_stiffness_Nm_per_rad": Param(
-        _ELASTIC["torsional_stiffness_Nm_per_rad"],
-        unit="N m/rad",
-        above=0.0,
-        meaning="k_t: screw torsion between motor and nut, in series with k_a as R^2 / k_t",
-    ),
-    "screw_damping_Ns_per_m": Param(
-        _ELASTIC["screw_damping_Ns_per_m"],
-        unit="N s/m",
-        minimum=0.0,
-        meaning="c_s: structural damping of the deformation (1.6e4: about 5 % on the axial mode)",
-    ),
-    "contact_zone_m": Param(
-        _ELASTIC["contact_zone_m"],
-        unit="m",
-        minimum=0.0,
-        meaning="g: soft zone of the ball contacts around zero load (004 Fig. 7: nonlinear "
-        "springs); 0 = linear spring",
-    ),
-    "contact_stiffness_ratio": Param(
-        _ELASTIC["contact_stiffness_ratio"],
-        above=0.0,
-        maximum=1.0,
-        meaning="k_0 / k_h: stiffness at zero load over the loaded stiffness",
-    ),
-    "nut_friction_Nm": Param(
-        _ELASTIC["nut_friction_Nm"],
-        unit="N m",
-        minimum=0.0,
-        meaning="rolling friction of nut and screw bearings at the motor once rolling",
-    ),
-    "nut_presliding_m": Param(
-        _ELASTIC["nut_presliding_m"],
-        unit="m",
-        above=0.0,
-        meaning="its pre-sliding width at the table (004 Fig. 4b: about 15 um)",
-    ),
-    "guide_friction_N": Param(
-        _ELASTIC["guide_friction_N"],
-        unit="N",
-        minimum=0.0,
-        meaning="rolling friction of the linear guide once rolling (pattern I/II at the stop "
-        "switches at a deceleration of guide_friction_N / table_mass_kg)",
-    ),
-    "guide_presliding_m": Param(
-        _ELASTIC["guide_presliding_m"], unit="m", above=0.0, meaning="its pre-sliding width"
-    ),
-    "friction_elements": Param(
-        _ELASTIC["friction_elements"],
-        minimum=1,
-        maximum=200,
-        meaning="Maxwell-slip elements per friction set",
-    ),
-    "current_bandwidth_hz": Param(
-        _ELASTIC["current_bandwidth_hz"],
-        unit="Hz",
-        minimum=0.0,
-        meaning="first-order current loop (004: 1 kHz); 0 = ideal",
-    ),
-    "sim_step_s": Param(
-        _ELASTIC["sim_step_s"],
-        unit="s",
-        above=0.0,
-        meaning="RK4 sub-step; divides control_period_s",
-    ),
-    "current_limit_A": Param(
-        _ELASTIC["current_limit_A"], unit="A", above=0.0, meaning="amplifier saturation"
-    ),
-    "initial_position_m": Param(
-        _ELASTIC["initial_position_m"],
-        unit="m",
-        meaning="table position at step 0 (motor at x / R, at rest, relaxed)",
-    ),
-    "encoder.resolution": Param(
-        2.0 * math.pi / 2**20,
-        unit="rad",
-        minimum=0.0,
-        meaning="rotary-encoder count on the motor (004: 2^20 pulses/rev); 0 = ideal",
-    ),
-    "encoder.noise_std": Param(
-        0.0, unit="rad", minimum=0.0, meaning="Gaussian encoder noise before quantisation"
-    ),
-    "scale.resolution": Param(
-        100e-9,
-        unit="m",
-        minimum=0.0,
-        meaning="linear-scale count on the table (004: 100 nm); 0 = ideal",
-    ),
-    "scale.noise_std": Param(
-        0.0, unit="m", minimum=0.0, meaning="Gaussian scale noise before quantisation"
     ),
 }
 
@@ -731,16 +382,6 @@ FEEDFORWARD: dict[str, Param] = {
         meaning="multirate PTC feedforward on P_n, u = B^-1 (x_d[i+1] - A x_d[i]) at T_r = 2 T_u "
         "(000 Sect. III-A); false: reference only",
     ),
-    "friction_table.enabled": Param(
-        False,
-        meaning="data-based friction table feedforward f(|y_d - y_rev|) / K_T with the sign "
-        "of the motion (000 Fig. 17)",
-    ),
-    "friction_table.file": Param(
-        "",
-        meaning="friction table CSV (`servo_axis friction-table`); a relative path is relative "
-        "to the scenario file",
-    ),
     "preview_steps": Param(
         200,
         unit="steps",
@@ -788,82 +429,6 @@ FEEDFORWARD: dict[str, Param] = {
         above=0.0,
         meaning="the feedback's DOB cut-off (copied from the feedback section)",
     ),
-    "gms.enabled": Param(
-        False,
-        meaning="GMS-model friction compensation (Al-Bender et al. 2005; the conventional "
-        "method of 004 Sect. II-C) on the reference's motion",
-    ),
-    "gms.file": Param(
-        "",
-        meaning="GMS parameter file (`servo_axis gms-fit` of a friction_id run); a relative "
-        "path is relative to the scenario file",
-    ),
-    "gms.plant": Param(
-        "",
-        meaning="the plant the file must have been identified on (`<model>:<hash>` of the "
-        "plant section); the runner sets it from the scenario; empty: not checked",
-    ),
-    "sigmoid.enabled": Param(
-        False,
-        meaning="sigmoid friction compensation of 004 eq. (9) with d_r^ = sigma / z of eq. (8), "
-        "z the distance to the nearest reversal of the reference (before and after it)",
-    ),
-    "sigmoid.sigma_m2_per_rad": Param(
-        PAPER_SIGMA_M2_PER_RAD,
-        unit="m^2/rad",
-        above=0.0,
-        meaning="sigma of 004 eq. (8) (0.04 with z in mm and d_r in mm/rad)",
-    ),
-    "sigmoid.gamma_m_per_rad": Param(
-        _SIGMOID_GAMMA,
-        unit="m/rad",
-        above=0.0,
-        meaning="gamma of 004 eq. (9); the default makes |F_c| reach 0.9 F_0 at z = x_s / 2 "
-        "= 7.5 um (gamma = 0.9 sigma / (x_s / 2 sqrt(1 - 0.81)))",
-    ),
-    "sigmoid.coulomb_Nm": Param(
-        0.43,
-        unit="N m",
-        above=0.0,
-        meaning="F_0 of 004 eq. (9): the Coulomb level of the friction at the motor "
-        "(the sliding level of the friction_id run)",
-    ),
-    "sigmoid.search_horizon_s": Param(
-        1.0,
-        unit="s",
-        above=0.0,
-        meaning="how far ahead the next reversal of the reference is looked for",
-    ),
-    "mnc.enabled": Param(
-        False,
-        meaning="multirate nonlinearity compensator (003 eqs. (12)-(15)): unbalance U sin(theta_d) "
-        "and, with mnc.friction, the arctan friction model of eq. (14), at T_r",
-    ),
-    "mnc.friction": Param(
-        True,
-        meaning="compensate friction with eq. (14) (the proposal); false = unbalance only, the "
-        "previous MARC of eq. (17) (with an identifier the runner sets it from its method)",
-    ),
-    "mnc.unbalance_Nm": Param(
-        0.1,
-        unit="N m",
-        minimum=0.0,
-        meaning="U until the first online estimate applies (003 Table I initial estimate 0.1; "
-        "with an identifier the runner copies its initial.unbalance_Nm)",
-    ),
-    "mnc.coulomb_Nm": Param(
-        0.01,
-        unit="N m",
-        minimum=0.0,
-        meaning="C until the first online estimate applies (003 Table I initial estimate 0.01; "
-        "with an identifier the runner copies its initial.coulomb_Nm)",
-    ),
-    "mnc.alpha_s_per_rad": Param(
-        1e4, unit="s/rad", above=0.0, meaning="alpha of the friction model, eq. (14) (003: 1e4)"
-    ),
-    "mnc.omega_th_rad_s": Param(
-        0.05, unit="rad/s", minimum=0.0, meaning="w_th, the dead zone of eq. (14) (003: 0.05)"
-    ),
     "adaptive.enabled": Param(
         False,
         meaning="take online estimates from identifier/estimates: the PTC model is rebuilt from "
@@ -900,7 +465,8 @@ LEARNING: dict[str, Param] = {
     **REFERENCE,
     "law": Param(
         "rptc",
-        meaning="learning law (registered name): rptc = repetitive PTC with the n-times "
+        meaning="learning law: the name of an installed entry point of servo_axis.learning_laws; "
+        "rptc = repetitive PTC with the n-times "
         "filter (000); silc = standard ILC, pilc_bf / pilc_bfft = projection-based ILC with "
         "basis functions / and the data-based friction table (001)",
     ),
@@ -963,41 +529,14 @@ LEARNING: dict[str, Param] = {
     "sensor": SENSOR,
 }
 
-#: Keys of the trial laws of paper 001 (``silc``, ``pilc_bf``, ``pilc_bfft``).
-ILC: dict[str, Param] = {
-    "feedback.bandwidth_hz": Param(
-        FEEDBACK["bandwidth_hz"].default,
-        unit="Hz",
-        above=0.0,
-        meaning="bandwidth of the feedback section's PID (the runner copies it): the learning "
-        "filter L is the ZPETC of S_n P_n of that loop (001 Sect. IV-A-3)",
-    ),
-}
-
-#: Keys of the projection-based laws (001 Sect. III-B/C).
-PILC: dict[str, Param] = {
-    "x_mu_m": Param(
-        5e-6,
-        unit="m",
-        above=0.0,
-        meaning="x_mu of the friction basis b_rf, eq. (13) (001: 5 um)",
-    ),
-    "threshold_m": Param(
-        1e-4,
-        unit="m",
-        above=0.0,
-        meaning="displacement from a reversal beyond which W = 1 (eq. (27)) and below which the "
-        "friction table is used (001: 100 um)",
-    ),
-}
-
 #: The identifier node's keys (paper 003 Sect. III-B, IV-A; Table I). The
 #: initial J and D are the shared nominal.inertia_kgm2 / nominal.damping_Nms_per_rad:
 #: the PID, the PTC and the RLS start from the same model.
 IDENTIFIER: dict[str, Param] = {
     "method": Param(
         "dlpid",
-        meaning="identification method (registered name): dlpid = double-layer parameter "
+        meaning="identification method: the name of an installed entry point of "
+        "servo_axis.identification_methods; dlpid = double-layer parameter "
         "identification, RLS of J, D, U plus the friction layer of eq. (8) (003); marc = the "
         "previous MARC, RLS of J, D, U only, friction unmodelled (003 [11])",
     ),
@@ -1077,28 +616,6 @@ IDENTIFIER: dict[str, Param] = {
     ),
 }
 
-#: The keys of method ``dlpid`` only: the friction layer of 003 eq. (8).
-DLPID_FRICTION: dict[str, Param] = {
-    "initial.coulomb_Nm": Param(
-        0.01, unit="N m", minimum=0.0, meaning="C_hat[0] (003 Table I: 0.01; dlpid only)"
-    ),
-    "bounds.coulomb_Nm": Param(
-        [0.0, 1.0], unit="N m", minimum=0.0, meaning="[min, max] of C_hat (dlpid)"
-    ),
-    "friction.cutoff_hz": Param(
-        2.0,
-        unit="Hz",
-        above=0.0,
-        meaning="q of the friction layer's low-pass, eq. (8) (003: 2 or 100 Hz); dlpid only",
-    ),
-    "friction.velocity_min_rad_s": Param(
-        0.2,
-        unit="rad/s",
-        above=0.0,
-        meaning="C_hat is held while |theta'| is at or below this (dlpid)",
-    ),
-}
-
 #: What the recorder records by default: the topics of the loop's three nodes.
 _DEFAULT_RECORDED = topics.recorded_topics(("plant", "feedback", "feedforward"))
 
@@ -1155,21 +672,4 @@ RECORDER: dict[str, Param] = {
         True,
         meaning="report ready (a first recorder/progress) only once every topic has a publisher",
     ),
-}
-
-#: Every schema by section title, for the parameter reference.
-SECTIONS: dict[str, Mapping[str, Param]] = {
-    "/**": SHARED,
-    "plant": PLANT,
-    "plant (model ball_screw)": BALL_SCREW,
-    "plant (model tilting_table)": TILTING_TABLE,
-    "plant (model elastic_ball_screw)": ELASTIC_BALL_SCREW,
-    "feedback": FEEDBACK,
-    "feedforward": FEEDFORWARD,
-    "learning": LEARNING,
-    "learning (laws silc, pilc_bf, pilc_bfft)": ILC,
-    "learning (laws pilc_bf, pilc_bfft)": PILC,
-    "identifier": IDENTIFIER,
-    "identifier (method dlpid)": DLPID_FRICTION,
-    "recorder": RECORDER,
 }

@@ -129,7 +129,7 @@ class LiveAxis:
 def live_axis(scenario: dict[str, Any], namespace: str) -> LiveAxis:
     """The :class:`LiveAxis` of a single-axis scenario run in ``namespace``."""
     from servo_axis.analysis.summary import error_unit
-    from servo_axis.params.factories import node_values
+    from servo_axis.params.resolve import node_values
 
     plant = node_values(scenario, "plant")
     feedback = node_values(scenario, "feedback")

@@ -1,6 +1,9 @@
 """From a scenario to the parameter file of a run.
 
-The runner adds to the scenario what only it knows: whom each publisher
+What a node copies from the other sections of the scenario is the
+resolver's (:func:`servo_axis.params.resolve.copied`, the same copies
+``simulate`` and ``analysis`` make); the runner adds to it what only it
+knows: whom each publisher
 waits for before its first message (the subscriber counts, derived from the
 table of topics in :mod:`servo_axis.wire.topics`), what the recorder
 records and where, the target and the cycle the learning unit must learn
@@ -14,18 +17,13 @@ from pathlib import Path
 from typing import Any
 
 from servo_axis.params import schemas
-from servo_axis.params.factories import (
-    NODE_SCHEMAS,
-    adaptive_overrides,
-    checked_values,
-    feedforward_overrides,
-    learning_law,
-)
+from servo_axis.params.factories import NODE_SCHEMAS, checked_values, learning_law
+from servo_axis.params.registry import term_files
+from servo_axis.params.resolve import copied
 from servo_axis.params.scenario import (
     ROLES,
     SHARED_SECTION,
     dump_params,
-    flatten,
     node_params,
     resolve_table,
     shared,
@@ -140,8 +138,9 @@ def handshake_overrides(
         learning unit gets ``reference.*`` and ``cycle_s`` of the
         feedforward section and ``sensor`` of the feedback section, the
         feedforward generator the learning section's ``law`` and, with an
-        identifier, its schedule and initial ``U``, ``C``
-        (:func:`~servo_axis.params.factories.adaptive_overrides`); the
+        identifier, its schedule and initial ``U``, ``C`` (what the resolver
+        copies, :func:`~servo_axis.params.resolve.copied`) and the terms'
+        files made absolute; the
         identifier waits for the subscribers of ``identifier/estimates``
         and keeps its memory in ``<run>/identifier_memory.json``;
         feedback, feedforward and learning get ``use_sim_time: true``;
@@ -165,7 +164,9 @@ def handshake_overrides(
         return subscriber_count(name, counted, recorded)
 
     if "learning" in roles:
-        out["learning"] = learning_overrides(scenario, bag_dir)
+        out["learning"] = copied(scenario, "learning", roles)
+        if "memory.file" not in node_params(scenario, "learning"):
+            out["learning"]["memory.file"] = str(bag_dir.parent / "learning_memory.json")
     if "recorder" in roles:
         recorded, types = recorder_topics(scenario, roles)
         rec: dict[str, Any] = {}
@@ -203,15 +204,10 @@ def handshake_overrides(
     if "feedforward" in roles:
         ff: dict[str, Any] = {"wait_for_reference_subscribers": count("reference", roles, recorded)}
         given = node_params(scenario, "feedforward")
-        for key in ("friction_table.file", "gms.file"):
+        for key in term_files():
             if given.get(key, ""):
                 ff[key] = resolve_table(given[key], scenario_dir)
-        ff.update(feedforward_overrides(scenario, given))
-        law = node_params(scenario, "learning").get("law")
-        if "learning" in roles and law is not None:
-            ff["learning.law"] = law  # one source: the learning section
-        if "identifier" in roles:
-            ff.update(adaptive_overrides(scenario))
+        ff.update(copied(scenario, "feedforward", roles))
         out["feedforward"] = ff
     for role in sim_time_roles():
         if role in roles:
@@ -221,31 +217,6 @@ def handshake_overrides(
     if external:
         for role in roles:
             out[role]["external_roles"] = list(external)
-    return out
-
-
-def learning_overrides(scenario: dict[str, Any], bag_dir: Path) -> dict[str, Any]:
-    """What the learning unit copies from the other sections: one source for each value.
-
-    It learns against the feedforward generator's original target
-    (``reference.*``) over its cycle (``learning.cycle_s``), and against
-    the controlled output of the feedback loop (``sensor``, when the
-    feedback section sets it).
-    """
-    ff = node_params(scenario, "feedforward")
-    out = {k: v for k, v in ff.items() if k.startswith("reference.")}
-    out["cycle_s"] = ff.get("learning.cycle_s", schemas.FEEDFORWARD["learning.cycle_s"].default)
-    feedback = flatten(scenario.get("feedback", {}).get("ros__parameters", {}))
-    if "sensor" in feedback:
-        out["sensor"] = feedback["sensor"]
-    law = node_params(scenario, "learning").get("law", schemas.LEARNING["law"].default)
-    if learning_law(law, "learning.law").period == "trial":
-        # A trial law's learning filter inverts the loop's own S_n P_n.
-        out["feedback.bandwidth_hz"] = feedback.get(
-            "bandwidth_hz", schemas.FEEDBACK["bandwidth_hz"].default
-        )
-    if "memory.file" not in node_params(scenario, "learning"):
-        out["memory.file"] = str(bag_dir.parent / "learning_memory.json")
     return out
 
 
@@ -267,18 +238,6 @@ def write_run_params(
         out[f"/**/{role}"] = {"ros__parameters": params}
     path.write_text(dump_params(out))
     return path
-
-
-def learning_values(scenario: dict[str, Any], scenario_path: Path) -> dict[str, Any]:
-    """The learning unit's checked values with what the runner copies into them.
-
-    ``reference.*`` and ``cycle_s`` of the feedforward section, ``sensor``
-    and (for a trial law) ``feedback.bandwidth_hz`` of the feedback section
-    (:func:`learning_overrides`); no memory file.
-    """
-    overrides = learning_overrides(scenario, Path(scenario_path).parent / "bag")
-    overrides.pop("memory.file", None)
-    return checked_values("learning", {**node_params(scenario, "learning"), **overrides})
 
 
 #: What a node playing each role must subscribe to (their publishers wait for

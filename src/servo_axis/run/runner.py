@@ -45,8 +45,10 @@ from typing import TYPE_CHECKING, Any, TextIO
 
 from servo_axis.analysis.health import NodeDeath, RunHealth, assess
 from servo_axis.core.errors import ConfigError, ParameterFileError
-from servo_axis.params.factories import EXTERNAL_ROLES, checked_values, node_values, run_steps
+from servo_axis.params.factories import EXTERNAL_ROLES, checked_values, run_steps
 from servo_axis.params.names import check_domain_id, check_namespace
+from servo_axis.params.registry import term_files
+from servo_axis.params.resolve import node_values
 from servo_axis.params.scenario import (
     axes_of,
     axis_view,
@@ -547,9 +549,10 @@ def _check_sections(
     overrides = handshake_overrides(scenario, roles, axis_dir / "bag", scenario_dir, external)
     for role in roles:
         values = checked_values(role, {**node_params(scenario, role), **overrides.get(role, {})})
-        table = values.get("friction_table.file") if values.get("friction_table.enabled") else None
-        if table and not Path(table).is_file():
-            raise ParameterFileError(f"parameter 'friction_table.file': no such file {table}")
+        for key in term_files() if role == "feedforward" else ():
+            table = values[key] if values.get(f"{key.rpartition('.')[0]}.enabled", True) else None
+            if table and not Path(table).is_file():
+                raise ParameterFileError(f"parameter '{key}': no such file {table}")
 
 
 def _prepare_axis(

@@ -55,7 +55,8 @@ def plain_summary(scenario: dict[str, Any], scenario_path: Path) -> dict[str, An
         summarise_estimates,
         true_parameters,
     )
-    from servo_axis.params.factories import build_reference, feedforward_values, node_values
+    from servo_axis.params.factories import build_reference
+    from servo_axis.params.resolve import feedforward_values, node_values
     from servo_axis.simulate import simulate, simulate_identification, simulate_learning
     from servo_axis.wire.cdr import EstimateData
 

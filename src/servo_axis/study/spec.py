@@ -236,7 +236,7 @@ def _section_of(scenario: dict[str, Any], key: str) -> tuple[str, str]:
 
 def _check_section(scenario: dict[str, Any], section: str) -> None:
     """Check the parameters of the roles a section sets (names, types, ranges)."""
-    from servo_axis.params.factories import node_values
+    from servo_axis.params.resolve import node_values
 
     roles = [r for r in ROLES if r in scenario] if section == SHARED_SECTION else [section]
     for role in roles:

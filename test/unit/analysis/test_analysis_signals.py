@@ -21,7 +21,8 @@ from numpy.testing import assert_allclose
 
 from servo_axis.analysis.signals import FaultRecord, load_signals, tracking
 from servo_axis.analysis.summary import RunSummary, load_summary, summarise
-from servo_axis.params.factories import build_generator, feedforward_values
+from servo_axis.params.factories import build_generator
+from servo_axis.params.resolve import feedforward_values
 from servo_axis.params.scenario import load_scenario
 from servo_axis.params.schemas import SHARED
 from servo_axis.recording.writer import BagWriter

@@ -8,8 +8,11 @@ hidden inside a function is still a circle.
 * ``servo_axis.core`` imports nothing of the project outside ``core``, and
   nothing but numpy, scipy, numba (only ``core.kernels``, the compiled
   sub-step loops) and the standard library;
-* ``simulate``, ``analysis``, ``friction_id``, ``gms_fit``, ``params``, ``study``,
-  ``wire.topics``, ``wire.layouts``, ``wire.checks``, ``wire.streams``,
+* ``analysis`` and ``simulate`` import nothing of ``run`` (the resolver is ``params.resolve``);
+* nothing outside ``servo_axis.plugins`` imports a module of it: the suite
+  finds its own extensions by entry point, as it finds an outside package's;
+* ``simulate``, ``analysis``, ``friction_id``, ``gms_fit``, ``params``, ``plugins``,
+  ``study``, ``wire.topics``, ``wire.layouts``, ``wire.checks``, ``wire.streams``,
   ``wire.cdr`` and ``recording.reader`` reach no rclpy and no ROS message
   package, directly or through other modules of the project.
 """
@@ -177,9 +180,27 @@ ROS_FREE = [
     *sorted(
         m
         for m in MODULES
-        if m.startswith(("servo_axis.analysis", "servo_axis.params", "servo_axis.study"))
+        if m.startswith(
+            ("servo_axis.analysis", "servo_axis.params", "servo_axis.plugins", "servo_axis.study")
+        )
     ),
 ]
+
+
+def test_the_extensions_are_found_by_entry_point_only() -> None:
+    plugins = {m for m in MODULES if m.startswith("servo_axis.plugins")}
+    assert "servo_axis.plugins.ball_screw" in plugins
+    for name in sorted(set(MODULES) - plugins):
+        assert not (GRAPH[name] & plugins), f"{name} imports {sorted(GRAPH[name] & plugins)}"
+
+
+def test_simulate_and_analysis_resolve_a_scenario_without_the_runner() -> None:
+    # One resolver (params.resolve) turns a scenario into each node's values.
+    for name in sorted(
+        m for m in MODULES if m.startswith(("servo_axis.analysis", "servo_axis.simulate"))
+    ):
+        runner = sorted(m for m in GRAPH[name] if m.startswith("servo_axis.run"))
+        assert not runner, f"{name} imports {runner}"
 
 
 @pytest.mark.parametrize("name", ROS_FREE)

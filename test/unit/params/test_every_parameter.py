@@ -31,9 +31,9 @@ from servo_axis.params.factories import (
     checked_values,
     node_schema,
 )
+from servo_axis.params.registry import parameter_sections
 from servo_axis.params.scenario import ROLES, check_params_files
 from servo_axis.params.schema import Param, build
-from servo_axis.params.schemas import SECTIONS
 
 
 def bases(role: str) -> list[dict[str, Any]]:
@@ -136,7 +136,7 @@ def names(key: str) -> str:
 
 def test_the_cases_cover_every_key_of_every_schema() -> None:
     schemas: list[Mapping[str, Param]] = [
-        *SECTIONS.values(),
+        *parameter_sections().values(),
         *(e.schema for e in PLANT_MODELS.values()),
         *(e.schema for e in LEARNING_LAWS.values()),
     ]

@@ -17,6 +17,7 @@ from servo_axis.params.factories import (
     checked_values,
 )
 from servo_axis.params.scenario import load_scenario, node_params
+from servo_axis.plugins.dlpid import DLPID_FRICTION
 
 CONFIG = Path(__file__).resolve().parents[3] / "config"
 
@@ -40,7 +41,7 @@ def refused(role: str, values: dict[str, Any], key: str) -> ParameterFileError:
 
 
 def bound(section: dict[str, Any], key: str) -> tuple[float, float]:
-    default = {**schemas.IDENTIFIER, **schemas.DLPID_FRICTION}[key].default
+    default = {**schemas.IDENTIFIER, **DLPID_FRICTION}[key].default
     lo, hi = section.get(key, default)
     return float(lo), float(hi)
 
@@ -162,9 +163,9 @@ def test_unknown_method_names_the_registered_ones(method: Any) -> None:
     assert {"dlpid", "marc"} <= set(IDENTIFIERS)
 
 
-@pytest.mark.parametrize("key", sorted(schemas.DLPID_FRICTION))
+@pytest.mark.parametrize("key", sorted(DLPID_FRICTION))
 def test_marc_has_no_friction_keys(key: str) -> None:
-    value = schemas.DLPID_FRICTION[key].default
+    value = DLPID_FRICTION[key].default
     with pytest.raises(
         ParameterFileError, match=rf"unknown parameter '{re.escape(key)}' for node 'identifier'"
     ):

@@ -162,8 +162,13 @@ def test_cli_list_shows_every_shipped_scenario() -> None:
         check=False,
     )
     assert done.returncode == 0, done.stderr
-    listed = {line.split()[0] for line in done.stdout.splitlines() if line.strip()}
+    # The scenarios first, then a blank line and the installed extensions.
+    scenarios, _, extensions = done.stdout.partition("\n\n")
+    listed = {line.split()[0] for line in scenarios.splitlines() if line.strip()}
     assert listed == set(scenario_names())
+    assert "plant models (selected by plant.model" in extensions
+    for name in ("ball_screw", "tilting_table", "friction_table", "rptc", "pilc_bfft", "dlpid"):
+        assert f"\n  {name} " in extensions
     for name in scenario_names():
         description = shared(load_scenario(find_scenario(name)))["scenario"]["description"]
         assert f"{name}" in done.stdout and description.split()[0] in done.stdout

@@ -12,26 +12,28 @@ import pytest
 import yaml
 
 from servo_axis.core.errors import ParameterFileError
+from servo_axis.params.registry import FEEDFORWARD_TERMS, feedforward_terms, parameter_sections
 from servo_axis.params.scenario import flatten
 from servo_axis.params.schema import Param
 from servo_axis.params.schemas import (
-    BALL_SCREW,
-    DLPID_FRICTION,
-    ELASTIC_BALL_SCREW,
     FEEDBACK,
     FEEDFORWARD,
     IDENTIFIER,
-    ILC,
     LEARNING,
-    PILC,
     PLANT,
     RECORDER,
     REFERENCE,
-    SECTIONS,
     SENSOR,
     SHARED,
-    TILTING_TABLE,
 )
+from servo_axis.plugins.ball_screw import BALL_SCREW
+from servo_axis.plugins.dlpid import DLPID_FRICTION
+from servo_axis.plugins.elastic_ball_screw import ELASTIC_BALL_SCREW
+from servo_axis.plugins.ilc import ILC, PILC
+from servo_axis.plugins.tilting_table import TILTING_TABLE
+
+SECTIONS = parameter_sections()
+TERMS = {k: p for entry in FEEDFORWARD_TERMS.values() for k, p in entry.schema.items()}
 
 REPO = Path(__file__).resolve().parents[3]
 CONFIGS = sorted((REPO / "config").glob("*.yaml"))
@@ -39,9 +41,9 @@ CONFIGS = sorted((REPO / "config").glob("*.yaml"))
 #: The schema of each section of a scenario file (by its last path component).
 NODE_SCHEMAS: dict[str, Mapping[str, Param]] = {
     "**": SHARED,
-    "plant": {**PLANT, **BALL_SCREW, **TILTING_TABLE},
+    "plant": {**PLANT, **BALL_SCREW, **TILTING_TABLE, **ELASTIC_BALL_SCREW},
     "feedback": FEEDBACK,
-    "feedforward": FEEDFORWARD,
+    "feedforward": {**FEEDFORWARD, **TERMS},
     "learning": {**LEARNING, **ILC, **PILC},
     "identifier": {**IDENTIFIER, **DLPID_FRICTION},
     "recorder": RECORDER,
@@ -123,18 +125,21 @@ def test_sections_cover_every_schema() -> None:
         SHARED,
         PLANT,
         BALL_SCREW,
-        TILTING_TABLE,
         ELASTIC_BALL_SCREW,
+        TILTING_TABLE,
         FEEDBACK,
         FEEDFORWARD,
+        *(entry.schema for _, entry in feedforward_terms()),
         LEARNING,
+        {**ILC, **PILC},
         ILC,
-        PILC,
         IDENTIFIER,
         DLPID_FRICTION,
         RECORDER,
     ]
-    assert list(SECTIONS.values()) == expected
+    assert [dict(s) for s in SECTIONS.values()] == [dict(s) for s in expected]
+    assert list(SECTIONS)[12:14] == ["learning (laws pilc_bf, pilc_bfft)", "learning (law silc)"]
+    assert not set(FEEDFORWARD) & set(TERMS)
     assert not set(IDENTIFIER) & set(DLPID_FRICTION)
     assert not set(PLANT) & set(BALL_SCREW) and not set(PLANT) & set(TILTING_TABLE)
     assert not set(PLANT) & set(ELASTIC_BALL_SCREW)

@@ -10,13 +10,8 @@ from typing import Any
 import pytest
 
 from servo_axis.core.errors import ParameterFileError
-from servo_axis.params.factories import (
-    build_terms,
-    feedforward_values,
-    node_values,
-    plant_fingerprint,
-    plant_model,
-)
+from servo_axis.params.factories import build_terms, plant_model
+from servo_axis.params.resolve import feedforward_values, node_values, plant_fingerprint
 from servo_axis.params.scenario import load_scenario, roles_of
 from servo_axis.run.plan import handshake_overrides, recorder_topics
 

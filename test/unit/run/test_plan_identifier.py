@@ -11,6 +11,7 @@ import pytest
 from servo_axis.params import schemas
 from servo_axis.params.factories import IDENTIFIERS
 from servo_axis.params.scenario import flatten, load_scenario, roles_of
+from servo_axis.plugins.dlpid import DLPID_FRICTION
 from servo_axis.run.plan import handshake_overrides, recorder_topics
 from servo_axis.wire.topics import FLOAT64_MULTI_ARRAY, TOPICS
 
@@ -141,7 +142,7 @@ def test_values_the_section_leaves_out_are_the_identifiers_defaults() -> None:
     assert ff["adaptive.rls_period_s"] == schemas.IDENTIFIER["rls_period_s"].default
     assert ff["adaptive.latency_s"] == schemas.IDENTIFIER["latency_s"].default
     assert ff["mnc.unbalance_Nm"] == schemas.IDENTIFIER["initial.unbalance_Nm"].default
-    assert ff["mnc.coulomb_Nm"] == schemas.DLPID_FRICTION["initial.coulomb_Nm"].default
+    assert ff["mnc.coulomb_Nm"] == DLPID_FRICTION["initial.coulomb_Nm"].default
     assert (
         ff["mnc.friction"] is IDENTIFIERS[schemas.IDENTIFIER["method"].default].estimates_friction
     )

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from servo_axis.__main__ import main
-from servo_axis.params.factories import node_values
+from servo_axis.params.resolve import node_values
 from servo_axis.simulate import simulate
 from servo_axis.study.point import run_point
 from servo_axis.study.spec import StudyError, figure, load_study, scenario_for

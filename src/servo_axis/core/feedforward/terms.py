@@ -4,8 +4,10 @@ The generator sums ``u_ff = u_PTC + sum of terms`` in the order the terms
 are given. A term sees every control sample once, in order (terms may keep
 state, e.g. the reversal tracking of the friction table). Later terms
 (paper 003's arctan friction and unbalance compensator, paper 004's GMS
-model and sigmoid law) are a class here, or a module beside it, plus their
-registration in :mod:`servo_axis.params.factories`.
+model and sigmoid law) are a class here, or a module beside it (or in an
+outside package), plus their entry (schema, builder, entry point) in a module
+of their own (:mod:`servo_axis.params.registry`; the suite's in
+``servo_axis.plugins``).
 """
 
 from __future__ import annotations

@@ -5,8 +5,9 @@ and the applied torque) and, once per its own period, returns an
 :class:`~servo_axis.core.identification.dlpid.Estimate`; its whole state can
 be saved and restored so that a restarted node resumes bit-identically.
 :class:`~servo_axis.core.identification.dlpid.Dlpid` is one (both of its
-modes); a new method is a module here plus its registration in
-:mod:`servo_axis.params.factories` (``register_identifier``).
+modes); a new method is a class like it plus its entry (schema, builder,
+entry point ``servo_axis.identification_methods``) in a module of its own
+(:mod:`servo_axis.params.registry`; the suite's in ``servo_axis.plugins``).
 """
 
 from __future__ import annotations

@@ -2,6 +2,6 @@
 
 ``ball_screw``: the ball-screw axis of paper 000 eq. (30) (rigid body,
 resonance modes, dead time, rolling friction). A model is chosen by the
-parameter ``plant.model`` from the registry of
-:mod:`servo_axis.params.factories`.
+parameter ``plant.model`` among the installed entry points
+(:mod:`servo_axis.params.registry`).
 """

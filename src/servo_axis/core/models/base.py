@@ -6,9 +6,10 @@ sensors read and what the true motion is (:class:`PlantOutput`). The
 nominal model of paper 000 eq. (1), ``P_n = K_T / (J s^2 + D s)``, is what
 the controllers are designed on (PID, DOB, PTC); it is not the plant.
 
-A new model is a module in this folder with a class that satisfies
-:class:`Plant`, plus its registration in
-:mod:`servo_axis.params.factories` (its parameter schema and a builder).
+A new model is a class that satisfies :class:`Plant` (a module in this
+folder, or in an outside package) plus its entry (parameter schema, builder,
+``rotary``) registered as an entry point of group ``servo_axis.plant_models``
+(:mod:`servo_axis.params.registry`; the suite's in ``servo_axis.plugins``).
 """
 
 from __future__ import annotations

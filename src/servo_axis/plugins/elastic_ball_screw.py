@@ -1,0 +1,189 @@
+"""Plant model ``elastic_ball_screw``: the two-inertia ball-screw axis of paper 004.
+
+Motor and table coupled by the screw's axial and torsional stiffness, with
+nonlinear ball contacts, nut and guide friction and a current loop
+(:class:`servo_axis.core.models.elastic_ball_screw.ElasticBallScrewPlant`);
+an axial mode outside 100-200 Hz is logged as a warning at start.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from servo_axis.core.models.base import Plant
+from servo_axis.core.models.elastic_ball_screw import (
+    ElasticBallScrewParams,
+    ElasticBallScrewPlant,
+    mode_warning,
+)
+from servo_axis.core.sensors import SensorParams
+from servo_axis.params.registry import PlantModelEntry, Values
+from servo_axis.params.schema import Param, build, dataclass_defaults, section
+
+_ELASTIC = dataclass_defaults(ElasticBallScrewParams)
+
+#: Keys of the plant model ``elastic_ball_screw`` (paper 004; defaults and the
+#: choices behind them: :mod:`servo_axis.core.models.elastic_ball_screw`).
+ELASTIC_BALL_SCREW: dict[str, Param] = {
+    "torque_constant_Nm_per_A": Param(
+        _ELASTIC["torque_constant_Nm_per_A"], unit="N m/A", above=0.0, meaning="K_T (004 Table I)"
+    ),
+    "motor_inertia_kgm2": Param(
+        _ELASTIC["motor_inertia_kgm2"],
+        unit="kg m^2",
+        above=0.0,
+        meaning="J_m: motor and screw rotation (J_n - M_t R^2 = 1.604e-3, so that the rigid "
+        "body is J_n = 2.6e-3 of 004 eq. (1))",
+    ),
+    "motor_damping_Nms_per_rad": Param(
+        _ELASTIC["motor_damping_Nms_per_rad"],
+        unit="N m s/rad",
+        minimum=0.0,
+        meaning="B_m (B_n - C_t R^2 = 0.0335, so that the rigid body has B_n = 0.070)",
+    ),
+    "table_mass_kg": Param(
+        _ELASTIC["table_mass_kg"],
+        unit="kg",
+        above=0.0,
+        meaning="M: nut and table (004 Table I: 273)",
+    ),
+    "table_damping_Ns_per_m": Param(
+        _ELASTIC["table_damping_Ns_per_m"],
+        unit="N s/m",
+        minimum=0.0,
+        meaning="C_t: viscosity of the linear guide (004 Table I: 1e4)",
+    ),
+    "axial_stiffness_N_per_m": Param(
+        _ELASTIC["axial_stiffness_N_per_m"],
+        unit="N/m",
+        above=0.0,
+        meaning="k_a: screw axial, nut and bearings in series (1.55e8: first axial mode 150 Hz); "
+        "a mode outside 100-200 Hz is logged as a warning",
+    ),
+    "torsional_stiffness_Nm_per_rad": Param(
+        _ELASTIC["torsional_stiffness_Nm_per_rad"],
+        unit="N m/rad",
+        above=0.0,
+        meaning="k_t: screw torsion between motor and nut, in series with k_a as R^2 / k_t",
+    ),
+    "screw_damping_Ns_per_m": Param(
+        _ELASTIC["screw_damping_Ns_per_m"],
+        unit="N s/m",
+        minimum=0.0,
+        meaning="c_s: structural damping of the deformation (1.6e4: about 5 % on the axial mode)",
+    ),
+    "contact_zone_m": Param(
+        _ELASTIC["contact_zone_m"],
+        unit="m",
+        minimum=0.0,
+        meaning="g: soft zone of the ball contacts around zero load (004 Fig. 7: nonlinear "
+        "springs); 0 = linear spring",
+    ),
+    "contact_stiffness_ratio": Param(
+        _ELASTIC["contact_stiffness_ratio"],
+        above=0.0,
+        maximum=1.0,
+        meaning="k_0 / k_h: stiffness at zero load over the loaded stiffness",
+    ),
+    "nut_friction_Nm": Param(
+        _ELASTIC["nut_friction_Nm"],
+        unit="N m",
+        minimum=0.0,
+        meaning="rolling friction of nut and screw bearings at the motor once rolling",
+    ),
+    "nut_presliding_m": Param(
+        _ELASTIC["nut_presliding_m"],
+        unit="m",
+        above=0.0,
+        meaning="its pre-sliding width at the table (004 Fig. 4b: about 15 um)",
+    ),
+    "guide_friction_N": Param(
+        _ELASTIC["guide_friction_N"],
+        unit="N",
+        minimum=0.0,
+        meaning="rolling friction of the linear guide once rolling (pattern I/II at the stop "
+        "switches at a deceleration of guide_friction_N / table_mass_kg)",
+    ),
+    "guide_presliding_m": Param(
+        _ELASTIC["guide_presliding_m"], unit="m", above=0.0, meaning="its pre-sliding width"
+    ),
+    "friction_elements": Param(
+        _ELASTIC["friction_elements"],
+        minimum=1,
+        maximum=200,
+        meaning="Maxwell-slip elements per friction set",
+    ),
+    "current_bandwidth_hz": Param(
+        _ELASTIC["current_bandwidth_hz"],
+        unit="Hz",
+        minimum=0.0,
+        meaning="first-order current loop (004: 1 kHz); 0 = ideal",
+    ),
+    "sim_step_s": Param(
+        _ELASTIC["sim_step_s"],
+        unit="s",
+        above=0.0,
+        meaning="RK4 sub-step; divides control_period_s",
+    ),
+    "current_limit_A": Param(
+        _ELASTIC["current_limit_A"], unit="A", above=0.0, meaning="amplifier saturation"
+    ),
+    "initial_position_m": Param(
+        _ELASTIC["initial_position_m"],
+        unit="m",
+        meaning="table position at step 0 (motor at x / R, at rest, relaxed)",
+    ),
+    "encoder.resolution": Param(
+        2.0 * math.pi / 2**20,
+        unit="rad",
+        minimum=0.0,
+        meaning="rotary-encoder count on the motor (004: 2^20 pulses/rev); 0 = ideal",
+    ),
+    "encoder.noise_std": Param(
+        0.0, unit="rad", minimum=0.0, meaning="Gaussian encoder noise before quantisation"
+    ),
+    "scale.resolution": Param(
+        100e-9,
+        unit="m",
+        minimum=0.0,
+        meaning="linear-scale count on the table (004: 100 nm); 0 = ideal",
+    ),
+    "scale.noise_std": Param(
+        0.0, unit="m", minimum=0.0, meaning="Gaussian scale noise before quantisation"
+    ),
+}
+
+
+def elastic_ball_screw_params(values: Values) -> ElasticBallScrewParams:
+    """:class:`ElasticBallScrewParams` from checked plant values (paper 004)."""
+    own = {k: values[k] for k in ELASTIC_BALL_SCREW if "." not in k}
+    return build(
+        "",
+        ElasticBallScrewParams,
+        **own,
+        lead_m_per_rad=values["lead_m_per_rad"],
+        control_period_s=values["control_period_s"],
+        encoder=build("encoder.", SensorParams, **section(values, "encoder")),
+        scale=build("scale.", SensorParams, **section(values, "scale")),
+    )
+
+
+def _elastic_warnings(values: Values) -> list[str]:
+    warning = mode_warning(elastic_ball_screw_params(values))
+    return [] if warning is None else [warning]
+
+
+def _build(values: Values, rng: np.random.Generator) -> Plant:
+    return ElasticBallScrewPlant(elastic_ball_screw_params(values), rng=rng)
+
+
+#: The entry point ``servo_axis.plant_models: elastic_ball_screw``.
+PLANT_MODEL = PlantModelEntry(
+    schema=ELASTIC_BALL_SCREW,
+    build=_build,
+    warnings=_elastic_warnings,
+    rotary=False,
+    description="two-inertia ball-screw axis with elastic screw and nonlinear ball contacts (004)",
+)
