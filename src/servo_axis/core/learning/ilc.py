@@ -46,8 +46,8 @@ that zero) learns back in full: the level ``a`` obeys ``a_{j+2} = a_j``, a
 trial-to-trial eigenvalue of -1 that eq. (6)-(7) do not contain. After a
 reference that reverses the last move (the friction held at rest flips
 from ``-T_c`` to ``+T_c``, 2 T_c / K_T = 9 A on the 001 axis) the learned
-input alternated by that much from trial to trial at rest and the error
-stayed at 3.9 um RMS (README, paper 001).
+input at rest alternated between +9.0 and -4.5 A from trial to trial and
+the error stayed at 3.9 um RMS (README, paper 001).
 """
 
 from __future__ import annotations
@@ -523,7 +523,7 @@ def check_count(name: str, value: object) -> int:
 
 
 class StandardIlc:
-    """S-ILC of 001: ``f_{j+1} = Q (f_j + L e_j)`` (eq. (3)).
+    """S-ILC of 001: ``f_{j+1} = Q (f_j + L e_j)`` (eq. (3)) on the input relative to the trial's start.
 
     Parameters
     ----------
