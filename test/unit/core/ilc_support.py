@@ -102,3 +102,33 @@ def loop_matrices(plant: NominalModel, samples: int) -> tuple[np.ndarray, np.nda
     """Lifted ``S`` (r -> e) and ``S P`` (f -> x) under the 30 Hz PID."""
     h_s, h_sp = loop_responses(plant, PID, samples)
     return lifted(h_s), lifted(h_sp)
+
+
+class RunningLoop:
+    """The 001 loop run trial after trial without a reset, as the axis runs it.
+
+    The plant's state and the PID's state carry over from one trial to the
+    next (the loop of :func:`loop_responses`, sample by sample). ``d`` is an
+    input disturbance in A (e.g. friction held at rest), subtracted from
+    the input as in 001 eq. (2).
+    """
+
+    def __init__(self, plant: NominalModel) -> None:
+        a = np.array([[0.0, 1.0], [0.0, -plant.damping_Nms_per_rad / plant.inertia_kgm2]])
+        b = np.array([[0.0], [plant.torque_constant_Nm_per_A / plant.inertia_kgm2]])
+        self._ad, bd, *_ = scipy.signal.cont2discrete(
+            (a, b, np.eye(2), np.zeros((2, 1))), PERIOD_S, "zoh"
+        )
+        self._bd = bd[:, 0]
+        self._ctl = DiscretePid(gains=PID, period_s=PERIOD_S)
+        self._state = np.zeros(2)
+
+    def trial(self, r: np.ndarray, f: np.ndarray, d: np.ndarray | None = None) -> np.ndarray:
+        """Run one trial from the state the last one left; its error ``r - x``, m."""
+        dist = np.zeros(len(r)) if d is None else d
+        e = np.empty(len(r))
+        for k in range(len(r)):
+            e[k] = r[k] - LEAD * self._state[0]
+            u = self._ctl.update(e[k] / LEAD) + f[k] - dist[k]
+            self._state = self._ad @ self._state + self._bd * u
+        return e

@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import json
+from typing import Any
 
 import numpy as np
 import pytest
@@ -23,6 +24,7 @@ from ilc_support import (
     PERIOD_S,
     PID,
     TRUE_PLANT,
+    RunningLoop,
     lifted,
     loop_responses,
     min_jerk,
@@ -199,23 +201,31 @@ def test_standard_ilc_on_a_linear_plant_follows_eq_6() -> None:
     h_s, h_sp = loop_responses(TRUE_PLANT, PID, n)
     s, sp = lifted(h_s), lifted(h_sp)
     q = q_matrix(n, nq)
-    r, _, _ = min_jerk(60, [(3e-3, 350)], 290)
+    # Out and back: every trial starts and ends at rest at 0 (001 Sect. III-A).
+    r, _, _ = min_jerk(40, [(3e-3, 175), (-3e-3, 175)], 270)
     law = StandardIlc(params)
     zpetc = learning_filter(params)
+    loop = RunningLoop(TRUE_PLANT)
     assert_allclose(law.next_correction(period=1)[0], 0.0, atol=0)  # trial 1: f = 0
-    e = s @ r
-    errors = [e]
+    e = loop.trial(r, np.zeros(n))
+    assert_allclose(e, s @ r, atol=1e-12)  # trial 1 starts from rest: eq. (4)
+    errors, start = [e], 0.0
     for j in range(1, 7):
         (f_j,) = law.next_correction()
         law.learn(e, period=j)
         (f_next,) = law.next_correction()
-        # eq. (3) in lifted form
-        assert_allclose(f_next, q @ (f_j + zpetc.apply(e)), rtol=1e-9, atol=1e-12)
-        e_next = s @ r - sp @ f_next
+        # eq. (3) on the input relative to the level the trial starts from
+        assert_allclose(f_next - f_j[-1], q @ (f_j - start + zpetc.apply(e)), rtol=1e-9, atol=1e-12)
+        e_next = loop.trial(r, f_next)
+        # The running loop starts trial j + 1 from the equilibrium f_j[N-1]
+        # left: eq. (4) of the relative input (the tail of 270 samples lets
+        # the 30 Hz loop settle to 1e-8 of the error).
+        assert_allclose(e_next, s @ r - sp @ (f_next - f_j[-1]), atol=1e-7 * np.max(np.abs(e)))
         # eq. (6) with d = 0: Q and the lifted S P commute up to the trial's
         # ends, where the signals are at rest.
         predicted = q @ (e - sp @ zpetc.apply(e)) + s @ r - q @ (s @ r)
         assert_allclose(e_next, predicted, atol=1e-4 * np.max(np.abs(e)))
+        start = f_j[-1]
         e = e_next
         errors.append(e)
     # The limit of eq. (6): e_inf = (I - Q (I - S P L))^-1 (I - Q) S r.
@@ -225,6 +235,68 @@ def test_standard_ilc_on_a_linear_plant_follows_eq_6() -> None:
     assert all(b < a for a, b in itertools.pairwise(distance))
     assert distance[-1] < 1e-3 * np.linalg.norm(e_inf)
     assert np.linalg.norm(errors[-1]) < 0.02 * np.linalg.norm(errors[0])
+
+
+def test_standard_ilc_relearns_when_the_held_disturbance_flips() -> None:
+    """The level mode of back-to-back trials (ilc module docstring), on a linear plant.
+
+    Trials 1-5 hold an input disturbance of -h at rest (friction left by a
+    move in -x); trial 6 flips it to +h at its middle (a reference whose
+    last move is in +x); from trial 7 it is +h throughout. A constant
+    disturbance from the equilibrium the last trial left is no disturbance,
+    so the error must go back to the limit of eq. (6) it had before the
+    flip, the learned input taking over the jump 2 h at rest. Eq. (3) on the
+    absolute ``f`` instead keeps a level mode with eigenvalue -1: its input
+    at the trial start alternates between two values 2 h apart, trial after
+    trial, and the error never comes back.
+    """
+    n, nq, h = 700, 16, 3.2 / KT
+    params = paper_params(n, nq=nq)
+    zpetc = learning_filter(params)
+    r, _, _ = min_jerk(40, [(3e-3, 175), (-3e-3, 175)], 270)
+
+    def held(trial: int) -> np.ndarray:
+        d = np.full(n, -h if trial < 6 else h)
+        if trial == 6:
+            d[: n // 2] = -h
+        return d
+
+    def run(law_update: Any) -> tuple[list[float], list[np.ndarray]]:
+        loop = RunningLoop(TRUE_PLANT)
+        loop.trial(np.zeros(n), np.zeros(n), np.full(n, -h))  # at rest, holding -h
+        f, rms, inputs = np.zeros(n), [], []
+        for j in range(1, 17):
+            e = loop.trial(r, f, held(j))
+            rms.append(float(np.sqrt(np.mean(e**2))))
+            inputs.append(f)
+            f = law_update(e)
+        return rms, inputs
+
+    law = StandardIlc(params)
+
+    def fixed(e: np.ndarray) -> np.ndarray:
+        law.learn(e)
+        return law.next_correction()[0]
+
+    absolute = [np.zeros(n)]
+
+    def plain(e: np.ndarray) -> np.ndarray:
+        absolute.append(trial_q(absolute[-1] + zpetc.apply(e), nq))
+        return absolute[-1]
+
+    rms, inputs = run(fixed)
+    rms_plain, inputs_plain = run(plain)
+    # Before the flip both are the same law (the starting levels are 0).
+    assert_allclose(rms_plain[:6], rms[:6], rtol=1e-9)
+    # The fixed law: back to the level of trial 5, the jump 2 h learned at rest.
+    assert_allclose(rms[-1], rms[4], rtol=0.01)
+    assert_allclose(inputs[-1][-1] - inputs[5][-1], 2.0 * h, rtol=0.01)
+    for prev, nxt in itertools.pairwise(inputs[7:]):
+        assert abs(nxt[0] - prev[-1]) < 1e-3 * h  # each trial starts where the last ended
+    # Eq. (3) on the absolute f: the start level alternates by 2 h, the error stays.
+    starts = np.array([f[0] for f in inputs_plain[8:]])
+    assert_allclose(np.abs(np.diff(starts)), 2.0 * h, rtol=0.02)
+    assert min(rms_plain[8:]) > 20.0 * rms[4]
 
 
 # -- the law's interface ---------------------------------------------------------------
@@ -250,6 +322,8 @@ def test_bad_parameters_and_signals_are_refused_with_their_names() -> None:
         law.load_state({"feedforward_A": [0.0] * 101, "trials_learned": 1})
     with pytest.raises(SignalError, match="trials_learned"):
         law.load_state({"feedforward_A": [0.0] * 100, "trials_learned": -1})
+    with pytest.raises(SignalError, match="start_level_A: expected a finite number"):
+        law.load_state({"feedforward_A": [0.0] * 100, "trials_learned": 1})
     assert law.periods_learned == 0
 
 
