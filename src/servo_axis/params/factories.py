@@ -278,6 +278,21 @@ register_plant_model(
 )
 
 
+#: Plant keys added after files were fitted (the elastic ball screw's ball-nut
+#: friction option, issue 21): in the fingerprint only when set away from their
+#: defaults, so that a file fitted before names the same plant.
+_ADDED_KEYS = frozenset(
+    {
+        "nut_friction",
+        "nut_preload_N",
+        "contact_travel_m",
+        "contact_presliding_m",
+        "bearing_friction_Nm",
+        "bearing_presliding_m",
+    }
+)
+
+
 def plant_fingerprint(scenario: dict[str, Any]) -> str:
     """``<model>:<16 hex>``: which plant a file identified on it belongs to.
 
@@ -287,7 +302,9 @@ def plant_fingerprint(scenario: dict[str, Any]) -> str:
     refuses a file of another plant.
     """
     values = node_values(scenario, "plant")
-    keys = [*sorted(plant_model(values["model"]).schema), "lead_m_per_rad"]
+    schema = plant_model(values["model"]).schema
+    own = [k for k in sorted(schema) if k not in _ADDED_KEYS or values[k] != schema[k].default]
+    keys = [*own, "lead_m_per_rad"]
     text = json.dumps({k: values[k] for k in keys}, sort_keys=True)
     return f"{values['model']}:{hashlib.sha256(text.encode()).hexdigest()[:16]}"
 

@@ -39,7 +39,8 @@ CONFIGS = sorted((REPO / "config").glob("*.yaml"))
 #: The schema of each section of a scenario file (by its last path component).
 NODE_SCHEMAS: dict[str, Mapping[str, Param]] = {
     "**": SHARED,
-    "plant": {**PLANT, **BALL_SCREW, **TILTING_TABLE},
+    # the elastic ball screw's own keys (the contact scenarios set them)
+    "plant": {**PLANT, **ELASTIC_BALL_SCREW, **BALL_SCREW, **TILTING_TABLE},
     "feedback": FEEDBACK,
     "feedforward": FEEDFORWARD,
     "learning": {**LEARNING, **ILC, **PILC},
