@@ -35,18 +35,19 @@ so the pattern at zero speed depends on the deceleration (004 Sect. III-B).
 
 Ball-nut friction driven by the contact (``nut_friction = "contact"``)
 -----------------------------------------------------------------------
-The spring law above is, exactly, a linear spring ``k_h`` (screw axial and
-torsion, bearings, the balls once loaded) in series with the balls' contact:
-``F = k_h (delta - delta_c)`` with the contact deformation
-``delta_c = ((k_h - k_0) g / k_h) tanh(delta / g)``, the micro-motion of the
-screw groove against the nut across the balls (004 Fig. 7: the balls as
-nonlinear springs). ``delta_c`` saturates at ``+-(1 - k_0/k_h) g`` while one
-flank of the grooves carries the load and travels ``2 (1 - k_0/k_h) g`` when
-the load changes flank (Pattern I <-> II, Figs. 9-10). With
-``"contact"`` the torque ``T_f`` of the friction between balls and grooves
-is a Maxwell-slip set driven by ``delta_c`` (level ``nut_friction_Nm``,
-pre-sliding width ``contact_presliding_m`` on the virgin curve, below the
-flank travel), so it keeps its sign while the load stays on one flank,
+The spring becomes a linear part ``k_h`` (screw axial and torsion, bearings,
+the balls once loaded on one flank) in series with the balls' contact, whose
+deformation is ``delta_c = D tanh(F / F_p)`` (004 Fig. 7: the balls as
+nonlinear springs): ``F / k_h + D tanh(F / F_p) = delta``, solved for ``F``
+at every RK4 stage (:func:`servo_axis.core.kernels.contact_load`; the soft
+zone ``g`` must then be 0). ``delta_c`` is the micro-motion of the screw
+groove against the nut across the balls: it stays near ``+-D`` while one
+flank carries the load and travels ``2 D`` when the load changes flank
+(Pattern I <-> II, Figs. 9-10), stiffness ``1 / (1/k_h + D/F_p)`` there and
+``k_h`` beyond a few ``F_p``. The torque ``T_f`` of the friction between
+balls and grooves is a Maxwell-slip set driven by ``delta_c`` (level
+``nut_friction_Nm``, pre-sliding width ``contact_presliding_m`` < ``D`` on the
+virgin curve), so it keeps its sign while the load stays on one flank,
 whatever the speed, and reverses with the flank: before the table stops when
 the deceleration is high (the screw brakes the nut and "F_bs, F_b, T_f and
 T also change their directions", Sect. III-B-2), after the stop when it is
@@ -57,13 +58,16 @@ passive contact law (the energy it brings in is ``2 T_n`` times the motor's
 rotation over that stretch, a few mrad).
 
 Preload (Sect. III-B, whose analysis neglects the initial deformations it
-causes): the nut's preload closes the play of the balls, so there is no
-backlash; its Hertzian approach sets the zone ``g`` over which the load passes
-from one flank to the other, with the stiffness ``k_0`` of the balls of both
-flanks while both carry load, and the preload's drag torque is the nut's
-friction level ``nut_friction_Nm``; the contact's pre-sliding width is a
-fraction of the flank travel. A larger preload is a wider ``g``, a higher
-``k_0`` and a higher drag torque.
+causes): the nut's preload closes the play of the balls (no backlash) and
+sets ``F_p``, the load over which the balls pass from one flank to the other
+(both flanks loaded below it); ``D`` is their Hertzian travel between the
+flanks, so that a higher preload is a higher ``F_p`` (a stiffer zero-load
+contact, ``F_p / D``); the preload's drag torque is the nut's friction level
+``nut_friction_Nm``, and the contact's pre-sliding width a fraction of ``D``.
+The calibrated values (``D`` = 19 um, ``F_p`` = 80 N, eq. (8)'s sigma) are in
+the ``*_contact_*`` scenarios, made by ``scripts/calibrate_contact.py``; the
+zero-load stiffness ``F_p / D`` = 4.2e6 N/m puts the table on a mode near
+20 Hz while the load changes flank (the loaded mode stays at 150 Hz).
 
 The screw's support bearings (004 Fig. 8: the left-hand one fixed, "the
 friction of the bearing at the right side of the screw is small", Sect.
