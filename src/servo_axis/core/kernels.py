@@ -242,6 +242,147 @@ def elastic_ball_screw_period(
     state[0], state[1], state[2], state[3], state[4], state[5], state[6] = th, w, x, v, i, tf, fg
 
 
+@_compiled
+def contact_load(d: float, k: float, travel: float, preload: float, y: float) -> float:
+    """``y = F / F_p`` of the spring with a ball contact: ``F / k + D tanh(F / F_p) = d``.
+
+    Safeguarded Newton from ``y`` (the last solution) inside the bracket
+    ``[(d - D) k / F_p, (d + D) k / F_p]``, where the left side's sign is
+    known; a step that leaves the bracket is a bisection. At most 60
+    iterations, to a step below ``1e-13 (1 + |y|)``: the same floats every
+    time (deterministic, no tolerance on a residual of mixed scale).
+    """
+    a = preload / k
+    lo = (d - travel) / a
+    hi = (d + travel) / a
+    if not lo <= y <= hi:
+        y = 0.5 * (lo + hi)
+    for _ in range(60):
+        t = math.tanh(y)
+        f = a * y + travel * t - d
+        if f > 0.0:
+            hi = y
+        elif f < 0.0:
+            lo = y
+        else:
+            break
+        step = f / (a + travel * (1.0 - t * t))
+        new = y - step
+        if not lo < new < hi:
+            new = 0.5 * (lo + hi)
+        if abs(new - y) <= 1e-13 * (1.0 + abs(y)):
+            y = new
+            break
+        y = new
+    return y
+
+
+@_compiled
+def _contact_accel(
+    th: float,
+    w: float,
+    x: float,
+    v: float,
+    i: float,
+    tf: float,
+    fg: float,
+    y: float,
+    p: np.ndarray,
+) -> tuple[float, float, float]:
+    # As _elastic_accel with the contact's spring; also returns the solved F / F_p.
+    r, k, cs = p[0], p[1], p[2]
+    y = contact_load(r * th - x, k, p[15], p[16], y)
+    fs = p[16] * y + cs * (r * w - v)
+    return (p[5] * i - p[6] * w - r * fs - tf) / p[7], (fs - p[8] * v - fg) / p[9], y
+
+
+@_compiled
+def elastic_ball_screw_contact_period(
+    state: np.ndarray,
+    cmd: float,
+    config: np.ndarray,
+    nut: np.ndarray,
+    bearing: np.ndarray,
+    guide: np.ndarray,
+) -> None:
+    """The elastic ball screw with a ball contact and the nut's friction on it.
+
+    The sub-steps of :func:`elastic_ball_screw_period` (the same RK4), with
+    the spring ``F / k_h + D tanh(F / F_p) = delta`` (a linear part in series
+    with the balls' contact deformation ``delta_c = D tanh(F / F_p)``,
+    :func:`contact_load`) and three Maxwell-slip sets updated at the end of
+    each sub-step: the ball nut's on the change of ``delta_c`` (m), the screw
+    bearings' on the motor angle (rad), the guide's on the table position (m).
+
+    Parameters
+    ----------
+    state : ndarray, shape (10,)
+        ``th``, ``w``, ``x``, ``v``, ``i``, ``T_f`` (N m: nut + bearings, what
+        the motor feels), ``f_g`` (N), the nut's and the bearings' shares of
+        ``T_f`` (N m) and ``F / F_p`` of the last solution; updated in place
+        to the period's end.
+    cmd : float
+        The commanded current held over the period, A (saturated).
+    config : ndarray, shape (17,)
+        As for :func:`elastic_ball_screw_period` (``g`` unused), then the
+        contact's travel ``D`` (m, >= 0) and the preload ``F_p`` (N, > 0).
+    nut, bearing, guide : ndarray, shape (3, N)
+        The Maxwell-slip sets (rows ``delta``, ``k``, ``z``; ``z`` in place):
+        the nut's in m of contact deformation and N m, the bearings' in rad
+        and N m, the guide's in m and N.
+    """
+    th, w, x, v, i, tf, fg = state[0], state[1], state[2], state[3], state[4], state[5], state[6]
+    t_nut, t_bearing, y = state[7], state[8], state[9]
+    r, k, travel, preload = config[0], config[1], config[15], config[16]
+    substeps = int(config[10])
+    h = config[11]
+    decay1 = config[12]
+    decay2 = config[13]
+    ideal_current = config[14] != 0.0
+    half = h / 2.0
+    if ideal_current:
+        i = cmd
+    y = contact_load(r * th - x, k, travel, preload, y)
+    contact = travel * math.tanh(y)
+    for _ in range(substeps):
+        th_start, x_start = th, x
+        if ideal_current:
+            i0 = i
+            i1 = i
+            i2 = i
+        else:
+            i0 = i
+            i1 = cmd + (i - cmd) * decay1
+            i2 = cmd + (i - cmd) * decay2
+        a1, b1, y = _contact_accel(th, w, x, v, i0, tf, fg, y, config)
+        a2, b2, y = _contact_accel(
+            th + half * w, w + half * a1, x + half * v, v + half * b1, i1, tf, fg, y, config
+        )
+        w2, v2 = w + half * a1, v + half * b1
+        a3, b3, y = _contact_accel(
+            th + half * w2, w + half * a2, x + half * v2, v + half * b2, i1, tf, fg, y, config
+        )
+        w3, v3 = w + half * a2, v + half * b2
+        a4, b4, y = _contact_accel(
+            th + h * w3, w + h * a3, x + h * v3, v + h * b3, i2, tf, fg, y, config
+        )
+        w4, v4 = w + h * a3, v + h * b3
+        th += h / 6.0 * (w + 2.0 * w2 + 2.0 * w3 + w4)
+        x += h / 6.0 * (v + 2.0 * v2 + 2.0 * v3 + v4)
+        w += h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+        v += h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
+        i = i2
+        y = contact_load(r * th - x, k, travel, preload, y)
+        contact_end = travel * math.tanh(y)
+        t_nut = maxwell_slip_move(nut[2], nut[0], nut[1], contact_end - contact)
+        contact = contact_end
+        t_bearing = maxwell_slip_move(bearing[2], bearing[0], bearing[1], th - th_start)
+        tf = t_nut + t_bearing
+        fg = maxwell_slip_move(guide[2], guide[0], guide[1], x - x_start)
+    state[0], state[1], state[2], state[3], state[4], state[5], state[6] = th, w, x, v, i, tf, fg
+    state[7], state[8], state[9] = t_nut, t_bearing, y
+
+
 # ----------------------------------------------------------------------- tilting table
 
 

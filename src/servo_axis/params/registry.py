@@ -86,6 +86,10 @@ class PlantModelEntry:
         line, ``x = R theta``, and the error ``R (r - y)`` is in m.
     description : str
         One line for ``list`` and the parameter reference.
+    fingerprint_if_set : frozenset of str
+        Keys added after files were identified on the model (a GMS fit):
+        in the plant's fingerprint only when set away from their default,
+        so that a file fitted before names the same plant.
     """
 
     schema: Mapping[str, Param]
@@ -93,6 +97,7 @@ class PlantModelEntry:
     warnings: Callable[[Values], list[str]] = _no_warnings
     rotary: bool = False
     description: str = ""
+    fingerprint_if_set: frozenset[str] = frozenset()
 
 
 @dataclass(frozen=True)

@@ -86,7 +86,13 @@ def plant_fingerprint(scenario: dict[str, Any]) -> str:
     refuses a file of another plant.
     """
     values = node_values(scenario, "plant")
-    keys = [*sorted(plant_model(values["model"]).schema), "lead_m_per_rad"]
+    entry = plant_model(values["model"])
+    own = [
+        k
+        for k in sorted(entry.schema)
+        if k not in entry.fingerprint_if_set or values[k] != entry.schema[k].default
+    ]
+    keys = [*own, "lead_m_per_rad"]
     text = json.dumps({k: values[k] for k in keys}, sort_keys=True)
     return f"{values['model']}:{hashlib.sha256(text.encode()).hexdigest()[:16]}"
 

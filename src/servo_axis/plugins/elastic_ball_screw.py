@@ -14,6 +14,7 @@ import numpy as np
 
 from servo_axis.core.models.base import Plant
 from servo_axis.core.models.elastic_ball_screw import (
+    NUT_FRICTION_MODELS,
     ElasticBallScrewParams,
     ElasticBallScrewPlant,
     mode_warning,
@@ -115,6 +116,46 @@ ELASTIC_BALL_SCREW: dict[str, Param] = {
         maximum=200,
         meaning="Maxwell-slip elements per friction set",
     ),
+    "nut_friction": Param(
+        _ELASTIC["nut_friction"],
+        choices=NUT_FRICTION_MODELS,
+        meaning="what drives the ball nut's friction: displacement (the motor angle, nut and "
+        "bearings in one set) or contact (the balls' contact deformation, so that it reverses "
+        "with the load's flank, 004 Sect. III-B; the bearings apart)",
+    ),
+    "contact_travel_m": Param(
+        _ELASTIC["contact_travel_m"],
+        unit="m",
+        minimum=0.0,
+        meaning="contact: D, the balls' contact deformation is D tanh(F / F_p) in series with "
+        "the linear k_h (contact_zone_m must be 0)",
+    ),
+    "nut_preload_N": Param(
+        _ELASTIC["nut_preload_N"],
+        unit="N",
+        above=0.0,
+        meaning="contact: F_p, the preload: the load over which the balls change flank",
+    ),
+    "contact_presliding_m": Param(
+        _ELASTIC["contact_presliding_m"],
+        unit="m",
+        above=0.0,
+        meaning="contact: the nut's pre-sliding width on the contact deformation; below "
+        "contact_travel_m",
+    ),
+    "bearing_friction_Nm": Param(
+        _ELASTIC["bearing_friction_Nm"],
+        unit="N m",
+        minimum=0.0,
+        meaning="contact: rolling friction of the screw bearings at the motor (0 with "
+        "displacement: nut_friction_Nm holds both)",
+    ),
+    "bearing_presliding_m": Param(
+        _ELASTIC["bearing_presliding_m"],
+        unit="m",
+        above=0.0,
+        meaning="contact: the bearings' pre-sliding width at the table",
+    ),
     "current_bandwidth_hz": Param(
         _ELASTIC["current_bandwidth_hz"],
         unit="Hz",
@@ -186,4 +227,15 @@ PLANT_MODEL = PlantModelEntry(
     warnings=_elastic_warnings,
     rotary=False,
     description="two-inertia ball-screw axis with elastic screw and nonlinear ball contacts (004)",
+    # The ball-nut friction option (issue 21) came after GMS files were fitted.
+    fingerprint_if_set=frozenset(
+        {
+            "nut_friction",
+            "nut_preload_N",
+            "contact_travel_m",
+            "contact_presliding_m",
+            "bearing_friction_Nm",
+            "bearing_presliding_m",
+        }
+    ),
 )

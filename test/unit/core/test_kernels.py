@@ -51,6 +51,11 @@ out["elastic"] = run(ElasticBallScrewPlant(ElasticBallScrewParams()), currents(4
 out["elastic_ideal_current"] = run(
     ElasticBallScrewPlant(ElasticBallScrewParams(current_bandwidth_hz=0.0, contact_zone_m=0.0)),
     currents(200, 3.0, 4.0, 5e-4))
+out["elastic_contact"] = run(
+    ElasticBallScrewPlant(ElasticBallScrewParams(
+        nut_friction="contact", contact_zone_m=0.0, contact_travel_m=19e-6, nut_preload_N=80.0,
+        contact_presliding_m=1e-6, nut_friction_Nm=0.1, bearing_friction_Nm=0.1)),
+    currents(400, 3.0, 4.0, 5e-4))
 out["tilting"] = run(TiltingTablePlant(TiltingTableParams(), rng=np.random.default_rng(4)),
                      currents(600, 0.35, 10.0, 4e-4, saturate=False))
 out["tilting_smooth"] = run(
@@ -81,7 +86,15 @@ def both() -> tuple[dict[str, list[object]], dict[str, list[object]]]:
 
 @pytest.mark.parametrize(
     "case",
-    ["ball_screw", "elastic", "elastic_ideal_current", "tilting", "tilting_smooth", "maxwell_slip"],
+    [
+        "ball_screw",
+        "elastic",
+        "elastic_ideal_current",
+        "elastic_contact",
+        "tilting",
+        "tilting_smooth",
+        "maxwell_slip",
+    ],
 )
 def test_compiled_equals_interpreted_bit_for_bit(
     both: tuple[dict[str, list[object]], dict[str, list[object]]], case: str
@@ -104,3 +117,5 @@ def test_the_cases_move_through_what_they_should(
     screw = np.array([[float.fromhex(x) for x in r] for r in compiled["ball_screw"]])
     assert np.any(np.diff(np.sign(screw[:, 3])) != 0)
     np.testing.assert_allclose(np.abs(screw[:, 6]).max(), 0.715 * 30.0, rtol=1e-12)
+    contact = np.array([[float.fromhex(x) for x in r] for r in compiled["elastic_contact"]])
+    assert np.any(np.diff(np.sign(contact[:, 3])) != 0)

@@ -33,6 +33,51 @@ at zero speed. During a deceleration the screw must push (Pattern I) while
 ``|M x_t''| < f_g`` and brake (Pattern II) once the deceleration is higher,
 so the pattern at zero speed depends on the deceleration (004 Sect. III-B).
 
+Ball-nut friction driven by the contact (``nut_friction = "contact"``)
+-----------------------------------------------------------------------
+The spring becomes a linear part ``k_h`` (screw axial and torsion, bearings,
+the balls once loaded on one flank) in series with the balls' contact, whose
+deformation is ``delta_c = D tanh(F / F_p)`` (004 Fig. 7: the balls as
+nonlinear springs): ``F / k_h + D tanh(F / F_p) = delta``, solved for ``F``
+at every RK4 stage (:func:`servo_axis.core.kernels.contact_load`; the soft
+zone ``g`` must then be 0). ``delta_c`` is the micro-motion of the screw
+groove against the nut across the balls: it stays near ``+-D`` while one
+flank carries the load and travels ``2 D`` when the load changes flank
+(Pattern I <-> II, Figs. 9-10), stiffness ``1 / (1/k_h + D/F_p)`` there and
+``k_h`` beyond a few ``F_p``. The torque ``T_f`` of the friction between
+balls and grooves is a Maxwell-slip set driven by ``delta_c`` (level
+``nut_friction_Nm``, pre-sliding width ``contact_presliding_m`` < ``D`` on the
+virgin curve), so it keeps its sign while the load stays on one flank,
+whatever the speed, and reverses with the flank: before the table stops when
+the deceleration is high (the screw brakes the nut and "F_bs, F_b, T_f and
+T also change their directions", Sect. III-B-2), after the stop when it is
+low (Pattern I at the stop, II only in the acceleration after the reverse,
+Sect. III-B-1). Between the change of flank and the stop ``T_f`` turns the
+screw in its direction of rotation: 004's picture of the forces, not a
+passive contact law (the energy it brings in is ``2 T_n`` times the motor's
+rotation over that stretch, a few mrad).
+
+Preload (Sect. III-B, whose analysis neglects the initial deformations it
+causes): the nut's preload closes the play of the balls (no backlash) and
+sets ``F_p``, the load over which the balls pass from one flank to the other
+(both flanks loaded below it); ``D`` is their Hertzian travel between the
+flanks, so that a higher preload is a higher ``F_p`` (a stiffer zero-load
+contact, ``F_p / D``); the preload's drag torque is the nut's friction level
+``nut_friction_Nm``, and the contact's pre-sliding width a fraction of ``D``.
+The calibrated values (``D`` = 19 um, ``F_p`` = 80 N, eq. (8)'s sigma) are in
+the ``*_contact_*`` scenarios, made by ``scripts/calibrate_contact.py``; the
+zero-load stiffness ``F_p / D`` = 4.2e6 N/m puts the table on a mode near
+20 Hz while the load changes flank (the loaded mode stays at 150 Hz).
+
+The screw's support bearings (004 Fig. 8: the left-hand one fixed, "the
+friction of the bearing at the right side of the screw is small", Sect.
+III-A) carry ``F_b`` and the screw's rotation; their rolling friction stays
+a function of the motor angle (``bearing_friction_Nm``,
+``bearing_presliding_m``), the guide's ``f_g`` of the table's displacement.
+With ``"displacement"`` (the default) ``nut_friction_Nm`` is nut and bearings
+in one set on the motor angle, as before. The sub-step loop of ``"contact"``
+is :func:`servo_axis.core.kernels.elastic_ball_screw_contact_period`.
+
 Current loop: a first-order lag of ``current_bandwidth_hz`` (004 Sect. II-A:
 1 kHz) from the commanded to the actual current ``i_a``, solved exactly over
 each control period (the command is held); 0 makes it ideal.
@@ -93,6 +138,9 @@ from servo_axis.core.friction.maxwell_slip import MaxwellSlip
 from servo_axis.core.models.base import NominalModel, PlantOutput, clipped_current, sim_steps
 from servo_axis.core.sensors import PositionSensor, SensorParams
 
+#: What may drive the ball nut's friction (``nut_friction``).
+NUT_FRICTION_MODELS = ("displacement", "contact")
+
 #: The first axial mode a ball screw of this kind has (issue 10: "between 100 and 200 Hz").
 TYPICAL_MODE_HZ = (100.0, 200.0)
 
@@ -141,6 +189,26 @@ class ElasticBallScrewParams:
         Its pre-sliding width, m, > 0 (15e-6).
     friction_elements : int
         Maxwell-slip elements per friction set, 1..200 (8).
+    nut_friction : str
+        What drives the ball nut's friction: ``"displacement"`` (default: the
+        motor angle, one set for nut and bearings) or ``"contact"`` (the
+        contact deformation of the balls; the bearings apart, see the module).
+    contact_travel_m : float
+        ``"contact"``: ``D``, half the travel of the balls' contact deformation
+        between the two flanks, m, >= 0 (20e-6; see the module).
+    nut_preload_N : float
+        ``"contact"``: ``F_p``, the preload: the load over which the balls pass
+        from one flank to the other, N, > 0 (50).
+    contact_presliding_m : float
+        ``"contact"``: the nut's pre-sliding width on the contact deformation
+        (virgin curve), m, > 0 (0.5e-6); below ``contact_travel_m`` so that a
+        change of flank reverses it.
+    bearing_friction_Nm : float
+        ``"contact"``: rolling friction of the screw bearings at the motor,
+        N m, >= 0 (0; with ``"displacement"`` it is part of
+        ``nut_friction_Nm`` and must be 0).
+    bearing_presliding_m : float
+        ``"contact"``: its pre-sliding width, at the table, m, > 0 (7.5e-6).
     current_bandwidth_hz : float
         Bandwidth of the current loop (first-order), Hz, >= 0 (1000, 004
         Sect. II-A; 0: ideal).
@@ -172,6 +240,12 @@ class ElasticBallScrewParams:
     guide_friction_N: float = 120.0
     guide_presliding_m: float = 7.5e-6
     friction_elements: int = 8
+    nut_friction: str = "displacement"
+    contact_travel_m: float = 20e-6
+    nut_preload_N: float = 50.0
+    contact_presliding_m: float = 0.5e-6
+    bearing_friction_Nm: float = 0.0
+    bearing_presliding_m: float = 7.5e-6
     current_bandwidth_hz: float = 1000.0
     control_period_s: float = 0.5e-3
     sim_step_s: float = 50e-6
@@ -190,6 +264,9 @@ class ElasticBallScrewParams:
             "torsional_stiffness_Nm_per_rad",
             "nut_presliding_m",
             "guide_presliding_m",
+            "contact_presliding_m",
+            "bearing_presliding_m",
+            "nut_preload_N",
             "current_limit_A",
         ):
             require_positive(name, getattr(self, name))
@@ -200,6 +277,8 @@ class ElasticBallScrewParams:
             "contact_zone_m",
             "nut_friction_Nm",
             "guide_friction_N",
+            "bearing_friction_Nm",
+            "contact_travel_m",
             "current_bandwidth_hz",
         ):
             require_nonnegative(name, getattr(self, name))
@@ -210,6 +289,28 @@ class ElasticBallScrewParams:
             raise ConfigError(
                 f"friction_elements: expected an integer in 1..200, got {self.friction_elements!r}"
             )
+        if self.nut_friction not in NUT_FRICTION_MODELS:
+            raise ConfigError(
+                f"nut_friction: expected one of {', '.join(NUT_FRICTION_MODELS)}, "
+                f"got {self.nut_friction!r}"
+            )
+        if self.nut_friction == "displacement" and self.bearing_friction_Nm != 0.0:
+            raise ConfigError(
+                "bearing_friction_Nm: expected 0 with nut_friction displacement (nut_friction_Nm "
+                f"holds nut and bearings), got {self.bearing_friction_Nm!r}"
+            )
+        if self.nut_friction == "contact":
+            if self.contact_zone_m != 0.0:
+                raise ConfigError(
+                    "contact_zone_m: expected 0 with nut_friction contact (its contact law is "
+                    f"contact_travel_m and nut_preload_N), got {self.contact_zone_m!r}"
+                )
+            if not self.contact_presliding_m < self.contact_travel_m:
+                raise ConfigError(
+                    "contact_presliding_m: expected below contact_travel_m = "
+                    f"{self.contact_travel_m!r} m with nut_friction contact, "
+                    f"got {self.contact_presliding_m!r}"
+                )
         sim_steps(self.control_period_s, self.sim_step_s)
         if self.current_bandwidth_hz * self.sim_step_s > 0.4:
             raise ConfigError(
@@ -327,9 +428,16 @@ class ElasticBallScrewPlant:
         self._n = sim_steps(p.control_period_s, p.sim_step_s)
         self._h = p.sim_step_s
         r = p.lead_m_per_rad
+        self._contact = p.nut_friction == "contact"
+        # "contact": the nut's set works in m of contact deformation and N m.
         self._nut = MaxwellSlip(
             coulomb_Nm=p.nut_friction_Nm,
-            width_rad=p.nut_presliding_m / r,
+            width_rad=p.contact_presliding_m if self._contact else p.nut_presliding_m / r,
+            elements=p.friction_elements,
+        )
+        self._bearing = MaxwellSlip(
+            coulomb_Nm=p.bearing_friction_Nm,
+            width_rad=p.bearing_presliding_m / r,
             elements=p.friction_elements,
         )
         # The guide's set works in m and N; MaxwellSlip is unit-agnostic.
@@ -362,14 +470,20 @@ class ElasticBallScrewPlant:
                 1.0 if ideal else math.exp(-wc * h / 2.0),
                 1.0 if ideal else math.exp(-wc * h),
                 1.0 if ideal else 0.0,
+                *([p.contact_travel_m, p.nut_preload_N] if self._contact else []),
             ]
         )
         # The RK4 sub-steps and both friction sets, compiled (the plant's whole cost).
-        from servo_axis.core.kernels import elastic_ball_screw_period
+        from servo_axis.core.kernels import (
+            elastic_ball_screw_contact_period,
+            elastic_ball_screw_period,
+        )
 
         self._kernel = elastic_ball_screw_period
-        # th, w, x, v, i, T_f, f_g: the state, stepped in place by the kernel.
-        self._state = np.zeros(7)
+        self._contact_kernel = elastic_ball_screw_contact_period
+        # th, w, x, v, i, T_f, f_g (and with "contact" the nut's and the bearings'
+        # shares of T_f and the contact's F / F_p): the state, stepped in place.
+        self._state = np.zeros(10 if self._contact else 7)
         self.reset()
 
     def reset(self) -> None:
@@ -379,6 +493,7 @@ class ElasticBallScrewPlant:
         self._state[0] = p.initial_position_m / p.lead_m_per_rad
         self._state[2] = p.initial_position_m
         self._nut.reset()
+        self._bearing.reset()
         self._guide.reset()
         self._step = 0
         self._sample()
@@ -393,6 +508,39 @@ class ElasticBallScrewPlant:
         """``delta = R th - x_t``: the elastic deformation now, m."""
         return self.params.lead_m_per_rad * float(self._state[0]) - float(self._state[2])
 
+    @property
+    def contact_deformation_m(self) -> float:
+        """``delta_c = D tanh(F / F_p)``: the balls' contact deformation now, m.
+
+        ``"contact"`` only; 0.0 with ``"displacement"`` (no contact element).
+        """
+        if not self._contact:
+            return 0.0
+        return self.params.contact_travel_m * math.tanh(float(self._state[9]))
+
+    @property
+    def spring_force_N(self) -> float:
+        """The elastic force of the screw and nut now (without ``c_s``), N."""
+        if self._contact:
+            return self.params.nut_preload_N * float(self._state[9])
+        return spring_force_N(self.deformation_m, self.params)
+
+    @property
+    def friction_torques_Nm(self) -> tuple[float, float, float]:
+        """``(T_f, nut share, bearing share)`` at the motor now, N m (shares: ``"contact"`` only).
+
+        With ``"displacement"`` the shares are ``(T_f, T_f, 0.0)``: one set.
+        """
+        tf = float(self._state[5])
+        if self._contact:
+            return tf, float(self._state[7]), float(self._state[8])
+        return tf, tf, 0.0
+
+    @property
+    def guide_force_N(self) -> float:
+        """``f_g``: the guide's friction on the table now, N."""
+        return float(self._state[6])
+
     def output(self) -> PlantOutput:
         """Readings and true state at the current control sample."""
         return self._out
@@ -400,14 +548,24 @@ class ElasticBallScrewPlant:
     def step(self, current_A: float) -> PlantOutput:
         """Hold ``current_A`` (A, saturated at ``+-current_limit_A``) over one control period."""
         cmd = clipped_current(current_A, self.params.current_limit_A)
-        self._kernel(self._state, cmd, self._config, self._nut.packed(), self._guide.packed())
+        if self._contact:
+            self._contact_kernel(
+                self._state,
+                cmd,
+                self._config,
+                self._nut.packed(),
+                self._bearing.packed(),
+                self._guide.packed(),
+            )
+        else:
+            self._kernel(self._state, cmd, self._config, self._nut.packed(), self._guide.packed())
         self._step += 1
         self._sample()
         return self._out
 
     def _sample(self) -> None:
         p = self.params
-        th, w, x, v, i, tf, fg = self._state.tolist()
+        th, w, x, v, i, tf, fg = self._state[:7].tolist()
         self._out = PlantOutput(
             step=self._step,
             encoder_rad=self._encoder.measure(th),
