@@ -31,7 +31,7 @@ from servo_axis.core.deformation import deformation_ratio
 from servo_axis.core.drive import current_from_torque, torque_from_current
 from servo_axis.core.errors import SignalError
 from servo_axis.friction_id import estimate_friction_torque
-from servo_axis.params import factories
+from servo_axis.params import factories, resolve
 from servo_axis.params.scenario import load_scenario
 
 FloatArray = np.ndarray
@@ -119,11 +119,11 @@ def run_trace(scenario_path: Path, *, steps: int | None = None) -> PlantTrace:
     plant must be ``elastic_ball_screw``.
     """
     scenario = load_scenario(scenario_path)
-    pv = factories.node_values(scenario, "plant")
+    pv = resolve.node_values(scenario, "plant")
     if pv["model"] != "elastic_ball_screw":
         raise SignalError(f"plant.model: expected elastic_ball_screw, got {pv['model']!r}")
-    fbv = factories.node_values(scenario, "feedback")
-    ffv = factories.feedforward_values(scenario, scenario_path)
+    fbv = resolve.node_values(scenario, "feedback")
+    ffv = resolve.feedforward_values(scenario, scenario_path)
     n = factories.run_steps(pv) if steps is None else steps
     sim = factories.build_plant(pv)
     loop = factories.build_loop(fbv)

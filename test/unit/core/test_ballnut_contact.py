@@ -27,8 +27,9 @@ from servo_axis.core.models.elastic_ball_screw import (
     ElasticBallScrewPlant,
 )
 from servo_axis.core.sensors import SensorParams
-from servo_axis.params import factories
+from servo_axis.params import resolve
 from servo_axis.params.scenario import load_scenario
+from servo_axis.plugins.elastic_ball_screw import elastic_ball_screw_params
 
 CONFIG = Path(__file__).resolve().parents[3] / "src" / "servo_axis" / "scenarios"
 IDEAL = SensorParams(resolution=0.0)
@@ -39,10 +40,10 @@ FAST_STOP = 3000  # the reversal of x = 25 (1 - cos 2 pi t) mm at 1.5 s, T_u = 0
 
 def contact_params() -> ElasticBallScrewParams:
     """The frozen plant of the contact scenarios."""
-    values = factories.node_values(
+    values = resolve.node_values(
         load_scenario(CONFIG / "fast_reversal_contact_gms.yaml"), "plant"
     )
-    return factories.elastic_ball_screw_params(values)
+    return elastic_ball_screw_params(values)
 
 
 def bare(name: str, tmp_path: Path, **everywhere: object) -> Path:
