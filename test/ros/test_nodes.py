@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -566,12 +566,27 @@ def toy_scenario(tmp_path: Path) -> tuple[dict[str, Any], Path]:
     return data, path
 
 
+@pytest.fixture
+def toy_model() -> Iterator[None]:
+    """The toy plant model registered in this process for one test, and gone after it
+    (the parameter reference of a later test lists the installed extensions only)."""
+    import toy_plant_model
+
+    from servo_axis.params.factories import PLANT_MODELS, register_plant_model
+
+    if toy_plant_model.NAME not in PLANT_MODELS:  # imported before, then removed
+        register_plant_model(
+            toy_plant_model.NAME, schema=toy_plant_model.SCHEMA, build=toy_plant_model.build
+        )
+    yield
+    PLANT_MODELS.unregister(toy_plant_model.NAME)
+
+
 def test_a_new_plant_model_runs_headless_and_in_the_node_graph(
-    context: Context, tmp_path: Path
+    context: Context, tmp_path: Path, toy_model: None
 ) -> None:
     """A model added as one module + its registration (toy_plant_model) runs through
     simulate (no ROS) and through the node graph, with identical numbers."""
-    import toy_plant_model  # noqa: F401  (registers the model)
 
     data, path = toy_scenario(tmp_path)
     steps = 500

@@ -270,6 +270,12 @@ class Registry(Mapping[str, E], Generic[E]):
         self._loaded()[name] = entry
         self._sources[name] = "registered in-process"
 
+    def unregister(self, name: str) -> None:
+        """Remove ``name`` if it was registered in-process (an installed entry stays)."""
+        if self._sources.get(name) == "registered in-process":
+            del self._loaded()[name]
+            del self._sources[name]
+
     def source(self, name: str) -> str:
         """Where ``name`` comes from (its entry point's ``module:object``)."""
         self._loaded()

@@ -40,9 +40,7 @@ FAST_STOP = 3000  # the reversal of x = 25 (1 - cos 2 pi t) mm at 1.5 s, T_u = 0
 
 def contact_params() -> ElasticBallScrewParams:
     """The frozen plant of the contact scenarios."""
-    values = resolve.node_values(
-        load_scenario(CONFIG / "fast_reversal_contact_gms.yaml"), "plant"
-    )
+    values = resolve.node_values(load_scenario(CONFIG / "fast_reversal_contact_gms.yaml"), "plant")
     return elastic_ball_screw_params(values)
 
 
