@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -28,6 +29,7 @@ from run_support import pids_of, shm_left_behind, shm_names
 
 from servo_axis.analysis.health import EXIT_FAILED, EXIT_FAULT, EXIT_NOT_DETERMINISTIC
 from servo_axis.nodes.runtime import LIVELINESS_LEASE_S
+from servo_axis.recording.deserialize import read_messages
 
 pytestmark = pytest.mark.integration
 
@@ -147,11 +149,18 @@ def test_killed_learning_unit_is_restarted_and_the_axis_runs_on(
     assert k.summary["steps"] == STEPS  # the axis ran to the end
     restart_log = (k.run_dir / "logs" / "learning.restart1.log").read_text()
     assert "resumed" in restart_log  # from its memory file
-    # The restarted unit learned on: the last cycle's error is below the first's (how far
-    # below depends on how many cycle boundaries fell back on the last correction while it
-    # came back, a wall-clock matter: about half on a quiet machine, 0.6 under load).
+    # The restarted unit learned on from what it resumed: its count of learned
+    # cycles grew past the one in its memory, and the last cycle's error is
+    # below the first's (how far below depends on how many cycle boundaries
+    # fell back on the last correction while it came back, a wall-clock
+    # matter: about half on a quiet machine, 0.6-1.0 under load).
+    resumed = int(re.search(r"resumed (\d+) learned cycles", restart_log).group(1))
+    stats = [
+        m.message.data for m in read_messages(k.run_dir / "bag", topics=["/x/learning/cycle_stats"])
+    ]
+    assert stats and stats[-1][3] > resumed, (resumed, stats[-1])
     cycles = k.summary["tracking_error"]["cycles"]
-    assert cycles[-1]["max_m"] < 0.8 * cycles[0]["max_m"]
+    assert cycles[-1]["max_m"] < cycles[0]["max_m"]
     _assert_reaped_and_readable(k)
     assert k.restart_seen_at is not None
     _report("learning", k, f"killed -> restarted {k.restart_seen_at - k.killed_at:.2f} s")
