@@ -21,7 +21,15 @@ summary
     The typed ``summary.json`` of a run
     (:class:`~servo_axis.analysis.summary.RunSummary`) and of a multi-axis run
     (:class:`~servo_axis.analysis.summary.AxesSummary`): computing, writing
-    and reading them back.
+    and reading them back. Each block is computed by the module of its
+    subject (``tracking``, ``learning_summary``, ``identification``,
+    ``deformation_summary``, ``realtime``, ``contour_summary``), whose names
+    ``summary`` re-exports.
+serial
+    The one serialiser of the summary's dataclasses:
+    :func:`~servo_axis.analysis.serial.to_dict` and
+    :func:`~servo_axis.analysis.serial.from_dict`, driven by the fields and
+    their type hints.
 text
     Summaries and per-cycle comparisons as plain-text tables.
 plots

@@ -30,7 +30,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from servo_axis.analysis.metrics import to_plain
+from servo_axis.analysis.serial import Serial
 from servo_axis.wire.health import NodeHealth
 
 EXIT_OK = 0
@@ -41,7 +41,7 @@ EXIT_FAULT = 4
 
 
 @dataclass(frozen=True)
-class NodeDeath:
+class NodeDeath(Serial):
     """A node process that ended before the run did.
 
     Attributes
@@ -67,13 +67,9 @@ class NodeDeath:
     action: str
     restarted_after_s: float | None = None
 
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> NodeDeath:
-        return cls(**data)
-
 
 @dataclass(frozen=True)
-class RunHealth:
+class RunHealth(Serial):
     """How the run went, as ``summary.json``'s ``health``.
 
     Attributes
@@ -103,22 +99,6 @@ class RunHealth:
     deaths: tuple[NodeDeath, ...]
     nodes: dict[str, dict[str, Any]] = field(default_factory=dict)
     bag_recovered: bool = False
-
-    def to_dict(self) -> dict[str, Any]:
-        plain: dict[str, Any] = to_plain(self)
-        return plain
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> RunHealth:
-        return cls(
-            outcome=data["outcome"],
-            deterministic=data["deterministic"],
-            exit_code=data["exit_code"],
-            reasons=tuple(data["reasons"]),
-            deaths=tuple(NodeDeath.from_dict(d) for d in data["deaths"]),
-            nodes=dict(data.get("nodes", {})),
-            bag_recovered=bool(data.get("bag_recovered", False)),
-        )
 
 
 def assess(

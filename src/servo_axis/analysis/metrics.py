@@ -14,7 +14,6 @@ The results are in the layout of ``summary.json``
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -22,31 +21,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from servo_axis.analysis.serial import Serial, to_plain
 from servo_axis.core.timing import SampleGrid
-
-
-def to_plain(obj: Any) -> Any:
-    """A result dataclass as JSON-ready values: mappings in field order, lists for tuples.
-
-    A field with ``metadata={"summary": False}`` is left out (series that are
-    not part of ``summary.json``); one with ``metadata={"omit_none": True}``
-    is left out while it is None.
-    """
-    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        out = {}
-        for f in dataclasses.fields(obj):
-            value = getattr(obj, f.name)
-            if not f.metadata.get("summary", True):
-                continue
-            if value is None and f.metadata.get("omit_none", False):
-                continue
-            out[f.name] = to_plain(value)
-        return out
-    if isinstance(obj, tuple | list):
-        return [to_plain(v) for v in obj]
-    if isinstance(obj, dict):
-        return {k: to_plain(v) for k, v in obj.items()}
-    return obj
 
 
 def _stats(e: NDArray[np.float64]) -> dict[str, float]:
@@ -117,7 +93,7 @@ def error_statistics(
 
 
 @dataclass(frozen=True)
-class ContourCycle:
+class ContourCycle(Serial):
     """Contour error of one cycle of the reference.
 
     Attributes
@@ -133,19 +109,6 @@ class ContourCycle:
     cycle: int
     circular_deviation_m: float
     max_radial_m: float
-
-    def to_dict(self) -> dict[str, Any]:
-        """As in ``summary.json``, keys in field order."""
-        return to_plain(self)
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> ContourCycle:
-        """Inverse of :meth:`to_dict`."""
-        return cls(
-            cycle=data["cycle"],
-            circular_deviation_m=data["circular_deviation_m"],
-            max_radial_m=data["max_radial_m"],
-        )
 
 
 @dataclass(frozen=True, eq=False)

@@ -61,7 +61,7 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
-from servo_axis.analysis.metrics import to_plain
+from servo_axis.analysis.serial import Serial
 from servo_axis.core.deformation import DeformationTrace
 from servo_axis.core.errors import ServoAxisError, SignalError
 from servo_axis.core.feedback.loop import Fault
@@ -91,7 +91,7 @@ FAULT_NAMES: dict[int, str] = {int(f): f.name.lower() for f in Fault}
 
 
 @dataclass(frozen=True)
-class FaultRecord:
+class FaultRecord(Serial):
     """One message of the ``fault`` topic.
 
     Attributes
@@ -110,16 +110,6 @@ class FaultRecord:
     code: int
     name: str
     value: float
-
-    def to_dict(self) -> dict[str, Any]:
-        """The record as in ``summary.json`` (keys step, code, name, value)."""
-        plain: dict[str, Any] = to_plain(self)
-        return plain
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> FaultRecord:
-        """Inverse of :meth:`to_dict`."""
-        return cls(step=data["step"], code=data["code"], name=data["name"], value=data["value"])
 
 
 #: How far past the last kept sample a sample of a realtime run may be, in

@@ -1,0 +1,63 @@
+"""How the plant's clock kept time in a realtime run (``summary.json``'s ``realtime``)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from servo_axis.analysis.serial import Serial
+
+
+@dataclass(frozen=True)
+class Realtime(Serial):
+    """How the plant's clock kept time in a realtime run (its report, ``health.realtime``).
+
+    A realtime run is never deterministic: which commands miss their
+    deadline depends on the host. These figures say how far it was from
+    the lockstep result (:mod:`servo_axis.core.deadlines`).
+
+    Attributes
+    ----------
+    period_ns : int
+        ``T_u``, ns.
+    ticks : int
+        Ticks of the clock (one step each).
+    misses : int
+        Ticks whose command had not arrived by the tick's deadline (the last
+        current was held).
+    commands_missing : int
+        Steps whose command never arrived (counted in ``misses``).
+    commands_late : int
+        Commands that arrived more than a period after their state's tick
+        (``misses = commands_late + commands_missing``).
+    timer_rate : float
+        Ticks per period of wall time from the start to the last tick (1.0:
+        the clock kept time).
+    tick_late_us, command_late_us : dict or None
+        ``p50``, ``p99`` and ``max`` in us of the ticks' lateness (when the
+        plant stepped after the deadline) and of the commands' (arrival after
+        the tick of the state they answer: more than one period is a miss).
+    floor : dict or None
+        The floor of the host at this period (``rt_floor.py --json``'s result,
+        ``run --floor FILE``); None (not written) if not given.
+    scheduling : dict or None
+        The plant process's scheduling: ``policy`` (``fifo`` or ``other``),
+        ``priority`` and, where the system refused ``thread_priority``,
+        ``refused`` (why); None from a plant that did not report it.
+    """
+
+    period_ns: int
+    ticks: int
+    misses: int
+    commands_missing: int
+    commands_late: int = field(metadata={"missing": 0})
+    timer_rate: float
+    tick_late_us: dict[str, float] | None = field(metadata={"missing": None})
+    command_late_us: dict[str, float] | None = field(metadata={"missing": None})
+    floor: dict[str, Any] | None = field(default=None, metadata={"omit_none": True})
+    scheduling: dict[str, Any] | None = field(default=None, metadata={"omit_none": True})
+
+    @property
+    def miss_fraction(self) -> float:
+        """``misses / ticks`` (0 without ticks)."""
+        return self.misses / self.ticks if self.ticks else 0.0
