@@ -492,3 +492,40 @@ def test_a_restarted_identifier_resumes_bit_identically_from_its_memory(
         assert fresh.identifier.last_step is None and fresh.last_estimate is None
     finally:
         fresh.destroy_node()
+
+
+# -- 5. realtime: a command that never comes ------------------------------------------------
+
+
+def test_realtime_identifier_holds_the_last_torque_for_a_command_that_never_comes(
+    context: Context, tmp_path: Path
+) -> None:
+    """The feedback skips answering a state it is too late for (or a command is lost):
+    the plant holds the last current, as a drive does, and so does the identifier,
+    instead of waiting for the missing step for the rest of the run."""
+    data, _ = short_lpf2(tmp_path)
+    values = identifier_values(data, mode="realtime", thread_priority=0)
+    node = IdentifierNode(context=context, parameter_overrides=parameters(values))
+    feeder = Feeder(context)
+    nodes = [node, feeder]
+    missing = 3
+    try:
+        spin_until(context, nodes, lambda: node.inputs_subscribed and feeder.matched())
+        for k in range(R):
+            feeder.state_pub.publish(feeder.state(k))
+            if k != missing:
+                feeder.command_pub.publish(feeder.command(k))
+        spin_until(context, nodes, lambda: len(feeder.estimates) >= 1)
+        assert node.held_torques == 1
+        # The estimate is the core's with step 3's current replaced by step 2's.
+        core = build_identifier(checked_values("identifier", values))
+        estimates = []
+        for k in range(R):
+            y = sample(k)[0]
+            e = core.update(k, y, FEEDER_KT * sample(k - 1 if k == missing else k)[1])
+            if e is not None:
+                estimates.append(e)
+        expected = estimates[0]
+        assert_array_equal(feeder.estimates[0].values(), as_message_values(expected))
+    finally:
+        destroy(nodes)

@@ -326,23 +326,33 @@ class ServoNode(Node):
             self.get_logger().warning(f"{text} ({self.rejected} rejected so far)")
 
     # -- peers -------------------------------------------------------------------
-    def realtime_scheduling(self, below: int = 0) -> dict[str, object] | None:
-        """Realtime mode: ``SCHED_FIFO`` at ``thread_priority - below`` (at least 1) for this
-        process's threads (:func:`~servo_axis.nodes.runtime.realtime_scheduling`; a
-        warning if refused).
+    def realtime_scheduling(self, below: int = 0) -> None:
+        """Realtime mode: ask for ``SCHED_FIFO`` at ``thread_priority - below`` (at least 1),
+        applied by :meth:`start_realtime` once the run starts.
 
-        None in lockstep, where nothing waits on the wall clock, and with a
-        ``thread_priority`` of 0.
+        Start-up (discovery, matching, loading the compiled kernels) runs at
+        the default scheduler: realtime threads that saturate a small host
+        while the others are still being set up can starve them (a run on 2
+        cores once never started). Nothing in lockstep, where nothing waits
+        on the wall clock, or with a ``thread_priority`` of 0.
         """
-        if self.values["mode"] == "lockstep" or self.values["thread_priority"] == 0:
-            return None
-        priority = max(1, self.values["thread_priority"] - below)
+        self.scheduling: dict[str, object] | None = None
+        if self.values["mode"] != "lockstep" and self.values["thread_priority"] > 0:
+            self._rt_priority = max(1, self.values["thread_priority"] - below)
+
+    def start_realtime(self) -> None:
+        """Apply the scheduling asked for (:func:`~servo_axis.nodes.runtime.realtime_scheduling`
+        on every thread of the process; a warning if refused), once; later calls do nothing."""
+        priority = getattr(self, "_rt_priority", None)
+        if priority is None:
+            return
+        self._rt_priority = None
         got = realtime_scheduling(priority)
+        self.scheduling = got
         if "refused" in got:
             self.get_logger().warning(
                 f"thread_priority {priority}: refused ({got['refused']}); the default scheduler"
             )
-        return got
 
     def peer_alive(self, name: str) -> bool:
         """Whether a publisher of subscribed topic ``name`` is alive (liveliness).

@@ -93,7 +93,7 @@ class FeedbackNode(ServoNode):
         self._period_ns = msgs.period_ns(values["control_period_s"])
         self._lockstep = values["mode"] == "lockstep"
         self._kt = values["nominal.torque_constant_Nm_per_A"]
-        self.scheduling = self.realtime_scheduling()
+        self.realtime_scheduling()
 
         self._command_msg = msgs.joint_state_template(msgs.motor_names(self._axis), ("effort",))
         self._command_pub = self.publisher("command")
@@ -166,6 +166,7 @@ class FeedbackNode(ServoNode):
         return ref
 
     def _on_state(self, state: msgs.StateSample) -> None:
+        self.start_realtime()
         self._pending = state
         self._pending_since = time.monotonic()
         self._try_answer()

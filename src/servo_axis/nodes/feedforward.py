@@ -105,7 +105,7 @@ class FeedforwardNode(ServoNode):
         self._lockstep = values["mode"] == "lockstep"
         # Realtime: the references must be out before the feedback needs
         # them, so the generator preempts other work too, below the pair.
-        self.scheduling = self.realtime_scheduling(below=1)
+        self.realtime_scheduling(below=1)
         self._corrections: dict[int, dict[int, tuple[float, ...]]] = {}
         self.missed_corrections = 0
         self.late_corrections = 0  # realtime: applied from a sample into their period
@@ -192,6 +192,7 @@ class FeedforwardNode(ServoNode):
         return step
 
     def _on_status(self, step: int) -> None:
+        self.start_realtime()
         self._plant_step = step
         if self._waiting_since is not None:
             self._waiting_since = time.monotonic()  # the plant still moves: not stalled yet

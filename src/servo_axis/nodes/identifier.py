@@ -61,7 +61,7 @@ class IdentifierNode(ServoNode):
         values = self.values
         # Realtime: what it sends the generator is on the reference path, so
         # it preempts other work, below the generator and the pair.
-        self.scheduling = self.realtime_scheduling(below=2)
+        self.realtime_scheduling(below=2)
         self.identifier = build_identifier(values)
         _, self._latency = estimate_schedule(values, "rls_period_s", "latency_s")
         self._v = values
@@ -87,6 +87,9 @@ class IdentifierNode(ServoNode):
         self._command_gate = StreamGate(window=window, first=first, limit=self._steps)
         self._angles: dict[int, float] = {}
         self._torques: dict[int, float] = {}
+        self._lockstep = values["mode"] == "lockstep"
+        self._last_torque = 0.0
+        self.held_torques = 0  # realtime: steps whose command never came
         self.inputs_subscribed = False
         self.after_consumers_matched(
             [(self._pub, "identifier/estimates", values["wait_for_estimate_subscribers"])],
@@ -137,6 +140,7 @@ class IdentifierNode(ServoNode):
         return None if sample.step <= self._skip_through else sample
 
     def _take(self, step: int, *, angle: float | None = None, torque: float | None = None) -> None:
+        self.start_realtime()
         if angle is not None:
             self._angles[step] = angle
         if torque is not None:
@@ -154,10 +158,20 @@ class IdentifierNode(ServoNode):
                         del buffer[old]
             else:
                 return
-            if nxt not in self._angles or nxt not in self._torques:
+            if nxt not in self._angles:
                 return
+            if nxt in self._torques:
+                torque = self._torques.pop(nxt)
+            elif not self._lockstep and any(k > nxt for k in self._torques):
+                # Realtime: command[nxt] will not come (the feedback skipped
+                # it or it was lost); the plant held the last current, as a
+                # drive does, and so does the identifier.
+                torque = self._last_torque
+                self.held_torques += 1
+            else:
+                return
+            self._last_torque = torque
             y = self._angles.pop(nxt)
-            torque = self._torques.pop(nxt)
             estimate = self.identifier.update(nxt, y, torque)
             if estimate is not None:
                 self._publish(estimate)

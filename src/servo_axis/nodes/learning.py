@@ -75,7 +75,7 @@ class LearningNode(ServoNode):
         values = self.values
         # Realtime: what it sends the generator is on the reference path, so
         # it preempts other work, below the generator and the pair.
-        self.scheduling = self.realtime_scheduling(below=2)
+        self.realtime_scheduling(below=2)
         self._grid = grid(values)
         self.law = build_learning_law(values)
         self._kt = values["nominal.torque_constant_Nm_per_A"]
@@ -194,6 +194,7 @@ class LearningNode(ServoNode):
         return msgs.state_from_msg(msg, axis=self._axis, period_ns_=self._period_ns)
 
     def _on_state(self, state: msgs.StateSample | None) -> None:
+        self.start_realtime()
         if state is None:
             return
         cycle, idx = divmod(state.step // self._stride, self._nd)

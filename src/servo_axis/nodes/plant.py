@@ -142,7 +142,7 @@ class PlantNode(ServoNode):
         self._lockstep = values["mode"] == "lockstep"
         self._kt = values["torque_constant_Nm_per_A"]
         self._v = values
-        self.scheduling = self.realtime_scheduling()
+        self.realtime_scheduling()
         self._flow = FlowControl(
             enabled=values["flow_control"],
             max_lag_steps=values["max_recorder_lag_steps"],
@@ -322,6 +322,7 @@ class PlantNode(ServoNode):
             now = time.monotonic_ns()
             k = cmd.step
             if self._rt_thread is None:
+                self.start_realtime()  # the clock thread inherits it
                 self._start_clock(now)  # command 0: the only one the plant can wait for
             if 0 <= k < self._steps:
                 self._command_late_ns[k] = now - (self._rt_start_ns + k * self._period_ns)
