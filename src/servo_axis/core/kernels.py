@@ -133,18 +133,8 @@ def ball_screw_rigid_with_friction(
     a00, a01, a11, b0, b1 = rigid
     fr = 0.0
     for j in range(inputs.shape[0]):
-        d = th - prev
+        fr = maxwell_slip_move(z, delta, stiffness, th - prev)
         prev = th
-        fr = 0.0
-        for i in range(z.shape[0]):
-            zi = z[i] + d
-            di = delta[i]
-            if zi > di:
-                zi = di
-            elif zi < -di:
-                zi = -di
-            z[i] = zi
-            fr += stiffness[i] * zi
         if coulomb > 0.0:
             fr += coulomb * math.tanh(w / smooth)
         if viscous > 0.0:
