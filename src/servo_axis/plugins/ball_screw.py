@@ -9,18 +9,16 @@ X axis of docs/design.md section 7. Selected by ``plant.model: ball_screw``
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from servo_axis.core.errors import ParameterFileError
 from servo_axis.core.friction.model import FrictionParams
 from servo_axis.core.models.ball_screw import BallScrewParams, BallScrewPlant, DisturbanceParams
 from servo_axis.core.models.base import Plant
-from servo_axis.core.sensors import SensorParams
 from servo_axis.params.factories import MAX_SIM_STEPS
 from servo_axis.params.registry import PlantModelEntry, Values
 from servo_axis.params.schema import Param, build, dataclass_defaults, section
+from servo_axis.plugins.sensors import ENCODER_AND_SCALE, encoder_and_scale
 
 _BALL_SCREW = dataclass_defaults(BallScrewParams)
 _FRICTION = dataclass_defaults(FrictionParams)
@@ -138,30 +136,7 @@ BALL_SCREW: dict[str, Param] = {
         unit="rad",
         meaning="phase phi of the input disturbance torque at t = 0",
     ),
-    "encoder.resolution": Param(
-        2.0 * math.pi / 2**20,
-        unit="rad",
-        minimum=0.0,
-        meaning="rotary-encoder count on the motor angle (2 pi / 2^20 rad, docs/design.md section 7); 0 = ideal",
-    ),
-    "encoder.noise_std": Param(
-        0.0,
-        unit="rad",
-        minimum=0.0,
-        meaning="standard deviation of Gaussian encoder noise before quantisation",
-    ),
-    "scale.resolution": Param(
-        100e-9,
-        unit="m",
-        minimum=0.0,
-        meaning="linear-scale count on the table position (100 nm, docs/design.md section 7); 0 = ideal",
-    ),
-    "scale.noise_std": Param(
-        0.0,
-        unit="m",
-        minimum=0.0,
-        meaning="standard deviation of Gaussian scale noise before quantisation",
-    ),
+    **ENCODER_AND_SCALE,
 }
 
 # The modes lists default to [0.0] only so that their type is known; an
@@ -197,6 +172,7 @@ def ball_screw_params(values: Values) -> BallScrewParams:
                 f"parameter '{key}': expected at most {MAX_SIM_STEPS} integration steps "
                 f"(sim_step_s = {h!r} s), got {values[key]!r} s"
             )
+    encoder, scale = encoder_and_scale(values)
     return build(
         "",
         BallScrewParams,
@@ -213,8 +189,8 @@ def ball_screw_params(values: Values) -> BallScrewParams:
         initial_velocity_rad_s=values["initial_velocity_rad_s"],
         friction=build("friction.", FrictionParams, **section(values, "friction")),
         disturbance=build("disturbance.", DisturbanceParams, **section(values, "disturbance")),
-        encoder=build("encoder.", SensorParams, **section(values, "encoder")),
-        scale=build("scale.", SensorParams, **section(values, "scale")),
+        encoder=encoder,
+        scale=scale,
     )
 
 

@@ -8,8 +8,6 @@ an axial mode outside 100-200 Hz is logged as a warning at start.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from servo_axis.core.models.base import Plant
@@ -19,9 +17,9 @@ from servo_axis.core.models.elastic_ball_screw import (
     ElasticBallScrewPlant,
     mode_warning,
 )
-from servo_axis.core.sensors import SensorParams
 from servo_axis.params.registry import PlantModelEntry, Values
-from servo_axis.params.schema import Param, build, dataclass_defaults, section
+from servo_axis.params.schema import Param, build, dataclass_defaults
+from servo_axis.plugins.sensors import ENCODER_AND_SCALE, encoder_and_scale
 
 _ELASTIC = dataclass_defaults(ElasticBallScrewParams)
 
@@ -176,38 +174,22 @@ ELASTIC_BALL_SCREW: dict[str, Param] = {
         unit="m",
         meaning="table position at step 0 (motor at x / R, at rest, relaxed)",
     ),
-    "encoder.resolution": Param(
-        2.0 * math.pi / 2**20,
-        unit="rad",
-        minimum=0.0,
-        meaning="rotary-encoder count on the motor (004: 2^20 pulses/rev); 0 = ideal",
-    ),
-    "encoder.noise_std": Param(
-        0.0, unit="rad", minimum=0.0, meaning="Gaussian encoder noise before quantisation"
-    ),
-    "scale.resolution": Param(
-        100e-9,
-        unit="m",
-        minimum=0.0,
-        meaning="linear-scale count on the table (004: 100 nm); 0 = ideal",
-    ),
-    "scale.noise_std": Param(
-        0.0, unit="m", minimum=0.0, meaning="Gaussian scale noise before quantisation"
-    ),
+    **ENCODER_AND_SCALE,
 }
 
 
 def elastic_ball_screw_params(values: Values) -> ElasticBallScrewParams:
     """:class:`ElasticBallScrewParams` from checked plant values (paper 004)."""
     own = {k: values[k] for k in ELASTIC_BALL_SCREW if "." not in k}
+    encoder, scale = encoder_and_scale(values)
     return build(
         "",
         ElasticBallScrewParams,
         **own,
         lead_m_per_rad=values["lead_m_per_rad"],
         control_period_s=values["control_period_s"],
-        encoder=build("encoder.", SensorParams, **section(values, "encoder")),
-        scale=build("scale.", SensorParams, **section(values, "scale")),
+        encoder=encoder,
+        scale=scale,
     )
 
 
