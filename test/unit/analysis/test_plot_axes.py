@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -33,7 +34,7 @@ def test_error_scale_puts_the_largest_error_at_1_or_more(
     got_factor, got_label = error_scale(values, unit)
     assert (got_factor, got_label) == (factor, label)
     peak = np.nanmax(np.abs(values))
-    if 1e-18 <= peak and peak > 0:
+    if peak >= 1e-18:  # below the smallest prefix (or no error at all) nothing reaches 1
         assert 1.0 <= peak * got_factor < 1000.0
 
 
@@ -64,15 +65,14 @@ def summary(scale: float, cycles: int = 7) -> RunSummary:
 
 
 @pytest.fixture
-def figures(monkeypatch: pytest.MonkeyPatch) -> list[Any]:
-    """The figures the plots close, kept open for inspection."""
+def figures(monkeypatch: pytest.MonkeyPatch) -> Iterator[list[Any]]:
+    """The figures the plots close, kept open for inspection (closed after the test)."""
     kept: list[Any] = []
     plt = plots._pyplot()
     monkeypatch.setattr(plt, "close", kept.append)
     yield kept
+    monkeypatch.undo()
     for fig in kept:
-        plt.figure(fig.number)
-        monkeypatch.undo()
         plt.close(fig)
 
 
