@@ -902,6 +902,50 @@ def test_feedforward_keeps_the_last_correction_only_once_the_learning_unit_is_go
         n.destroy_node()
 
 
+def test_realtime_feedforward_never_waits_for_a_correction_and_takes_a_late_one(
+    context: Context,
+) -> None:
+    """Realtime: the boundary goes by with the last correction (no wait, no fallback);
+    a correction for a cycle already published whole is refused, one for a cycle not
+    yet published whole applies from the next sample (late_corrections)."""
+    ff = FeedforwardNode(
+        context=context,
+        parameter_overrides=[
+            Parameter("mode", value="realtime"),
+            Parameter("thread_priority", value=0),  # in the test's own process
+            Parameter("learning.enabled", value=True),
+            Parameter("learning.cycle_s", value=0.02),  # 20 samples, 10 reference instants
+            Parameter("preview_steps", value=100),
+        ],
+    )
+    probe = Node("corr_probe", context=context)
+    pub = probe.create_publisher(JointState, "learning/correction", STREAM_QOS)
+    nodes = [ff, probe]
+    spin_until(context, nodes, lambda: pub.get_subscription_count() >= 1 and ff.published >= 60)
+    assert ff.missed_corrections == 0 and not ff.health.fallbacks
+
+    def cycle(index: int) -> list[JointState]:
+        return [
+            msgs.correction_to_msg(
+                msgs.CorrectionSample(20 * index + 2 * i, 1e-6, 0.0), axis="x", period_ns_=PERIOD_NS
+            )
+            for i in range(10)
+        ]
+
+    published = ff.published
+    for m in cycle(1):  # cycle 2, samples 20-39: out whole already
+        pub.publish(m)
+    spin_until(context, nodes, lambda: ff.rejected >= 10)
+    assert ff.health.rejected == {"learning/correction": 10} and ff.late_corrections == 0
+    under_way = published // 20  # its last samples are not out yet
+    for m in cycle(under_way):
+        pub.publish(m)
+    spin_until(context, nodes, lambda: ff.late_corrections == 1)
+    assert ff.rejected == 10 and not ff.health.fallbacks
+    for n in nodes:
+        n.destroy_node()
+
+
 def test_feedback_listens_only_once_its_command_is_heard(context: Context) -> None:
     """Its `command` consumers are counted by topic, whatever their node is called: an
     outside plant with rclpy's default profile (volatile, no lease) counts once it has held
