@@ -949,7 +949,8 @@ def test_realtime_feedforward_never_waits_for_a_correction_and_takes_a_late_one(
 def test_feedback_listens_only_once_its_command_is_heard(context: Context) -> None:
     """Its `command` consumers are counted by topic, whatever their node is called: an
     outside plant with rclpy's default profile (volatile, no lease) counts once it has held
-    for the settle time; before anyone listens, the feedback does not subscribe to state."""
+    for the settle time; before anyone listens, or before a reference generator is matched,
+    the feedback does not subscribe to state."""
     fb = FeedbackNode(
         context=context, parameter_overrides=[Parameter("wait_for_command_subscribers", value=1)]
     )
@@ -960,6 +961,11 @@ def test_feedback_listens_only_once_its_command_is_heard(context: Context) -> No
     spin_until(context, nodes, lambda: time.monotonic() > deadline)
     assert not fb.inputs_subscribed and state_pub.get_subscription_count() == 0
     plant_side.create_subscription(JointState, "command", lambda m: None, 10)
+    # Heard, but no reference generator yet: a volatile one's reference[0] would be lost.
+    deadline = time.monotonic() + 0.7
+    spin_until(context, nodes, lambda: time.monotonic() > deadline)
+    assert not fb.inputs_subscribed and state_pub.get_subscription_count() == 0
+    plant_side.create_publisher(JointState, "reference", 10)
     spin_until(context, nodes, lambda: fb.inputs_subscribed)
     # Its state subscription matches the default-QoS publisher.
     spin_until(context, nodes, lambda: state_pub.get_subscription_count() == 1)

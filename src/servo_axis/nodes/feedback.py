@@ -30,10 +30,11 @@ and at most ``max_preview_steps`` ahead of the last state: a message stamped
 ahead of the stream is refused and never displaces it.
 
 Handshake: with ``wait_for_command_subscribers``, the node subscribes to
-``state`` (which the plant waits for before step 0) and ``reference`` only
-once its ``command`` publisher is matched with the plant and the recorder
-(:meth:`~servo_axis.nodes.base.ServoNode.consumers_matched`), so that no
-command is published unheard.
+``reference`` only once its ``command`` publisher is matched with the plant
+and the recorder (:meth:`~servo_axis.nodes.base.ServoNode.consumers_matched`),
+so that no command is published unheard, and to ``state`` (which the plant
+waits for before step 0) only once ``reference`` has a matched publisher,
+so that no reference is sent unheard by a volatile generator.
 
 Fallback: in lockstep the node waits for ``reference[k]`` as long as the
 generator lives (liveliness of ``reference``); once it has been gone for
@@ -144,18 +145,32 @@ class FeedbackNode(ServoNode):
     def _subscribe_inputs(self) -> None:
         period_ns, axis = self._period_ns, self._axis
         self.subscribe(
-            "state",
-            lambda m: msgs.state_from_msg(m, axis=axis, period_ns_=period_ns),
-            self._on_state,
-            gate=self._states,
-        )
-        self.subscribe(
             "reference",
             lambda m: self._within_preview(
                 msgs.reference_from_msg(m, axis=axis, period_ns_=period_ns)
             ),
             self._on_reference,
             gate=self._refs,
+        )
+        # `state` (which starts the plant) only once `reference` is matched: a
+        # generator with the default volatile profile that answers state[k]
+        # with reference[k] would otherwise send reference[0] to no one.
+        self._reference_wait = self.create_timer(
+            0.01, self._subscribe_state_once_referenced, clock=steady_clock()
+        )
+
+    def _subscribe_state_once_referenced(self) -> None:
+        sub = self._subscriptions_by_topic.get("reference")
+        if sub is None or sub.get_publisher_count() == 0:
+            return
+        self._reference_wait.cancel()
+        self.destroy_timer(self._reference_wait)
+        period_ns, axis = self._period_ns, self._axis
+        self.subscribe(
+            "state",
+            lambda m: msgs.state_from_msg(m, axis=axis, period_ns_=period_ns),
+            self._on_state,
+            gate=self._states,
         )
         self.inputs_subscribed = True
 
