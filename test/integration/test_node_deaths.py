@@ -30,6 +30,7 @@ from run_support import pids_of, shm_left_behind, shm_names
 from servo_axis.analysis.health import EXIT_FAILED, EXIT_FAULT, EXIT_NOT_DETERMINISTIC
 from servo_axis.nodes.runtime import LIVELINESS_LEASE_S
 from servo_axis.recording.deserialize import read_messages
+from servo_axis.run.processes import RESTART_PARTICIPANT_IDS
 
 pytestmark = pytest.mark.integration
 
@@ -149,6 +150,11 @@ def test_killed_learning_unit_is_restarted_and_the_axis_runs_on(
     assert k.summary["steps"] == STEPS  # the axis ran to the end
     restart_log = (k.run_dir / "logs" / "learning.restart1.log").read_text()
     assert "resumed" in restart_log  # from its memory file
+    # Under a participant id of its own, not the dead one's (whose receive
+    # segment the others still write into).
+    profile = (k.run_dir / "logs" / "learning.restart1.fastdds.xml").read_text()
+    restart_id = int(re.search(r"<participantID>(\d+)</participantID>", profile).group(1))
+    assert restart_id in RESTART_PARTICIPANT_IDS
     # The restarted unit learned on from what it resumed: its count of learned
     # cycles grew past the one in its memory, and the last cycle's error is
     # below the first's (how far below depends on how many cycle boundaries

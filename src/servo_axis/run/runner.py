@@ -72,12 +72,14 @@ from servo_axis.run.processes import (
     clean_stale_shm,
     default_domain_id,
     discovery_settings,
+    free_participant_id,
     ros_environment,
     run_header,
     start_node,
     start_nodes,
     start_process,
     stop_nodes,
+    with_participant_id,
 )
 from servo_axis.run.progress import ProgressLine, ProgressWatcher
 from servo_axis.stop_signals import catch_stop_signals, restore_handlers
@@ -226,6 +228,7 @@ class _Watch:
     interrupted: str | None = None  # why, when a signal stopped the run
     signals: list[int] = field(default_factory=list)
     exit_codes: dict[str, int] = field(default_factory=dict)
+    participant_ids: set[int] = field(default_factory=set)  # given to restarted nodes
 
     @property
     def wall_time_s(self) -> float:
@@ -784,15 +787,21 @@ def _check_processes(runs: list[_AxisRun], watch: _Watch, respawn_limit: int) ->
             restarts = run.restarts.get(p.role, 0)
             if p.role in RESTARTED_ROLES and code != NODE_BAD_CONFIG and restarts < respawn_limit:
                 run.restarts[p.role] = restarts + 1
-                # Its receive port must not be the dead one's segment.
                 clean_stale_shm(since=watch.t_start_epoch, dead_owners_only=True)
+                log_name = f"{p.role}.restart{restarts + 1}"
+                # Not the dead one's participant id: the others still write
+                # to its receive segment.
+                pid = free_participant_id(
+                    int(run.env["ROS_DOMAIN_ID"]), taken=watch.participant_ids
+                )
+                watch.participant_ids.add(pid)
                 new = start_node(
                     run.params_path,
                     p.role,
                     [*run.args, "-p", "late_join:=true"],
-                    run.env,
+                    with_participant_id(run.env, pid, run.log_dir / f"{log_name}.fastdds.xml"),
                     run.log_dir,
-                    log_name=f"{p.role}.restart{restarts + 1}",
+                    log_name=log_name,
                 )
                 run.procs.append(new)
                 action, again = "restarted", time.monotonic() - watch.t_start - after

@@ -1,13 +1,24 @@
-"""Clean-up of the shared-memory files a SIGKILLed Fast DDS participant leaves."""
+"""Clean-up of the shared-memory files a SIGKILLed Fast DDS participant leaves; restart ids."""
 
 from __future__ import annotations
 
 import fcntl
 import os
+import socket
 import time
 from pathlib import Path
+from xml.etree import ElementTree
 
-from servo_axis.run.processes import clean_stale_shm
+import pytest
+
+from servo_axis.run.processes import (
+    RESTART_PARTICIPANT_IDS,
+    clean_stale_shm,
+    discovery_settings,
+    free_participant_id,
+    participant_ports,
+    with_participant_id,
+)
 
 
 def test_only_stale_files_of_this_run_are_removed(tmp_path: Path) -> None:
@@ -60,3 +71,48 @@ def test_while_a_run_goes_on_only_segments_of_dead_owners_are_removed(tmp_path: 
         "fastrtps_live_el",
         "fastrtps_port7411",
     ]
+
+
+def test_participant_ports_follow_the_rtps_mapping() -> None:
+    # RTPS 9.6.1.1: 7400 + 250 d + 10 (+ 1 for user data) + 2 id; the files of
+    # a domain-77 run were fastrtps_port26661..26671 for ids 0..5.
+    assert participant_ports(77, 0) == (26660, 26661)
+    assert participant_ports(77, 5) == (26670, 26671)
+    assert participant_ports(0, 31) == (7472, 7473)
+    # The highest domain of a run (232) with the highest restart id stays a port.
+    assert max(participant_ports(232, max(RESTART_PARTICIPANT_IDS))) < 65536
+
+
+def test_a_restarted_node_gets_no_id_the_run_gave_or_a_live_one_holds(tmp_path: Path) -> None:
+    domain = 151
+    ids = list(RESTART_PARTICIPANT_IDS)
+    first = free_participant_id(domain, taken=set(), shm_dir=tmp_path)
+    assert first == ids[0]
+    # Taken before in this run: the next one.
+    assert free_participant_id(domain, taken={ids[0]}, shm_dir=tmp_path) == ids[1]
+    # A live participant's receive segment exists: skipped.
+    (tmp_path / f"fastrtps_port{participant_ports(domain, ids[0])[1]}").write_bytes(b"x")
+    assert free_participant_id(domain, taken=set(), shm_dir=tmp_path) == ids[1]
+    # A process has the discovery port bound: skipped.
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind(("127.0.0.1", participant_ports(domain, ids[1])[0]))
+        assert free_participant_id(domain, taken=set(), shm_dir=tmp_path) == ids[2]
+    with pytest.raises(RuntimeError, match="no free Fast DDS participant id"):
+        free_participant_id(domain, taken=set(ids), shm_dir=tmp_path)
+
+
+def test_the_restart_profile_is_the_run_profile_with_the_id(tmp_path: Path) -> None:
+    env = discovery_settings(tmp_path)
+    out = with_participant_id(env, 29, tmp_path / "restart.xml")
+    assert out["FASTRTPS_DEFAULT_PROFILES_FILE"] == str(tmp_path / "restart.xml")
+    ns = {"f": "http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"}
+    new = ElementTree.parse(tmp_path / "restart.xml").getroot()
+    old = ElementTree.parse(env["FASTRTPS_DEFAULT_PROFILES_FILE"]).getroot()
+    rtps = new.find("f:participant/f:rtps", ns)
+    assert rtps is not None and rtps.findtext("f:participantID", namespaces=ns) == "29"
+    # Everything else is the run's profile.
+    rtps.remove(rtps.find("f:participantID", ns))
+    assert ElementTree.tostring(new) == ElementTree.tostring(old)
+    assert {k: v for k, v in out.items() if k != "FASTRTPS_DEFAULT_PROFILES_FILE"} == {
+        k: v for k, v in env.items() if k != "FASTRTPS_DEFAULT_PROFILES_FILE"
+    }
