@@ -790,16 +790,22 @@ def _check_processes(runs: list[_AxisRun], watch: _Watch, respawn_limit: int) ->
                 clean_stale_shm(since=watch.t_start_epoch, dead_owners_only=True)
                 log_name = f"{p.role}.restart{restarts + 1}"
                 # Not the dead one's participant id: the others still write
-                # to its receive segment.
-                pid = free_participant_id(
-                    int(run.env["ROS_DOMAIN_ID"]), taken=watch.participant_ids
-                )
-                watch.participant_ids.add(pid)
+                # to its receive segment. Past the 20 ids (a node that keeps
+                # dying under a large --respawn-limit), Fast DDS's choice.
+                env = run.env
+                try:
+                    pid = free_participant_id(
+                        int(run.env["ROS_DOMAIN_ID"]), taken=watch.participant_ids
+                    )
+                    env = with_participant_id(env, pid, run.log_dir / f"{log_name}.fastdds.xml")
+                    watch.participant_ids.add(pid)
+                except RuntimeError:
+                    pass
                 new = start_node(
                     run.params_path,
                     p.role,
                     [*run.args, "-p", "late_join:=true"],
-                    with_participant_id(run.env, pid, run.log_dir / f"{log_name}.fastdds.xml"),
+                    env,
                     run.log_dir,
                     log_name=log_name,
                 )
