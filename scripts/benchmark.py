@@ -143,17 +143,15 @@ def ping_pong(env: dict[str, str]) -> float:
         child.wait(timeout=10)
 
 
-def write_section(out: Path, marker: str, section: str) -> None:
-    """Replace the section that starts with ``marker`` in ``out`` (or append it)."""
+def write_section(out: Path, title: str, section: str) -> None:
+    """Append ``section`` (which starts with ``title``) to ``out``, the title dated.
+
+    The file keeps the history: an earlier section with the same title stays.
+    """
+    dated = f"{title.rstrip()} ({time.strftime('%Y-%m-%d %H:%M')})\n"
+    body = section[len(title) :] if section.startswith(title) else "\n" + section
     old = out.read_text() if out.exists() else INTRO
-    if marker in old:
-        start = old.index(marker)
-        end = old.find("\n## ", start + 1)
-        rest = old[end + 1 :] if end != -1 else ""
-        old = old[:start] + section.rstrip("\n") + "\n" + ("\n" + rest if rest else "")
-    else:
-        old = old.rstrip("\n") + "\n\n" + section
-    out.write_text(old)
+    out.write_text(old.rstrip("\n") + "\n\n" + dated + body.rstrip("\n") + "\n")
     print(f"\nwritten to {out}")
 
 
@@ -483,6 +481,7 @@ def _pct(d: dict | None) -> str:
 
 def run_all(args: argparse.Namespace) -> int:
     """``--all`` / ``--quick``: the one table of every scenario and the realtime figures."""
+    from servo_axis.params.scenario import axes_of
     from servo_axis.run.processes import ros_environment
 
     names = QUICK if args.quick else tuple(sorted(p.stem for p in (REPO / "config").glob("*.yaml")))
@@ -505,6 +504,9 @@ def run_all(args: argparse.Namespace) -> int:
         periods.add(round(period * 1e6))
         row: dict[str, Any] = {"name": name, "period": period}
         for case, composed in (("separate", False), ("composed", True)):
+            if composed and axes_of(data):
+                row[case] = "n/a: a multi-axis run has separate processes only"
+                continue
             print(f"{name}: lockstep {case} ...", flush=True)
             s = one_run(lock, tmp / f"{name}_{case}", domain, composed)
             row[case] = s if isinstance(s, str) else steps_per_s(s)

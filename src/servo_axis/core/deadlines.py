@@ -117,3 +117,40 @@ def answer_useful(
     if step - last_answered >= max_gap:
         return True
     return now_ns < deadline_ns(start_ns, period_ns, step + 2)
+
+
+def start_estimate_ns(
+    estimate_ns: int | None, arrival_ns: int, step: int, period_ns: int
+) -> int | None:
+    """A controller's estimate of the plant clock's start ``d_0``, never before it.
+
+    ``state[k]`` (``k >= 1``) goes out at tick ``k``, not before
+    ``d_k = d_0 + k T``, so ``arrival_ns - k T >= d_0`` for each; the least
+    of them is ``d_0`` plus the least latency seen so far. ``state[0]`` goes
+    out before the clock starts (the plant starts it when ``command[0]`` is
+    in) and tells nothing. Taking ``d_0`` as the time ``state[0]`` was
+    answered put it early by the first command's transit (a few ms at
+    start-up, 2-10 periods at 0.4 ms), so that every later state looked
+    two periods late to :func:`answer_useful` and only every 5th was
+    answered: 84 % misses in a realtime ``dlpid_tilt_pid``.
+
+    Parameters
+    ----------
+    estimate_ns : int or None
+        The estimate so far, ns (None before the first state after ``state[0]``).
+    arrival_ns : int
+        Monotonic time at which ``state[step]`` arrived, ns.
+    step : int
+        The state's step ``k``, >= 0.
+    period_ns : int
+        The control period ``T``, ns, > 0.
+
+    Returns
+    -------
+    int or None
+        The new estimate, ns: ``min(estimate_ns, arrival_ns - k T)`` for ``k >= 1``.
+    """
+    if step < 1:
+        return estimate_ns
+    offset = arrival_ns - step * period_ns
+    return offset if estimate_ns is None else min(estimate_ns, offset)

@@ -53,7 +53,10 @@ state whose command could no longer reach the plant in time to be used
 (:func:`~servo_axis.core.deadlines.answer_useful`: after a stall, while
 newer states wait in the queue) is not answered, so that the node catches
 up with the clock instead of answering a backlog; it still answers at least
-every :data:`ANSWER_GAP` steps, and always the last state of the run. The skipped ones are counted
+every :data:`ANSWER_GAP` steps, and always the last state of the run. The
+deadlines are those of the plant's clock as the states' arrivals show it
+(:func:`~servo_axis.core.deadlines.start_estimate_ns`: never before its
+start, so a useful answer is never skipped). The skipped ones are counted
 (``skipped_answers`` on ``/diagnostics``); in the plant's report they are
 commands missing.
 
@@ -65,7 +68,7 @@ from __future__ import annotations
 import time
 from typing import Any
 
-from servo_axis.core.deadlines import answer_useful
+from servo_axis.core.deadlines import answer_useful, start_estimate_ns
 from servo_axis.core.drive import current_from_torque, torque_from_current
 from servo_axis.core.errors import SignalError
 from servo_axis.core.feedback.loop import Fault, LoopOutput
@@ -115,7 +118,8 @@ class FeedbackNode(ServoNode):
         self._feedforward = PeerWatch()
         self.missed_references = 0
         self.skipped_answers = 0
-        self._start_ns = 0  # realtime: when state[0] was answered (the plant's clock starts)
+        # realtime: the plant clock's start d_0 as the states show it (never before it)
+        self._start_ns: int | None = None
         self._answered = -1
         self._last_step = run_steps(values) - 1  # always answered: the recorder counts to it
         self.inputs_subscribed = False
@@ -182,6 +186,10 @@ class FeedbackNode(ServoNode):
 
     def _on_state(self, state: msgs.StateSample) -> None:
         self.start_realtime()
+        if not self._lockstep:
+            self._start_ns = start_estimate_ns(
+                self._start_ns, time.monotonic_ns(), state.step, self._period_ns
+            )
         self._pending = state
         self._pending_since = time.monotonic()
         self._try_answer()
@@ -243,11 +251,17 @@ class FeedbackNode(ServoNode):
 
     def _answer_now(self, step: int) -> bool:
         """Realtime: whether state ``step``'s command can still be used (see the module)."""
-        now = time.monotonic_ns()
-        if step == 0:
-            self._start_ns = now
-        elif step < self._last_step and not answer_useful(
-            now, self._start_ns, self._period_ns, step, self._answered, ANSWER_GAP
+        if (
+            self._start_ns is not None
+            and step < self._last_step
+            and not answer_useful(
+                time.monotonic_ns(),
+                self._start_ns,
+                self._period_ns,
+                step,
+                self._answered,
+                ANSWER_GAP,
+            )
         ):
             return False
         self._answered = step

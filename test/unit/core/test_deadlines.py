@@ -122,3 +122,40 @@ def test_skipping_unusable_answers_catches_up_after_a_stall() -> None:
     _, always = simulate_backlog(stall_periods=30, answer_cost=0.6, skip_cost=0.1, useful=False)
     assert always is not None
     assert abs(always - 30 / (1 - 0.6)) <= 3
+
+
+def test_the_start_estimate_is_never_before_the_clock_start() -> None:
+    # d_0 is when command[0] reached the plant; state[0] went out before it.
+    rng = np.random.default_rng(7)
+    period, d0 = 400_000, START
+    latency = rng.integers(60_000, 900_000, size=500)  # tick lateness + transit, ns
+    latency[137] = 41_000  # the least one
+    estimate = dl.start_estimate_ns(None, d0 - 300_000, 0, period)  # state[0]: no estimate
+    assert estimate is None
+    for k in range(1, 500):
+        estimate = dl.start_estimate_ns(estimate, d0 + k * period + int(latency[k]), k, period)
+        assert estimate is not None and estimate >= d0
+    assert estimate == d0 + 41_000
+
+
+def test_an_on_time_controller_answers_every_state_with_the_estimate() -> None:
+    # State k arrives 250 us after its tick (the suite's median at 0.4 ms).
+    # Taking d_0 as when state[0] was answered, 1 ms before the plant had
+    # command[0], every state looked more than 2 periods late: only every
+    # 5th was answered. With the estimate from the arrivals, all of them.
+    period, d0, late = 400_000, START, 250_000
+
+    def answered(start_of: object) -> int:
+        estimate, last, count = None, 0, 0
+        for k in range(1, 1001):
+            now = d0 + k * period + late
+            if start_of == "arrivals":
+                estimate = dl.start_estimate_ns(estimate, now, k, period)
+            else:
+                estimate = d0 - 1_000_000
+            if dl.answer_useful(now, estimate, period, k, last, 5):
+                last, count = k, count + 1
+        return count
+
+    assert answered("arrivals") == 1000
+    assert answered("state 0") == 200
