@@ -217,7 +217,42 @@ def handshake_overrides(
     if external:
         for role in roles:
             out[role]["external_roles"] = list(external)
+        if "recorder" in roles and any(
+            topic(name).producer in external and topic(name).producer != "plant" and counted(name)
+            for name in recorded
+        ):
+            out["plant"].update(outside_flow_control(scenario))
+            out["recorder"]["ack_every_steps"] = min(
+                out["plant"]["max_recorder_lag_steps"],
+                node_params(scenario, "recorder").get(
+                    "ack_every_steps", schemas.RECORDER["ack_every_steps"].default
+                ),
+            )
     return out
+
+
+#: The keep-last depth of a publisher with rclpy's and rclcpp's default
+#: profile: it drops a sample that a reliable reader has not taken once 10
+#: newer ones are written.
+OUTSIDE_PUBLISHER_DEPTH = 10
+
+
+def outside_flow_control(scenario: dict[str, Any]) -> dict[str, int]:
+    """The plant's lead over the recorder when an outside node publishes a counted stream.
+
+    An outside feedback (or feedforward) that publishes ``command`` with the
+    default keep-last 10 holds only its last 10 samples: a recorder more than
+    10 steps behind lost the older ones for good (seen: commands 280-300 of
+    an example controller's run, which then made no progress for 60 s).
+    The plant publishes ``state[k]`` only once the recorder has step
+    ``k - lag``, and such a node answers ``state[k]``, so at most ``lag + 1``
+    of its samples wait for the recorder: ``lag`` is capped at
+    ``OUTSIDE_PUBLISHER_DEPTH - 2``, whatever the scenario asks.
+    """
+    given = node_params(scenario, "plant").get(
+        "max_recorder_lag_steps", schemas.PLANT["max_recorder_lag_steps"].default
+    )
+    return {"max_recorder_lag_steps": min(int(given), OUTSIDE_PUBLISHER_DEPTH - 2)}
 
 
 def write_run_params(

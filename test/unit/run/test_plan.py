@@ -10,8 +10,15 @@ from typing import Any
 import pytest
 import yaml
 
+from servo_axis.nodes.lockstep import FlowControl
 from servo_axis.params.scenario import axis_view, load_scenario, roles_of
-from servo_axis.run.plan import handshake_overrides, recorder_topics, write_run_params
+from servo_axis.run.plan import (
+    OUTSIDE_PUBLISHER_DEPTH,
+    handshake_overrides,
+    outside_flow_control,
+    recorder_topics,
+    write_run_params,
+)
 from servo_axis.run.processes import discovery_settings, ros_environment
 from servo_axis.run.progress import temporary_environ
 from servo_axis.wire.topics import TOPICS
@@ -162,3 +169,66 @@ def test_environment_helpers_leave_os_environ_alone(monkeypatch: pytest.MonkeyPa
     with pytest.raises(RuntimeError), temporary_environ(settings):
         raise RuntimeError
     assert dict(os.environ) == before
+
+
+@pytest.mark.parametrize(
+    ("external", "capped"),
+    [
+        (("feedback",), True),  # command: counted, from a default-profile publisher
+        (("feedforward",), True),  # reference
+        (("learning",), False),  # its streams are not counted by the flow control
+        (("plant",), False),  # an outside plant has no flow control of ours
+        ((), False),
+    ],
+)
+def test_an_outside_publisher_of_a_counted_stream_caps_the_plants_lead(
+    external: tuple[str, ...], capped: bool
+) -> None:
+    data = scenario("rptc_detailed")
+    overrides = handshake_overrides(data, roles_of(data), BAG, CONFIG, external=external)
+    if capped:
+        assert overrides["plant"]["max_recorder_lag_steps"] == OUTSIDE_PUBLISHER_DEPTH - 2
+        assert overrides["recorder"]["ack_every_steps"] == OUTSIDE_PUBLISHER_DEPTH - 2
+    else:
+        assert "max_recorder_lag_steps" not in overrides["plant"]
+        assert "ack_every_steps" not in overrides["recorder"]
+    # A scenario's smaller lead stays.
+    data["plant"]["ros__parameters"]["max_recorder_lag_steps"] = 3
+    assert outside_flow_control(data) == {"max_recorder_lag_steps": 3}
+
+
+def lost_by_a_keep_last_writer(lag: int, ack_every: int, depth: int = 10) -> int:
+    """Samples an outside keep-last ``depth`` writer overwrote before the recorder took them.
+
+    The plant publishes ``state[k]`` once the recorder's last acknowledgement
+    is at least ``k - lag`` (:class:`FlowControl`); the outside node answers
+    each state at once; the recorder takes nothing for as long as the plant
+    can go on, then everything (the worst case), acknowledging every
+    ``ack_every`` steps.
+    """
+    steps = 2000
+    flow = FlowControl(enabled=True, max_lag_steps=lag, steps=steps)
+    flow.acknowledge(0)
+    history: list[int] = []  # the writer's last `depth` samples
+    taken = lost = 0
+    k = 0
+    while taken < steps:
+        while k < steps and flow.may_step_to(k):
+            history = [*history, k][-depth:]  # the answer to state[k]
+            k += 1
+        lost += sum(1 for s in range(taken, k) if s not in history)
+        taken = k
+        flow.acknowledge(taken - taken % ack_every)
+        if k == steps:
+            break
+    return lost
+
+
+def test_the_capped_lead_loses_nothing_of_a_default_depth_writer() -> None:
+    data = scenario("rptc_detailed")
+    capped = outside_flow_control(data)["max_recorder_lag_steps"]
+    assert lost_by_a_keep_last_writer(capped, capped) == 0
+    assert lost_by_a_keep_last_writer(capped, 1) == 0
+    # The shipped lead (200, acknowledged every 50) lost all but the newest
+    # 10 of each burst: what a slow recorder met with an example controller.
+    assert lost_by_a_keep_last_writer(200, 50) > 1000
