@@ -17,25 +17,25 @@ from servo_axis.analysis.summary import RunSummary
 
 
 @pytest.mark.parametrize(
-    ("values", "unit", "factor", "label"),
+    ("values", "unit", "factor", "label", "shown"),
     [
-        ([0.587e-6, -0.2e-6], "m", 1e9, "nm"),  # 587 nm, not 0.587 um
-        ([3.2e-6], "m", 1e6, "um"),
-        ([1.2e-3], "m", 1e3, "mm"),
-        ([1.01785e-17, 0.0], "m", 1e18, "am"),  # a PTC on its own nominal model
-        ([1e-25], "m", 1e18, "am"),  # below the smallest prefix: its smallest
-        ([0.0, np.nan], "m", 1e6, "um"),  # nothing to go by
-        ([4e-5], "rad", 1e6, "urad"),
+        ([0.587e-6, -0.2e-6], "m", 1e9, "nm", 587.0),  # 587 nm, not 0.587 um
+        ([3.2e-6], "m", 1e6, "um", 3.2),
+        ([1.2e-3], "m", 1e3, "mm", 1.2),
+        ([1.01785e-17, 0.0], "m", 1e18, "am", 10.1785),  # a PTC on its own nominal model
+        # Below the smallest prefix: its smallest, and the peak stays below 1.
+        ([1e-25], "m", 1e18, "am", 1e-7),
+        ([0.0, np.nan], "m", 1e6, "um", 0.0),  # nothing to go by
+        ([4e-5], "rad", 1e6, "urad", 40.0),
     ],
 )
 def test_error_scale_puts_the_largest_error_at_1_or_more(
-    values: list[float], unit: str, factor: float, label: str
+    values: list[float], unit: str, factor: float, label: str, shown: float
 ) -> None:
     got_factor, got_label = error_scale(values, unit)
     assert (got_factor, got_label) == (factor, label)
-    peak = np.nanmax(np.abs(values))
-    if peak >= 1e-18:  # below the smallest prefix (or no error at all) nothing reaches 1
-        assert 1.0 <= peak * got_factor < 1000.0
+    # The peak as the axis shows it: in [1, 1000) whenever a prefix reaches it.
+    assert_allclose(np.nanmax(np.abs(values)) * got_factor, shown, rtol=1e-12)
 
 
 def summary(scale: float, cycles: int = 7) -> RunSummary:
