@@ -27,25 +27,15 @@ from pathlib import Path
 import yaml
 
 from servo_axis.params.scenario import load_scenario, scenario_dir
+from servo_axis.run.processes import pids_of
 
 ROLES = ("plant", "feedback", "feedforward", "learning", "identifier", "recorder")
 DEFAULT = ("ptc_nominal", "rptc_detailed", "fast_reversal_sigmoid", "dlpid_tilt_lpf2")
 
 
 def node_pids(run_dir: Path) -> dict[str, int]:
-    """The run's node processes by role (their command line names its params file)."""
-    found = {}
-    for role in ROLES:
-        out = subprocess.run(
-            ["pgrep", "-f", f"servo_axis.nodes.{role} .*{run_dir}/params.yaml"],
-            capture_output=True,
-            text=True,
-            check=False,
-        )
-        pids = out.stdout.split()
-        if pids:
-            found[role] = int(pids[0])
-    return found
+    """The run's node processes by role."""
+    return {role: pids[0] for role in ROLES if (pids := pids_of(run_dir, role))}
 
 
 def cpu_s(pid: int) -> float | None:

@@ -15,6 +15,7 @@ from typing import Any
 import yaml
 
 from servo_axis.params.scenario import load_scenario
+from servo_axis.run.processes import pids_of
 
 CONFIG = Path(__file__).resolve().parents[2] / "config"
 #: Trials of 0.5 s; Ref. 1 for trials 1-5, Ref. 2 from trial 6; 7 trials.
@@ -38,17 +39,6 @@ def short_trials(law: str, path: Path) -> Path:
     ff["learning"]["cycle_s"] = TRIAL_S
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     return path
-
-
-def pids_of(run_dir: Path, role: str) -> list[int]:
-    """Processes of ``role`` started for this run (their command line names its params file)."""
-    out = subprocess.run(
-        ["pgrep", "-f", f"servo_axis.nodes.{role} .*{run_dir}/params.yaml"],
-        capture_output=True,
-        text=True,
-        check=False,
-    )
-    return [int(p) for p in out.stdout.split()]
 
 
 def run_and_kill(

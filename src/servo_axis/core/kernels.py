@@ -169,6 +169,45 @@ def _elastic_accel(
 
 
 @_compiled
+def _substep_currents(
+    i: float, cmd: float, decay1: float, decay2: float, ideal: bool
+) -> tuple[float, float, float]:
+    """The current at a sub-step's start, middle and end (first-order loop towards ``cmd``)."""
+    if ideal:
+        return i, i, i
+    return i, cmd + (i - cmd) * decay1, cmd + (i - cmd) * decay2
+
+
+@_compiled
+def _rk4_step(
+    h: float,
+    th: float,
+    w: float,
+    x: float,
+    v: float,
+    ws: tuple[float, float, float],
+    vs: tuple[float, float, float],
+    accel_m: tuple[float, float, float, float],
+    accel_t: tuple[float, float, float, float],
+) -> tuple[float, float, float, float]:
+    """The classic RK4 update of the two-mass screw from its stages' rates.
+
+    ``ws``, ``vs``: the motor's and the table's velocities at stages 2-4;
+    ``accel_m``, ``accel_t``: their accelerations at stages 1-4.
+    """
+    w2, w3, w4 = ws
+    v2, v3, v4 = vs
+    a1, a2, a3, a4 = accel_m
+    b1, b2, b3, b4 = accel_t
+    return (
+        th + h / 6.0 * (w + 2.0 * w2 + 2.0 * w3 + w4),
+        w + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4),
+        x + h / 6.0 * (v + 2.0 * v2 + 2.0 * v3 + v4),
+        v + h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4),
+    )
+
+
+@_compiled
 def elastic_ball_screw_period(
     state: np.ndarray, cmd: float, config: np.ndarray, nut: np.ndarray, guide: np.ndarray
 ) -> None:
@@ -203,14 +242,7 @@ def elastic_ball_screw_period(
         i = cmd
     for _ in range(substeps):
         th_start, x_start = th, x
-        if ideal_current:
-            i0 = i
-            i1 = i
-            i2 = i
-        else:
-            i0 = i
-            i1 = cmd + (i - cmd) * decay1
-            i2 = cmd + (i - cmd) * decay2
+        i0, i1, i2 = _substep_currents(i, cmd, decay1, decay2, ideal_current)
         a1, b1 = _elastic_accel(th, w, x, v, i0, tf, fg, config)
         a2, b2 = _elastic_accel(
             th + half * w, w + half * a1, x + half * v, v + half * b1, i1, tf, fg, config
@@ -221,11 +253,17 @@ def elastic_ball_screw_period(
         )
         w3, v3 = w + half * a2, v + half * b2
         a4, b4 = _elastic_accel(th + h * w3, w + h * a3, x + h * v3, v + h * b3, i2, tf, fg, config)
-        w4, v4 = w + h * a3, v + h * b3
-        th += h / 6.0 * (w + 2.0 * w2 + 2.0 * w3 + w4)
-        x += h / 6.0 * (v + 2.0 * v2 + 2.0 * v3 + v4)
-        w += h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
-        v += h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
+        th, w, x, v = _rk4_step(
+            h,
+            th,
+            w,
+            x,
+            v,
+            (w2, w3, w + h * a3),
+            (v2, v3, v + h * b3),
+            (a1, a2, a3, a4),
+            (b1, b2, b3, b4),
+        )
         i = i2
         tf = maxwell_slip_move(nut[2], nut[0], nut[1], th - th_start)
         fg = maxwell_slip_move(guide[2], guide[0], guide[1], x - x_start)
@@ -336,14 +374,7 @@ def elastic_ball_screw_contact_period(
     contact = travel * math.tanh(y)
     for _ in range(substeps):
         th_start, x_start = th, x
-        if ideal_current:
-            i0 = i
-            i1 = i
-            i2 = i
-        else:
-            i0 = i
-            i1 = cmd + (i - cmd) * decay1
-            i2 = cmd + (i - cmd) * decay2
+        i0, i1, i2 = _substep_currents(i, cmd, decay1, decay2, ideal_current)
         a1, b1, y = _contact_accel(th, w, x, v, i0, tf, fg, y, config)
         a2, b2, y = _contact_accel(
             th + half * w, w + half * a1, x + half * v, v + half * b1, i1, tf, fg, y, config
@@ -356,11 +387,17 @@ def elastic_ball_screw_contact_period(
         a4, b4, y = _contact_accel(
             th + h * w3, w + h * a3, x + h * v3, v + h * b3, i2, tf, fg, y, config
         )
-        w4, v4 = w + h * a3, v + h * b3
-        th += h / 6.0 * (w + 2.0 * w2 + 2.0 * w3 + w4)
-        x += h / 6.0 * (v + 2.0 * v2 + 2.0 * v3 + v4)
-        w += h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
-        v += h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
+        th, w, x, v = _rk4_step(
+            h,
+            th,
+            w,
+            x,
+            v,
+            (w2, w3, w + h * a3),
+            (v2, v3, v + h * b3),
+            (a1, a2, a3, a4),
+            (b1, b2, b3, b4),
+        )
         i = i2
         y = contact_load(r * th - x, k, travel, preload, y)
         contact_end = travel * math.tanh(y)

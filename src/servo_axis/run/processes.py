@@ -168,6 +168,17 @@ def start_node(
     return start_process(role, args, env, log_dir / f"{log_name or role}.log")
 
 
+def pids_of(run_dir: Path, role: str) -> list[int]:
+    """Processes of ``role`` started for the run in ``run_dir`` (their command line names its params file)."""
+    out = subprocess.run(
+        ["pgrep", "-f", f"servo_axis.nodes.{role} .*{run_dir}/params.yaml"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    return [int(p) for p in out.stdout.split()]
+
+
 def start_process(role: str, args: list[str], env: dict[str, str], log_path: Path) -> Proc:
     """Start ``python args...`` (this interpreter) as a process of the run, logging to ``log_path``.
 
