@@ -53,6 +53,7 @@ its death never stops the run.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import json
 import socket
@@ -91,6 +92,9 @@ DRAIN_IDLE_S = 0.5
 FLUSH_S = 0.3
 #: Steps a reference or an output waits for its partner before it is dropped.
 PAIR_WINDOW_STEPS = 20_000
+#: Samples of a stream that may wait for a missing earlier step before the
+#: gap is given up (:class:`InOrder`).
+HOLD_SAMPLES = 200
 
 
 @dataclass(frozen=True)
@@ -334,6 +338,59 @@ class _Gate:
         return True
 
 
+class InOrder:
+    """Hands a stream's samples on in increasing step, each step once.
+
+    The bridge's reader can be matched with a writer after its first
+    samples: it then gets the writer's history (transient-local) after some
+    newer samples, and an increasing-only gate dropped the older ones (a
+    viewer once got state 0, then 5: 15 of 2,000 states missing). The first
+    sample starts the stream (a bridge may join one under way); a sample
+    that comes ahead of a missing step waits for it, while at most ``hold``
+    samples wait; past that the gap is given up (a realtime stream may skip
+    steps). A step at or before the last one handed on is dropped (a
+    stranger's repeat).
+
+    Parameters
+    ----------
+    hold : int
+        Samples that may wait for a missing step, >= 0.
+    """
+
+    def __init__(self, hold: int = HOLD_SAMPLES) -> None:
+        self.hold = hold
+        self.last = -1
+        self._waiting: dict[int, Any] = {}
+
+    def put(self, step: int, item: Any) -> list[Any]:
+        """The items to hand on now, in step order, once ``item`` of ``step`` came."""
+        if self.last < 0 and not self._waiting:
+            self.last = step - 1  # the first sample starts the stream
+        if step <= self.last or step in self._waiting:
+            return []
+        self._waiting[step] = item
+        out = []
+        while self._waiting and (self.last + 1 in self._waiting or len(self._waiting) > self.hold):
+            step = self.last + 1 if self.last + 1 in self._waiting else min(self._waiting)
+            out.append(self._waiting.pop(step))
+            self.last = step
+        return out
+
+    def skip(self, step: int) -> None:
+        """``step`` went by unused: the stream goes on after it."""
+        self.last = max(self.last, step)
+        for old in [k for k in self._waiting if k <= step]:
+            del self._waiting[old]
+
+    def flush(self) -> list[Any]:
+        """Everything still waiting, in step order (the stream has ended)."""
+        out = [self._waiting[k] for k in sorted(self._waiting)]
+        if self._waiting:
+            self.last = max(self._waiting)
+        self._waiting.clear()
+        return out
+
+
 class LiveBridge:
     """The channels of the live view and the rclpy subscriptions that feed them.
 
@@ -360,6 +417,7 @@ class LiveBridge:
         self.last_message_s = time.monotonic()
         self.axes = axes
         self.rejected = 0
+        self._flushes: list[Callable[[], None]] = []
         self.sim_ns = 0
         self._channels: dict[str, Any] = {}
 
@@ -388,6 +446,11 @@ class LiveBridge:
     def topics(self) -> list[str]:
         """The channels' topics."""
         return list(self._channels)
+
+    def flush(self) -> None:
+        """Forward what still waits for a missing step (the run has ended)."""
+        for flush in self._flushes:
+            flush()
 
     def subscribe(self, node: Any) -> None:
         """Subscribe ``node`` to every topic the channels need."""
@@ -451,23 +514,35 @@ class LiveBridge:
             always: bool = False,
         ) -> None:
             ch = self._channels[axis.topic(name)]
-            gate = _Gate()
+            order = InOrder()
+
+            def forward(samples: list[Any]) -> None:
+                for sample in samples:
+                    if ch.has_sinks():
+                        ns = sample.step * period
+                        ch.log(
+                            {"timestamp": stamp_json(ns), **dataclasses.asdict(sample)}, log_time=ns
+                        )
+                    if after is not None:
+                        after(sample)
 
             def on_data(data: bytes) -> None:
                 self.last_message_s = time.monotonic()
                 needed = always or ch.has_sinks() or (after is not None and error_ch.has_sinks())
                 if not needed:
+                    # Unwatched, it moves on all the same: a viewer that
+                    # subscribes later does not wait for the steps skipped.
+                    with contextlib.suppress(SignalError):  # junk: not forwarded anyway
+                        order.skip(msgs.stamp_ns_from_cdr(data) // period)
                     return
                 try:
                     sample = decode(deserialize_message(data, JointState))
                 except SignalError:
                     self.rejected += 1
                     return
-                ns = sample.step * period
-                if ch.has_sinks() and gate.take(sample.step):
-                    ch.log({"timestamp": stamp_json(ns), **dataclasses.asdict(sample)}, log_time=ns)
-                if after is not None:
-                    after(sample)
+                forward(order.put(sample.step, sample))
+
+            self._flushes.append(lambda: forward(order.flush()))
 
             node.create_subscription(
                 JointState, axis.topic(name), on_data, reader_qos(name), raw=True
@@ -583,6 +658,7 @@ def _spin(bridge: LiveBridge, ready: str) -> int:
         end = time.monotonic() + DRAIN_S
         while time.monotonic() < end and time.monotonic() - bridge.last_message_s < DRAIN_IDLE_S:
             executor.spin_once(timeout_sec=DRAIN_IDLE_S / 4)
+        bridge.flush()
     finally:
         executor.shutdown()
         node.destroy_node()

@@ -16,6 +16,7 @@ from servo_axis.core.errors import ConfigError
 from servo_axis.params.scenario import load_scenario
 from servo_axis.run.live import (
     ErrorPairs,
+    InOrder,
     LiveAxis,
     check_live,
     error_schema,
@@ -121,3 +122,27 @@ def test_waiting_for_the_live_process_names_why_it_did_not_start(tmp_path: Path)
     assert wait_ready(log, lambda: True) == "ws://127.0.0.1:8765"
     log.write_text("")
     assert wait_ready(log, lambda: True, stopped=lambda: True) == ""
+
+
+def test_samples_that_come_ahead_wait_for_the_missing_steps() -> None:
+    # A reader matched late: state 0, then 5..7 live, then the history 1..4.
+    order = InOrder(hold=10)
+    got = []
+    for step in (0, 5, 6, 7, 1, 2, 3, 4, 8, 3, 8):  # 3 and 8 again: a stranger's repeats
+        got += order.put(step, step)
+    assert got == list(range(9))
+    # A gap that never fills is given up once more than `hold` samples wait.
+    order = InOrder(hold=2)
+    assert order.put(0, 0) == [0]
+    assert order.put(2, 2) == [] and order.put(3, 3) == []
+    assert order.put(4, 4) == [2, 3, 4]
+    assert order.put(1, 1) == []  # too late: behind what was handed on
+    # The end of the stream hands on what still waits, in order.
+    assert order.put(7, 7) == [] and order.put(6, 6) == []
+    assert order.flush() == [6, 7] and order.flush() == []
+    # The first sample starts the stream (a bridge that joins one under way).
+    order = InOrder(hold=2)
+    assert order.put(7, 7) == [7] and order.put(9, 9) == [] and order.put(8, 8) == [8, 9]
+    # Steps that went by unwatched are not waited for.
+    order.skip(12)
+    assert order.put(13, 13) == [13]
