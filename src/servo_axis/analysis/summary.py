@@ -180,9 +180,16 @@ class RunSummary(Serial):
     steps : int
         Recorded control steps (with both state and reference).
     sim_time_s, wall_time_s : float
-        Simulated and wall time of the run, s.
+        Simulated and wall time of the run's steps, s: from state 0 to the
+        last step (the plant's report; the runner's view of the recorder's
+        progress for an outside plant).
     steps_per_s, realtime_factor : float
         Throughput (NaN when the wall time is not > 0).
+    startup_s, finish_s : float or None
+        Wall time before state 0 (from the start of the node processes:
+        discovery and every handshake) and after the last step (the
+        recorder catching up, the processes' exit), s; None (not written)
+        when the plant did not report its steps.
     message_counts : dict
         Messages per recorded topic.
     faults : tuple of FaultRecord
@@ -242,6 +249,8 @@ class RunSummary(Serial):
     identification: Identification | None = field(default=None, metadata={"omit_none": True})
     deformation: Deformation | None = field(default=None, metadata={"omit_none": True})
     realtime: Realtime | None = field(default=None, metadata={"omit_none": True})
+    startup_s: float | None = field(default=None, metadata={"omit_none": True})
+    finish_s: float | None = field(default=None, metadata={"omit_none": True})
 
     @property
     def unit(self) -> str:
@@ -272,7 +281,9 @@ class AxesSummary(Serial):
     scenario, description : str
         The scenario's name and description.
     wall_time_s : float
-        Wall time of the run, s.
+        Wall time of the run's steps, s: from the first axis's state 0 to
+        the last axis's last step (the whole run where a plant did not
+        report its steps).
     axes : dict
         Axis name -> :class:`RunSummary` of that axis.
     contour : ContourSummary or None

@@ -132,6 +132,13 @@ def deformation_lines(deformation: Deformation) -> list[str]:
     return lines
 
 
+def _around(startup_s: float | None, finish_s: float | None) -> str:
+    """What the run's wall time leaves out: `` (steps only; start-up 0.81 s, end 0.15 s)``."""
+    if startup_s is None or finish_s is None:
+        return ""
+    return f" (steps only; start-up {startup_s:.2f} s, end {finish_s:.2f} s)"
+
+
 def _health_lines(health: RunHealth | None, realtime: bool = False) -> list[str]:
     """The run's health: outcome, determinism, rejected messages, strangers, deaths."""
     if health is None:
@@ -200,7 +207,7 @@ def format_summary(summary: RunSummary) -> str:
         f"scenario          {s.scenario}  ({s.processes}, {s.time_mode})",
         f"steps             {s.steps}  ({s.sim_time_s:.3f} s simulated)",
         f"wall time         {s.wall_time_s:.2f} s  ->  {s.steps_per_s:,.0f} steps/s, "
-        f"{s.realtime_factor:.2f}x real time",
+        f"{s.realtime_factor:.2f}x real time" + _around(s.startup_s, s.finish_s),
         "messages          " + ", ".join(f"{k}: {v}" for k, v in sorted(s.message_counts.items())),
         "faults            "
         + (", ".join(f"{f.name} at step {f.step}" for f in s.faults) or "none"),

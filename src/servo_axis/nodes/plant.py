@@ -172,6 +172,7 @@ class PlantNode(ServoNode):
         self._deadline_misses = 0
         self._timeouts = 0
         self._finish_started = 0.0
+        self._first_step_s = 0.0  # time.monotonic() when state 0 went out
         period_ns, axis = self._period_ns, self._axis
         self.subscribe(
             "command",
@@ -533,12 +534,21 @@ class PlantNode(ServoNode):
         """
         self._finishing = True
         self._finish_started = time.monotonic()
+        # The run's wall time is its steps': the start-up before state 0 and
+        # the wait for the recorder after the last step are the runner's.
+        self.health.stepping = {
+            "steps": self._steps,
+            "first_s": self._first_step_s,
+            "last_s": self._finish_started,
+        }
         if not self._lockstep:
             self._publish_status()
         self._advance()
 
     def _publish(self, out: PlantOutput) -> None:
         self._published = out.step + 1
+        if out.step == 0:
+            self._first_step_s = time.monotonic()
         if self._clock_pub is not None and out.step % self._v["clock_every_steps"] == 0:
             self._clock_pub.publish(msgs.clock_message(out.step, self._period_ns))
         self._state_pub.publish(

@@ -83,7 +83,7 @@ from servo_axis.run.processes import (
 )
 from servo_axis.run.progress import ProgressLine, ProgressWatcher
 from servo_axis.stop_signals import catch_stop_signals, restore_handlers
-from servo_axis.wire.health import read_health
+from servo_axis.wire.health import NodeHealth, read_health
 
 if TYPE_CHECKING:
     from servo_axis.analysis.summary import AxesSummary, RunSummary
@@ -141,7 +141,7 @@ class RunResult:
     steps : int
         Control steps of the run.
     wall_time_s : float
-        Wall time from the first recorded step to the end.
+        Wall time of the run's steps (the summary's ``wall_time_s``).
     exit_codes : dict
         Exit code of each node (``<axis>/<role>`` for a multi-axis run).
     summary : RunSummary or AxesSummary
@@ -371,8 +371,6 @@ def run_scenario(
         summary = _summary_of_the_recorded_part(runs, data, run_dir, watch, composed, recovered)
         note = f"\nsummary of what was recorded: {run_dir / 'summary.json'}" if summary else ""
         raise RunError(watch.failure + note, summary)
-    if line is not None:
-        line.show(steps, watch.wall_time_s, final=True)
     summary = summarise_run(
         runs,
         data,
@@ -383,7 +381,9 @@ def run_scenario(
         recovered=recovered,
         floor=floor,
     )
-    return RunResult(run_dir, steps, watch.wall_time_s, watch.exit_codes, summary)
+    if line is not None:
+        line.show(steps, summary.wall_time_s, final=True)
+    return RunResult(run_dir, steps, summary.wall_time_s, watch.exit_codes, summary)
 
 
 def _summary_of_the_recorded_part(
@@ -824,6 +824,27 @@ def _check_processes(runs: list[_AxisRun], watch: _Watch, respawn_limit: int) ->
     return None
 
 
+def stepping_span(
+    plant: NodeHealth | None, started_s: float, ended_s: float
+) -> tuple[float, float] | None:
+    """When the plant's steps ran: ``(first_s, last_s)`` on ``time.monotonic()``'s clock.
+
+    From the plant's report (:attr:`~servo_axis.wire.health.NodeHealth.stepping`):
+    state 0 out, the last step integrated. None when it did not report them
+    (an outside plant, a run stopped before its end) or when they do not lie
+    within the runner's ``started_s`` .. ``ended_s`` (the node processes'
+    start and stop): then the run's wall time is the runner's view.
+    """
+    stepping = plant.stepping if plant is not None else {}
+    try:
+        first, last = float(stepping["first_s"]), float(stepping["last_s"])
+    except (KeyError, TypeError, ValueError):
+        return None
+    if not started_s < first <= last <= ended_s:
+        return None
+    return first, last
+
+
 def summarise_run(
     runs: list[_AxisRun],
     scenario: dict[str, Any],
@@ -848,15 +869,22 @@ def summarise_run(
     per_axis: dict[str, RunSummary] = {}
     all_deaths: list[NodeDeath] = []
     all_reports = {}
+    spans: list[tuple[float, float]] = []
     for run in runs:
+        reports = read_health(run.log_dir)
+        span = stepping_span(reports.get("plant"), watch.t_start, watch.t_end)
         summary = summaries.summarise(
             run.out_dir,
             scenario=run.scenario,
             scenario_path=run.scenario_path,
-            wall_time_s=watch.wall_time_s,
+            wall_time_s=watch.wall_time_s if span is None else span[1] - span[0],
             mode="composed" if composed else "separate processes",
         )
-        reports = read_health(run.log_dir)
+        if span is not None:
+            spans.append(span)
+            summary = dataclasses.replace(
+                summary, startup_s=span[0] - watch.t_start, finish_s=watch.t_end - span[1]
+            )
         health = assess(
             failure=watch.failure,
             interrupted=watch.interrupted,
@@ -889,8 +917,13 @@ def summarise_run(
         bag_recovered=bool(recovered),
         realtime=any(s.time_mode == "realtime" for s in per_axis.values()),
     )
+    stepped = max(b for _, b in spans) - min(a for a, _ in spans) if spans else None
     axes_summary = summaries.summarise_axes(
-        run_dir, scenario=scenario, axes=per_axis, wall_time_s=watch.wall_time_s, health=health
+        run_dir,
+        scenario=scenario,
+        axes=per_axis,
+        wall_time_s=watch.wall_time_s if stepped is None or len(spans) < len(runs) else stepped,
+        health=health,
     )
     if plots:
         figures.plot_contour(run_dir)

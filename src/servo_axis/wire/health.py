@@ -64,6 +64,11 @@ class NodeHealth:
         The plant of a realtime run: its clock's ticks, deadline misses and
         lateness (:class:`servo_axis.analysis.summary.Realtime` as a
         mapping); empty otherwise.
+    stepping : dict
+        The plant's wall time of its steps: ``steps``, and ``first_s`` and
+        ``last_s`` (``CLOCK_MONOTONIC`` seconds, the host's one clock) when
+        state 0 went out and when the last step was integrated; empty
+        otherwise. The runner's start-up and end are outside that span.
     """
 
     role: str
@@ -71,6 +76,7 @@ class NodeHealth:
     strangers: dict[str, list[str]] = field(default_factory=dict)
     fallbacks: list[Fallback] = field(default_factory=list)
     realtime: dict[str, Any] = field(default_factory=dict)
+    stepping: dict[str, Any] = field(default_factory=dict)
 
     @property
     def deterministic(self) -> bool:
@@ -78,10 +84,11 @@ class NodeHealth:
         return not self.fallbacks
 
     def to_dict(self) -> dict[str, Any]:
-        """As a mapping (``realtime`` only if it holds something)."""
+        """As a mapping (``realtime`` and ``stepping`` only if they hold something)."""
         out = asdict(self)
-        if not out["realtime"]:
-            del out["realtime"]
+        for optional in ("realtime", "stepping"):
+            if not out[optional]:
+                del out[optional]
         return out
 
     @classmethod
@@ -92,6 +99,7 @@ class NodeHealth:
             strangers={str(k): [str(x) for x in v] for k, v in data.get("strangers", {}).items()},
             fallbacks=[Fallback(**f) for f in data.get("fallbacks", [])],
             realtime=dict(data.get("realtime", {})),
+            stepping=dict(data.get("stepping", {})),
         )
 
 

@@ -100,8 +100,11 @@ def test_run_summary_fields_are_typed() -> None:
         "identification",
         "deformation",
         "realtime",
+        "startup_s",
+        "finish_s",
     }
     assert summary.realtime is None and "realtime" not in summary.to_dict()
+    assert summary.startup_s is None and "startup_s" not in summary.to_dict()
     assert summary.ilc_convergence is None and "ilc_convergence" not in summary.to_dict()
     assert summary.period_name is None and "period_name" not in summary.to_dict()
     # error_unit (rad for a rotary table) and identification (paper 003) likewise

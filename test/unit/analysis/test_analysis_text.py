@@ -84,6 +84,21 @@ def test_format_summary_text_is_unchanged() -> None:
     assert format_any_summary(demo_summary()) == DEMO_TEXT
 
 
+def test_the_wall_time_line_says_what_the_steps_left_out() -> None:
+    summary = RunSummary.from_dict(
+        {**demo_summary().to_dict(), "startup_s": 0.8125, "finish_s": 0.146}
+    )
+    line = next(x for x in format_summary(summary).splitlines() if x.startswith("wall time"))
+    assert line == (
+        "wall time         0.50 s  ->  2,000 steps/s, 2.00x real time "
+        "(steps only; start-up 0.81 s, end 0.15 s)"
+    )
+    assert RunSummary.from_json(summary.to_json()) == summary
+    # Without them (an outside plant, an older summary) the line is as before.
+    assert "steps only" not in format_summary(demo_summary())
+    assert "startup_s" not in demo_summary().to_dict()
+
+
 def test_format_summary_without_cycles_or_faults() -> None:
     step = np.arange(10)
     s = RunSummary.from_dict(

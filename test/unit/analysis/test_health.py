@@ -87,9 +87,13 @@ def test_an_interruption_outranks_everything_and_takes_the_signal_s_exit_code() 
 def test_health_round_trips_through_json_and_report_files(tmp_path) -> None:
     reports = _clean()
     reports["feedback"].fallbacks.append(Fallback("input_timeout", 7, "reference gone"))
+    reports["plant"].stepping = {"steps": 2000, "first_s": 101.25, "last_s": 102.0}
     for report in reports.values():
         write_health(tmp_path, report)
     assert read_health(tmp_path) == reports
+    # What a node has not filled in is not written.
+    assert "stepping" not in reports["feedback"].to_dict()
+    assert reports["plant"].to_dict()["stepping"]["first_s"] == 101.25
     assert read_health(tmp_path / "missing") == {}
     health = assess(
         failure=None,
