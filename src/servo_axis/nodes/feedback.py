@@ -99,7 +99,10 @@ class FeedbackNode(ServoNode):
         self._kt = values["nominal.torque_constant_Nm_per_A"]
         self.realtime_scheduling()
 
-        self._command_msg = msgs.joint_state_template(msgs.motor_names(self._axis), ("effort",))
+        # The per-sample path sends and takes CDR bytes (plant.py says why).
+        self._command_codec = msgs.joint_codec(
+            "command", axis=self._axis, period_ns_=self._period_ns
+        )
         self._command_pub = self.publisher("command")
         self._fault_pub = self.publisher("fault")
         self._deformation = build_deformation(values)
@@ -147,13 +150,12 @@ class FeedbackNode(ServoNode):
         return None if fault is None else f"tripped: {fault.name.lower()}, zero current"
 
     def _subscribe_inputs(self) -> None:
-        period_ns, axis = self._period_ns, self._axis
+        reference = msgs.joint_codec("reference", axis=self._axis, period_ns_=self._period_ns)
         self.subscribe(
             "reference",
-            lambda m: self._within_preview(
-                msgs.reference_from_msg(m, axis=axis, period_ns_=period_ns)
-            ),
+            lambda data: self._within_preview(reference.decode(data)),
             self._on_reference,
+            raw=True,
             gate=self._refs,
         )
         # `state` (which starts the plant) only once `reference` is matched: a
@@ -169,11 +171,11 @@ class FeedbackNode(ServoNode):
             return
         self._reference_wait.cancel()
         self.destroy_timer(self._reference_wait)
-        period_ns, axis = self._period_ns, self._axis
         self.subscribe(
             "state",
-            lambda m: msgs.state_from_msg(m, axis=axis, period_ns_=period_ns),
+            msgs.joint_codec("state", axis=self._axis, period_ns_=self._period_ns).decode,
             self._on_state,
+            raw=True,
             gate=self._states,
         )
         self.inputs_subscribed = True
@@ -229,6 +231,15 @@ class FeedbackNode(ServoNode):
         if not self._lockstep and not self._answer_now(state.step):
             self.skipped_answers += 1
             return
+        # The command first: it is what the plant waits for.
+        self._command_pub.publish(
+            self._command_codec.encode(
+                msgs.CommandSample(
+                    step=state.step,
+                    torque_Nm=torque_from_current(out.current_A, torque_constant_Nm_per_A=self._kt),
+                )
+            )
+        )
         if self._deformation is not None:
             sample = msgs.DeformationSample(
                 state.step,
@@ -238,16 +249,6 @@ class FeedbackNode(ServoNode):
                 d.valid,
             )
             self._deformation_pub.publish(msgs.write_deformation(self._deformation_msg, sample))
-        self._command_pub.publish(
-            msgs.write_command(
-                self._command_msg,
-                msgs.CommandSample(
-                    step=state.step,
-                    torque_Nm=torque_from_current(out.current_A, torque_constant_Nm_per_A=self._kt),
-                ),
-                period_ns_=self._period_ns,
-            )
-        )
 
     def _answer_now(self, step: int) -> bool:
         """Realtime: whether state ``step``'s command can still be used (see the module)."""

@@ -101,6 +101,10 @@ class FeedforwardNode(ServoNode):
         )
 
         self._pub = self.publisher("reference")
+        # Sent as CDR bytes, as the plant's and the feedback's per-sample streams.
+        self._reference_codec = msgs.joint_codec(
+            "reference", axis=self._axis, period_ns_=self._period_ns
+        )
         self._learning = values["learning.enabled"]
         self._lockstep = values["mode"] == "lockstep"
         # Realtime: the references must be out before the feedback needs
@@ -399,15 +403,13 @@ class FeedforwardNode(ServoNode):
         kt = self._kt
         for k, (pos, vel, cur) in enumerate(samples, start=self.published):
             self._pub.publish(
-                msgs.reference_to_msg(
+                self._reference_codec.encode(
                     msgs.ReferenceSample(
                         step=k,
                         position_rad=pos,
                         velocity_rad_s=vel,
                         torque_Nm=torque_from_current(cur, torque_constant_Nm_per_A=kt),
-                    ),
-                    axis=self._axis,
-                    period_ns_=self._period_ns,
+                    )
                 )
             )
         self.published = until

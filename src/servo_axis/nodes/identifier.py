@@ -117,20 +117,23 @@ class IdentifierNode(ServoNode):
         )
 
     def _subscribe_inputs(self) -> None:
-        period_ns, axis = self._period_ns, self._axis
+        state = msgs.joint_codec("state", axis=self._axis, period_ns_=self._period_ns)
+        command = msgs.joint_codec("command", axis=self._axis, period_ns_=self._period_ns)
         if self.last_estimate is not None:
             # The dead identifier may have saved it without publishing it.
             self._pub.publish(msgs.estimate_to_msg(self.last_estimate))
         self.subscribe(
             "state",
-            lambda m: self._fresh(msgs.state_from_msg(m, axis=axis, period_ns_=period_ns)),
+            lambda data: self._fresh(state.decode(data)),
             lambda s: self._take(s.step, angle=s.encoder_rad) if s is not None else None,
+            raw=True,
             gate=self._state_gate,
         )
         self.subscribe(
             "command",
-            lambda m: self._fresh(msgs.command_from_msg(m, axis=axis, period_ns_=period_ns)),
+            lambda data: self._fresh(command.decode(data)),
             lambda c: self._take(c.step, torque=c.torque_Nm) if c is not None else None,
+            raw=True,
             gate=self._command_gate,
         )
         self.inputs_subscribed = True

@@ -45,8 +45,6 @@ from pathlib import Path
 from typing import Any, cast
 
 import numpy as np
-from rclpy.serialization import deserialize_message
-from sensor_msgs.msg import JointState
 
 from servo_axis.core.drive import torque_from_current
 from servo_axis.core.errors import ParameterFileError, ServoAxisError, SignalError
@@ -100,6 +98,9 @@ class LearningNode(ServoNode):
         self._lead = values["lead_m_per_rad"]
         self._axis = values["axis"]
         self._period_ns = msgs.period_ns(values["control_period_s"])
+        self._state_codec = msgs.joint_codec(
+            "state", axis=values["axis"], period_ns_=self._period_ns
+        )
         self._scenario = values["scenario.name"] or "unnamed"
         self._steps = run_steps(values)
         self._memory = Path(values["memory.file"]) if values["memory.file"] else None
@@ -190,8 +191,7 @@ class LearningNode(ServoNode):
         if step % self._stride:
             return None  # a target-side law learns from the reference instants only
         self._gate.check(step)  # cheap refusal of stale or far stamps before deserialising
-        msg = deserialize_message(data, JointState)
-        return msgs.state_from_msg(msg, axis=self._axis, period_ns_=self._period_ns)
+        return self._state_codec.decode(data)
 
     def _on_state(self, state: msgs.StateSample | None) -> None:
         self.start_realtime()

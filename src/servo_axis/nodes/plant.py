@@ -149,11 +149,10 @@ class PlantNode(ServoNode):
             steps=self._steps,
         )
 
-        # One message per publisher, refilled each sample: publish() serialises
-        # at once, and building a fresh JointState costs more than the physics.
-        self._state_msg = msgs.joint_state_template(
-            msgs.state_names(self._axis), ("position", "velocity", "effort")
-        )
+        # The per-sample path sends and takes CDR bytes: a JointState object
+        # costs more to fill, convert and serialise than the physics' step.
+        self._state_codec = msgs.joint_codec("state", axis=self._axis, period_ns_=self._period_ns)
+        command_codec = msgs.joint_codec("command", axis=self._axis, period_ns_=self._period_ns)
         self._state_pub = self.publisher("state")
         self._clock_pub = self.publisher("/clock") if values["publish_clock"] else None
         self._status_pub = self.publisher("plant/status")
@@ -173,13 +172,11 @@ class PlantNode(ServoNode):
         self._timeouts = 0
         self._finish_started = 0.0
         self._first_step_s = 0.0  # time.monotonic() when state 0 went out
-        period_ns, axis = self._period_ns, self._axis
         self.subscribe(
             "command",
-            lambda m: self._awaited_command(
-                msgs.command_from_msg(m, axis=axis, period_ns_=period_ns)
-            ),
+            lambda data: self._awaited_command(command_codec.decode(data)),
             self._on_command,
+            raw=True,
         )
         self.subscribe(
             "recorder/progress",
@@ -549,11 +546,10 @@ class PlantNode(ServoNode):
         self._published = out.step + 1
         if out.step == 0:
             self._first_step_s = time.monotonic()
+        # The state first: it is what the feedback waits for.
+        self._state_pub.publish(self._state_codec.encode(state_sample(out)))
         if self._clock_pub is not None and out.step % self._v["clock_every_steps"] == 0:
             self._clock_pub.publish(msgs.clock_message(out.step, self._period_ns))
-        self._state_pub.publish(
-            msgs.write_state(self._state_msg, state_sample(out), period_ns_=self._period_ns)
-        )
         if out.step % self._v["status_every_steps"] == 0:
             self._publish_status()
 

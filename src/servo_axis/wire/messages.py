@@ -34,6 +34,7 @@ from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from servo_axis.core.errors import SignalError
 from servo_axis.wire import layouts
 from servo_axis.wire.checks import check_finite, check_labelled_values, step_of_stamp_ns
+from servo_axis.wire.joint_cdr import JointCodec
 
 # The samples and the joint names are declared with the layouts (no rclpy) and
 # re-exported here, where the nodes take them from.
@@ -95,6 +96,17 @@ def stamp_ns_from_cdr(data: bytes) -> int:
     if not 0 <= nanosec < NS_PER_S:
         raise SignalError(f"header.stamp.nanosec: expected 0..999999999, got {nanosec}")
     return sec * NS_PER_S + nanosec
+
+
+def joint_codec(topic: str, *, axis: str, period_ns_: int) -> JointCodec[Any]:
+    """The CDR codec of JointState topic ``topic`` on ``axis`` (:class:`~servo_axis.wire.joint_cdr.JointCodec`).
+
+    What the per-sample path publishes (``publish(codec.encode(sample))``,
+    the same bytes as the message of ``<topic>_to_msg``) and decodes from a
+    ``raw=True`` subscription (``codec.decode(data)``, the checks of
+    ``<topic>_from_msg``).
+    """
+    return JointCodec(layouts.JOINT_LAYOUTS[topic], axis=axis, period_ns=period_ns_)
 
 
 def clock_message(step: int, period_ns_: int) -> Clock:

@@ -17,11 +17,13 @@ Nothing here imports rclpy.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Iterable, Iterator
 from typing import Any, TypeVar
 
 from servo_axis.core.errors import SignalError
 from servo_axis.wire import cdr, layouts
+from servo_axis.wire.joint_cdr import JointCodec
 from servo_axis.wire.layouts import ArrayLayout, JointLayout
 
 T = TypeVar("T")
@@ -131,8 +133,7 @@ def decode_joint_stream(name: str, data: bytes, *, axis: str, period_ns: int) ->
         For a payload that does not decode, the wrong joints, a missing or
         non-finite value, a stamp off the control grid.
     """
-    msg = cdr.decode_joint_state(data)  # SignalError for a payload that does not decode
-    sample = JOINT_STREAMS[name].decode(msg.name, msg, msg.stamp_ns, axis, period_ns)
+    sample = joint_codec(name, axis, period_ns).decode(data)
     return sample.step, sample
 
 
@@ -154,12 +155,18 @@ def decode_array_stream(name: str, data: bytes) -> tuple[int, Any]:
 def decode_step_stream(name: str, data: bytes, *, axis: str, period_ns: int) -> tuple[int, Any]:
     """Step and decoded payload of a recorded sample of any :data:`STEP_STREAMS` stream.
 
-    The checks of :func:`decode_joint_stream` and :func:`decode_array_stream`,
-    without building the sample (the recorder counts with it, every step).
+    The checks of :func:`decode_joint_stream` and :func:`decode_array_stream`
+    (the recorder counts with it, every step); an array's sample is not
+    built.
     """
     if name in ARRAY_STREAMS:
         array = cdr.decode_float64_multi_array(data)
         values = ARRAY_STREAMS[name].values(array.labels, array.sizes, array.data, array.strides)
         return int(values[0]), array
-    msg = cdr.decode_joint_state(data)
-    return JOINT_STREAMS[name].step(msg.name, msg, msg.stamp_ns, axis, period_ns), msg
+    return decode_joint_stream(name, data, axis=axis, period_ns=period_ns)
+
+
+@functools.lru_cache(maxsize=64)
+def joint_codec(name: str, axis: str, period_ns: int) -> JointCodec[Any]:
+    """The codec of JointState stream ``name`` on ``axis`` (one per stream, made once)."""
+    return JointCodec(JOINT_STREAMS[name], axis=axis, period_ns=period_ns)
