@@ -240,6 +240,9 @@ def elastic_ball_screw_period(
     half = h / 2.0
     if ideal_current:
         i = cmd
+    # The rows as views made once: a view made per sub-step costs a reference count each.
+    nut_delta, nut_k, nut_z = nut[0], nut[1], nut[2]
+    guide_delta, guide_k, guide_z = guide[0], guide[1], guide[2]
     for _ in range(substeps):
         th_start, x_start = th, x
         i0, i1, i2 = _substep_currents(i, cmd, decay1, decay2, ideal_current)
@@ -265,8 +268,8 @@ def elastic_ball_screw_period(
             (b1, b2, b3, b4),
         )
         i = i2
-        tf = maxwell_slip_move(nut[2], nut[0], nut[1], th - th_start)
-        fg = maxwell_slip_move(guide[2], guide[0], guide[1], x - x_start)
+        tf = maxwell_slip_move(nut_z, nut_delta, nut_k, th - th_start)
+        fg = maxwell_slip_move(guide_z, guide_delta, guide_k, x - x_start)
     state[0], state[1], state[2], state[3], state[4], state[5], state[6] = th, w, x, v, i, tf, fg
 
 
@@ -280,13 +283,37 @@ def contact_load(d: float, k: float, travel: float, preload: float, y: float) ->
     iterations, to a step below ``1e-13 (1 + |y|)``: the same floats every
     time (deterministic, no tolerance on a residual of mixed scale).
     """
-    a = preload / k
+    return _contact_load(d, preload / k, travel, y)
+
+
+@_compiled
+def _contact_load(d: float, a: float, travel: float, y: float) -> float:
+    # contact_load with a = F_p / k (the same quotient, computed once by the caller).
     lo = (d - travel) / a
     hi = (d + travel) / a
     if not lo <= y <= hi:
         y = 0.5 * (lo + hi)
-    for _ in range(60):
+    return _contact_newton(d, a, travel, y, math.tanh(y), lo, hi)
+
+
+@_compiled
+def _contact_reload(d: float, a: float, travel: float, y: float, t: float) -> float:
+    # _contact_load from a y whose tanh(y) = t the caller has (the same floats, one tanh less).
+    lo = (d - travel) / a
+    hi = (d + travel) / a
+    if not lo <= y <= hi:
+        y = 0.5 * (lo + hi)
         t = math.tanh(y)
+    return _contact_newton(d, a, travel, y, t, lo, hi)
+
+
+@_compiled
+def _contact_newton(
+    d: float, a: float, travel: float, y: float, t: float, lo: float, hi: float
+) -> float:
+    # The iterations of contact_load from y in [lo, hi] with t = tanh(y): each takes
+    # the tanh of its iterate from the one before, in the order contact_load always had.
+    for _ in range(60):
         f = a * y + travel * t - d
         if f > 0.0:
             hi = y
@@ -302,6 +329,7 @@ def contact_load(d: float, k: float, travel: float, preload: float, y: float) ->
             y = new
             break
         y = new
+        t = math.tanh(y)
     return y
 
 
@@ -316,12 +344,11 @@ def _contact_accel(
     fg: float,
     y: float,
     p: np.ndarray,
-) -> tuple[float, float, float]:
-    # As _elastic_accel with the contact's spring; also returns the solved F / F_p.
-    r, k, cs = p[0], p[1], p[2]
-    y = contact_load(r * th - x, k, p[15], p[16], y)
+) -> tuple[float, float]:
+    # As _elastic_accel with the contact's spring at its solved y = F / F_p.
+    r, cs = p[0], p[2]
     fs = p[16] * y + cs * (r * w - v)
-    return (p[5] * i - p[6] * w - r * fs - tf) / p[7], (fs - p[8] * v - fg) / p[9], y
+    return (p[5] * i - p[6] * w - r * fs - tf) / p[7], (fs - p[8] * v - fg) / p[9]
 
 
 @_compiled
@@ -341,6 +368,13 @@ def elastic_ball_screw_contact_period(
     :func:`contact_load`) and three Maxwell-slip sets updated at the end of
     each sub-step: the ball nut's on the change of ``delta_c`` (m), the screw
     bearings' on the motor angle (rad), the guide's on the table position (m).
+
+    The contact law is solved at each RK4 stage and at the end of each
+    sub-step, each time from the last solution. The first stage of a
+    sub-step solves at the deformation of the solve before it (the same
+    ``th`` and ``x``), whose ``tanh`` gave ``delta_c``: that ``tanh`` is
+    the first one its Newton needs, so it is taken rather than computed
+    again (the same float). ``F_p / k_h`` is computed once per call.
 
     Parameters
     ----------
@@ -368,25 +402,32 @@ def elastic_ball_screw_contact_period(
     decay2 = config[13]
     ideal_current = config[14] != 0.0
     half = h / 2.0
+    a = preload / k
     if ideal_current:
         i = cmd
-    y = contact_load(r * th - x, k, travel, preload, y)
-    contact = travel * math.tanh(y)
+    # The rows as views made once: a view made per sub-step costs a reference count each.
+    nut_delta, nut_k, nut_z = nut[0], nut[1], nut[2]
+    bearing_delta, bearing_k, bearing_z = bearing[0], bearing[1], bearing[2]
+    guide_delta, guide_k, guide_z = guide[0], guide[1], guide[2]
+    y = _contact_load(r * th - x, a, travel, y)
+    t = math.tanh(y)
+    contact = travel * t
     for _ in range(substeps):
         th_start, x_start = th, x
         i0, i1, i2 = _substep_currents(i, cmd, decay1, decay2, ideal_current)
-        a1, b1, y = _contact_accel(th, w, x, v, i0, tf, fg, y, config)
-        a2, b2, y = _contact_accel(
-            th + half * w, w + half * a1, x + half * v, v + half * b1, i1, tf, fg, y, config
-        )
+        y = _contact_reload(r * th - x, a, travel, y, t)
+        a1, b1 = _contact_accel(th, w, x, v, i0, tf, fg, y, config)
+        th_s, w_s, x_s, v_s = th + half * w, w + half * a1, x + half * v, v + half * b1
+        y = _contact_load(r * th_s - x_s, a, travel, y)
+        a2, b2 = _contact_accel(th_s, w_s, x_s, v_s, i1, tf, fg, y, config)
         w2, v2 = w + half * a1, v + half * b1
-        a3, b3, y = _contact_accel(
-            th + half * w2, w + half * a2, x + half * v2, v + half * b2, i1, tf, fg, y, config
-        )
+        th_s, w_s, x_s, v_s = th + half * w2, w + half * a2, x + half * v2, v + half * b2
+        y = _contact_load(r * th_s - x_s, a, travel, y)
+        a3, b3 = _contact_accel(th_s, w_s, x_s, v_s, i1, tf, fg, y, config)
         w3, v3 = w + half * a2, v + half * b2
-        a4, b4, y = _contact_accel(
-            th + h * w3, w + h * a3, x + h * v3, v + h * b3, i2, tf, fg, y, config
-        )
+        th_s, w_s, x_s, v_s = th + h * w3, w + h * a3, x + h * v3, v + h * b3
+        y = _contact_load(r * th_s - x_s, a, travel, y)
+        a4, b4 = _contact_accel(th_s, w_s, x_s, v_s, i2, tf, fg, y, config)
         th, w, x, v = _rk4_step(
             h,
             th,
@@ -399,13 +440,14 @@ def elastic_ball_screw_contact_period(
             (b1, b2, b3, b4),
         )
         i = i2
-        y = contact_load(r * th - x, k, travel, preload, y)
-        contact_end = travel * math.tanh(y)
-        t_nut = maxwell_slip_move(nut[2], nut[0], nut[1], contact_end - contact)
+        y = _contact_load(r * th - x, a, travel, y)
+        t = math.tanh(y)
+        contact_end = travel * t
+        t_nut = maxwell_slip_move(nut_z, nut_delta, nut_k, contact_end - contact)
         contact = contact_end
-        t_bearing = maxwell_slip_move(bearing[2], bearing[0], bearing[1], th - th_start)
+        t_bearing = maxwell_slip_move(bearing_z, bearing_delta, bearing_k, th - th_start)
         tf = t_nut + t_bearing
-        fg = maxwell_slip_move(guide[2], guide[0], guide[1], x - x_start)
+        fg = maxwell_slip_move(guide_z, guide_delta, guide_k, x - x_start)
     state[0], state[1], state[2], state[3], state[4], state[5], state[6] = th, w, x, v, i, tf, fg
     state[7], state[8], state[9] = t_nut, t_bearing, y
 
