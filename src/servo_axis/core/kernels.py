@@ -207,30 +207,58 @@ def _rk4_step(
     )
 
 
+#: The lengths of the state and the config in the elastic screws' work arrays:
+#: ``(state, config)`` of :func:`elastic_ball_screw_period` and of
+#: :func:`elastic_ball_screw_contact_period`.
+ELASTIC_LAYOUT = (7, 15)
+ELASTIC_CONTACT_LAYOUT = (10, 17)
+
+
 @_compiled
-def elastic_ball_screw_period(
-    state: np.ndarray, cmd: float, config: np.ndarray, nut: np.ndarray, guide: np.ndarray
-) -> None:
+def _element_rows(
+    work: np.ndarray, start: int, n: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    # The rows delta, k, z of a Maxwell-slip set of n elements at work[start:] (views).
+    return (
+        work[start : start + n],
+        work[start + n : start + 2 * n],
+        work[start + 2 * n : start + 3 * n],
+    )
+
+
+@_compiled
+def elastic_ball_screw_period(work: np.ndarray, cmd: float) -> None:
     """The elastic ball screw over one control period: RK4 sub-steps and friction.
+
+    One array holds all the kernel reads and writes: a compiled function's
+    call costs about 80 ns per array argument (its type and buffer looked
+    up), a sixth of a control period's Python around the kernel.
 
     Parameters
     ----------
-    state : ndarray, shape (7,)
-        ``th`` (rad), ``w`` (rad/s), ``x`` (m), ``v`` (m/s), ``i`` (A), the
-        nut's friction torque ``T_f`` (N m) and the guide's force ``f_g``
-        (N); updated in place to the period's end.
+    work : ndarray, shape (7 + 15 + 6 N,)
+        In order (:data:`ELASTIC_LAYOUT`):
+
+        * the state: ``th`` (rad), ``w`` (rad/s), ``x`` (m), ``v`` (m/s),
+          ``i`` (A), the nut's friction torque ``T_f`` (N m) and the guide's
+          force ``f_g`` (N); updated in place to the period's end;
+        * the config: ``R`` (m/rad), ``k_h`` (N/m), ``c_s`` (N s/m), ``g``
+          (m), ``(k_h - k_0) g`` (N), ``K_T`` (N m/A), ``B_m`` (N m s/rad),
+          ``J_m`` (kg m^2), ``C_t`` (N s/m), ``M`` (kg); then the sub-steps
+          per period, the sub-step ``h`` (s), ``e^{-w_c h/2}``,
+          ``e^{-w_c h}`` and 1.0 for an ideal current loop (``i = cmd`` over
+          the whole period), else 0.0;
+        * the two Maxwell-slip sets of N elements, the nut's then the
+          guide's, each as ``MaxwellSlip.packed`` holds it (rows ``delta``,
+          ``k``, ``z``, flattened); ``z`` in place.
     cmd : float
         The commanded current held over the period, A (saturated).
-    config : ndarray, shape (15,)
-        ``R`` (m/rad), ``k_h`` (N/m), ``c_s`` (N s/m), ``g`` (m),
-        ``(k_h - k_0) g`` (N), ``K_T`` (N m/A), ``B_m`` (N m s/rad), ``J_m``
-        (kg m^2), ``C_t`` (N s/m), ``M`` (kg); then the sub-steps per period,
-        the sub-step ``h`` (s), ``e^{-w_c h/2}``, ``e^{-w_c h}`` and 1.0 for
-        an ideal current loop (``i = cmd`` over the whole period), else 0.0.
-    nut, guide : ndarray, shape (3, N)
-        The two Maxwell-slip sets as ``MaxwellSlip.packed`` hands them out
-        (rows ``delta``, ``k``, ``z``); ``z`` in place.
     """
+    state = work[:7]
+    config = work[7:22]
+    n = (work.shape[0] - 22) // 6
+    nut_delta, nut_k, nut_z = _element_rows(work, 22, n)
+    guide_delta, guide_k, guide_z = _element_rows(work, 22 + 3 * n, n)
     th, w, x, v, i, tf, fg = state[0], state[1], state[2], state[3], state[4], state[5], state[6]
     substeps = int(config[10])
     h = config[11]
@@ -240,9 +268,6 @@ def elastic_ball_screw_period(
     half = h / 2.0
     if ideal_current:
         i = cmd
-    # The rows as views made once: a view made per sub-step costs a reference count each.
-    nut_delta, nut_k, nut_z = nut[0], nut[1], nut[2]
-    guide_delta, guide_k, guide_z = guide[0], guide[1], guide[2]
     for _ in range(substeps):
         th_start, x_start = th, x
         i0, i1, i2 = _substep_currents(i, cmd, decay1, decay2, ideal_current)
@@ -352,14 +377,7 @@ def _contact_accel(
 
 
 @_compiled
-def elastic_ball_screw_contact_period(
-    state: np.ndarray,
-    cmd: float,
-    config: np.ndarray,
-    nut: np.ndarray,
-    bearing: np.ndarray,
-    guide: np.ndarray,
-) -> None:
+def elastic_ball_screw_contact_period(work: np.ndarray, cmd: float) -> None:
     """The elastic ball screw with a ball contact and the nut's friction on it.
 
     The sub-steps of :func:`elastic_ball_screw_period` (the same RK4), with
@@ -378,21 +396,29 @@ def elastic_ball_screw_contact_period(
 
     Parameters
     ----------
-    state : ndarray, shape (10,)
-        ``th``, ``w``, ``x``, ``v``, ``i``, ``T_f`` (N m: nut + bearings, what
-        the motor feels), ``f_g`` (N), the nut's and the bearings' shares of
-        ``T_f`` (N m) and ``F / F_p`` of the last solution; updated in place
-        to the period's end.
+    work : ndarray, shape (10 + 17 + 9 N,)
+        One array, as for :func:`elastic_ball_screw_period`
+        (:data:`ELASTIC_CONTACT_LAYOUT`):
+
+        * the state: ``th``, ``w``, ``x``, ``v``, ``i``, ``T_f`` (N m: nut +
+          bearings, what the motor feels), ``f_g`` (N), the nut's and the
+          bearings' shares of ``T_f`` (N m) and ``F / F_p`` of the last
+          solution; updated in place to the period's end;
+        * the config: as for :func:`elastic_ball_screw_period` (``g``
+          unused), then the contact's travel ``D`` (m, >= 0) and the preload
+          ``F_p`` (N, > 0);
+        * the Maxwell-slip sets of N elements (rows ``delta``, ``k``, ``z``,
+          flattened; ``z`` in place): the nut's in m of contact deformation
+          and N m, the bearings' in rad and N m, the guide's in m and N.
     cmd : float
         The commanded current held over the period, A (saturated).
-    config : ndarray, shape (17,)
-        As for :func:`elastic_ball_screw_period` (``g`` unused), then the
-        contact's travel ``D`` (m, >= 0) and the preload ``F_p`` (N, > 0).
-    nut, bearing, guide : ndarray, shape (3, N)
-        The Maxwell-slip sets (rows ``delta``, ``k``, ``z``; ``z`` in place):
-        the nut's in m of contact deformation and N m, the bearings' in rad
-        and N m, the guide's in m and N.
     """
+    state = work[:10]
+    config = work[10:27]
+    n = (work.shape[0] - 27) // 9
+    nut_delta, nut_k, nut_z = _element_rows(work, 27, n)
+    bearing_delta, bearing_k, bearing_z = _element_rows(work, 27 + 3 * n, n)
+    guide_delta, guide_k, guide_z = _element_rows(work, 27 + 6 * n, n)
     th, w, x, v, i, tf, fg = state[0], state[1], state[2], state[3], state[4], state[5], state[6]
     t_nut, t_bearing, y = state[7], state[8], state[9]
     r, k, travel, preload = config[0], config[1], config[15], config[16]
@@ -405,10 +431,6 @@ def elastic_ball_screw_contact_period(
     a = preload / k
     if ideal_current:
         i = cmd
-    # The rows as views made once: a view made per sub-step costs a reference count each.
-    nut_delta, nut_k, nut_z = nut[0], nut[1], nut[2]
-    bearing_delta, bearing_k, bearing_z = bearing[0], bearing[1], bearing[2]
-    guide_delta, guide_k, guide_z = guide[0], guide[1], guide[2]
     y = _contact_load(r * th - x, a, travel, y)
     t = math.tanh(y)
     contact = travel * t
