@@ -308,36 +308,25 @@ def contact_load(d: float, k: float, travel: float, preload: float, y: float) ->
     iterations, to a step below ``1e-13 (1 + |y|)``: the same floats every
     time (deterministic, no tolerance on a residual of mixed scale).
     """
-    return _contact_load(d, preload / k, travel, y)
+    return _contact_solve(d, preload / k, travel, y, 0.0, False)[0]
 
 
 @_compiled
-def _contact_load(d: float, a: float, travel: float, y: float) -> float:
-    # contact_load with a = F_p / k (the same quotient, computed once by the caller).
+def _contact_solve(
+    d: float, a: float, travel: float, y: float, t: float, known: bool
+) -> tuple[float, float, bool]:
+    # contact_load with a = F_p / k (the same quotient, computed once by the caller), from
+    # a y whose tanh(y) is t when known. Returns the solution, its tanh and whether that
+    # was computed: when the last iteration's residual is exactly 0 its tanh is the
+    # solution's, which the next solve from there needs first (the same float, not
+    # computed again); when the step was below the tolerance it is not known.
     lo = (d - travel) / a
     hi = (d + travel) / a
     if not lo <= y <= hi:
         y = 0.5 * (lo + hi)
-    return _contact_newton(d, a, travel, y, math.tanh(y), lo, hi)
-
-
-@_compiled
-def _contact_reload(d: float, a: float, travel: float, y: float, t: float) -> float:
-    # _contact_load from a y whose tanh(y) = t the caller has (the same floats, one tanh less).
-    lo = (d - travel) / a
-    hi = (d + travel) / a
-    if not lo <= y <= hi:
-        y = 0.5 * (lo + hi)
+        known = False
+    if not known:
         t = math.tanh(y)
-    return _contact_newton(d, a, travel, y, t, lo, hi)
-
-
-@_compiled
-def _contact_newton(
-    d: float, a: float, travel: float, y: float, t: float, lo: float, hi: float
-) -> float:
-    # The iterations of contact_load from y in [lo, hi] with t = tanh(y): each takes
-    # the tanh of its iterate from the one before, in the order contact_load always had.
     for _ in range(60):
         f = a * y + travel * t - d
         if f > 0.0:
@@ -345,17 +334,16 @@ def _contact_newton(
         elif f < 0.0:
             lo = y
         else:
-            break
+            return y, t, True
         step = f / (a + travel * (1.0 - t * t))
         new = y - step
         if not lo < new < hi:
             new = 0.5 * (lo + hi)
         if abs(new - y) <= 1e-13 * (1.0 + abs(y)):
-            y = new
-            break
+            return new, t, False
         y = new
         t = math.tanh(y)
-    return y
+    return y, t, True
 
 
 @_compiled
@@ -390,9 +378,12 @@ def elastic_ball_screw_contact_period(work: np.ndarray, cmd: float) -> None:
     The contact law is solved at each RK4 stage and at the end of each
     sub-step, each time from the last solution. The first stage of a
     sub-step solves at the deformation of the solve before it (the same
-    ``th`` and ``x``), whose ``tanh`` gave ``delta_c``: that ``tanh`` is
-    the first one its Newton needs, so it is taken rather than computed
-    again (the same float). ``F_p / k_h`` is computed once per call.
+    ``th`` and ``x``), whose ``tanh`` gave ``delta_c``; any solve whose
+    last iteration found a residual of exactly 0 has the ``tanh`` of its
+    solution, the first one the next solve's Newton needs. Those are taken
+    rather than computed again (the same floats: ``tanh`` is on the path
+    from stage to stage, so each one saved is its latency).
+    ``F_p / k_h`` is computed once per call.
 
     Parameters
     ----------
@@ -431,24 +422,25 @@ def elastic_ball_screw_contact_period(work: np.ndarray, cmd: float) -> None:
     a = preload / k
     if ideal_current:
         i = cmd
-    y = _contact_load(r * th - x, a, travel, y)
-    t = math.tanh(y)
+    y, t, known = _contact_solve(r * th - x, a, travel, y, 0.0, False)
+    if not known:
+        t = math.tanh(y)
     contact = travel * t
     for _ in range(substeps):
         th_start, x_start = th, x
         i0, i1, i2 = _substep_currents(i, cmd, decay1, decay2, ideal_current)
-        y = _contact_reload(r * th - x, a, travel, y, t)
+        y, t, known = _contact_solve(r * th - x, a, travel, y, t, True)
         a1, b1 = _contact_accel(th, w, x, v, i0, tf, fg, y, config)
         th_s, w_s, x_s, v_s = th + half * w, w + half * a1, x + half * v, v + half * b1
-        y = _contact_load(r * th_s - x_s, a, travel, y)
+        y, t, known = _contact_solve(r * th_s - x_s, a, travel, y, t, known)
         a2, b2 = _contact_accel(th_s, w_s, x_s, v_s, i1, tf, fg, y, config)
         w2, v2 = w + half * a1, v + half * b1
         th_s, w_s, x_s, v_s = th + half * w2, w + half * a2, x + half * v2, v + half * b2
-        y = _contact_load(r * th_s - x_s, a, travel, y)
+        y, t, known = _contact_solve(r * th_s - x_s, a, travel, y, t, known)
         a3, b3 = _contact_accel(th_s, w_s, x_s, v_s, i1, tf, fg, y, config)
         w3, v3 = w + half * a2, v + half * b2
         th_s, w_s, x_s, v_s = th + h * w3, w + h * a3, x + h * v3, v + h * b3
-        y = _contact_load(r * th_s - x_s, a, travel, y)
+        y, t, known = _contact_solve(r * th_s - x_s, a, travel, y, t, known)
         a4, b4 = _contact_accel(th_s, w_s, x_s, v_s, i2, tf, fg, y, config)
         th, w, x, v = _rk4_step(
             h,
@@ -462,8 +454,9 @@ def elastic_ball_screw_contact_period(work: np.ndarray, cmd: float) -> None:
             (b1, b2, b3, b4),
         )
         i = i2
-        y = _contact_load(r * th - x, a, travel, y)
-        t = math.tanh(y)
+        y, t, known = _contact_solve(r * th - x, a, travel, y, t, known)
+        if not known:
+            t = math.tanh(y)
         contact_end = travel * t
         t_nut = maxwell_slip_move(nut_z, nut_delta, nut_k, contact_end - contact)
         contact = contact_end
