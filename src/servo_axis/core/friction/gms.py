@@ -391,6 +391,8 @@ class GmsModel:
         self._decay = 1.0
         self._levels_of: float | None = None
         self._pairs = [(k, 0.0) for k in self._k]  # (k_i, alpha_i s) once computed
+        self._stribeck = self._fs != self._fc
+        self._sticking = (False,) * n
 
     def reset(self) -> None:
         """Relax every element (virgin state); the next :meth:`update` sets the position."""
@@ -440,7 +442,7 @@ class GmsModel:
         force = self._force
         slipping = self._slipping
         if sign != self._sign or sign == 0:
-            slipping[:] = [False] * len(slipping)
+            slipping[:] = self._sticking
         self._sign = sign
         last = self._last
         self._last = position_m
@@ -448,7 +450,7 @@ class GmsModel:
             return math.fsum(force) + self._sigma2 * v
         dx = position_m - last
         s = self._fc
-        if self._fs != self._fc:
+        if self._stribeck:
             s += (self._fs - self._fc) * math.exp(-(abs(v / self._vs) ** self._delta))
         if period_s != self._decay_period:
             self._decay = math.exp(-self._c * period_s)
@@ -457,22 +459,24 @@ class GmsModel:
         if s != self._levels_of:
             self._pairs = [(k, a * s) for k, a in zip(self._k, self._alpha, strict=True)]
             self._levels_of = s
-        for i, (k, level) in enumerate(self._pairs):
+        i = 0
+        for k, level in self._pairs:
             if slipping[i]:
                 target = sign * level
                 force[i] = target + (force[i] - target) * decay
-                continue
-            f = force[i] + k * dx
-            # Break-away: held at the level, and slipping only in the direction of motion (a
-            # position step against the velocity's sign, which consistent inputs never give,
-            # must not start a slip towards the other level).
-            if f >= level:
-                f = level
-                slipping[i] = sign > 0
-            elif f <= -level:
-                f = -level
-                slipping[i] = sign < 0
-            force[i] = f
+            else:
+                f = force[i] + k * dx
+                # Break-away: held at the level, and slipping only in the direction of motion
+                # (a position step against the velocity's sign, which consistent inputs never
+                # give, must not start a slip towards the other level).
+                if f >= level:
+                    f = level
+                    slipping[i] = sign > 0
+                elif f <= -level:
+                    f = -level
+                    slipping[i] = sign < 0
+                force[i] = f
+            i += 1
         return math.fsum(force) + self._sigma2 * v
 
     @staticmethod

@@ -607,7 +607,14 @@ class ElasticBallScrewPlant:
 
     def step(self, current_A: float) -> PlantOutput:
         """Hold ``current_A`` (A, saturated at ``+-current_limit_A``) over one control period."""
-        self._advance(self._work, clipped_current(current_A, self._limit))
+        limit = self._limit
+        # Inside the limits the saturation is the current itself (what clipped_current
+        # gives it, without the call); outside them, or not finite, clipped_current.
+        if -limit <= current_A <= limit:
+            cmd = float(current_A)
+        else:
+            cmd = clipped_current(current_A, limit)
+        self._advance(self._work, cmd)
         self._step += 1
         self._sample()
         return self._out
