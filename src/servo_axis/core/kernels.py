@@ -207,30 +207,58 @@ def _rk4_step(
     )
 
 
+#: The lengths of the state and the config in the elastic screws' work arrays:
+#: ``(state, config)`` of :func:`elastic_ball_screw_period` and of
+#: :func:`elastic_ball_screw_contact_period`.
+ELASTIC_LAYOUT = (7, 15)
+ELASTIC_CONTACT_LAYOUT = (10, 17)
+
+
 @_compiled
-def elastic_ball_screw_period(
-    state: np.ndarray, cmd: float, config: np.ndarray, nut: np.ndarray, guide: np.ndarray
-) -> None:
+def _element_rows(
+    work: np.ndarray, start: int, n: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    # The rows delta, k, z of a Maxwell-slip set of n elements at work[start:] (views).
+    return (
+        work[start : start + n],
+        work[start + n : start + 2 * n],
+        work[start + 2 * n : start + 3 * n],
+    )
+
+
+@_compiled
+def elastic_ball_screw_period(work: np.ndarray, cmd: float) -> None:
     """The elastic ball screw over one control period: RK4 sub-steps and friction.
+
+    One array holds all the kernel reads and writes: a compiled function's
+    call costs about 80 ns per array argument (its type and buffer looked
+    up), a sixth of a control period's Python around the kernel.
 
     Parameters
     ----------
-    state : ndarray, shape (7,)
-        ``th`` (rad), ``w`` (rad/s), ``x`` (m), ``v`` (m/s), ``i`` (A), the
-        nut's friction torque ``T_f`` (N m) and the guide's force ``f_g``
-        (N); updated in place to the period's end.
+    work : ndarray, shape (7 + 15 + 6 N,)
+        In order (:data:`ELASTIC_LAYOUT`):
+
+        * the state: ``th`` (rad), ``w`` (rad/s), ``x`` (m), ``v`` (m/s),
+          ``i`` (A), the nut's friction torque ``T_f`` (N m) and the guide's
+          force ``f_g`` (N); updated in place to the period's end;
+        * the config: ``R`` (m/rad), ``k_h`` (N/m), ``c_s`` (N s/m), ``g``
+          (m), ``(k_h - k_0) g`` (N), ``K_T`` (N m/A), ``B_m`` (N m s/rad),
+          ``J_m`` (kg m^2), ``C_t`` (N s/m), ``M`` (kg); then the sub-steps
+          per period, the sub-step ``h`` (s), ``e^{-w_c h/2}``,
+          ``e^{-w_c h}`` and 1.0 for an ideal current loop (``i = cmd`` over
+          the whole period), else 0.0;
+        * the two Maxwell-slip sets of N elements, the nut's then the
+          guide's, each as ``MaxwellSlip.packed`` holds it (rows ``delta``,
+          ``k``, ``z``, flattened); ``z`` in place.
     cmd : float
         The commanded current held over the period, A (saturated).
-    config : ndarray, shape (15,)
-        ``R`` (m/rad), ``k_h`` (N/m), ``c_s`` (N s/m), ``g`` (m),
-        ``(k_h - k_0) g`` (N), ``K_T`` (N m/A), ``B_m`` (N m s/rad), ``J_m``
-        (kg m^2), ``C_t`` (N s/m), ``M`` (kg); then the sub-steps per period,
-        the sub-step ``h`` (s), ``e^{-w_c h/2}``, ``e^{-w_c h}`` and 1.0 for
-        an ideal current loop (``i = cmd`` over the whole period), else 0.0.
-    nut, guide : ndarray, shape (3, N)
-        The two Maxwell-slip sets as ``MaxwellSlip.packed`` hands them out
-        (rows ``delta``, ``k``, ``z``); ``z`` in place.
     """
+    state = work[:7]
+    config = work[7:22]
+    n = (work.shape[0] - 22) // 6
+    nut_delta, nut_k, nut_z = _element_rows(work, 22, n)
+    guide_delta, guide_k, guide_z = _element_rows(work, 22 + 3 * n, n)
     th, w, x, v, i, tf, fg = state[0], state[1], state[2], state[3], state[4], state[5], state[6]
     substeps = int(config[10])
     h = config[11]
@@ -265,8 +293,8 @@ def elastic_ball_screw_period(
             (b1, b2, b3, b4),
         )
         i = i2
-        tf = maxwell_slip_move(nut[2], nut[0], nut[1], th - th_start)
-        fg = maxwell_slip_move(guide[2], guide[0], guide[1], x - x_start)
+        tf = maxwell_slip_move(nut_z, nut_delta, nut_k, th - th_start)
+        fg = maxwell_slip_move(guide_z, guide_delta, guide_k, x - x_start)
     state[0], state[1], state[2], state[3], state[4], state[5], state[6] = th, w, x, v, i, tf, fg
 
 
@@ -280,29 +308,42 @@ def contact_load(d: float, k: float, travel: float, preload: float, y: float) ->
     iterations, to a step below ``1e-13 (1 + |y|)``: the same floats every
     time (deterministic, no tolerance on a residual of mixed scale).
     """
-    a = preload / k
+    return _contact_solve(d, preload / k, travel, y, 0.0, False)[0]
+
+
+@_compiled
+def _contact_solve(
+    d: float, a: float, travel: float, y: float, t: float, known: bool
+) -> tuple[float, float, bool]:
+    # contact_load with a = F_p / k (the same quotient, computed once by the caller), from
+    # a y whose tanh(y) is t when known. Returns the solution, its tanh and whether that
+    # was computed: when the last iteration's residual is exactly 0 its tanh is the
+    # solution's, which the next solve from there needs first (the same float, not
+    # computed again); when the step was below the tolerance it is not known.
     lo = (d - travel) / a
     hi = (d + travel) / a
     if not lo <= y <= hi:
         y = 0.5 * (lo + hi)
-    for _ in range(60):
+        known = False
+    if not known:
         t = math.tanh(y)
+    for _ in range(60):
         f = a * y + travel * t - d
         if f > 0.0:
             hi = y
         elif f < 0.0:
             lo = y
         else:
-            break
+            return y, t, True
         step = f / (a + travel * (1.0 - t * t))
         new = y - step
         if not lo < new < hi:
             new = 0.5 * (lo + hi)
         if abs(new - y) <= 1e-13 * (1.0 + abs(y)):
-            y = new
-            break
+            return new, t, False
         y = new
-    return y
+        t = math.tanh(y)
+    return y, t, True
 
 
 @_compiled
@@ -316,23 +357,15 @@ def _contact_accel(
     fg: float,
     y: float,
     p: np.ndarray,
-) -> tuple[float, float, float]:
-    # As _elastic_accel with the contact's spring; also returns the solved F / F_p.
-    r, k, cs = p[0], p[1], p[2]
-    y = contact_load(r * th - x, k, p[15], p[16], y)
+) -> tuple[float, float]:
+    # As _elastic_accel with the contact's spring at its solved y = F / F_p.
+    r, cs = p[0], p[2]
     fs = p[16] * y + cs * (r * w - v)
-    return (p[5] * i - p[6] * w - r * fs - tf) / p[7], (fs - p[8] * v - fg) / p[9], y
+    return (p[5] * i - p[6] * w - r * fs - tf) / p[7], (fs - p[8] * v - fg) / p[9]
 
 
 @_compiled
-def elastic_ball_screw_contact_period(
-    state: np.ndarray,
-    cmd: float,
-    config: np.ndarray,
-    nut: np.ndarray,
-    bearing: np.ndarray,
-    guide: np.ndarray,
-) -> None:
+def elastic_ball_screw_contact_period(work: np.ndarray, cmd: float) -> None:
     """The elastic ball screw with a ball contact and the nut's friction on it.
 
     The sub-steps of :func:`elastic_ball_screw_period` (the same RK4), with
@@ -342,23 +375,41 @@ def elastic_ball_screw_contact_period(
     each sub-step: the ball nut's on the change of ``delta_c`` (m), the screw
     bearings' on the motor angle (rad), the guide's on the table position (m).
 
+    The contact law is solved at each RK4 stage and at the end of each
+    sub-step, each time from the last solution. The first stage of a
+    sub-step solves at the deformation of the solve before it (the same
+    ``th`` and ``x``), whose ``tanh`` gave ``delta_c``; any solve whose
+    last iteration found a residual of exactly 0 has the ``tanh`` of its
+    solution, the first one the next solve's Newton needs. Those are taken
+    rather than computed again (the same floats: ``tanh`` is on the path
+    from stage to stage, so each one saved is its latency).
+    ``F_p / k_h`` is computed once per call.
+
     Parameters
     ----------
-    state : ndarray, shape (10,)
-        ``th``, ``w``, ``x``, ``v``, ``i``, ``T_f`` (N m: nut + bearings, what
-        the motor feels), ``f_g`` (N), the nut's and the bearings' shares of
-        ``T_f`` (N m) and ``F / F_p`` of the last solution; updated in place
-        to the period's end.
+    work : ndarray, shape (10 + 17 + 9 N,)
+        One array, as for :func:`elastic_ball_screw_period`
+        (:data:`ELASTIC_CONTACT_LAYOUT`):
+
+        * the state: ``th``, ``w``, ``x``, ``v``, ``i``, ``T_f`` (N m: nut +
+          bearings, what the motor feels), ``f_g`` (N), the nut's and the
+          bearings' shares of ``T_f`` (N m) and ``F / F_p`` of the last
+          solution; updated in place to the period's end;
+        * the config: as for :func:`elastic_ball_screw_period` (``g``
+          unused), then the contact's travel ``D`` (m, >= 0) and the preload
+          ``F_p`` (N, > 0);
+        * the Maxwell-slip sets of N elements (rows ``delta``, ``k``, ``z``,
+          flattened; ``z`` in place): the nut's in m of contact deformation
+          and N m, the bearings' in rad and N m, the guide's in m and N.
     cmd : float
         The commanded current held over the period, A (saturated).
-    config : ndarray, shape (17,)
-        As for :func:`elastic_ball_screw_period` (``g`` unused), then the
-        contact's travel ``D`` (m, >= 0) and the preload ``F_p`` (N, > 0).
-    nut, bearing, guide : ndarray, shape (3, N)
-        The Maxwell-slip sets (rows ``delta``, ``k``, ``z``; ``z`` in place):
-        the nut's in m of contact deformation and N m, the bearings' in rad
-        and N m, the guide's in m and N.
     """
+    state = work[:10]
+    config = work[10:27]
+    n = (work.shape[0] - 27) // 9
+    nut_delta, nut_k, nut_z = _element_rows(work, 27, n)
+    bearing_delta, bearing_k, bearing_z = _element_rows(work, 27 + 3 * n, n)
+    guide_delta, guide_k, guide_z = _element_rows(work, 27 + 6 * n, n)
     th, w, x, v, i, tf, fg = state[0], state[1], state[2], state[3], state[4], state[5], state[6]
     t_nut, t_bearing, y = state[7], state[8], state[9]
     r, k, travel, preload = config[0], config[1], config[15], config[16]
@@ -368,25 +419,29 @@ def elastic_ball_screw_contact_period(
     decay2 = config[13]
     ideal_current = config[14] != 0.0
     half = h / 2.0
+    a = preload / k
     if ideal_current:
         i = cmd
-    y = contact_load(r * th - x, k, travel, preload, y)
-    contact = travel * math.tanh(y)
+    y, t, known = _contact_solve(r * th - x, a, travel, y, 0.0, False)
+    if not known:
+        t = math.tanh(y)
+    contact = travel * t
     for _ in range(substeps):
         th_start, x_start = th, x
         i0, i1, i2 = _substep_currents(i, cmd, decay1, decay2, ideal_current)
-        a1, b1, y = _contact_accel(th, w, x, v, i0, tf, fg, y, config)
-        a2, b2, y = _contact_accel(
-            th + half * w, w + half * a1, x + half * v, v + half * b1, i1, tf, fg, y, config
-        )
+        y, t, known = _contact_solve(r * th - x, a, travel, y, t, True)
+        a1, b1 = _contact_accel(th, w, x, v, i0, tf, fg, y, config)
+        th_s, w_s, x_s, v_s = th + half * w, w + half * a1, x + half * v, v + half * b1
+        y, t, known = _contact_solve(r * th_s - x_s, a, travel, y, t, known)
+        a2, b2 = _contact_accel(th_s, w_s, x_s, v_s, i1, tf, fg, y, config)
         w2, v2 = w + half * a1, v + half * b1
-        a3, b3, y = _contact_accel(
-            th + half * w2, w + half * a2, x + half * v2, v + half * b2, i1, tf, fg, y, config
-        )
+        th_s, w_s, x_s, v_s = th + half * w2, w + half * a2, x + half * v2, v + half * b2
+        y, t, known = _contact_solve(r * th_s - x_s, a, travel, y, t, known)
+        a3, b3 = _contact_accel(th_s, w_s, x_s, v_s, i1, tf, fg, y, config)
         w3, v3 = w + half * a2, v + half * b2
-        a4, b4, y = _contact_accel(
-            th + h * w3, w + h * a3, x + h * v3, v + h * b3, i2, tf, fg, y, config
-        )
+        th_s, w_s, x_s, v_s = th + h * w3, w + h * a3, x + h * v3, v + h * b3
+        y, t, known = _contact_solve(r * th_s - x_s, a, travel, y, t, known)
+        a4, b4 = _contact_accel(th_s, w_s, x_s, v_s, i2, tf, fg, y, config)
         th, w, x, v = _rk4_step(
             h,
             th,
@@ -399,13 +454,15 @@ def elastic_ball_screw_contact_period(
             (b1, b2, b3, b4),
         )
         i = i2
-        y = contact_load(r * th - x, k, travel, preload, y)
-        contact_end = travel * math.tanh(y)
-        t_nut = maxwell_slip_move(nut[2], nut[0], nut[1], contact_end - contact)
+        y, t, known = _contact_solve(r * th - x, a, travel, y, t, known)
+        if not known:
+            t = math.tanh(y)
+        contact_end = travel * t
+        t_nut = maxwell_slip_move(nut_z, nut_delta, nut_k, contact_end - contact)
         contact = contact_end
-        t_bearing = maxwell_slip_move(bearing[2], bearing[0], bearing[1], th - th_start)
+        t_bearing = maxwell_slip_move(bearing_z, bearing_delta, bearing_k, th - th_start)
         tf = t_nut + t_bearing
-        fg = maxwell_slip_move(guide[2], guide[0], guide[1], x - x_start)
+        fg = maxwell_slip_move(guide_z, guide_delta, guide_k, x - x_start)
     state[0], state[1], state[2], state[3], state[4], state[5], state[6] = th, w, x, v, i, tf, fg
     state[7], state[8], state[9] = t_nut, t_bearing, y
 

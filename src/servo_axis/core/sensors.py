@@ -54,13 +54,16 @@ class PositionSensor:
             raise ValueError("rng: a numpy.random.Generator is needed when noise_std > 0")
         self.params = params
         self._rng = rng
+        # Read at every sample: the (frozen) parameters' two values as plain attributes.
+        self._noise_std = params.noise_std
+        self._resolution = params.resolution
 
     def measure(self, true_value: float) -> float:
         """Return the reading for ``true_value`` (same unit as the resolution)."""
         value = true_value
-        if self.params.noise_std > 0.0 and self._rng is not None:
-            value += self.params.noise_std * float(self._rng.standard_normal())
-        res = self.params.resolution
+        if self._noise_std > 0.0 and self._rng is not None:
+            value += self._noise_std * float(self._rng.standard_normal())
+        res = self._resolution
         if res > 0.0:
             value = math.floor(value / res + 0.5) * res
         return value

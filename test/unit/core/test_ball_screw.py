@@ -144,6 +144,24 @@ def test_maxwell_slip_virgin_curve_and_reversal() -> None:
         assert_allclose(probe.move(-d), tc - 2 * fresh.move(d / 2), rtol=1e-12, atol=1e-12)
 
 
+def test_maxwell_slip_keeps_its_elements_where_it_is_told() -> None:
+    # A plant hands a view of its one work array: the set fills it and steps in it,
+    # exactly as in an array of its own.
+    work = np.full(2 + 3 * 5, 7.0)
+    view = work[2:].reshape(3, 5)
+    shared = MaxwellSlip(coulomb_Nm=2.0, width_rad=1e-3, elements=5, storage=view)
+    own = MaxwellSlip(coulomb_Nm=2.0, width_rad=1e-3, elements=5)
+    assert np.shares_memory(shared.packed(), work)
+    assert shared.packed().tobytes() == own.packed().tobytes()
+    for d in (4e-4, -1.5e-3, 2e-4):
+        assert shared.move(d) == own.move(d)
+    assert work[2:].tobytes() == own.packed().tobytes()
+    assert work[:2].tolist() == [7.0, 7.0]
+    for bad in (np.zeros((3, 4)), np.zeros((3, 5), dtype=np.float32), np.zeros((5, 3)).T):
+        with pytest.raises(ConfigError, match="storage: expected a C-contiguous float64 array"):
+            MaxwellSlip(coulomb_Nm=2.0, width_rad=1e-3, elements=5, storage=bad)
+
+
 def test_maxwell_slip_is_rate_independent_with_nonlocal_memory() -> None:
     tc, width = 1.0, 1e-3
     path = [0.0, 3e-3, 1e-3, 1.6e-3, 1.2e-3, 1.6e-3, 0.5e-3]

@@ -11,7 +11,9 @@ from numpy.testing import assert_allclose
 from scipy.optimize import brentq
 
 from servo_axis.core.errors import ConfigError
+from servo_axis.core.models.base import PlantOutput
 from servo_axis.core.models.elastic_ball_screw import (
+    OUTPUT_FIELDS,
     ElasticBallScrewParams,
     ElasticBallScrewPlant,
     linearised_response,
@@ -197,6 +199,24 @@ def test_sensors_quantise_to_their_counts() -> None:
     assert_allclose(out.scale_m / 100e-9, round(out.scale_m / 100e-9), atol=1e-6)
     assert abs(out.encoder_rad - out.angle_rad) <= q_enc / 2
     assert abs(out.scale_m - out.position_m) <= 50e-9 + 1e-15
+
+
+def test_the_outputs_are_plant_outputs_as_the_constructor_makes_them() -> None:
+    # The plant fills each PlantOutput's __dict__ itself (its frozen __init__ is slow):
+    # the result must be what the constructor makes of the same values.
+    assert OUTPUT_FIELDS == tuple(f.name for f in dataclasses.fields(PlantOutput))
+    plant = ElasticBallScrewPlant(ElasticBallScrewParams())
+    for out in (plant.output(), plant.step(1.0), plant.step(-2.0)):
+        values = {name: getattr(out, name) for name in OUTPUT_FIELDS}
+        made = PlantOutput(**values)
+        assert type(out) is PlantOutput
+        assert out == made
+        assert vars(out) == vars(made)
+        assert list(vars(out)) == list(OUTPUT_FIELDS)
+        assert repr(out) == repr(made)
+        assert hash(out) == hash(made)
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            out.step = 0  # type: ignore[misc]
 
 
 @pytest.mark.parametrize(

@@ -39,6 +39,7 @@ import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, fields
+from typing import NoReturn
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -382,6 +383,16 @@ class GmsModel:
         self._slipping = [False] * n
         self._last: float | None = None
         self._sign = 0
+        # Per sample the same few values recur: the decay of the slip rule for the
+        # period (one period in a run), and the elements' levels alpha_i s(v) for the
+        # Stribeck level (F_c without a Stribeck effect). Each is kept with what it
+        # was computed from, and computed again (the same floats) when that changes.
+        self._decay_period = 0.0
+        self._decay = 1.0
+        self._levels_of: float | None = None
+        self._pairs = [(k, 0.0) for k in self._k]  # (k_i, alpha_i s) once computed
+        self._stribeck = self._fs != self._fc
+        self._sticking = (False,) * n
 
     def reset(self) -> None:
         """Relax every element (virgin state); the next :meth:`update` sets the position."""
@@ -421,46 +432,61 @@ class GmsModel:
         SignalError
             For a non-finite argument or ``period_s <= 0``, naming it.
         """
-        if not math.isfinite(position_m):
-            raise SignalError(f"position_m: expected a finite number, got {position_m!r}")
-        if not math.isfinite(velocity_m_s):
-            raise SignalError(f"velocity_m_s: expected a finite number, got {velocity_m_s!r}")
-        if not (math.isfinite(period_s) and period_s > 0.0):
-            raise SignalError(f"period_s: expected a finite value > 0, got {period_s!r}")
+        isfinite = math.isfinite
+        if not (
+            isfinite(position_m) and isfinite(velocity_m_s) and isfinite(period_s) and period_s > 0
+        ):
+            self._refuse(position_m, velocity_m_s, period_s)
         v = velocity_m_s
         sign = 1 if v > 0.0 else (-1 if v < 0.0 else 0)
         force = self._force
         slipping = self._slipping
         if sign != self._sign or sign == 0:
-            slipping[:] = [False] * len(slipping)
+            slipping[:] = self._sticking
         self._sign = sign
-        if self._last is None:
-            self._last = position_m
-            return math.fsum(force) + self._sigma2 * v
-        dx = position_m - self._last
+        last = self._last
         self._last = position_m
+        if last is None:
+            return math.fsum(force) + self._sigma2 * v
+        dx = position_m - last
         s = self._fc
-        if self._fs != self._fc:
+        if self._stribeck:
             s += (self._fs - self._fc) * math.exp(-(abs(v / self._vs) ** self._delta))
-        decay = math.exp(-self._c * period_s)
-        for i, k in enumerate(self._k):
-            level = self._alpha[i] * s
+        if period_s != self._decay_period:
+            self._decay = math.exp(-self._c * period_s)
+            self._decay_period = period_s
+        decay = self._decay
+        if s != self._levels_of:
+            self._pairs = [(k, a * s) for k, a in zip(self._k, self._alpha, strict=True)]
+            self._levels_of = s
+        i = 0
+        for k, level in self._pairs:
             if slipping[i]:
                 target = sign * level
                 force[i] = target + (force[i] - target) * decay
-                continue
-            f = force[i] + k * dx
-            # Break-away: held at the level, and slipping only in the direction of motion (a
-            # position step against the velocity's sign, which consistent inputs never give,
-            # must not start a slip towards the other level).
-            if f >= level:
-                f = level
-                slipping[i] = sign > 0
-            elif f <= -level:
-                f = -level
-                slipping[i] = sign < 0
-            force[i] = f
+            else:
+                f = force[i] + k * dx
+                # Break-away: held at the level, and slipping only in the direction of motion
+                # (a position step against the velocity's sign, which consistent inputs never
+                # give, must not start a slip towards the other level).
+                if f >= level:
+                    f = level
+                    slipping[i] = sign > 0
+                elif f <= -level:
+                    f = -level
+                    slipping[i] = sign < 0
+                force[i] = f
+            i += 1
         return math.fsum(force) + self._sigma2 * v
+
+    @staticmethod
+    def _refuse(position_m: float, velocity_m_s: float, period_s: float) -> NoReturn:
+        """Raise the SignalError of :meth:`update` for the first argument at fault."""
+        if not math.isfinite(position_m):
+            raise SignalError(f"position_m: expected a finite number, got {position_m!r}")
+        if not math.isfinite(velocity_m_s):
+            raise SignalError(f"velocity_m_s: expected a finite number, got {velocity_m_s!r}")
+        raise SignalError(f"period_s: expected a finite value > 0, got {period_s!r}")
 
 
 def simulate_gms(

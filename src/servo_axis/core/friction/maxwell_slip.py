@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numpy.typing import NDArray
 
 from servo_axis.core.errors import ConfigError, require_nonnegative, require_positive
 
@@ -37,16 +38,39 @@ class MaxwellSlip:
         Pre-sliding width on the virgin curve at the motor, rad, > 0.
     elements : int
         Number of elements N, >= 1.
+    storage : ndarray or None
+        Where the set keeps its elements: a C-contiguous float64 array of
+        shape (3, N) (a view into a plant's one work array, which its kernel
+        takes whole), filled here. None (default): an array of its own.
     """
 
-    def __init__(self, *, coulomb_Nm: float, width_rad: float, elements: int) -> None:
+    def __init__(
+        self,
+        *,
+        coulomb_Nm: float,
+        width_rad: float,
+        elements: int,
+        storage: np.ndarray | None = None,
+    ) -> None:
         require_nonnegative("coulomb_Nm", coulomb_Nm)
         require_positive("width_rad", width_rad)
         if elements < 1:
             raise ConfigError(f"elements: expected >= 1, got {elements!r}")
         delta = [width_rad * (i + 1) / elements for i in range(elements)]
         # One array, rows delta, stiffness, z: what the compiled loops take.
-        self._packed = np.zeros((3, elements))
+        if storage is None:
+            storage = np.zeros((3, elements))
+        elif not (
+            storage.shape == (3, elements)
+            and storage.dtype == np.float64
+            and storage.flags.c_contiguous
+        ):
+            raise ConfigError(
+                f"storage: expected a C-contiguous float64 array of shape (3, {elements}), "
+                f"got {storage.dtype} {storage.shape}"
+            )
+        self._packed: NDArray[np.float64] = storage
+        self._packed[2] = 0.0
         self._packed[0] = delta
         self._packed[1] = [coulomb_Nm / elements / d for d in delta]
         self._delta, self._stiffness, self._z = self._packed

@@ -123,7 +123,7 @@ Sect. V reverses at 0.99 m/s^2). The contact zone ``g = 1 um`` with ``k_0 =
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -145,6 +145,44 @@ NUT_FRICTION_MODELS = ("displacement", "contact")
 TYPICAL_MODE_HZ = (100.0, 200.0)
 
 _ENCODER_2_20 = 2.0 * math.pi / 2**20
+
+#: The fields of :class:`PlantOutput`, in order: what :func:`_plant_output` fills.
+OUTPUT_FIELDS = tuple(f.name for f in fields(PlantOutput))
+
+
+def _plant_output(
+    step: int,
+    encoder_rad: float,
+    scale_m: float,
+    angle_rad: float,
+    velocity_rad_s: float,
+    position_m: float,
+    velocity_m_s: float,
+    motor_torque_Nm: float,
+    friction_force_N: float,
+) -> PlantOutput:
+    """``PlantOutput(...)`` of these values, made without its generated ``__init__``.
+
+    :class:`PlantOutput` is frozen, so its ``__init__`` sets each of its nine
+    fields through ``object.__setattr__``: about 0.9 us per sample, a tenth
+    of the plain-call loop of the contact scenarios. The instance's
+    ``__dict__`` is filled here directly (0.3 us): an equal object, the same
+    fields in the same order (``test_elastic_ball_screw`` compares it with
+    the constructor's and :data:`OUTPUT_FIELDS` with the dataclass's).
+    """
+    out: PlantOutput = object.__new__(PlantOutput)
+    out.__dict__.update(
+        step=step,
+        encoder_rad=encoder_rad,
+        scale_m=scale_m,
+        angle_rad=angle_rad,
+        velocity_rad_s=velocity_rad_s,
+        position_m=position_m,
+        velocity_m_s=velocity_m_s,
+        motor_torque_Nm=motor_torque_Nm,
+        friction_force_N=friction_force_N,
+    )
+    return out
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -429,22 +467,50 @@ class ElasticBallScrewPlant:
         self._h = p.sim_step_s
         r = p.lead_m_per_rad
         self._contact = p.nut_friction == "contact"
+        # The RK4 sub-steps and the friction sets, compiled (the plant's whole cost).
+        from servo_axis.core.kernels import (
+            ELASTIC_CONTACT_LAYOUT,
+            ELASTIC_LAYOUT,
+            elastic_ball_screw_contact_period,
+            elastic_ball_screw_period,
+        )
+
+        # One work array for the kernel (its argument, see the kernel): the state, the
+        # config, then the friction sets' elements (the nut's, with "contact" the
+        # bearings', the guide's). The state: th, w, x, v, i, T_f, f_g (and with
+        # "contact" the nut's and the bearings' shares of T_f and the contact's F / F_p),
+        # stepped in place.
+        n_state, n_config = ELASTIC_CONTACT_LAYOUT if self._contact else ELASTIC_LAYOUT
+        n_el = p.friction_elements
+        sets = 3 if self._contact else 2
+        self._work = np.zeros(n_state + n_config + sets * 3 * n_el)
+        self._state = self._work[:n_state]
+        self._config = self._work[n_state : n_state + n_config]
+
+        def storage(index: int) -> np.ndarray:
+            start = n_state + n_config + index * 3 * n_el
+            return self._work[start : start + 3 * n_el].reshape(3, n_el)
+
         # "contact": the nut's set works in m of contact deformation and N m.
         self._nut = MaxwellSlip(
             coulomb_Nm=p.nut_friction_Nm,
             width_rad=p.contact_presliding_m if self._contact else p.nut_presliding_m / r,
-            elements=p.friction_elements,
+            elements=n_el,
+            storage=storage(0),
         )
+        # With "displacement" the bearings' set (level 0) is not the kernel's.
         self._bearing = MaxwellSlip(
             coulomb_Nm=p.bearing_friction_Nm,
             width_rad=p.bearing_presliding_m / r,
-            elements=p.friction_elements,
+            elements=n_el,
+            storage=storage(1) if self._contact else None,
         )
         # The guide's set works in m and N; MaxwellSlip is unit-agnostic.
         self._guide = MaxwellSlip(
             coulomb_Nm=p.guide_friction_N,
             width_rad=p.guide_presliding_m,
-            elements=p.friction_elements,
+            elements=n_el,
+            storage=storage(sets - 1),
         )
         self._encoder = PositionSensor(p.encoder, rng=rng)
         self._scale = PositionSensor(p.scale, rng=rng)
@@ -453,37 +519,31 @@ class ElasticBallScrewPlant:
         # i_a at a stage time tau into the sub-step: i_c + (i_0 - i_c) e^{-wc tau}.
         ideal = not wc > 0.0
         k = p.stiffness_N_per_m
-        self._config = np.array(
-            [
-                r,
-                k,
-                p.screw_damping_Ns_per_m,
-                p.contact_zone_m,
-                (k - p.contact_stiffness_ratio * k) * p.contact_zone_m,
-                p.torque_constant_Nm_per_A,
-                p.motor_damping_Nms_per_rad,
-                p.motor_inertia_kgm2,
-                p.table_damping_Ns_per_m,
-                p.table_mass_kg,
-                self._n,
-                h,
-                1.0 if ideal else math.exp(-wc * h / 2.0),
-                1.0 if ideal else math.exp(-wc * h),
-                1.0 if ideal else 0.0,
-                *([p.contact_travel_m, p.nut_preload_N] if self._contact else []),
-            ]
+        self._config[:] = [
+            r,
+            k,
+            p.screw_damping_Ns_per_m,
+            p.contact_zone_m,
+            (k - p.contact_stiffness_ratio * k) * p.contact_zone_m,
+            p.torque_constant_Nm_per_A,
+            p.motor_damping_Nms_per_rad,
+            p.motor_inertia_kgm2,
+            p.table_damping_Ns_per_m,
+            p.table_mass_kg,
+            self._n,
+            h,
+            1.0 if ideal else math.exp(-wc * h / 2.0),
+            1.0 if ideal else math.exp(-wc * h),
+            1.0 if ideal else 0.0,
+            *([p.contact_travel_m, p.nut_preload_N] if self._contact else []),
+        ]
+        self._advance = (
+            elastic_ball_screw_contact_period if self._contact else elastic_ball_screw_period
         )
-        # The RK4 sub-steps and both friction sets, compiled (the plant's whole cost).
-        from servo_axis.core.kernels import (
-            elastic_ball_screw_contact_period,
-            elastic_ball_screw_period,
-        )
-
-        self._kernel = elastic_ball_screw_period
-        self._contact_kernel = elastic_ball_screw_contact_period
-        # th, w, x, v, i, T_f, f_g (and with "contact" the nut's and the bearings'
-        # shares of T_f and the contact's F / F_p): the state, stepped in place.
-        self._state = np.zeros(10 if self._contact else 7)
+        # What every step reads, as plain attributes (the parameters are frozen).
+        self._limit = p.current_limit_A
+        self._kt = p.torque_constant_Nm_per_A
+        self._lead = r
         self.reset()
 
     def reset(self) -> None:
@@ -547,33 +607,29 @@ class ElasticBallScrewPlant:
 
     def step(self, current_A: float) -> PlantOutput:
         """Hold ``current_A`` (A, saturated at ``+-current_limit_A``) over one control period."""
-        cmd = clipped_current(current_A, self.params.current_limit_A)
-        if self._contact:
-            self._contact_kernel(
-                self._state,
-                cmd,
-                self._config,
-                self._nut.packed(),
-                self._bearing.packed(),
-                self._guide.packed(),
-            )
+        limit = self._limit
+        # Inside the limits the saturation is the current itself (what clipped_current
+        # gives it, without the call); outside them, or not finite, clipped_current.
+        if -limit <= current_A <= limit:
+            cmd = float(current_A)
         else:
-            self._kernel(self._state, cmd, self._config, self._nut.packed(), self._guide.packed())
+            cmd = clipped_current(current_A, limit)
+        self._advance(self._work, cmd)
         self._step += 1
         self._sample()
         return self._out
 
     def _sample(self) -> None:
-        p = self.params
-        th, w, x, v, i, tf, fg = self._state[:7].tolist()
-        self._out = PlantOutput(
-            step=self._step,
-            encoder_rad=self._encoder.measure(th),
-            scale_m=self._scale.measure(x),
-            angle_rad=th,
-            velocity_rad_s=w,
-            position_m=x,
-            velocity_m_s=v,
-            motor_torque_Nm=p.torque_constant_Nm_per_A * i,
-            friction_force_N=fg + tf / p.lead_m_per_rad,
+        # The whole state in one conversion (the contact's three extra values unused).
+        th, w, x, v, i, tf, fg, *_ = self._state.tolist()
+        self._out = _plant_output(
+            self._step,
+            self._encoder.measure(th),
+            self._scale.measure(x),
+            th,
+            w,
+            x,
+            v,
+            self._kt * i,
+            fg + tf / self._lead,
         )
