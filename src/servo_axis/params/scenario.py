@@ -68,10 +68,28 @@ def shipped_file(name_or_path: str | Path, folder: Path) -> Path | None:
     return shipped if path.parent == Path(".") and shipped.is_file() else None
 
 
+#: libyaml's parser where PyYAML has it (a scenario in 0.2 ms instead of 2 ms:
+#: the core-only loop reads its file on every call); the values are built by
+#: the same safe constructor.
+_FAST_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+def safe_load_text(text: str) -> Any:
+    """``yaml.safe_load(text)``, parsed by libyaml when PyYAML has it.
+
+    A text libyaml refuses is parsed again by PyYAML's own parser, so an
+    error says what ``yaml.safe_load`` says (its words and position).
+    """
+    try:
+        return yaml.load(text, Loader=_FAST_LOADER)
+    except yaml.YAMLError:
+        return yaml.safe_load(text)
+
+
 def load_scenario(path: Path) -> dict[str, Any]:
     """Read a scenario (a ROS parameter file) and check its top-level layout."""
     try:
-        data = yaml.safe_load(Path(path).read_text())
+        data = safe_load_text(Path(path).read_text())
     except OSError as err:
         raise ConfigError(f"scenario {path}: cannot read it: {err}") from err
     except (yaml.YAMLError, UnicodeDecodeError) as err:

@@ -16,6 +16,7 @@ from servo_axis.params.scenario import (
     axis_view,
     find_scenario,
     load_scenario,
+    safe_load_text,
     scenario_dir,
     scenario_names,
     shared,
@@ -172,3 +173,37 @@ def test_cli_list_shows_every_shipped_scenario() -> None:
     for name in scenario_names():
         description = shared(load_scenario(find_scenario(name)))["scenario"]["description"]
         assert f"{name}" in done.stdout and description.split()[0] in done.stdout
+
+
+@pytest.mark.parametrize(
+    "path",
+    sorted(CONFIG.glob("*.yaml"))
+    + sorted((CONFIG.parent / "src" / "servo_axis" / "studies").glob("*.yaml")),
+    ids=lambda p: p.name,
+)
+def test_the_fast_parser_reads_every_shipped_file_as_pyyaml_does(path: Path) -> None:
+    text = path.read_text()
+    assert safe_load_text(text) == yaml.safe_load(text)
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "a: 1\n b: 2\n",  # a mapping value where none may be
+        "a: [1, 2\n",  # an unclosed flow sequence
+        "a: !!python/object:os.system ls\n",  # a tag the safe loader refuses
+        "\ta: 1\n",  # a tab
+        "a: 1\na: 2\n",  # PyYAML takes the last; libyaml too
+        "x: 1e3\ny: .inf\nz: 0x1F\nw: 2026-11-26\nv: ~\n",  # YAML 1.1 scalars
+    ],
+)
+def test_the_fast_parser_gives_pyyaml_s_values_and_errors(text: str) -> None:
+    try:
+        expected: object = yaml.safe_load(text)
+    except yaml.YAMLError as err:
+        expected = f"{type(err).__name__}: {err}"
+    try:
+        got: object = safe_load_text(text)
+    except yaml.YAMLError as err:
+        got = f"{type(err).__name__}: {err}"
+    assert got == expected
