@@ -256,6 +256,14 @@ class Dlpid:
         self._f_acc = tustin(np.array([wc * wc, 0.0, 0.0]), den, ty)
         self._f_torque = tustin(np.array([wc * wc]), den, ty)
         self._pole_c = math.exp(-2.0 * math.pi * params.friction_cutoff_hz * params.rls_period_s)
+        # The four filters run as one compiled call on these arrays (the same
+        # arithmetic as DiscreteFilter.update); the filter objects hold the
+        # coefficients and settle the state on the first sample.
+        from servo_axis.core.identification.kernels import second_order_bank
+
+        self._bank = second_order_bank
+        self._coef = np.array([[*f.b, *f.a[1:]] for f in self._filters])
+        self._z = np.zeros((4, 2))
         self.reset()
 
     @property
@@ -268,6 +276,7 @@ class Dlpid:
         self.pe.reset()
         for f in self._filters:
             f.reset()
+        self._z[:] = 0.0
         self._c_hat = self._c_initial()
         self._last_step: int | None = None
         self._samples = 0
@@ -335,12 +344,11 @@ class Dlpid:
         y_m = _finite("angle_rad", angle_rad)
         u = _finite("torque_Nm", torque_Nm)
         if self._samples == 0:
-            for f, x in zip(self._filters, (y_m, y_m, y_m, u), strict=True):
+            for i, (f, x) in enumerate(zip(self._filters, (y_m, y_m, y_m, u), strict=True)):
                 f.settle(x)
-        y = self._f_angle.update(y_m)
-        yd = self._f_vel.update(y_m)
-        ydd = self._f_acc.update(y_m)
-        ubar = self._f_torque.update(u)
+                self._z[i] = f.state
+        # G_LPF y_m, G_PD1 y_m, G_PD2 y_m, G_LPF u (Fig. 3), one compiled call.
+        y, yd, ydd, ubar = self._bank(self._coef, self._z, y_m, u)
         self._signals = (y, yd, ydd, ubar)
         self._last_step = step
         self._samples += 1
@@ -382,7 +390,7 @@ class Dlpid:
             "mode": self.params.mode,
             "rls": self.rls.state(),
             "pe": self.pe.state(),
-            "filters": [f.state for f in self._filters],
+            "filters": self._z.tolist(),
             "signals": list(self._signals),
             "friction_Nm": self._c_hat,
             "last_step": self._last_step,
@@ -394,7 +402,7 @@ class Dlpid:
         if state.get("mode") != self.params.mode:
             raise SignalError(f"mode: expected {self.params.mode!r}, got {state.get('mode')!r}")
         filters = state.get("filters")
-        sizes = [len(f.state) for f in self._filters]
+        sizes = [len(z) for z in self._z]
         if (
             not isinstance(filters, list)
             or [len(z) if isinstance(z, list) else -1 for z in filters] != sizes
@@ -424,8 +432,7 @@ class Dlpid:
         pe = PeIndex(3, self.params.pe_window)
         pe.load_state(pe_state)
         self.rls, self.pe = rls, pe
-        for f, z in zip(self._filters, zs, strict=True):
-            f.set_state(z)
+        self._z = np.array(zs, dtype=float)
         self._signals = (sig[0], sig[1], sig[2], sig[3])
         self._c_hat = c
         self._last_step = last
