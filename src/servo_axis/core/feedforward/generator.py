@@ -143,6 +143,7 @@ class FeedforwardGenerator:
         self._next = 0
         self._block_start = 0
         self._block: np.ndarray = np.zeros((0, 3))
+        self._rows: list[tuple[float, float, float]] = []  # the block as floats
 
     @property
     def learning_side(self) -> str:
@@ -193,6 +194,7 @@ class FeedforwardGenerator:
         """
         self.set_correction(cycle, *values)
         self._block_start, self._block = 0, np.zeros((0, 3))  # recompute from here
+        self._rows = []
         return self._next
 
     def boundary_lead(self) -> int:
@@ -374,6 +376,17 @@ class FeedforwardGenerator:
         """
         if start != self._next:
             raise ConfigError(f"start: expected the next sample {self._next}, got {start}")
+        # One sample of the block in hand, nothing learned (the per-sample
+        # path of a loop with online estimates): what the loop below gives.
+        index = start - self._block_start
+        if (
+            stop == start + 1
+            and self._cycle_steps is None
+            and 0 <= index < len(self._rows)
+            and (self._next_estimate is None or stop <= self._next_estimate)
+        ):
+            self._next = stop
+            return [self._rows[index]]
         result: list[tuple[float, float, float]] = []
         limit = self.ready_until()
         if limit is not None and stop > limit:
@@ -388,8 +401,8 @@ class FeedforwardGenerator:
                 self._block = self._compute_block(
                     self._block_start, self._block_end(self._block_start)
                 )
-            row = self._block[k - self._block_start]
-            result.append((float(row[0]), float(row[1]), float(row[2])))
+                self._rows = [(r0, r1, r2) for r0, r1, r2 in self._block.tolist()]
+            result.append(self._rows[k - self._block_start])
             k += 1
         self._next = stop
         return result

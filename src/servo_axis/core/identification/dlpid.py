@@ -311,7 +311,7 @@ class Dlpid:
 
     def estimate(self, step: int, updated: tuple[bool, bool, bool, bool]) -> Estimate:
         """The current estimates as an :class:`Estimate` stamped ``step``."""
-        j, d, u = (float(v) for v in self.rls.theta)
+        j, d, u = self.rls.theta.tolist()
         return Estimate(
             step=step, J=j, D=d, U=u, C=self._c_hat, kappa=self.pe.kappa, updated=updated
         )
@@ -361,9 +361,12 @@ class Dlpid:
 
     def _layers(self, step: int, y: float, yd: float, ydd: float, ubar: float) -> Estimate:
         p = self.params
-        phi = np.array([ydd, yd, math.sin(y)])
-        sgn = float(np.sign(yd))
-        u_rls = self.rls.predict(phi)  # theta_hat[k-1]: eq. (8)
+        sin_y = math.sin(y)
+        if not (math.isfinite(ydd) and math.isfinite(yd) and math.isfinite(sin_y)):
+            raise SignalError(f"phi: expected finite values, got {[ydd, yd, sin_y]!r}")
+        phi = np.array([ydd, yd, sin_y])  # eq. (4)
+        sgn = float((yd > 0.0) - (yd < 0.0))  # np.sign(yd) of a finite yd
+        u_rls = self.rls.predict_checked(phi)  # theta_hat[k-1]: eq. (8)
         u_f = self._c_hat * sgn if self._double else 0.0
         enabled = np.array(
             [
@@ -372,8 +375,8 @@ class Dlpid:
                 y > p.angle_min_rad,
             ]
         )
-        done = self.rls.update(phi, ubar - u_f, enabled)
-        self.pe.update(phi)
+        done = self.rls.update_checked(phi, ubar - u_f, enabled)
+        self.pe.update_checked(phi)
         c_updated = False
         if self._double and abs(yd) > p.friction_velocity_min_rad_s:
             lo, hi = p.friction_bounds

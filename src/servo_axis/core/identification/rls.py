@@ -173,6 +173,19 @@ class ConditionalRls:
 
         self._kernel = conditional_rls_update
         self.reset()
+        # Load the compiled step now (from numba's disk cache), not at the first update.
+        n = params.n
+        self._kernel(
+            self._theta.copy(),
+            self._p.copy(),
+            self._inv_sqrt_lambda,
+            self._lower,
+            self._upper,
+            self.updates.copy(),
+            np.zeros(n),
+            0.0,
+            np.ones(n, dtype=bool),
+        )
 
     def reset(self) -> None:
         """Back to ``theta[0]``, ``P[0] = p0 I`` and no update."""
@@ -239,6 +252,21 @@ class ConditionalRls:
             return mask
         self._step(phi_a, u_f, mask)
         return mask
+
+    def update_checked(self, phi: FloatArray, u: float, enabled: BoolArray) -> BoolArray:
+        """:meth:`update` for a caller that built its arguments itself (no checks).
+
+        ``phi``: float64 array of shape (n,), finite; ``u``: a finite float;
+        ``enabled``: bool array of shape (n,), not kept. The per-sample
+        path of :class:`~servo_axis.core.identification.dlpid.Dlpid`.
+        """
+        if enabled.any():
+            self._step(phi, u, enabled)
+        return enabled
+
+    def predict_checked(self, phi: FloatArray) -> float:
+        """:meth:`predict` of a finite float64 ``phi`` of shape (n,) (no checks)."""
+        return float(phi @ self._theta)
 
     def _step(self, phi: FloatArray, u: float, mask: BoolArray) -> None:
         """Eqs. (5), (6), (16) on checked values (finite ``phi``, ``u``; a mask with one True).
