@@ -264,6 +264,8 @@ class Dlpid:
         self._bank = second_order_bank
         self._coef = np.array([[*f.b, *f.a[1:]] for f in self._filters])
         self._z = np.zeros((4, 2))
+        self._ratio = params.ratio
+        self._warmup = params.warmup_samples
         self.reset()
 
     @property
@@ -334,15 +336,21 @@ class Dlpid:
             At ``step % ratio == ratio - 1`` the estimate after this step;
             None between RLS steps.
         """
-        if isinstance(step, bool) or not isinstance(step, int | np.integer) or step < 0:
+        if type(step) is not int:  # the checks below, for anything but a plain int
+            if isinstance(step, bool) or not isinstance(step, int | np.integer):
+                raise SignalError(f"step: expected an integer >= 0, got {step!r}")
+            step = int(step)
+        if step < 0:
             raise SignalError(f"step: expected an integer >= 0, got {step!r}")
-        step = int(step)
         if self._last_step is not None and step != self._last_step + 1:
             raise SignalError(
                 f"step: expected consecutive samples, {self._last_step + 1}, got {step}"
             )
-        y_m = _finite("angle_rad", angle_rad)
-        u = _finite("torque_Nm", torque_Nm)
+        y_m = angle_rad if type(angle_rad) is float else _finite("angle_rad", angle_rad)
+        u = torque_Nm if type(torque_Nm) is float else _finite("torque_Nm", torque_Nm)
+        if not (math.isfinite(y_m) and math.isfinite(u)):
+            _finite("angle_rad", y_m)
+            _finite("torque_Nm", u)
         if self._samples == 0:
             for i, (f, x) in enumerate(zip(self._filters, (y_m, y_m, y_m, u), strict=True)):
                 f.settle(x)
@@ -352,10 +360,10 @@ class Dlpid:
         self._signals = (y, yd, ydd, ubar)
         self._last_step = step
         self._samples += 1
-        ratio = self.params.ratio
+        ratio = self._ratio
         if step % ratio != ratio - 1:
             return None
-        if self._samples <= self.params.warmup_samples:
+        if self._samples <= self._warmup:
             return self.estimate(step, (False, False, False, False))
         return self._layers(step, y, yd, ydd, ubar)
 
