@@ -23,7 +23,7 @@ instants are grouped into calls.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import scipy.linalg
@@ -81,7 +81,8 @@ def _discretise(
     b_matrix = np.empty((2, 2))
     b_matrix[:, 0] = ad @ bd
     b_matrix[:, 1] = bd
-    return _Model(from_instant, ad, bd, ad @ ad, b_matrix, np.linalg.inv(b_matrix))
+    b_inv = cast(NDArray[np.float64], np.linalg.inv(b_matrix))
+    return _Model(from_instant, ad, bd, ad @ ad, b_matrix, b_inv)
 
 
 def _expm_upper(a: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -105,7 +106,7 @@ def _expm_upper(a: NDArray[np.float64]) -> NDArray[np.float64]:
     order, scaling = pick_pade_structure(work)
     if order < 0 or scaling != 0 or pade_uv_calc(work, order) != 0:
         return np.asarray(scipy.linalg.expm(a), dtype=float)
-    e = work[0].copy()
+    e: NDArray[np.float64] = work[0].copy()
     e[1, 0] = e[2, 0] = e[2, 1] = 0.0
     return e
 
