@@ -373,7 +373,7 @@ class Dlpid:
         if not (math.isfinite(ydd) and math.isfinite(yd) and math.isfinite(sin_y)):
             raise SignalError(f"phi: expected finite values, got {[ydd, yd, sin_y]!r}")
         phi = np.array([ydd, yd, sin_y])  # eq. (4)
-        sgn = float((yd > 0.0) - (yd < 0.0))  # np.sign(yd) of a finite yd
+        sgn = 1.0 if yd > 0.0 else (-1.0 if yd < 0.0 else 0.0)  # np.sign(yd), yd finite
         u_rls = self.rls.predict_checked(phi)  # theta_hat[k-1]: eq. (8)
         u_f = self._c_hat * sgn if self._double else 0.0
         enabled = np.array(
