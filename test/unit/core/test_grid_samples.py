@@ -63,7 +63,9 @@ def test_grid_samples_go_back_and_keep_fresh_arrays() -> None:
     late = grid.range(100, 110)
     early = grid.range(3, 9)
     late[0][:] = 0.0  # a caller's array is its own
-    for a, b in zip(grid.range(100, 110), reference.sample(np.arange(100, 110) * 1e-3), strict=True):
+    for a, b in zip(
+        grid.range(100, 110), reference.sample(np.arange(100, 110) * 1e-3), strict=True
+    ):
         assert a.tolist() == b.tolist()
     for a, b in zip(early, reference.sample(np.arange(3, 9) * 1e-3), strict=True):
         assert a.tolist() == b.tolist()
