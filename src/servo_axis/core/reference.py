@@ -395,3 +395,79 @@ def make_reference(kind: str, **params: Any) -> Reference:
         raise ConfigError(f"kind: expected one of {sorted(KINDS)}, got {kind!r}")
     ref: Reference = KINDS[kind](**params)
     return ref
+
+
+class GridSamples:
+    """A reference's samples on a control grid ``k T``, computed a chunk at a time.
+
+    ``reference.sample(k * T)`` for integer ``k`` is computed element by
+    element (every reference here is a function of each time alone), so the
+    sample at ``k`` is the same number whether it is computed alone, in a
+    block of 10 or in a chunk of :data:`CHUNK`: the same times ``k * T``
+    (an int64 times a float, as the callers form them) through the same
+    operations. This keeps the samples of the chunks that the callers are in
+    (the last two) and computes the next when asked, so that the short
+    blocks of the adaptive feedforward (one per online estimate, 003) do not
+    each evaluate the reference anew.
+
+    Parameters
+    ----------
+    reference : Reference
+        The trajectory.
+    period_s : float
+        ``T``, the grid's period, s, > 0.
+    chunk : int
+        Grid samples computed at a time, >= 1.
+    """
+
+    CHUNK = 2048
+
+    def __init__(self, reference: Reference, period_s: float, chunk: int = CHUNK) -> None:
+        self.reference = reference
+        self._period = require_positive("period_s", period_s)
+        if isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1:
+            raise ConfigError(f"chunk: expected an integer >= 1, got {chunk!r}")
+        self._chunk = chunk
+        self._start = 0
+        self._values = np.zeros((3, 0))
+
+    def _cover(self, first: int, last: int) -> None:
+        """Make the kept samples cover steps ``first .. last`` (inclusive)."""
+        start, values = self._start, self._values
+        if start <= first and last < start + values.shape[1]:
+            return
+        c = self._chunk
+        lo = (first // c) * c
+        hi = (last // c + 1) * c
+        if start <= lo < start + values.shape[1]:
+            # Keep what is computed from lo on, add the chunks after it.
+            have = start + values.shape[1]
+            new = self._sample(have, hi)
+            self._values = np.concatenate((values[:, lo - start :], new), axis=1)
+        else:
+            self._values = self._sample(lo, hi)
+        self._start = lo
+
+    def _sample(self, lo: int, hi: int) -> NDArray[np.float64]:
+        t = np.arange(lo, hi) * self._period
+        return np.vstack([np.broadcast_to(a, t.shape) for a in self.reference.sample(t)])
+
+    def steps(self, k: NDArray[np.int64]) -> Arrays:
+        """Position, velocity and acceleration at the grid steps ``k`` (fresh arrays)."""
+        k = np.asarray(k, dtype=np.int64)
+        if k.size == 0:
+            return self.reference.sample(k * self._period)
+        first, last = int(k.min()), int(k.max())
+        if first < 0:
+            return self.reference.sample(k * self._period)
+        self._cover(first, last)
+        rows = self._values[:, k - self._start]
+        return rows[0], rows[1], rows[2]
+
+    def range(self, k0: int, k1: int, stride: int = 1) -> Arrays:
+        """The samples at ``k0, k0 + stride, ... < k1`` (fresh arrays), ``0 <= k0 < k1``."""
+        if k0 < 0 or k1 <= k0:
+            return self.reference.sample(np.arange(k0, k1, stride) * self._period)
+        self._cover(k0, k1 - 1)
+        rows = self._values[:, k0 - self._start : k1 - self._start : stride].copy()
+        return rows[0], rows[1], rows[2]

@@ -7,7 +7,8 @@ hidden inside a function is still a circle.
 * no node module imports another node module (the composed container aside);
 * ``servo_axis.core`` imports nothing of the project outside ``core``, and
   nothing but numpy, scipy, numba (only ``core.kernels``, the compiled
-  sub-step loops) and the standard library;
+  sub-step loops, and ``core.identification.kernels``, the identifier's
+  filters and RLS) and the standard library;
 * ``analysis`` and ``simulate`` import nothing of ``run`` (the resolver is ``params.resolve``);
 * nothing outside ``servo_axis.plugins`` imports a module of it: the suite
   finds its own extensions by entry point, as it finds an outside package's;
@@ -113,13 +114,17 @@ def test_no_node_module_imports_another() -> None:
         assert not (GRAPH[name] & roles), f"{name} imports {sorted(GRAPH[name] & roles)}"
 
 
+#: The compiled modules (numba): the plants' sub-step loops, the identifier's filters and RLS.
+KERNEL_MODULES = ("servo_axis.core.kernels", "servo_axis.core.identification.kernels")
+
+
 def test_core_imports_only_core_numpy_scipy_numba_and_the_standard_library() -> None:
     allowed_third_party = {"numpy", "scipy"}
     for name in sorted(m for m in MODULES if m.startswith("servo_axis.core")):
         for imported in imports_of(name):
             top = imported.split(".")[0]
             if top == "numba":
-                assert name == "servo_axis.core.kernels", f"{name} imports numba"
+                assert name in KERNEL_MODULES, f"{name} imports numba"
                 continue
             if top == PACKAGE:
                 assert imported.startswith("servo_axis.core"), f"{name} imports {imported}"
@@ -141,7 +146,8 @@ def test_the_kernels_are_imported_where_a_plant_is_built() -> None:
                 names = {a.name for a in node.names}
             else:
                 continue
-            assert "servo_axis.core.kernels" not in names, f"{name} imports the kernels at its top"
+            for kernels in KERNEL_MODULES:
+                assert kernels not in names, f"{name} imports {kernels} at its top"
 
 
 def reach(name: str) -> set[str]:

@@ -28,7 +28,7 @@ from servo_axis.core.errors import ConfigError, SignalError, require_positive
 from servo_axis.core.feedforward.ptc import MultiratePtc
 from servo_axis.core.feedforward.terms import FeedforwardTerm, ReferenceBlock
 from servo_axis.core.models.base import NominalModel
-from servo_axis.core.reference import Reference
+from servo_axis.core.reference import GridSamples, Reference
 from servo_axis.core.timing import SampleGrid
 
 #: Control samples computed at a time (a multiple of the PTC ratio).
@@ -133,10 +133,17 @@ class FeedforwardGenerator:
                     f"({estimate_period_steps} samples), got {estimate_latency_steps!r}"
                 )
             self._next_estimate = estimate_period_steps + estimate_latency_steps
+        # With online estimates a block ends at the next estimate (a few
+        # samples): the reference is then taken from samples computed a
+        # chunk at a time (the same numbers, GridSamples).
+        self._grid_samples = (
+            GridSamples(reference, self._tu) if estimate_period_steps is not None else None
+        )
         self._corrections: dict[int, np.ndarray] = {}
         self._next = 0
         self._block_start = 0
         self._block: np.ndarray = np.zeros((0, 3))
+        self._rows: list[tuple[float, float, float]] = []  # the block as floats
 
     @property
     def learning_side(self) -> str:
@@ -187,6 +194,7 @@ class FeedforwardGenerator:
         """
         self.set_correction(cycle, *values)
         self._block_start, self._block = 0, np.zeros((0, 3))  # recompute from here
+        self._rows = []
         return self._next
 
     def boundary_lead(self) -> int:
@@ -309,8 +317,13 @@ class FeedforwardGenerator:
             end = self._next_estimate  # the next model starts there
         return end
 
-    def _targets(self, ti: np.ndarray, first_instant: int) -> np.ndarray:
-        p_r, v_r, _ = self._reference.sample(ti)
+    def _targets(self, k0: int, k1: int, first_instant: int) -> np.ndarray:
+        """``x_d`` at the reference instants of control samples ``k0 .. k1`` (both included)."""
+        ratio = self._grid.ratio
+        if self._grid_samples is not None:
+            p_r, v_r, _ = self._grid_samples.range(k0, k1 + 1, ratio)
+        else:
+            p_r, v_r, _ = self._reference.sample(np.arange(k0, k1 + 1, ratio) * self._tu)
         x_d = np.column_stack((p_r, v_r)) / self._lead
         if self._cycle_steps is not None and self._side == "target":
             nd = self._cycle_steps // self._grid.ratio
@@ -323,14 +336,14 @@ class FeedforwardGenerator:
     def _compute_block(self, k0: int, k1: int) -> np.ndarray:
         n = k1 - k0
         k = np.arange(k0, k1)
-        t = k * self._tu
-        pos_m, vel_m, acc_m = self._reference.sample(t)
+        if self._grid_samples is not None:
+            pos_m, vel_m, acc_m = self._grid_samples.range(k0, k1)
+        else:
+            pos_m, vel_m, acc_m = self._reference.sample(k * self._tu)
         out = np.empty((n, 3))
         if self.ptc is not None:
-            ratio = self._grid.ratio
-            ti = np.arange(k0, k1 + 1, ratio) * self._tu
             first = self._grid.instant_of(k0)
-            x_d = self._targets(ti, first)
+            x_d = self._targets(k0, k1, first)
             ptc = self.ptc.feedforward(x_d, first)
             out[:, 0] = ptc.position_rad
             out[:, 1] = ptc.velocity_rad_s
@@ -363,6 +376,17 @@ class FeedforwardGenerator:
         """
         if start != self._next:
             raise ConfigError(f"start: expected the next sample {self._next}, got {start}")
+        # One sample of the block in hand, nothing learned (the per-sample
+        # path of a loop with online estimates): what the loop below gives.
+        index = start - self._block_start
+        if (
+            stop == start + 1
+            and self._cycle_steps is None
+            and 0 <= index < len(self._rows)
+            and (self._next_estimate is None or stop <= self._next_estimate)
+        ):
+            self._next = stop
+            return [self._rows[index]]
         result: list[tuple[float, float, float]] = []
         limit = self.ready_until()
         if limit is not None and stop > limit:
@@ -377,8 +401,8 @@ class FeedforwardGenerator:
                 self._block = self._compute_block(
                     self._block_start, self._block_end(self._block_start)
                 )
-            row = self._block[k - self._block_start]
-            result.append((float(row[0]), float(row[1]), float(row[2])))
+                self._rows = [(r0, r1, r2) for r0, r1, r2 in self._block.tolist()]
+            result.append(self._rows[k - self._block_start])
             k += 1
         self._next = stop
         return result

@@ -38,7 +38,7 @@ from servo_axis.core.errors import (
     require_positive,
 )
 from servo_axis.core.feedforward.terms import ReferenceBlock
-from servo_axis.core.reference import Reference
+from servo_axis.core.reference import GridSamples, Reference
 
 FloatArray = NDArray[np.float64]
 
@@ -120,6 +120,9 @@ class NonlinearityCompensator:
     def __init__(self, params: MncParams, *, reference: Reference) -> None:
         self.params = params
         self._reference = reference
+        # The reference at the control samples, computed a chunk at a time
+        # (the same numbers as sampling each block: GridSamples).
+        self._samples = GridSamples(reference, params.control_period_s)
         # (from_step, U, C), from_step increasing.
         self._schedule: list[tuple[int, float, float]] = [
             (0, params.unbalance_Nm, params.coulomb_Nm)
@@ -161,7 +164,7 @@ class NonlinearityCompensator:
         phase = k % p.ratio
         # eq. (13)/(15): the interval's start for its first sample, its end after.
         at = np.where(phase == 0, k, k - phase + p.ratio)
-        pos, vel, _ = self._reference.sample(at * p.control_period_s)
+        pos, vel, _ = self._samples.steps(at)
         theta = pos / p.lead_m_per_rad
         omega = vel / p.lead_m_per_rad
         u, c = self.parameters_at(k)

@@ -23,6 +23,7 @@ instants are grouped into calls.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any, cast
 
 import numpy as np
 import scipy.linalg
@@ -75,10 +76,51 @@ def _discretise(
     m[0, 1] = 1.0
     m[1, 1] = -d / j
     m[1, 2] = kt / j
-    e = scipy.linalg.expm(m * tu)
+    e = _expm_upper(m * tu)
     ad, bd = e[:2, :2], e[:2, 2]
-    b_matrix = np.column_stack((ad @ bd, bd))
-    return _Model(from_instant, ad, bd, ad @ ad, b_matrix, np.linalg.inv(b_matrix))
+    b_matrix = np.empty((2, 2))
+    b_matrix[:, 0] = ad @ bd
+    b_matrix[:, 1] = bd
+    b_inv = cast(NDArray[np.float64], np.linalg.inv(b_matrix))
+    return _Model(from_instant, ad, bd, ad @ ad, b_matrix, b_inv)
+
+
+def _expm_upper(a: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``scipy.linalg.expm(a)`` of an upper triangular, non-diagonal 3 x 3 ``a``: the same numbers.
+
+    The adaptive PTC (003 eq. (11)) discretises a new model for every
+    estimate; ``scipy.linalg.expm``'s general wrapper (batch loop, band
+    test, ``np.triu``) costs several times its Pade core. For the one case
+    used here, a single upper triangular matrix with a non-zero entry above
+    the diagonal whose norm needs no scaling (``s = 0``), this runs the
+    steps ``expm`` runs: the same Pade structure and ``U``/``V`` solve of
+    scipy's own routines, then the part below the diagonal set to 0 (what
+    ``np.triu`` does there). Any other case (scaling needed, or scipy
+    without those routines) is ``scipy.linalg.expm`` itself.
+    """
+    if _pade is None:
+        return np.asarray(scipy.linalg.expm(a), dtype=float)
+    pick_pade_structure, pade_uv_calc = _pade
+    work = np.empty((5, 3, 3))
+    work[0] = a
+    order, scaling = pick_pade_structure(work)
+    if order < 0 or scaling != 0 or pade_uv_calc(work, order) != 0:
+        return np.asarray(scipy.linalg.expm(a), dtype=float)
+    e: NDArray[np.float64] = work[0].copy()
+    e[1, 0] = e[2, 0] = e[2, 1] = 0.0
+    return e
+
+
+def _pade_routines() -> tuple[Any, Any] | None:
+    """scipy's Pade routines behind ``expm`` (scipy >= 1.9), or None without them."""
+    try:
+        from scipy.linalg._matfuncs_expm import pade_UV_calc, pick_pade_structure
+    except ImportError:  # pragma: no cover - another scipy
+        return None
+    return pick_pade_structure, pade_UV_calc
+
+
+_pade = _pade_routines()
 
 
 class MultiratePtc:

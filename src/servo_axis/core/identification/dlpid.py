@@ -256,6 +256,16 @@ class Dlpid:
         self._f_acc = tustin(np.array([wc * wc, 0.0, 0.0]), den, ty)
         self._f_torque = tustin(np.array([wc * wc]), den, ty)
         self._pole_c = math.exp(-2.0 * math.pi * params.friction_cutoff_hz * params.rls_period_s)
+        # The four filters run as one compiled call on these arrays (the same
+        # arithmetic as DiscreteFilter.update); the filter objects hold the
+        # coefficients and settle the state on the first sample.
+        from servo_axis.core.identification.kernels import second_order_bank
+
+        self._bank = second_order_bank
+        self._coef = np.array([[*f.b, *f.a[1:]] for f in self._filters])
+        self._z = np.zeros((4, 2))
+        self._ratio = params.ratio
+        self._warmup = params.warmup_samples
         self.reset()
 
     @property
@@ -268,6 +278,7 @@ class Dlpid:
         self.pe.reset()
         for f in self._filters:
             f.reset()
+        self._z[:] = 0.0
         self._c_hat = self._c_initial()
         self._last_step: int | None = None
         self._samples = 0
@@ -302,7 +313,7 @@ class Dlpid:
 
     def estimate(self, step: int, updated: tuple[bool, bool, bool, bool]) -> Estimate:
         """The current estimates as an :class:`Estimate` stamped ``step``."""
-        j, d, u = (float(v) for v in self.rls.theta)
+        j, d, u = self.rls.theta.tolist()
         return Estimate(
             step=step, J=j, D=d, U=u, C=self._c_hat, kappa=self.pe.kappa, updated=updated
         )
@@ -325,37 +336,45 @@ class Dlpid:
             At ``step % ratio == ratio - 1`` the estimate after this step;
             None between RLS steps.
         """
-        if isinstance(step, bool) or not isinstance(step, int | np.integer) or step < 0:
+        if type(step) is not int:  # the checks below, for anything but a plain int
+            if isinstance(step, bool) or not isinstance(step, int | np.integer):
+                raise SignalError(f"step: expected an integer >= 0, got {step!r}")
+            step = int(step)
+        if step < 0:
             raise SignalError(f"step: expected an integer >= 0, got {step!r}")
-        step = int(step)
         if self._last_step is not None and step != self._last_step + 1:
             raise SignalError(
                 f"step: expected consecutive samples, {self._last_step + 1}, got {step}"
             )
-        y_m = _finite("angle_rad", angle_rad)
-        u = _finite("torque_Nm", torque_Nm)
+        y_m = angle_rad if type(angle_rad) is float else _finite("angle_rad", angle_rad)
+        u = torque_Nm if type(torque_Nm) is float else _finite("torque_Nm", torque_Nm)
+        if not (math.isfinite(y_m) and math.isfinite(u)):
+            _finite("angle_rad", y_m)
+            _finite("torque_Nm", u)
         if self._samples == 0:
-            for f, x in zip(self._filters, (y_m, y_m, y_m, u), strict=True):
+            for i, (f, x) in enumerate(zip(self._filters, (y_m, y_m, y_m, u), strict=True)):
                 f.settle(x)
-        y = self._f_angle.update(y_m)
-        yd = self._f_vel.update(y_m)
-        ydd = self._f_acc.update(y_m)
-        ubar = self._f_torque.update(u)
+                self._z[i] = f.state
+        # G_LPF y_m, G_PD1 y_m, G_PD2 y_m, G_LPF u (Fig. 3), one compiled call.
+        y, yd, ydd, ubar = self._bank(self._coef, self._z, y_m, u)
         self._signals = (y, yd, ydd, ubar)
         self._last_step = step
         self._samples += 1
-        ratio = self.params.ratio
+        ratio = self._ratio
         if step % ratio != ratio - 1:
             return None
-        if self._samples <= self.params.warmup_samples:
+        if self._samples <= self._warmup:
             return self.estimate(step, (False, False, False, False))
         return self._layers(step, y, yd, ydd, ubar)
 
     def _layers(self, step: int, y: float, yd: float, ydd: float, ubar: float) -> Estimate:
         p = self.params
-        phi = np.array([ydd, yd, math.sin(y)])
-        sgn = float(np.sign(yd))
-        u_rls = self.rls.predict(phi)  # theta_hat[k-1]: eq. (8)
+        sin_y = math.sin(y)
+        if not (math.isfinite(ydd) and math.isfinite(yd) and math.isfinite(sin_y)):
+            raise SignalError(f"phi: expected finite values, got {[ydd, yd, sin_y]!r}")
+        phi = np.array([ydd, yd, sin_y])  # eq. (4)
+        sgn = 1.0 if yd > 0.0 else (-1.0 if yd < 0.0 else 0.0)  # np.sign(yd), yd finite
+        u_rls = self.rls.predict_checked(phi)  # theta_hat[k-1]: eq. (8)
         u_f = self._c_hat * sgn if self._double else 0.0
         enabled = np.array(
             [
@@ -364,8 +383,8 @@ class Dlpid:
                 y > p.angle_min_rad,
             ]
         )
-        done = self.rls.update(phi, ubar - u_f, enabled)
-        self.pe.update(phi)
+        done = self.rls.update_checked(phi, ubar - u_f, enabled)
+        self.pe.update_checked(phi)
         c_updated = False
         if self._double and abs(yd) > p.friction_velocity_min_rad_s:
             lo, hi = p.friction_bounds
@@ -382,7 +401,7 @@ class Dlpid:
             "mode": self.params.mode,
             "rls": self.rls.state(),
             "pe": self.pe.state(),
-            "filters": [f.state for f in self._filters],
+            "filters": self._z.tolist(),
             "signals": list(self._signals),
             "friction_Nm": self._c_hat,
             "last_step": self._last_step,
@@ -394,7 +413,7 @@ class Dlpid:
         if state.get("mode") != self.params.mode:
             raise SignalError(f"mode: expected {self.params.mode!r}, got {state.get('mode')!r}")
         filters = state.get("filters")
-        sizes = [len(f.state) for f in self._filters]
+        sizes = [len(z) for z in self._z]
         if (
             not isinstance(filters, list)
             or [len(z) if isinstance(z, list) else -1 for z in filters] != sizes
@@ -424,8 +443,7 @@ class Dlpid:
         pe = PeIndex(3, self.params.pe_window)
         pe.load_state(pe_state)
         self.rls, self.pe = rls, pe
-        for f, z in zip(self._filters, zs, strict=True):
-            f.set_state(z)
+        self._z = np.array(zs, dtype=float)
         self._signals = (sig[0], sig[1], sig[2], sig[3])
         self._c_hat = c
         self._last_step = last

@@ -89,6 +89,10 @@ class PeIndex:
             raise SignalError(f"phi: expected shape ({self.n},), got {v.shape}")
         if not np.all(np.isfinite(v)):
             raise SignalError(f"phi: expected finite values, got {v.tolist()!r}")
+        return self.update_checked(v)
+
+    def update_checked(self, v: FloatArray) -> float:
+        """:meth:`update` of a finite float64 ``phi`` of shape (n,) (no checks; not kept)."""
         old = self._buffer[self._next]
         if self.full:
             self._sum -= np.outer(old, old)

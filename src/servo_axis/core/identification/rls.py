@@ -169,7 +169,23 @@ class ConditionalRls:
         self._lower = np.array(params.lower)
         self._upper = np.array(params.upper)
         self._inv_sqrt_lambda = 1.0 / np.sqrt(np.array(params.forgetting))
+        from servo_axis.core.identification.kernels import conditional_rls_update
+
+        self._kernel = conditional_rls_update
         self.reset()
+        # Load the compiled step now (from numba's disk cache), not at the first update.
+        n = params.n
+        self._kernel(
+            self._theta.copy(),
+            self._p.copy(),
+            self._inv_sqrt_lambda,
+            self._lower,
+            self._upper,
+            self.updates.copy(),
+            np.zeros(n),
+            0.0,
+            np.ones(n, dtype=bool),
+        )
 
     def reset(self) -> None:
         """Back to ``theta[0]``, ``P[0] = p0 I`` and no update."""
@@ -234,38 +250,43 @@ class ConditionalRls:
             mask = m.copy()
         if not mask.any():
             return mask
-        e = np.flatnonzero(mask)
-        d = np.flatnonzero(~mask)
-        theta, p = self._theta, self._p
-        y = u_f - float(phi_a[d] @ theta[d])
-        phi_e = phi_a[e]
-        s = self._inv_sqrt_lambda[e]
-        # Inflate (forget) the enabled rows and columns: Pbar = Lambda^-1/2 P Lambda^-1/2.
-        p_bar = p.copy()
-        p_bar[e, :] *= s[:, None]
-        p_bar[:, e] *= s[None, :]
-        p_ee = p_bar[np.ix_(e, e)]
-        gain = p_ee @ phi_e / (1.0 + float(phi_e @ p_ee @ phi_e))
-        t = np.eye(len(e)) - np.outer(gain, phi_e)
-        p_new = p_bar
-        p_new[np.ix_(e, e)] = t @ p_ee
-        if len(d):
-            p_ed = t @ p_bar[np.ix_(e, d)]
-            p_new[np.ix_(e, d)] = p_ed
-            p_new[np.ix_(d, e)] = p_ed.T
-        self._p = 0.5 * (p_new + p_new.T)
-        # Eq. (5) increment and eq. (6) projection, per component.
-        inc = gain * (y - float(phi_e @ theta[e]))
-        old = theta[e]
-        trial = old + inc
-        lo, hi = self._lower[e], self._upper[e]
-        blocked = ((trial >= hi) & (inc >= 0.0)) | ((trial <= lo) & (inc <= 0.0))
-        new = np.where(blocked, old, trial)
-        theta = theta.copy()
-        theta[e] = np.clip(new, lo, hi)
-        self._theta = theta
-        self.updates[e] += 1
+        self._step(phi_a, u_f, mask)
         return mask
+
+    def update_checked(self, phi: FloatArray, u: float, enabled: BoolArray) -> BoolArray:
+        """:meth:`update` for a caller that built its arguments itself (no checks).
+
+        ``phi``: float64 array of shape (n,), finite; ``u``: a finite float;
+        ``enabled``: bool array of shape (n,), not kept. The per-sample
+        path of :class:`~servo_axis.core.identification.dlpid.Dlpid`.
+        """
+        if enabled.any():
+            self._step(phi, u, enabled)
+        return enabled
+
+    def predict_checked(self, phi: FloatArray) -> float:
+        """:meth:`predict` of a finite float64 ``phi`` of shape (n,) (no checks)."""
+        return float(phi @ self._theta)
+
+    def _step(self, phi: FloatArray, u: float, mask: BoolArray) -> None:
+        """Eqs. (5), (6), (16) on checked values (finite ``phi``, ``u``; a mask with one True).
+
+        The vector-forgetting update, the increment and the projection of
+        the module docstring, compiled
+        (:func:`~servo_axis.core.identification.kernels.conditional_rls_update`):
+        ``theta``, ``P`` and the update counts change in place.
+        """
+        self._kernel(
+            self._theta,
+            self._p,
+            self._inv_sqrt_lambda,
+            self._lower,
+            self._upper,
+            self.updates,
+            phi,
+            u,
+            mask,
+        )
 
     def state(self) -> dict[str, Any]:
         """Estimate, covariance and update counts (exact float text), keyed by name order."""
