@@ -107,9 +107,7 @@ class FeedbackNode(ServoNode):
         self._fault_pub = self.publisher("fault")
         self._deformation = build_deformation(values)
         if self._deformation is not None:
-            self._deformation_msg = msgs.deformation_to_msg(
-                msgs.DeformationSample(0, 0.0, 0.0, 0.0, False)
-            )
+            self._deformation_codec = msgs.array_codec("deformation")
             self._deformation_pub = self.publisher("deformation")
 
         self._references: SampleBuffer[msgs.ReferenceSample] = SampleBuffer()
@@ -248,7 +246,7 @@ class FeedbackNode(ServoNode):
                 d.encoder_increment_rad,
                 d.valid,
             )
-            self._deformation_pub.publish(msgs.write_deformation(self._deformation_msg, sample))
+            self._deformation_pub.publish(self._deformation_codec.encode(sample))
 
     def _answer_now(self, step: int) -> bool:
         """Realtime: whether state ``step``'s command can still be used (see the module)."""

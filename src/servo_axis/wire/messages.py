@@ -34,7 +34,6 @@ from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from servo_axis.core.errors import SignalError
 from servo_axis.wire import layouts
 from servo_axis.wire.checks import check_finite, check_labelled_values, step_of_stamp_ns
-from servo_axis.wire.joint_cdr import JointCodec
 
 # The samples and the joint names are declared with the layouts (no rclpy) and
 # re-exported here, where the nodes take them from.
@@ -48,6 +47,7 @@ from servo_axis.wire.layouts import StateSample as StateSample
 from servo_axis.wire.layouts import check_estimate_values as check_estimate_values
 from servo_axis.wire.layouts import motor_names as motor_names
 from servo_axis.wire.layouts import state_names as state_names
+from servo_axis.wire.sample_cdr import ArrayCodec, JointCodec
 
 #: The labels of each labelled Float64MultiArray topic (its layout's).
 STATUS_LABELS = layouts.STATUS.labels
@@ -99,7 +99,7 @@ def stamp_ns_from_cdr(data: bytes) -> int:
 
 
 def joint_codec(topic: str, *, axis: str, period_ns_: int) -> JointCodec[Any]:
-    """The CDR codec of JointState topic ``topic`` on ``axis`` (:class:`~servo_axis.wire.joint_cdr.JointCodec`).
+    """The CDR codec of JointState topic ``topic`` on ``axis`` (:class:`~servo_axis.wire.sample_cdr.JointCodec`).
 
     What the per-sample path publishes (``publish(codec.encode(sample))``,
     the same bytes as the message of ``<topic>_to_msg``) and decodes from a
@@ -107,6 +107,17 @@ def joint_codec(topic: str, *, axis: str, period_ns_: int) -> JointCodec[Any]:
     ``<topic>_from_msg``).
     """
     return JointCodec(layouts.JOINT_LAYOUTS[topic], axis=axis, period_ns=period_ns_)
+
+
+def array_codec(topic: str) -> ArrayCodec[Any]:
+    """The CDR codec of per-sample vector topic ``topic`` (:class:`~servo_axis.wire.sample_cdr.ArrayCodec`).
+
+    ``publish(codec.encode(sample))`` sends the message of ``<topic>_to_msg``.
+    """
+    layout = layouts.LAYOUTS[topic]
+    if not isinstance(layout, layouts.ArrayLayout):
+        raise SignalError(f"topic: {topic!r} is not a Float64MultiArray topic")
+    return ArrayCodec(layout)
 
 
 def clock_message(step: int, period_ns_: int) -> Clock:

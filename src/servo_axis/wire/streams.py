@@ -23,8 +23,8 @@ from typing import Any, TypeVar
 
 from servo_axis.core.errors import SignalError
 from servo_axis.wire import cdr, layouts
-from servo_axis.wire.joint_cdr import JointCodec
 from servo_axis.wire.layouts import ArrayLayout, JointLayout
+from servo_axis.wire.sample_cdr import ArrayCodec, JointCodec
 
 T = TypeVar("T")
 
@@ -118,6 +118,13 @@ ARRAY_STREAMS: dict[str, ArrayLayout[Any]] = {
     if isinstance(layout, ArrayLayout) and layout.per_step
 }
 
+#: The codecs of the per-sample vectors of scalars (:class:`~servo_axis.wire.sample_cdr.ArrayCodec`).
+ARRAY_CODECS: dict[str, ArrayCodec[Any]] = {
+    name: ArrayCodec(layout)
+    for name, layout in ARRAY_STREAMS.items()
+    if layout.sample is not None and set(layout.sizes) == {1}
+}
+
 #: Every stream with one message per control step (what a recorder may count).
 STEP_STREAMS: frozenset[str] = frozenset(JOINT_STREAMS) | frozenset(ARRAY_STREAMS)
 
@@ -146,23 +153,24 @@ def decode_array_stream(name: str, data: bytes) -> tuple[int, Any]:
         For a payload that does not decode, a layout other than the topic's
         fields, a non-finite value or a value its field's rule refuses.
     """
-    layout = ARRAY_STREAMS[name]
-    msg = cdr.decode_float64_multi_array(data)
-    sample = layout.sample_of(layout.values(msg.labels, msg.sizes, msg.data, msg.strides))
+    codec = ARRAY_CODECS.get(name)
+    if codec is not None:
+        sample = codec.decode(data)
+    else:
+        layout = ARRAY_STREAMS[name]
+        msg = cdr.decode_float64_multi_array(data)
+        sample = layout.sample_of(layout.values(msg.labels, msg.sizes, msg.data, msg.strides))
     return sample.step, sample
 
 
 def decode_step_stream(name: str, data: bytes, *, axis: str, period_ns: int) -> tuple[int, Any]:
-    """Step and decoded payload of a recorded sample of any :data:`STEP_STREAMS` stream.
+    """Step and sample of a recorded sample of any :data:`STEP_STREAMS` stream.
 
     The checks of :func:`decode_joint_stream` and :func:`decode_array_stream`
-    (the recorder counts with it, every step); an array's sample is not
-    built.
+    (the recorder counts with it, every step).
     """
     if name in ARRAY_STREAMS:
-        array = cdr.decode_float64_multi_array(data)
-        values = ARRAY_STREAMS[name].values(array.labels, array.sizes, array.data, array.strides)
-        return int(values[0]), array
+        return decode_array_stream(name, data)
     return decode_joint_stream(name, data, axis=axis, period_ns=period_ns)
 
 

@@ -14,7 +14,7 @@ hidden inside a function is still a circle.
   finds its own extensions by entry point, as it finds an outside package's;
 * ``simulate``, ``analysis``, ``friction_id``, ``gms_fit``, ``params``, ``plugins``,
   ``study``, ``wire.topics``, ``wire.layouts``, ``wire.checks``, ``wire.streams``,
-  ``wire.cdr``, ``wire.joint_cdr`` and ``recording.reader`` reach no rclpy and no ROS message
+  ``wire.cdr``, ``wire.sample_cdr`` and ``recording.reader`` reach no rclpy and no ROS message
   package, directly or through other modules of the project.
 """
 
@@ -182,7 +182,7 @@ ROS_FREE = [
     "servo_axis.wire.checks",
     "servo_axis.wire.streams",
     "servo_axis.wire.cdr",
-    "servo_axis.wire.joint_cdr",
+    "servo_axis.wire.sample_cdr",
     "servo_axis.recording.reader",
     *sorted(
         m

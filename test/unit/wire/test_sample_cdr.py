@@ -18,15 +18,15 @@ import numpy as np
 import pytest
 
 from servo_axis.core.errors import SignalError
-from servo_axis.wire.cdr import decode_joint_state
-from servo_axis.wire.joint_cdr import JointCodec
-from servo_axis.wire.layouts import JointLayout
-from servo_axis.wire.streams import JOINT_STREAMS
+from servo_axis.wire.cdr import decode_float64_multi_array, decode_joint_state
+from servo_axis.wire.layouts import LAYOUTS, ArrayLayout, JointLayout
+from servo_axis.wire.sample_cdr import ArrayCodec, JointCodec
+from servo_axis.wire.streams import ARRAY_CODECS, JOINT_STREAMS
 
 JS = "sensor_msgs/msg/JointState"
 PERIOD_NS = 400_000
 AXES = ("x", "tilt", "abc", "µ")  # each leaves a different padding after the names
-LAYOUTS = pytest.mark.parametrize("topic", sorted(JOINT_STREAMS))
+JOINT_TOPICS = pytest.mark.parametrize("topic", sorted(JOINT_STREAMS))
 
 
 @pytest.fixture(scope="module")
@@ -91,7 +91,7 @@ def fast(codec: JointCodec[Any], data: bytes) -> Any:
         return f"SignalError: {err}"
 
 
-@LAYOUTS
+@JOINT_TOPICS
 @pytest.mark.parametrize("axis", AXES)
 def test_encode_gives_the_bytes_of_the_message_and_decode_takes_them_back(
     store: Any, topic: str, axis: str
@@ -108,7 +108,7 @@ def test_encode_gives_the_bytes_of_the_message_and_decode_takes_them_back(
         assert general(layout, data, axis) == sample
 
 
-@LAYOUTS
+@JOINT_TOPICS
 def test_any_other_payload_is_decoded_and_refused_as_before(store: Any, topic: str) -> None:
     layout = JOINT_STREAMS[topic]
     axis = "x"
@@ -211,3 +211,103 @@ def test_the_layout_of_an_encoded_state_is_cdr() -> None:
         assert struct.unpack_from("<2d", data, at) == (start, start + 1), array
         at += 16
     assert at == len(data)
+
+
+# ------------------------------------------------- per-sample vectors of scalars
+
+
+def array_payload(
+    store: Any,
+    labels: list[str],
+    values: list[float],
+    *,
+    sizes: list[int] | None = None,
+    data_offset: int = 0,
+    little_endian: bool = True,
+) -> bytes:
+    t = store.types
+    sizes = [1] * len(labels) if sizes is None else sizes
+    msg = t["std_msgs/msg/Float64MultiArray"](
+        layout=t["std_msgs/msg/MultiArrayLayout"](
+            dim=[
+                t["std_msgs/msg/MultiArrayDimension"](label=label, size=n, stride=n)
+                for label, n in zip(labels, sizes, strict=True)
+            ],
+            data_offset=data_offset,
+        ),
+        data=np.array(values, dtype=np.float64),
+    )
+    return bytes(
+        store.serialize_cdr(msg, "std_msgs/msg/Float64MultiArray", little_endian=little_endian)
+    )
+
+
+def general_array(layout: ArrayLayout[Any], data: bytes) -> Any:
+    try:
+        msg = decode_float64_multi_array(data)
+        return layout.sample_of(layout.values(msg.labels, msg.sizes, msg.data, msg.strides))
+    except SignalError as err:
+        return f"SignalError: {err}"
+
+
+def fast_array(codec: ArrayCodec[Any], data: bytes) -> Any:
+    try:
+        return codec.decode(data)
+    except SignalError as err:
+        return f"SignalError: {err}"
+
+
+@pytest.mark.parametrize("topic", sorted(ARRAY_CODECS))
+def test_a_per_sample_vector_is_the_labelled_array_and_back(store: Any, topic: str) -> None:
+    layout = LAYOUTS[topic]
+    assert isinstance(layout, ArrayLayout)
+    codec = ArrayCodec(layout)
+    rng = random.Random(topic)
+    labels = list(layout.labels)
+    for step in (0, 1, 77, 10**6):
+        values = [float(step)] + [rng.uniform(-1.0, 1.0) for _ in labels[1:]]
+        for i, f in enumerate(layout.fields):
+            if f.rule == "flag":
+                values[i] = float(rng.random() < 0.5)
+        sample = layout.sample_of(values)
+        data = codec.encode(sample)
+        assert data == array_payload(store, labels, values) and len(data) == codec.size
+        assert codec.decode(data) == sample == general_array(layout, data)
+    good = codec.encode(sample)
+    flag = next((i for i, f in enumerate(layout.fields) if f.rule == "flag"), None)
+    cases = {
+        "big-endian": array_payload(store, labels, values, little_endian=False),
+        "data_offset": array_payload(store, labels, values, data_offset=3),
+        "padded": good + b"\x00" * 4,
+        "short": good[:-8],
+        "empty": b"",
+        "other labels": array_payload(store, [*labels[:-1], "other"], values),
+        "a field of two": array_payload(
+            store, labels, [*values, 0.0], sizes=[1] * (len(labels) - 1) + [2]
+        ),
+        "step not whole": array_payload(store, labels, [0.5, *values[1:]]),
+        "step negative": array_payload(store, labels, [-1.0, *values[1:]]),
+        "nan": array_payload(store, labels, [*values[:-1], math.nan]),
+        "inf": array_payload(store, labels, [math.inf, *values[1:]]),
+    }
+    if flag is not None:
+        cases["flag 0.5"] = array_payload(store, labels, [*values[:flag], 0.5, *values[flag + 1 :]])
+    outcome = {name: general_array(layout, data) for name, data in cases.items()}
+    for name, data in cases.items():
+        assert fast_array(codec, data) == outcome[name], name
+    for name in ("big-endian", "data_offset", "padded"):
+        assert outcome[name] == sample, name
+    assert {n for n, got in outcome.items() if isinstance(got, str)} == set(cases) - {
+        "big-endian",
+        "data_offset",
+        "padded",
+    }
+    with pytest.raises(SignalError, match=r"data\[1\]: expected a finite number"):
+        codec.encode(layout.sample_of([5.0, math.nan, *values[2:]]))
+
+
+def test_only_per_sample_vectors_of_scalars_have_an_array_codec() -> None:
+    for name, layout in LAYOUTS.items():
+        if isinstance(layout, ArrayLayout) and name not in ARRAY_CODECS:
+            with pytest.raises(ValueError, match="expected a per-step vector of scalars"):
+                ArrayCodec(layout)
