@@ -445,3 +445,16 @@ def test_bad_inputs_are_refused() -> None:
     with pytest.raises(SignalError, match="current_A"):
         plant.step(float("nan"))
     assert plant.step_index == 0
+
+
+def test_outputs_are_plant_outputs_as_the_constructor_makes_them() -> None:
+    """The per-sample outputs (base.plant_output) equal the dataclass's own, field for field."""
+    import dataclasses
+
+    plant = TiltingTablePlant(TiltingTableParams(), rng=np.random.default_rng(0))
+    for out in [plant.output(), *run(plant, np.linspace(-2.0, 2.0, 50))]:
+        values = {f.name: getattr(out, f.name) for f in dataclasses.fields(PlantOutput)}
+        assert out == PlantOutput(**values)
+        assert list(vars(out)) == list(values)
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            out.step = 0  # type: ignore[misc]

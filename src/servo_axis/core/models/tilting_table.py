@@ -85,6 +85,7 @@ from servo_axis.core.models.base import (
     NominalModel,
     PlantOutput,
     clipped_current,
+    plant_output,
     sim_steps,
     whole_ratio,
 )
@@ -240,16 +241,17 @@ class TiltingTablePlant:
 
     def output(self) -> PlantOutput:
         """Readings and true state at the current control sample."""
-        return PlantOutput(
-            step=self._step,
-            encoder_rad=self._encoder_rad,
-            scale_m=0.0,
-            angle_rad=self._th,
-            velocity_rad_s=self._v,
-            position_m=0.0,
-            velocity_m_s=0.0,
-            motor_torque_Nm=self._torque_Nm,
-            friction_force_N=self._friction_Nm,
+        # plant_output: PlantOutput(...) without the frozen dataclass's __init__.
+        return plant_output(
+            self._step,
+            self._encoder_rad,
+            0.0,
+            self._th,
+            self._v,
+            0.0,
+            0.0,
+            self._torque_Nm,
+            self._friction_Nm,
         )
 
     def step(self, current_A: float) -> PlantOutput:
@@ -266,7 +268,12 @@ class TiltingTablePlant:
             The state at the next control sample.
         """
         p = self.params
-        cmd = clipped_current(current_A, p.current_limit_A)
+        limit = p.current_limit_A
+        # Inside the limits the saturation is the current itself (what clipped_current
+        # gives it, without the call); outside them, or not finite, clipped_current.
+        cmd = (
+            float(current_A) if -limit <= current_A <= limit else clipped_current(current_A, limit)
+        )
         torque = p.torque_constant_Nm_per_A * cmd
         self._applied_A = cmd
         self._torque_Nm = torque
