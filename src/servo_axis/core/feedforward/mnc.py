@@ -127,6 +127,12 @@ class NonlinearityCompensator:
         self._schedule: list[tuple[int, float, float]] = [
             (0, params.unbalance_Nm, params.coulomb_Nm)
         ]
+        # sin(theta) and the friction model's shape (C = 1) at every step of the
+        # samples GridSamples keeps, computed once per chunk instead of once per
+        # block (one block per online estimate): elementwise, the same numbers.
+        self._derived_of: FloatArray | None = None
+        self._sin: list[float] = []
+        self._shape: list[float] = []
 
     def set_parameters(self, *, from_step: int, unbalance_Nm: float, coulomb_Nm: float) -> None:
         """Use ``U``, ``C`` from control sample ``from_step`` on (after the last one set).
@@ -161,8 +167,53 @@ class NonlinearityCompensator:
     def currents(self, block: ReferenceBlock) -> FloatArray:
         p = self.params
         k = np.asarray(block.step, dtype=np.int64)
-        phase = k % p.ratio
+        steps: list[int] = k.tolist() if k.ndim == 1 else []
+        r = p.ratio
+        if not steps or min(steps) < 0:
+            return self._currents(k)
         # eq. (13)/(15): the interval's start for its first sample, its end after.
+        at = [s if s % r == 0 else s - s % r + r for s in steps]
+        start, values = self._samples.kept(min(at), max(at))
+        if values is not self._derived_of:
+            # theta, sin(theta), omega and T_f(omega) / C as _currents forms them,
+            # for the whole kept range (elementwise: the same numbers), as floats.
+            self._sin = np.sin(values[0] / p.lead_m_per_rad).tolist()
+            if p.friction:
+                self._shape = friction_model_Nm(
+                    values[1] / p.lead_m_per_rad,
+                    coulomb_Nm=1.0,
+                    alpha=p.alpha,
+                    omega_th_rad_s=p.omega_th_rad_s,
+                ).tolist()
+            self._derived_of = values
+        in_force = self._in_force(min(steps), max(steps))
+        if in_force is None:
+            return self._currents(k)
+        # One U, C for the block: _currents' operations on floats, in its
+        # order: (U sin(theta) + T_f(omega) / C * C) / K_T.
+        u, c = in_force
+        kt = p.torque_constant_Nm_per_A
+        sin = self._sin
+        if p.friction:
+            shape = self._shape
+            out = [(u * sin[a - start] + shape[a - start] * c) / kt for a in at]
+        else:
+            out = [u * sin[a - start] / kt for a in at]
+        return np.array(out, dtype=float)
+
+    def _in_force(self, first: int, last: int) -> tuple[float, float] | None:
+        """``(U, C)`` in force at every step ``first .. last``, or None if they change there."""
+        schedule = self._schedule
+        for n, (from_step, u, c) in enumerate(schedule):
+            until = schedule[n + 1][0] if n + 1 < len(schedule) else None
+            if from_step <= first and (until is None or last < until):
+                return u, c
+        return None
+
+    def _currents(self, k: NDArray[np.int64]) -> FloatArray:
+        """:meth:`currents` computed from the block's own samples (eqs. (13)-(15))."""
+        p = self.params
+        phase = k % p.ratio
         at = np.where(phase == 0, k, k - phase + p.ratio)
         pos, vel, _ = self._samples.steps(at)
         theta = pos / p.lead_m_per_rad

@@ -23,7 +23,7 @@ instants are grouped into calls.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, cast
+from typing import Any, NamedTuple, cast
 
 import numpy as np
 import scipy.linalg
@@ -54,9 +54,11 @@ class PtcOutput:
     velocity_rad_s: NDArray[np.float64]
 
 
-@dataclass(frozen=True)
-class _Model:
-    """``(A_d, B_d)`` at ``T_u`` and ``A = A_d^2``, ``B^-1`` over ``T_r``, from one instant on."""
+class _Model(NamedTuple):
+    """``(A_d, B_d)`` at ``T_u`` and ``A = A_d^2``, ``B^-1`` over ``T_r``, from one instant on.
+
+    A named tuple, not a frozen dataclass: one is made per online estimate (003 eq. (11)).
+    """
 
     from_instant: int
     ad: NDArray[np.float64]
@@ -81,8 +83,42 @@ def _discretise(
     b_matrix = np.empty((2, 2))
     b_matrix[:, 0] = ad @ bd
     b_matrix[:, 1] = bd
-    b_inv = cast(NDArray[np.float64], np.linalg.inv(b_matrix))
-    return _Model(from_instant, ad, bd, ad @ ad, b_matrix, b_inv)
+    return _Model(from_instant, ad, bd, ad @ ad, b_matrix, _inv2(b_matrix))
+
+
+def _inv2(b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``np.linalg.inv(b)`` of a float64 2 x 2 ``b``: the same call of numpy's own routine.
+
+    ``np.linalg.inv`` checks and converts its argument, then calls its gufunc
+    ``_umath_linalg.inv`` (LAPACK ``gesv`` on the identity) under an error
+    state that raises ``LinAlgError`` for a singular matrix. For a float64
+    2 x 2 array the checks pass and the conversions do nothing, so this calls
+    the gufunc under that error state directly (a third of the time; one
+    call per online estimate). Without those numpy internals it is
+    ``np.linalg.inv``.
+    """
+    if _linalg is None:  # pragma: no cover - another numpy
+        return cast(NDArray[np.float64], np.linalg.inv(b))
+    gufunc, raise_singular = _linalg
+    with np.errstate(
+        call=raise_singular, invalid="call", over="ignore", divide="ignore", under="ignore"
+    ):
+        return cast(NDArray[np.float64], gufunc(b, signature="d->d"))
+
+
+def _linalg_routines() -> tuple[Any, Any] | None:
+    """numpy's ``inv`` gufunc and its singular-matrix error handler, or None without them."""
+    try:
+        from numpy.linalg import _umath_linalg
+        from numpy.linalg._linalg import (  # type: ignore[attr-defined]
+            _raise_linalgerror_singular,
+        )
+    except ImportError:  # pragma: no cover - another numpy
+        return None
+    return _umath_linalg.inv, _raise_linalgerror_singular
+
+
+_linalg = _linalg_routines()
 
 
 def _expm_upper(a: NDArray[np.float64]) -> NDArray[np.float64]:
