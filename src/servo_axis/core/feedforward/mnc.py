@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from itertools import pairwise
 
 import numpy as np
 from numpy.typing import NDArray
@@ -186,29 +187,28 @@ class NonlinearityCompensator:
                     omega_th_rad_s=p.omega_th_rad_s,
                 ).tolist()
             self._derived_of = values
-        in_force = self._in_force(min(steps), max(steps))
-        if in_force is None:
-            return self._currents(k)
-        # One U, C for the block: _currents' operations on floats, in its
-        # order: (U sin(theta) + T_f(omega) / C * C) / K_T.
-        u, c = in_force
-        kt = p.torque_constant_Nm_per_A
-        sin = self._sin
-        if p.friction:
-            shape = self._shape
-            out = [(u * sin[a - start] + shape[a - start] * c) / kt for a in at]
-        else:
-            out = [u * sin[a - start] / kt for a in at]
-        return np.array(out, dtype=float)
-
-    def _in_force(self, first: int, last: int) -> tuple[float, float] | None:
-        """``(U, C)`` in force at every step ``first .. last``, or None if they change there."""
         schedule = self._schedule
-        for n, (from_step, u, c) in enumerate(schedule):
-            until = schedule[n + 1][0] if n + 1 < len(schedule) else None
-            if from_step <= first and (until is None or last < until):
-                return u, c
-        return None
+        if steps[0] < schedule[0][0] or any(b <= a for a, b in pairwise(steps)):
+            return self._currents(k)  # not increasing, or before the schedule: its error
+        # The U, C in force at each step (the entry parameters_at finds, walked
+        # forwards), then _currents' operations on floats, in its order:
+        # (U sin(theta) + T_f(omega) / C * C) / K_T.
+        n = 0
+        while n + 1 < len(schedule) and schedule[n + 1][0] <= steps[0]:
+            n += 1
+        _, u, c = schedule[n]
+        until = schedule[n + 1][0] if n + 1 < len(schedule) else None
+        kt = p.torque_constant_Nm_per_A
+        sin, shape, friction = self._sin, self._shape, p.friction
+        out = []
+        for step, a in zip(steps, at, strict=True):
+            while until is not None and step >= until:
+                n += 1
+                _, u, c = schedule[n]
+                until = schedule[n + 1][0] if n + 1 < len(schedule) else None
+            i = a - start
+            out.append((u * sin[i] + shape[i] * c) / kt if friction else u * sin[i] / kt)
+        return np.array(out, dtype=float)
 
     def _currents(self, k: NDArray[np.int64]) -> FloatArray:
         """:meth:`currents` computed from the block's own samples (eqs. (13)-(15))."""

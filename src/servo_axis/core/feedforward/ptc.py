@@ -98,12 +98,12 @@ def _inv2(b: NDArray[np.float64]) -> NDArray[np.float64]:
     ``np.linalg.inv``.
     """
     if _linalg is None:  # pragma: no cover - another numpy
-        return cast(NDArray[np.float64], np.linalg.inv(b))
+        return cast("NDArray[np.float64]", np.linalg.inv(b))
     gufunc, raise_singular = _linalg
     with np.errstate(
         call=raise_singular, invalid="call", over="ignore", divide="ignore", under="ignore"
     ):
-        return cast(NDArray[np.float64], gufunc(b, signature="d->d"))
+        return cast("NDArray[np.float64]", gufunc(b, signature="d->d"))
 
 
 def _linalg_routines() -> tuple[Any, Any] | None:
