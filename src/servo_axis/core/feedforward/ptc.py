@@ -266,7 +266,7 @@ class MultiratePtc:
         x = np.asarray(x_d, dtype=float)
         if x.ndim != 2 or x.shape[1] != 2 or x.shape[0] < 2:
             raise SignalError(f"x_d: expected shape (M+1, 2) with M >= 1, got {x.shape}")
-        if not np.all(np.isfinite(x)):
+        if not np.isfinite(x).all():
             raise SignalError("x_d: expected finite values")
         m = x.shape[0] - 1
         u = np.empty((m, 2))  # rows [u[2i], u[2i+1]]
@@ -274,7 +274,8 @@ class MultiratePtc:
         for lo, hi, model in self._segments(first_instant, m):
             xs = x[lo : hi + 1]
             u[lo:hi] = (xs[1:] - xs[:-1] @ model.a_matrix.T) @ model.b_inv.T
-            mid[lo:hi] = xs[:-1] @ model.ad.T + np.outer(u[lo:hi, 0], model.bd)
+            # u[2i] B_d as a column times a row: np.outer's products, without its call.
+            mid[lo:hi] = xs[:-1] @ model.ad.T + u[lo:hi, 0:1] * model.bd
         current = u.reshape(2 * m)
         pos = np.empty(2 * m)
         vel = np.empty(2 * m)

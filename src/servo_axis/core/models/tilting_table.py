@@ -222,6 +222,14 @@ class TiltingTablePlant:
         # random() that way (the same numbers, a third of the cost).
         self._noise_low = -params.noise_rad
         self._noise_span = params.noise_rad - -params.noise_rad
+        # The parameters the per-sample path reads, once (params is frozen).
+        self._limit = params.current_limit_A
+        self._kt = params.torque_constant_Nm_per_A
+        self._inertia = params.inertia_kgm2
+        self._coulomb = params.coulomb_Nm
+        self._unbalance = params.unbalance_Nm
+        self._noise = params.noise_rad
+        self._resolution = params.encoder_resolution_rad
         self.reset()
 
     def reset(self) -> None:
@@ -267,22 +275,21 @@ class TiltingTablePlant:
         PlantOutput
             The state at the next control sample.
         """
-        p = self.params
-        limit = p.current_limit_A
+        limit = self._limit
         # Inside the limits the saturation is the current itself (what clipped_current
         # gives it, without the call); outside them, or not finite, clipped_current.
         cmd = (
             float(current_A) if -limit <= current_A <= limit else clipped_current(current_A, limit)
         )
-        torque = p.torque_constant_Nm_per_A * cmd
+        torque = self._kt * cmd
         self._applied_A = cmd
         self._torque_Nm = torque
-        if p.coulomb_Nm > 0.0:
+        if self._coulomb > 0.0:
             self._th, self._v = self._kernel(self._th, self._v, torque, self._config)
         else:
             # C = 0: eq. (2) is smooth; plain RK4 (a table at rest with zero net
             # torque is an exact equilibrium of the RK4 map too).
-            b = torque / p.inertia_kgm2
+            b = torque / self._inertia
             self._th, self._v = self._kernel(self._th, self._v, b, self._config)
         self._step += 1
         self._update_sample()
@@ -291,17 +298,16 @@ class TiltingTablePlant:
     def _update_sample(self) -> None:
         # Friction torque at the sample (eq. (2) sign: it opposes the motion)
         # and the encoder reading, both fixed once per sample.
-        p = self.params
-        c = p.coulomb_Nm
+        c = self._coulomb
         if self._v != 0.0:
             self._friction_Nm = math.copysign(c, self._v) if c > 0.0 else 0.0
         else:
-            net = self._torque_Nm - p.unbalance_Nm * math.sin(self._th)
+            net = self._torque_Nm - self._unbalance * math.sin(self._th)
             self._friction_Nm = min(max(net, -c), c)
         value = self._th
-        if p.noise_rad > 0.0:
+        if self._noise > 0.0:
             value += self._noise_low + self._noise_span * self._rng.random()
-        res = p.encoder_resolution_rad
+        res = self._resolution
         if res > 0.0:
             value = math.floor(value / res + 0.5) * res
         self._encoder_rad = value
