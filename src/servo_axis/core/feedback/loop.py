@@ -167,7 +167,13 @@ class FeedbackLoop:
 
         The per-sample path of the plain-call loops (:mod:`servo_axis.simulate`).
         """
-        return self._sample(*self._observed(encoder_rad, scale_m), reference_rad, feedforward_A)[0]
+        # _observed, without the call.
+        y = scale_m / self._lead if self._on_scale else encoder_rad
+        if self._dob_on_scale == self._on_scale:
+            observed = y
+        else:
+            observed = scale_m / self._lead if self._dob_on_scale else encoder_rad
+        return self._sample(y, observed, reference_rad, feedforward_A)[0]
 
     def _observed(self, encoder_rad: float, scale_m: float) -> tuple[float, float]:
         """``(y, the DOB's angle)`` of :meth:`step` from the readings.

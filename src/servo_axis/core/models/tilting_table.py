@@ -293,7 +293,18 @@ class TiltingTablePlant:
             self._th, self._v = self._kernel(self._th, self._v, b, self._config)
         self._step += 1
         self._update_sample()
-        return self.output()
+        # output(), without the call.
+        return plant_output(
+            self._step,
+            self._encoder_rad,
+            0.0,
+            self._th,
+            self._v,
+            0.0,
+            0.0,
+            self._torque_Nm,
+            self._friction_Nm,
+        )
 
     def _update_sample(self) -> None:
         # Friction torque at the sample (eq. (2) sign: it opposes the motion)
