@@ -1,4 +1,4 @@
-"""Compiled kernels of the plants' sub-step loops (numba).
+"""Compiled kernels of the plants' sub-step loops and of the adaptive PTC (numba).
 
 The plants advance one control period per call, and within it tens to a
 hundred integration sub-steps with friction; in plain Python those loops
@@ -12,14 +12,22 @@ Python loops it replaced (every shipped scenario's plain-call loop was
 compared), and ``test/unit/core/test_kernels.py`` checks each plant compiled
 against the same code interpreted (``NUMBA_DISABLE_JIT=1``).
 
+The adaptive PTC of paper 003 (eq. (11): a new model per online estimate, a
+short feedforward block per estimate) has its small matrix work here too
+(:func:`ptc_model`, :func:`ptc_segment`): there the products of matrices
+are ``np.dot``, which numba hands to BLAS ``gemm``/``gemv`` as numpy's
+``@`` does, on the same operands (the tests compare them with the numpy
+formulation as well as interpreted).
+
 Compiled code is cached on disk: ``$NUMBA_CACHE_DIR`` if set, else
 ``__pycache__`` beside this file when that is writable (a source checkout),
 else the user's cache directory (``~/.cache/numba``), so an installed
 package compiles once per user. A process that finds the cache imports
 numba and loads the kernels in about 0.2 s; compiling them takes about
 0.5 s per plant model. This module is imported by the plants' constructors
-(and ``MaxwellSlip.move``) only, so a node that builds no plant never
-imports numba.
+(and ``MaxwellSlip.move``) and by a compiled ``MultiratePtc``'s (the
+feedforward generator builds one when it takes online estimates) only, so
+a node that builds no plant and no adaptive feedforward never imports numba.
 
 Everything here works on float64 scalars and contiguous float64 arrays; the
 callers own the arrays (element deflections are updated in place).
@@ -624,3 +632,107 @@ def tilting_friction_period(
             if tau <= 0.0:
                 break
     return th, v
+
+
+# --------------------------------------------------------------------- adaptive PTC
+
+
+@_compiled
+def ptc_segment(
+    x: np.ndarray,
+    lo: int,
+    hi: int,
+    a_matrix: np.ndarray,
+    b_inv: np.ndarray,
+    ad: np.ndarray,
+    bd: np.ndarray,
+    current: np.ndarray,
+    position: np.ndarray,
+    velocity: np.ndarray,
+) -> None:
+    """The multirate PTC (000 Fig. 5, 003 eq. (11)) over rows ``lo .. hi - 1`` of one model.
+
+    The arithmetic of :meth:`MultiratePtc.feedforward
+    <servo_axis.core.feedforward.ptc.MultiratePtc.feedforward>` for one
+    segment, step for step: with ``x0 = x[lo:hi]``, ``x1 = x[lo + 1:hi + 1]``
+
+        u   = (x1 - x0 @ A^T) @ (B^-1)^T
+        mid = x0 @ A_d^T + u[:, 0:1] * B_d
+
+    where the three products are ``np.dot`` of contiguous copies of the
+    same rows and the model's matrices transposed (BLAS ``gemm``, as numpy's
+    ``@`` calls it: the same numbers, which
+    ``test/unit/core/test_kernels.py`` checks against numpy and interpreted),
+    and the rest element by element. The adaptive feedforward computes one
+    short block per online estimate, often with two models; this is one call
+    for what was a dozen numpy calls.
+
+    Parameters
+    ----------
+    x : ndarray, shape (M+1, 2)
+        The targets ``x_d`` of the block (rad, rad/s).
+    lo, hi : int
+        The rows (reference intervals) of this model, ``0 <= lo < hi <= M``.
+    a_matrix, b_inv, ad : ndarray, shape (2, 2)
+        ``A = A_d^2``, ``B^-1`` and ``A_d`` of the model (C order).
+    bd : ndarray, shape (2,)
+        ``B_d``.
+    current, position, velocity : ndarray, shape (2M,)
+        The block's feedforward (A) and nominal angle (rad) and velocity
+        (rad/s) per control sample; samples ``2 lo .. 2 hi - 1`` are written.
+    """
+    n = hi - lo
+    x0 = np.empty((n, 2))
+    x1 = np.empty((n, 2))
+    for i in range(n):
+        for j in range(2):
+            x0[i, j] = x[lo + i, j]
+            x1[i, j] = x[lo + i + 1, j]
+    p = np.dot(x0, a_matrix.T)
+    for i in range(n):
+        for j in range(2):
+            x1[i, j] = x1[i, j] - p[i, j]
+    u = np.dot(x1, b_inv.T)
+    q = np.dot(x0, ad.T)
+    for i in range(n):
+        k = 2 * (lo + i)
+        current[k] = u[i, 0]
+        current[k + 1] = u[i, 1]
+        position[k] = x[lo + i, 0]
+        velocity[k] = x[lo + i, 1]
+        position[k + 1] = q[i, 0] + u[i, 0] * bd[0]
+        velocity[k + 1] = q[i, 1] + u[i, 0] * bd[1]
+
+
+@_compiled
+def ptc_model(e: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``A_d``, ``B_d``, ``A = A_d^2`` and ``B = [A_d B_d, B_d]`` from ``expm`` of the augmented matrix.
+
+    What :func:`~servo_axis.core.feedforward.ptc._discretise` computes from
+    ``e = expm([[A_c, B_c], [0, 0]] T_u)`` (3 x 3) before the inverse, step
+    for step: ``A_d = e[:2, :2]``, ``B_d = e[:2, 2]`` (copied: contiguous),
+    and the products ``A_d @ B_d`` and ``A_d @ A_d`` as ``np.dot`` (BLAS, as
+    numpy's ``@``). One call per online estimate (003 eq. (11)).
+
+    Parameters
+    ----------
+    e : ndarray, shape (3, 3)
+        The matrix exponential.
+
+    Returns
+    -------
+    ad, bd, a_matrix, b_matrix : ndarray
+        Shapes (2, 2), (2,), (2, 2), (2, 2), C order.
+    """
+    ad = np.empty((2, 2))
+    bd = np.empty(2)
+    for i in range(2):
+        for j in range(2):
+            ad[i, j] = e[i, j]
+        bd[i] = e[i, 2]
+    adbd = np.dot(ad, bd)
+    b_matrix = np.empty((2, 2))
+    for i in range(2):
+        b_matrix[i, 0] = adbd[i]
+        b_matrix[i, 1] = bd[i]
+    return ad, bd, np.dot(ad, ad), b_matrix

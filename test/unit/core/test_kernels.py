@@ -63,6 +63,18 @@ out["tilting_smooth"] = run(
     currents(300, 0.35, 10.0, 4e-4))
 slip = MaxwellSlip(coulomb_Nm=3.2, width_rad=5e-3, elements=7)
 out["maxwell_slip"] = [slip.move(d).hex() for d in (1e-3 * np.sin(np.arange(200) / 7.0)).tolist()]
+from servo_axis.core.feedforward.ptc import MultiratePtc
+rng = np.random.default_rng(6)
+ptc = MultiratePtc(inertia_kgm2=2e-3, damping_Nms_per_rad=1e-2, torque_constant_Nm_per_A=1.0,
+                   control_period_s=4e-4, compiled=True)
+rows = []
+for i0 in range(0, 400, 7):
+    ptc.replace_model(from_instant=i0 + 3, inertia_kgm2=float(1e-3 + 1e-3 * rng.random()),
+                      damping_Nms_per_rad=float(1e-2 * rng.random()), torque_constant_Nm_per_A=1.0)
+    f = ptc.feedforward(rng.standard_normal((8, 2)), i0)
+    rows.append([x.hex() for x in [*f.current_A, *f.position_rad, *f.velocity_rad_s]])
+    ptc.forget_before(i0 + 7)
+out["ptc"] = rows
 print(json.dumps(out))
 """
 
@@ -119,3 +131,41 @@ def test_the_cases_move_through_what_they_should(
     np.testing.assert_allclose(np.abs(screw[:, 6]).max(), 0.715 * 30.0, rtol=1e-12)
     contact = np.array([[float.fromhex(x) for x in r] for r in compiled["elastic_contact"]])
     assert np.any(np.diff(np.sign(contact[:, 3])) != 0)
+
+
+def test_the_compiled_ptc_is_the_numpy_ptc() -> None:
+    """MultiratePtc(compiled=True) (ptc_model, ptc_segment) = the numpy formulation, to the bit."""
+    from servo_axis.core.feedforward.ptc import MultiratePtc
+
+    kwargs = {
+        "inertia_kgm2": 2e-3,
+        "damping_Nms_per_rad": 1e-2,
+        "torque_constant_Nm_per_A": 0.7,
+        "control_period_s": 4e-4,
+    }
+    fast, plain = MultiratePtc(**kwargs, compiled=True), MultiratePtc(**kwargs)
+    rng = np.random.default_rng(9)
+    i0 = 0
+    for _ in range(300):
+        m = int(rng.integers(1, 13))
+        steps = sorted(set(rng.integers(i0 + 1, i0 + m + 3, size=2).tolist()))
+        for step in [s for s in steps if s > fast._models[-1].from_instant]:
+            model = {
+                "inertia_kgm2": float(10.0 ** rng.uniform(-4, -1)),
+                "damping_Nms_per_rad": float(rng.random() * 0.1),
+                "torque_constant_Nm_per_A": 0.7,
+            }
+            fast.replace_model(from_instant=step, **model)
+            plain.replace_model(from_instant=step, **model)
+        x = rng.standard_normal((m + 1, 2)) * 10.0 ** rng.uniform(-3, 2)
+        a, b = fast.feedforward(x, i0), plain.feedforward(x, i0)
+        for name in ("current_A", "position_rad", "velocity_rad_s"):
+            assert getattr(a, name).tobytes() == getattr(b, name).tobytes(), name
+        for f, p in zip(fast._models, plain._models, strict=True):
+            for name in ("ad", "bd", "a_matrix", "b_matrix", "b_inv"):
+                assert (
+                    getattr(f, name).tobytes() == np.ascontiguousarray(getattr(p, name)).tobytes()
+                )
+        i0 += m
+        fast.forget_before(i0)
+        plain.forget_before(i0)

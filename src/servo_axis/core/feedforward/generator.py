@@ -92,7 +92,13 @@ class FeedforwardGenerator:
         self._lead = require_positive("lead_m_per_rad", lead_m_per_rad)
         self._kt = nominal.torque_constant_Nm_per_A
         self.ptc = (
-            MultiratePtc(**nominal.as_kwargs(), control_period_s=self._tu, ratio=grid.ratio)
+            MultiratePtc(
+                **nominal.as_kwargs(),
+                control_period_s=self._tu,
+                ratio=grid.ratio,
+                # A short block per online estimate: the compiled PTC (the same numbers).
+                compiled=estimate_period_steps is not None,
+            )
             if ptc_enabled
             else None
         )

@@ -22,6 +22,7 @@ instants are grouped into calls.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, NamedTuple, cast
 
@@ -69,8 +70,20 @@ class _Model(NamedTuple):
 
 
 def _discretise(
-    from_instant: int, inertia_kgm2: float, damping_Nms_per_rad: float, kt: float, tu: float
+    from_instant: int,
+    inertia_kgm2: float,
+    damping_Nms_per_rad: float,
+    kt: float,
+    tu: float,
+    products: Callable[..., tuple[Any, Any, Any, Any]] | None = None,
 ) -> _Model:
+    """The model of ``J``, ``D``, ``K_T`` at ``T_u`` from ``from_instant`` (ZOH through ``expm``).
+
+    ``products``: :func:`~servo_axis.core.kernels.ptc_model`, which takes
+    ``A_d``, ``B_d`` and the products from the exponential in one compiled
+    call (the same numbers, ``A_d`` and ``B_d`` as contiguous copies), or
+    None for numpy.
+    """
     j = require_positive("inertia_kgm2", inertia_kgm2)
     d = require_nonnegative("damping_Nms_per_rad", damping_Nms_per_rad)
     kt = require_positive("torque_constant_Nm_per_A", kt)
@@ -79,6 +92,9 @@ def _discretise(
     m[1, 1] = -d / j
     m[1, 2] = kt / j
     e = _expm_upper(m * tu)
+    if products is not None:
+        ad, bd, a_matrix, b_matrix = products(e)
+        return _Model(from_instant, ad, bd, a_matrix, b_matrix, _inv2(b_matrix))
     ad, bd = e[:2, :2], e[:2, 2]
     b_matrix = np.empty((2, 2))
     b_matrix[:, 0] = ad @ bd
@@ -170,6 +186,11 @@ class MultiratePtc:
         ``T_u``, s, > 0.
     ratio : int
         ``T_r / T_u``; must be 2 (the plant order) for a square ``B``.
+    compiled : bool
+        Compute :meth:`feedforward` with the compiled
+        :func:`~servo_axis.core.kernels.ptc_segment` (the same numbers):
+        for the adaptive feedforward, which computes a short block per
+        online estimate. It loads numba when the PTC is built.
     """
 
     def __init__(
@@ -180,14 +201,28 @@ class MultiratePtc:
         torque_constant_Nm_per_A: float,
         control_period_s: float,
         ratio: int = 2,
+        compiled: bool = False,
     ) -> None:
         self._tu = require_positive("control_period_s", control_period_s)
         if ratio != 2:
             raise ConfigError(
                 f"ratio: expected 2 (T_r = 2 T_u for the order-2 plant), got {ratio!r}"
             )
+        self._segment: Callable[..., None] | None = None
+        self._products: Callable[..., tuple[Any, Any, Any, Any]] | None = None
+        if compiled:
+            from servo_axis.core.kernels import ptc_model, ptc_segment
+
+            self._segment, self._products = ptc_segment, ptc_model
         self._models = [
-            _discretise(0, inertia_kgm2, damping_Nms_per_rad, torque_constant_Nm_per_A, self._tu)
+            _discretise(
+                0,
+                inertia_kgm2,
+                damping_Nms_per_rad,
+                torque_constant_Nm_per_A,
+                self._tu,
+                self._products,
+            )
         ]
 
     @property
@@ -239,7 +274,12 @@ class MultiratePtc:
             )
         self._models.append(
             _discretise(
-                from_instant, inertia_kgm2, damping_Nms_per_rad, torque_constant_Nm_per_A, self._tu
+                from_instant,
+                inertia_kgm2,
+                damping_Nms_per_rad,
+                torque_constant_Nm_per_A,
+                self._tu,
+                self._products,
             )
         )
 
@@ -269,6 +309,8 @@ class MultiratePtc:
         if not np.isfinite(x).all():
             raise SignalError("x_d: expected finite values")
         m = x.shape[0] - 1
+        if self._segment is not None:
+            return self._compiled_feedforward(x, first_instant, m)
         u = np.empty((m, 2))  # rows [u[2i], u[2i+1]]
         mid = np.empty((m, 2))  # nominal state at 2i+1
         for lo, hi, model in self._segments(first_instant, m):
@@ -281,6 +323,21 @@ class MultiratePtc:
         vel = np.empty(2 * m)
         pos[0::2], vel[0::2] = x[:-1, 0], x[:-1, 1]
         pos[1::2], vel[1::2] = mid[:, 0], mid[:, 1]
+        return PtcOutput(current_A=current, position_rad=pos, velocity_rad_s=vel)
+
+    def _compiled_feedforward(
+        self, x: NDArray[np.float64], first_instant: int, m: int
+    ) -> PtcOutput:
+        """:meth:`feedforward` of checked targets, a compiled call per model (the same numbers)."""
+        segment = self._segment
+        assert segment is not None
+        x = np.ascontiguousarray(x)
+        current = np.empty(2 * m)
+        pos = np.empty(2 * m)
+        vel = np.empty(2 * m)
+        for lo, hi, model in self._segments(first_instant, m):
+            # The models of a compiled PTC are ptc_model's: contiguous arrays.
+            segment(x, lo, hi, model.a_matrix, model.b_inv, model.ad, model.bd, current, pos, vel)
         return PtcOutput(current_A=current, position_rad=pos, velocity_rad_s=vel)
 
     def _segments(self, first: int, m: int) -> list[tuple[int, int, _Model]]:
