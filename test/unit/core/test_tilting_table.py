@@ -458,3 +458,15 @@ def test_outputs_are_plant_outputs_as_the_constructor_makes_them() -> None:
         assert list(vars(out)) == list(values)
         with pytest.raises(dataclasses.FrozenInstanceError):
             out.step = 0  # type: ignore[misc]
+
+
+def test_noise_drawn_in_blocks_is_the_draw_per_sample() -> None:
+    """The encoder noise (drawn NOISE_DRAWS at a time) is Generator.random() once per sample."""
+    from servo_axis.core.models.tilting_table import NOISE_DRAWS
+
+    params = TiltingTableParams(noise_rad=1e-5, initial_angle_rad=0.0)
+    outs = run(TiltingTablePlant(params, rng=np.random.default_rng(7)), np.zeros(3 * NOISE_DRAWS))
+    outs.insert(0, TiltingTablePlant(params, rng=np.random.default_rng(7)).output())
+    rng = np.random.default_rng(7)
+    expected = [-1e-5 + (1e-5 - -1e-5) * rng.random() for _ in range(len(outs))]
+    assert [o.encoder_rad for o in outs] == expected
