@@ -217,20 +217,28 @@ def conditional_rls_update(
 
 @_compiled
 def outer_window_add(
-    buffer: np.ndarray, total: np.ndarray, slot: int, v: np.ndarray, full: bool
-) -> None:
-    """One regressor into the PE window of 003 eq. (7), in place.
+    buffer: np.ndarray,
+    total: np.ndarray,
+    slot: int,
+    v: np.ndarray,
+    full: bool,
+    window: int,
+    kappa: bool,
+) -> float:
+    """One regressor into the PE window of 003 eq. (7), in place; ``kappa`` if asked.
 
     The arithmetic of :meth:`PeIndex.update_checked
-    <servo_axis.core.identification.pe.PeIndex.update_checked>` before its
-    recompute and eigenvalue, element by element as numpy does it::
+    <servo_axis.core.identification.pe.PeIndex.update_checked>` between its
+    recomputes, element by element as numpy does it::
 
         if full: total -= np.outer(buffer[slot], buffer[slot])
         buffer[slot] = v
         total += np.outer(v, v)
+        kappa = np.linalg.eigvalsh(total / window)[0]
 
-    (``np.outer(a, b)[i, j]`` is ``a[i] * b[j]``; ``-=`` and ``+=`` are
-    elementwise).
+    (``np.outer(a, b)[i, j]`` is ``a[i] * b[j]``; ``-=``, ``+=`` and ``/``
+    are elementwise; numba's ``eigvalsh`` calls LAPACK ``syevd`` on the lower
+    triangle as numpy's does).
 
     Parameters
     ----------
@@ -244,6 +252,16 @@ def outer_window_add(
         The regressor ``phi[k]``.
     full : bool
         Whether the window was full (the oldest is dropped from the sum).
+    window : int
+        ``W``.
+    kappa : bool
+        Return the smallest eigenvalue of ``total / W`` after the update
+        (else 0.0).
+
+    Returns
+    -------
+    float
+        ``kappa[k]`` when asked, else 0.0.
     """
     n = v.shape[0]
     if full:
@@ -255,3 +273,10 @@ def outer_window_add(
     for i in range(n):
         for j in range(n):
             total[i, j] = total[i, j] + v[i] * v[j]
+    if not kappa:
+        return 0.0
+    mean = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            mean[i, j] = total[i, j] / window
+    return float(np.linalg.eigvalsh(mean)[0])

@@ -98,14 +98,27 @@ class PeIndex:
 
     def update_checked(self, v: FloatArray) -> float:
         """:meth:`update` of a finite float64 ``phi`` of shape (n,) (no checks; not kept)."""
-        # total -= outer(oldest), buffer[slot] = v, total += outer(v, v): one compiled call.
-        self._add(self._buffer, self._sum, self._next, v, self.full)
-        self._next = (self._next + 1) % self.window
-        self.count += 1
-        if self.count % self.window == 0:
+        window = self.window
+        count = self.count + 1
+        recompute = count % window == 0
+        # total -= outer(oldest), buffer[slot] = v, total += outer(v, v) and,
+        # unless the sum is recomputed now, kappa: one compiled call.
+        kappa = self._add(
+            self._buffer,
+            self._sum,
+            self._next,
+            v,
+            self.full,
+            window,
+            count >= window and not recompute,
+        )
+        self._next = (self._next + 1) % window
+        self.count = count
+        if recompute:
             self._sum = self._buffer.T @ self._buffer
-        if self.full:
-            self._kappa = float(_eigvalsh(self._sum / self.window)[0])
+            self._kappa = float(_eigvalsh(self._sum / window)[0])
+        elif count >= window:
+            self._kappa = kappa
         return self._kappa
 
     def state(self) -> dict[str, Any]:
