@@ -256,9 +256,20 @@ def simulate_identification(scenario_path: Path, *, steps: int | None = None) ->
     next_samples, current_of, take = gen.samples, loop.current, sim.step
     kt_ff, kt_fb, kt_plant = drive.feedforward, drive.feedback, drive.plant
     update = identifier.update if identifier is not None else None
+    # The samples up to the next estimate's first step are given at once (what
+    # the feedforward node's preview does; the generator cuts its blocks the same
+    # way whatever is asked for, and nothing before that step uses the estimate).
+    ahead: list[tuple[float, float, float]] = []
+    ahead_start = ahead_end = 0
     y = sim.output()
     for k in range(n):
-        ((r, _, u_ff),) = next_samples(k, k + 1)
+        if k >= ahead_end:
+            waits = gen.next_estimate_step
+            ahead_start, ahead_end = k, n if waits is None else min(waits, n)
+            # (An estimate not set: sample k alone, which the generator refuses.)
+            ahead_end = max(ahead_end, k + 1)
+            ahead = next_samples(k, ahead_end)
+        r, _, u_ff = ahead[k - ahead_start]
         # _Drive.step written out: the same conversions, one call fewer a sample.
         tau_ff = u_ff * kt_ff
         tau = (
