@@ -252,7 +252,7 @@ def simulate_identification(scenario_path: Path, *, steps: int | None = None) ->
     record = samples.append
     angles: list[float] = []
     angle = angles.append
-    rows: list[list[float]] = []
+    rows: list[list[float | bool]] = []
     next_samples, current_of, take = gen.samples, loop.current, sim.step
     kt_ff, kt_fb, kt_plant = drive.feedforward, drive.feedback, drive.plant
     update = identifier.update if identifier is not None else None
@@ -295,8 +295,11 @@ def simulate_identification(scenario_path: Path, *, steps: int | None = None) ->
                     unbalance_Nm=e.U,
                     coulomb_Nm=e.C,
                 )
-                rows.append([e.step, applies, e.J, e.D, e.U, e.C, e.kappa, *map(float, e.updated)])
+                # The flags as bools: np.array makes the same 1.0 / 0.0 of them.
+                rows.append([e.step, applies, e.J, e.D, e.U, e.C, e.kappa, *e.updated])
         y = take(current)
     return IdentificationRun(
-        _trajectory(samples, n), np.array(rows).reshape(-1, 11), np.array(angles, dtype=float)
+        _trajectory(samples, n),
+        np.array(rows, dtype=float).reshape(-1, 11),
+        np.array(angles, dtype=float),
     )

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from itertools import pairwise
 
 import numpy as np
 from numpy.typing import NDArray
@@ -169,12 +168,18 @@ class NonlinearityCompensator:
         p = self.params
         k = np.asarray(block.step, dtype=np.int64)
         steps: list[int] = k.tolist() if k.ndim == 1 else []
-        r = p.ratio
-        if not steps or min(steps) < 0:
+        if not steps:
             return self._currents(k)
+        k0, n = steps[0], len(steps)
+        schedule = self._schedule
+        # Consecutive steps from the schedule's first on (what the generator
+        # gives); anything else, or its error, is _currents'.
+        if k0 < schedule[0][0] or steps != list(range(k0, k0 + n)):
+            return self._currents(k)
+        r = p.ratio
         # eq. (13)/(15): the interval's start for its first sample, its end after.
         at = [s if s % r == 0 else s - s % r + r for s in steps]
-        start, values = self._samples.kept(min(at), max(at))
+        start, values = self._samples.kept(at[0], at[-1])
         if values is not self._derived_of:
             # theta, sin(theta), omega and T_f(omega) / C as _currents forms them,
             # for the whole kept range (elementwise: the same numbers), as floats.
@@ -187,27 +192,23 @@ class NonlinearityCompensator:
                     omega_th_rad_s=p.omega_th_rad_s,
                 ).tolist()
             self._derived_of = values
-        schedule = self._schedule
-        if steps[0] < schedule[0][0] or any(b <= a for a, b in pairwise(steps)):
-            return self._currents(k)  # not increasing, or before the schedule: its error
-        # The U, C in force at each step (the entry parameters_at finds, walked
-        # forwards), then _currents' operations on floats, in its order:
-        # (U sin(theta) + T_f(omega) / C * C) / K_T.
-        n = 0
-        while n + 1 < len(schedule) and schedule[n + 1][0] <= steps[0]:
-            n += 1
-        _, u, c = schedule[n]
-        until = schedule[n + 1][0] if n + 1 < len(schedule) else None
+        # Per entry of the schedule in force over the block (the one
+        # parameters_at finds for each step), _currents' operations on floats,
+        # in its order: (U sin(theta) + T_f(omega) / C * C) / K_T.
         kt = p.torque_constant_Nm_per_A
-        sin, shape, friction = self._sin, self._shape, p.friction
-        out = []
-        for step, a in zip(steps, at, strict=True):
-            while until is not None and step >= until:
-                n += 1
-                _, u, c = schedule[n]
-                until = schedule[n + 1][0] if n + 1 < len(schedule) else None
-            i = a - start
-            out.append((u * sin[i] + shape[i] * c) / kt if friction else u * sin[i] / kt)
+        sin, shape = self._sin, self._shape
+        out: list[float] = []
+        end = k0 + n
+        for m, (from_step, u, c) in enumerate(schedule):
+            until = schedule[m + 1][0] if m + 1 < len(schedule) else end
+            lo, hi = max(from_step, k0) - k0, min(until, end) - k0
+            if lo >= hi:
+                continue
+            rows = [a - start for a in at[lo:hi]]
+            if p.friction:
+                out += [(u * sin[i] + shape[i] * c) / kt for i in rows]
+            else:
+                out += [u * sin[i] / kt for i in rows]
         return np.array(out, dtype=float)
 
     def _currents(self, k: NDArray[np.int64]) -> FloatArray:
