@@ -408,7 +408,10 @@ class FeedforwardGenerator:
                     self._block_start, self._block_end(self._block_start)
                 )
                 self._rows = [(r0, r1, r2) for r0, r1, r2 in self._block.tolist()]
-            result.append(self._rows[k - self._block_start])
-            k += 1
+            # The rows of this block up to stop, as one slice.
+            first = self._block_start
+            end = min(stop, first + len(self._block))
+            result += self._rows[k - first : end - first]
+            k = end
         self._next = stop
         return result
