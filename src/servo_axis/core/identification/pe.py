@@ -58,6 +58,11 @@ class PeIndex:
 
         self._add = outer_window_add
         self.reset()
+        # Load the compiled step now (from numba's disk cache), not at the first
+        # RLS step after the identifier's warm-up (a stall in a realtime node).
+        outer_window_add(
+            np.zeros((window, n)), np.zeros((n, n)), 0, np.zeros(n), False, window, True
+        )
 
     def reset(self) -> None:
         """Empty the window."""
