@@ -328,9 +328,15 @@ class FeedforwardGenerator:
         ratio = self._grid.ratio
         if self._grid_samples is not None:
             p_r, v_r, _ = self._grid_samples.range(k0, k1 + 1, ratio)
+            # np.column_stack((p_r, v_r)) / R for two 1-d arrays of one length
+            # (what range gives), without its generality: the same division.
+            x_d = np.empty((len(p_r), 2))
+            x_d[:, 0] = p_r
+            x_d[:, 1] = v_r
+            x_d /= self._lead
         else:
             p_r, v_r, _ = self._reference.sample(np.arange(k0, k1 + 1, ratio) * self._tu)
-        x_d = np.column_stack((p_r, v_r)) / self._lead
+            x_d = np.column_stack((p_r, v_r)) / self._lead
         if self._cycle_steps is not None and self._side == "target":
             nd = self._cycle_steps // self._grid.ratio
             for row in range(len(x_d)):
