@@ -70,16 +70,21 @@ class _Drive:
     def step(
         self, loop: FeedbackLoop, y: PlantOutput, r: float, u_ff: float
     ) -> tuple[float, float, float]:
-        """``(feedforward torque, command torque, plant current)`` of one sample, as on the wire."""
-        tau_ff = torque_from_current(u_ff, torque_constant_Nm_per_A=self.feedforward)
-        u = loop.step(
+        """``(feedforward torque, command torque, plant current)`` of one sample, as on the wire.
+
+        The conversions of :mod:`servo_axis.core.drive` written out (the same
+        multiplication and division each), and the loop's
+        :meth:`~servo_axis.core.feedback.loop.FeedbackLoop.current`: this runs every sample.
+        """
+        tau_ff = u_ff * self.feedforward  # torque_from_current
+        u = loop.current(
             encoder_rad=y.encoder_rad,
             scale_m=y.scale_m,
             reference_rad=r,
-            feedforward_A=current_from_torque(tau_ff, torque_constant_Nm_per_A=self.feedback),
-        ).current_A
-        tau = torque_from_current(u, torque_constant_Nm_per_A=self.feedback)
-        return tau_ff, tau, current_from_torque(tau, torque_constant_Nm_per_A=self.plant)
+            feedforward_A=tau_ff / self.feedback,  # current_from_torque
+        )
+        tau = u * self.feedback
+        return tau_ff, tau, tau / self.plant
 
 
 def simulate(scenario_path: Path, *, steps: int | None = None) -> Trajectory:
@@ -94,13 +99,22 @@ def simulate(scenario_path: Path, *, steps: int | None = None) -> Trajectory:
     gen = factories.build_generator(ffv)
     drive = _Drive.of(ffv, fbv, pv)
     refs = gen.samples(0, n)
-    out = np.empty((n, 5))
+    # Rows kept as tuples, made an array at the end (the same floats).
+    rows: list[tuple[float, float, float, float, float]] = []
+    record = rows.append
+    step = drive.step
     y = sim.output()
     for k in range(n):
         r, _, u_ff = refs[k]
-        tau_ff, tau, current = drive.step(loop, y, r, u_ff)
-        out[k] = (y.encoder_rad, y.scale_m, r, tau_ff, tau)
+        tau_ff, tau, current = step(loop, y, r, u_ff)
+        record((y.encoder_rad, y.scale_m, r, tau_ff, tau))
         y = sim.step(current)
+    return _trajectory(rows, n)
+
+
+def _trajectory(rows: list[tuple[float, float, float, float, float]], n: int) -> Trajectory:
+    """The :class:`Trajectory` of ``n`` rows ``(encoder, scale, r, tau_ff, tau)``."""
+    out = np.array(rows, dtype=float).reshape(n, 5)
     return Trajectory(*(out[:, i].copy() for i in range(5)))
 
 
@@ -234,17 +248,44 @@ def simulate_identification(scenario_path: Path, *, steps: int | None = None) ->
     loop = factories.build_loop(fbv)
     gen = factories.build_generator(ffv)
     drive = _Drive.of(ffv, fbv, pv)
-    out = np.empty((n, 5))
-    angle_true = np.empty(n)
-    rows: list[list[float]] = []
+    samples: list[tuple[float, float, float, float, float]] = []
+    record = samples.append
+    angles: list[float] = []
+    angle = angles.append
+    rows: list[list[float | bool]] = []
+    next_samples, current_of, take = gen.samples, loop.current, sim.step
+    kt_ff, kt_fb, kt_plant = drive.feedforward, drive.feedback, drive.plant
+    update = identifier.update if identifier is not None else None
+    # The samples up to the next estimate's first step are given at once (what
+    # the feedforward node's preview does; the generator cuts its blocks the same
+    # way whatever is asked for, and nothing before that step uses the estimate).
+    ahead: list[tuple[float, float, float]] = []
+    ahead_start = ahead_end = 0
     y = sim.output()
     for k in range(n):
-        ((r, _, u_ff),) = gen.samples(k, k + 1)
-        tau_ff, tau, current = drive.step(loop, y, r, u_ff)
-        out[k] = (y.encoder_rad, y.scale_m, r, tau_ff, tau)
-        angle_true[k] = y.angle_rad
-        if identifier is not None:
-            e = identifier.update(k, y.encoder_rad, tau)
+        if k >= ahead_end:
+            waits = gen.next_estimate_step
+            ahead_start, ahead_end = k, n if waits is None else min(waits, n)
+            # (An estimate not set: sample k alone, which the generator refuses.)
+            ahead_end = max(ahead_end, k + 1)
+            ahead = next_samples(k, ahead_end)
+        r, _, u_ff = ahead[k - ahead_start]
+        # _Drive.step written out: the same conversions, one call fewer a sample.
+        tau_ff = u_ff * kt_ff
+        tau = (
+            current_of(
+                encoder_rad=y.encoder_rad,
+                scale_m=y.scale_m,
+                reference_rad=r,
+                feedforward_A=tau_ff / kt_fb,
+            )
+            * kt_fb
+        )
+        current = tau / kt_plant
+        record((y.encoder_rad, y.scale_m, r, tau_ff, tau))
+        angle(y.angle_rad)
+        if update is not None:
+            e = update(k, y.encoder_rad, tau)
             if e is not None and e.step + 1 + latency < n:
                 applies = e.step + 1 + latency
                 gen.set_estimate(
@@ -254,10 +295,11 @@ def simulate_identification(scenario_path: Path, *, steps: int | None = None) ->
                     unbalance_Nm=e.U,
                     coulomb_Nm=e.C,
                 )
-                rows.append([e.step, applies, e.J, e.D, e.U, e.C, e.kappa, *map(float, e.updated)])
-        y = sim.step(current)
+                # The flags as bools: np.array makes the same 1.0 / 0.0 of them.
+                rows.append([e.step, applies, e.J, e.D, e.U, e.C, e.kappa, *e.updated])
+        y = take(current)
     return IdentificationRun(
-        Trajectory(*(out[:, i].copy() for i in range(5))),
-        np.array(rows).reshape(-1, 11),
-        angle_true,
+        _trajectory(samples, n),
+        np.array(rows, dtype=float).reshape(-1, 11),
+        np.array(angles, dtype=float),
     )

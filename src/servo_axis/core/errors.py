@@ -7,6 +7,8 @@ expected.
 
 from __future__ import annotations
 
+from math import isfinite as _isfinite  # at the top: the checks run per online estimate
+
 
 class ServoAxisError(ValueError):
     """Base class of every error servo_axis raises on bad input."""
@@ -30,10 +32,8 @@ class TableError(ServoAxisError):
 
 def require_finite(name: str, value: float) -> float:
     """Return ``value`` as float, or raise :class:`ConfigError` naming ``name``."""
-    import math
-
     v = float(value)
-    if not math.isfinite(v):
+    if not _isfinite(v):
         raise ConfigError(f"{name}: expected a finite number, got {value!r}")
     return v
 

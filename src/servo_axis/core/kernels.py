@@ -1,4 +1,4 @@
-"""Compiled kernels of the plants' sub-step loops (numba).
+"""Compiled kernels of the plants' sub-step loops, the adaptive PTC and the GMS model (numba).
 
 The plants advance one control period per call, and within it tens to a
 hundred integration sub-steps with friction; in plain Python those loops
@@ -12,14 +12,26 @@ Python loops it replaced (every shipped scenario's plain-call loop was
 compared), and ``test/unit/core/test_kernels.py`` checks each plant compiled
 against the same code interpreted (``NUMBA_DISABLE_JIT=1``).
 
+The adaptive PTC of paper 003 (eq. (11): a new model per online estimate, a
+short feedforward block per estimate) has its small matrix work here too
+(:func:`ptc_model`, :func:`ptc_segment`): there the products of matrices
+are ``np.dot``, which numba hands to BLAS ``gemm``/``gemv`` as numpy's
+``@`` does, on the same operands (the tests compare them with the numpy
+formulation as well as interpreted). The GMS friction model of the
+feedforward (004, :class:`~servo_axis.core.friction.gms.GmsModel`) steps a
+block of samples in one call (:func:`gms_block`), its element sum by
+:func:`exact_sum`, CPython's ``math.fsum`` ported step for step.
+
 Compiled code is cached on disk: ``$NUMBA_CACHE_DIR`` if set, else
 ``__pycache__`` beside this file when that is writable (a source checkout),
 else the user's cache directory (``~/.cache/numba``), so an installed
 package compiles once per user. A process that finds the cache imports
 numba and loads the kernels in about 0.2 s; compiling them takes about
 0.5 s per plant model. This module is imported by the plants' constructors
-(and ``MaxwellSlip.move``) only, so a node that builds no plant never
-imports numba.
+(and ``MaxwellSlip.move``), by a compiled ``MultiratePtc``'s (the
+feedforward generator builds one when it takes online estimates) and by a
+compiled ``GmsModel``'s (the GMS feedforward term's) only, so a node that
+builds no plant, no adaptive feedforward and no GMS term never imports numba.
 
 Everything here works on float64 scalars and contiguous float64 arrays; the
 callers own the arrays (element deflections are updated in place).
@@ -624,3 +636,251 @@ def tilting_friction_period(
             if tau <= 0.0:
                 break
     return th, v
+
+
+# --------------------------------------------------------------------- adaptive PTC
+
+
+@_compiled
+def ptc_segment(
+    x: np.ndarray,
+    lo: int,
+    hi: int,
+    a_matrix: np.ndarray,
+    b_inv: np.ndarray,
+    ad: np.ndarray,
+    bd: np.ndarray,
+    current: np.ndarray,
+    position: np.ndarray,
+    velocity: np.ndarray,
+) -> None:
+    """The multirate PTC (000 Fig. 5, 003 eq. (11)) over rows ``lo .. hi - 1`` of one model.
+
+    The arithmetic of :meth:`MultiratePtc.feedforward
+    <servo_axis.core.feedforward.ptc.MultiratePtc.feedforward>` for one
+    segment, step for step: with ``x0 = x[lo:hi]``, ``x1 = x[lo + 1:hi + 1]``
+
+        u   = (x1 - x0 @ A^T) @ (B^-1)^T
+        mid = x0 @ A_d^T + u[:, 0:1] * B_d
+
+    where the three products are ``np.dot`` of contiguous copies of the
+    same rows and the model's matrices transposed (BLAS ``gemm``, as numpy's
+    ``@`` calls it: the same numbers, which
+    ``test/unit/core/test_kernels.py`` checks against numpy and interpreted),
+    and the rest element by element. The adaptive feedforward computes one
+    short block per online estimate, often with two models; this is one call
+    for what was a dozen numpy calls.
+
+    Parameters
+    ----------
+    x : ndarray, shape (M+1, 2)
+        The targets ``x_d`` of the block (rad, rad/s).
+    lo, hi : int
+        The rows (reference intervals) of this model, ``0 <= lo < hi <= M``.
+    a_matrix, b_inv, ad : ndarray, shape (2, 2)
+        ``A = A_d^2``, ``B^-1`` and ``A_d`` of the model (C order).
+    bd : ndarray, shape (2,)
+        ``B_d``.
+    current, position, velocity : ndarray, shape (2M,)
+        The block's feedforward (A) and nominal angle (rad) and velocity
+        (rad/s) per control sample; samples ``2 lo .. 2 hi - 1`` are written.
+    """
+    n = hi - lo
+    x0 = np.empty((n, 2))
+    x1 = np.empty((n, 2))
+    for i in range(n):
+        for j in range(2):
+            x0[i, j] = x[lo + i, j]
+            x1[i, j] = x[lo + i + 1, j]
+    p = np.dot(x0, a_matrix.T)
+    for i in range(n):
+        for j in range(2):
+            x1[i, j] = x1[i, j] - p[i, j]
+    u = np.dot(x1, b_inv.T)
+    q = np.dot(x0, ad.T)
+    for i in range(n):
+        k = 2 * (lo + i)
+        current[k] = u[i, 0]
+        current[k + 1] = u[i, 1]
+        position[k] = x[lo + i, 0]
+        velocity[k] = x[lo + i, 1]
+        position[k + 1] = q[i, 0] + u[i, 0] * bd[0]
+        velocity[k + 1] = q[i, 1] + u[i, 0] * bd[1]
+
+
+@_compiled
+def ptc_model(e: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``A_d``, ``B_d``, ``A = A_d^2`` and ``B = [A_d B_d, B_d]`` from ``expm`` of the augmented matrix.
+
+    What :func:`~servo_axis.core.feedforward.ptc._discretise` computes from
+    ``e = expm([[A_c, B_c], [0, 0]] T_u)`` (3 x 3) before the inverse, step
+    for step: ``A_d = e[:2, :2]``, ``B_d = e[:2, 2]`` (copied: contiguous),
+    and the products ``A_d @ B_d`` and ``A_d @ A_d`` as ``np.dot`` (BLAS, as
+    numpy's ``@``). One call per online estimate (003 eq. (11)).
+
+    Parameters
+    ----------
+    e : ndarray, shape (3, 3)
+        The matrix exponential.
+
+    Returns
+    -------
+    ad, bd, a_matrix, b_matrix : ndarray
+        Shapes (2, 2), (2,), (2, 2), (2, 2), C order.
+    """
+    ad = np.empty((2, 2))
+    bd = np.empty(2)
+    for i in range(2):
+        for j in range(2):
+            ad[i, j] = e[i, j]
+        bd[i] = e[i, 2]
+    adbd = np.dot(ad, bd)
+    b_matrix = np.empty((2, 2))
+    for i in range(2):
+        b_matrix[i, 0] = adbd[i]
+        b_matrix[i, 1] = bd[i]
+    return ad, bd, np.dot(ad, ad), b_matrix
+
+
+# --------------------------------------------------------------------- GMS model
+
+
+@_compiled
+def exact_sum(values: np.ndarray, partials: np.ndarray) -> float:
+    """``math.fsum(values)`` of finite values: CPython's algorithm, step for step.
+
+    Shewchuk's exact partials, then the correctly rounded sum of them with
+    CPython's half-even correction (``Modules/mathmodule.c``, ``math_fsum``)
+    for finite inputs whose partial sums do not overflow (the caller checks
+    the result is finite, else takes ``math.fsum``). ``partials`` is work
+    space of at least ``len(values)`` elements.
+    """
+    n = 0
+    for idx in range(values.shape[0]):
+        x = values[idx]
+        i = 0
+        for j in range(n):
+            y = partials[j]
+            if abs(x) < abs(y):
+                t = x
+                x = y
+                y = t
+            hi = x + y
+            lo = y - (hi - x)
+            if lo != 0.0:
+                partials[i] = lo
+                i += 1
+            x = hi
+        n = i
+        if x != 0.0:
+            partials[n] = x
+            n += 1
+    hi = 0.0
+    if n > 0:
+        n -= 1
+        hi = partials[n]
+        lo = 0.0
+        while n > 0:
+            x = hi
+            n -= 1
+            y = partials[n]
+            hi = x + y
+            yr = hi - x
+            lo = y - yr
+            if lo != 0.0:
+                break
+        if n > 0 and ((lo < 0.0 and partials[n - 1] < 0.0) or (lo > 0.0 and partials[n - 1] > 0.0)):
+            y = lo * 2.0
+            x = hi + y
+            yr = x - hi
+            if y == yr:
+                hi = x
+    return float(hi)
+
+
+@_compiled
+def gms_block(
+    stiffness: np.ndarray,
+    weights: np.ndarray,
+    force: np.ndarray,
+    slipping: np.ndarray,
+    state: np.ndarray,
+    positions: np.ndarray,
+    velocities: np.ndarray,
+    periods: np.ndarray,
+    out: np.ndarray,
+    partials: np.ndarray,
+) -> None:
+    """:meth:`GmsModel.update <servo_axis.core.friction.gms.GmsModel.update>` of each sample in turn.
+
+    The same steps in the same order (see that method and its class), on
+    finite arguments with ``periods > 0`` (the caller checks them), the
+    element sum by :func:`exact_sum` (``math.fsum``); ``math.exp`` and
+    ``**`` go to the C library's ``exp`` and ``pow`` as Python's do.
+
+    Parameters
+    ----------
+    stiffness, weights : ndarray, shape (N,)
+        ``k_i`` and ``alpha_i``.
+    force : ndarray, shape (N,)
+        The element forces ``F_i``, updated in place.
+    slipping : ndarray of bool, shape (N,)
+        Whether each element slips, updated in place.
+    state : ndarray, shape (10,)
+        ``[has a last position (0/1), last position, last sign, F_c, F_s,
+        v_s, delta, C, sigma_2, Stribeck (0/1)]``; the first three updated.
+    positions, velocities, periods : ndarray, shape (M,)
+        The samples' arguments.
+    out : ndarray, shape (M,)
+        The torques, N m.
+    partials : ndarray, shape (>= N,)
+        Work space of :func:`exact_sum`.
+    """
+    has_last = state[0] != 0.0
+    last = state[1]
+    previous_sign = int(state[2])
+    fc = state[3]
+    fs = state[4]
+    vs = state[5]
+    delta = state[6]
+    attraction = state[7]
+    sigma2 = state[8]
+    stribeck = state[9] != 0.0
+    n = stiffness.shape[0]
+    for j in range(positions.shape[0]):
+        position = positions[j]
+        v = velocities[j]
+        sign = 1 if v > 0.0 else (-1 if v < 0.0 else 0)
+        if sign != previous_sign or sign == 0:
+            for i in range(n):
+                slipping[i] = False
+        previous_sign = sign
+        if not has_last:
+            has_last = True
+            last = position
+            out[j] = exact_sum(force, partials) + sigma2 * v
+            continue
+        dx = position - last
+        last = position
+        s = fc
+        if stribeck:
+            s += (fs - fc) * math.exp(-(abs(v / vs) ** delta))
+        decay = math.exp(-attraction * periods[j])
+        for i in range(n):
+            level = weights[i] * s
+            if slipping[i]:
+                target = sign * level
+                force[i] = target + (force[i] - target) * decay
+            else:
+                f = force[i] + stiffness[i] * dx
+                if f >= level:
+                    f = level
+                    slipping[i] = sign > 0
+                elif f <= -level:
+                    f = -level
+                    slipping[i] = sign < 0
+                force[i] = f
+        out[j] = exact_sum(force, partials) + sigma2 * v
+    state[0] = 1.0 if has_last else 0.0
+    state[1] = last
+    state[2] = previous_sign

@@ -452,6 +452,16 @@ class GridSamples:
         t = np.arange(lo, hi) * self._period
         return np.vstack([np.broadcast_to(a, t.shape) for a in self.reference.sample(t)])
 
+    def kept(self, first: int, last: int) -> tuple[int, NDArray[np.float64]]:
+        """``(start, values)``: the kept samples, covering steps ``first .. last`` (``0 <= first``).
+
+        ``values[:, k - start]`` is position, velocity and acceleration at
+        step ``k``; the array is replaced, never changed, when other chunks
+        are computed (a caller may key what it derives from it on its identity).
+        """
+        self._cover(first, last)
+        return self._start, self._values
+
     def steps(self, k: NDArray[np.int64]) -> Arrays:
         """Position, velocity and acceleration at the grid steps ``k`` (fresh arrays)."""
         k = np.asarray(k, dtype=np.int64)

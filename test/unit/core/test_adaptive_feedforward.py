@@ -160,3 +160,42 @@ def test_adaptive_ptc_with_the_true_model_tracks_at_the_reference_instants() -> 
     e2 = np.max(run_open_loop(unbalance=U, period_s=TU / 2))
     assert 0.0 < e1 < 1e-4
     assert 2.5 < e1 / e2 < 8.0, (e1, e2)
+
+
+@pytest.mark.parametrize("friction", [True, False])
+def test_mnc_per_chunk_values_equal_the_per_block_formulation(friction: bool) -> None:
+    """``currents`` (sin and T_f kept per chunk, one U, C a block) = ``_currents`` bit for bit."""
+    ref = SineReference(amplitude_m=0.6, frequency_hz=1.3, offset_m=0.1, phase_rad=0.4)
+    params = MncParams(friction=friction, ratio=2, control_period_s=4e-4, lead_m_per_rad=1.0)
+    fast = NonlinearityCompensator(params, reference=ref)
+    plain = NonlinearityCompensator(params, reference=ref)
+    rng = np.random.default_rng(2)
+    k0 = 0
+    while k0 < 9000:  # across GridSamples' chunks
+        n = int(rng.integers(1, 40))
+        k = np.arange(k0, k0 + n)
+        z = np.zeros(n)
+        block = ReferenceBlock(step=k, position_m=z, velocity_m_s=z, acceleration_m_s2=z)
+        got, expected = fast.currents(block), plain._currents(k)
+        assert got.dtype == expected.dtype and got.tobytes() == expected.tobytes()
+        # Estimates from inside the next block (U, C change within it) or at its start.
+        step = max(
+            k0 + n + int(rng.integers(0, 2) * rng.integers(1, 30)), fast._schedule[-1][0] + 1
+        )
+        u, c = float(rng.random()), float(rng.random())
+        for term in (fast, plain):
+            term.set_parameters(from_step=step, unbalance_Nm=u, coulomb_Nm=c)
+            term.forget_before(k0 + n)
+        k0 += n
+
+
+def test_ptc_inverse_is_numpys() -> None:
+    """The PTC's direct inverse gufunc call equals np.linalg.inv, singular matrices included."""
+    from servo_axis.core.feedforward.ptc import _inv2
+
+    rng = np.random.default_rng(4)
+    for _ in range(2000):
+        b = rng.standard_normal((2, 2)) * 10.0 ** rng.integers(-8, 3)
+        assert _inv2(b).tobytes() == np.linalg.inv(b).tobytes()
+    with pytest.raises(np.linalg.LinAlgError):
+        _inv2(np.zeros((2, 2)))

@@ -400,3 +400,30 @@ def test_rls_params_refused_by_name(change: dict[str, object], match: str) -> No
     base.update(change)
     with pytest.raises(ConfigError, match=match):
         RlsParams(**base)
+
+
+def test_estimates_are_estimates_as_the_constructor_makes_them() -> None:
+    """Dlpid.estimate builds Estimate without its __init__: equal, fields in order, frozen."""
+    import dataclasses
+
+    rls = RlsParams(
+        initial=(20e-4, 100e-4, 0.1),
+        lower=(1e-5, 0.0, 0.0),
+        upper=(1.0, 1.0, 10.0),
+        forgetting=(0.999, 0.999, 0.995),
+        initial_covariance=1e3,
+        names=("J", "D", "U"),
+    )
+    ident = Dlpid(DlpidParams(rls=rls))
+    seen = 0
+    for k in range(2000):
+        t = k * 4e-4
+        e = ident.update(k, 0.5 * math.sin(3 * t) + 0.3, 0.2 * math.cos(3 * t))
+        if e is None:
+            continue
+        seen += 1
+        values = {f.name: getattr(e, f.name) for f in dataclasses.fields(Estimate)}
+        assert e == Estimate(**values) and list(vars(e)) == list(values)
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            e.J = 0.0  # type: ignore[misc]
+    assert seen == 200

@@ -64,6 +64,13 @@ for k in range(2000):
     r.update(phi, float(phi @ (3e-3, 2e-2, 0.4)) + 1e-3 * rng.standard_normal(), rng.random(3) < 0.7)
     rows.append([x.hex() for x in [*r.theta, *r.covariance.ravel()]])
 out["rls"] = rows
+from servo_axis.core.identification.pe import PeIndex
+pe = PeIndex(3, 7)
+rows = []
+for k in range(300):
+    kappa = pe.update(rng.standard_normal(3) * (1.0, 3.0, 0.5))
+    rows.append([x.hex() for x in [kappa, *pe._sum.ravel()]])
+out["pe"] = rows
 print(json.dumps(out))
 """
 
@@ -171,3 +178,28 @@ def test_dlpid_state_round_trip_after_the_kernels() -> None:
         eb = b.update(k, 0.4 * math.sin(k * 0.01), 0.1 * math.cos(k * 0.01))
         assert ea == eb
     np.testing.assert_array_equal(a.rls.covariance, b.rls.covariance)
+
+
+def test_the_pe_kernel_is_the_numpy_update() -> None:
+    """PeIndex with its compiled running sum and direct eigvalsh = the numpy formulation."""
+    from servo_axis.core.identification.pe import PeIndex
+
+    window, n = 7, 3
+    pe = PeIndex(n, window)
+    buffer, total, slot, count = np.zeros((window, n)), np.zeros((n, n)), 0, 0
+    rng = np.random.default_rng(11)
+    for _ in range(500):
+        v = rng.standard_normal(n) * (1.0, 3.0, 0.5)
+        kappa = pe.update(v)
+        # What update_checked was: np.outer, elementwise -= / +=, np.linalg.eigvalsh.
+        old = buffer[slot]
+        if count >= window:
+            total -= np.outer(old, old)
+        buffer[slot] = v
+        total += np.outer(v, v)
+        slot, count = (slot + 1) % window, count + 1
+        if count % window == 0:
+            total = buffer.T @ buffer
+        expected = float(np.linalg.eigvalsh(total / window)[0]) if count >= window else 0.0
+        assert kappa.hex() == expected.hex()
+        assert pe._sum.tobytes() == total.tobytes() and pe._buffer.tobytes() == buffer.tobytes()

@@ -214,3 +214,45 @@ def test_the_sample_grid() -> None:
         g.steps(float("nan"))
     with pytest.raises(ConfigError, match="ratio"):
         SampleGrid(control_period_s=1e-3, ratio=0)
+
+
+@pytest.mark.parametrize("with_dob", [False, True])
+@pytest.mark.parametrize(
+    "sensors", [("encoder", "encoder"), ("scale", "encoder"), ("scale", "scale")]
+)
+def test_fused_filters_equal_the_filter_objects_bit_for_bit(
+    with_dob: bool, sensors: tuple[str, str]
+) -> None:
+    """The loop's inlined PID/DOB update (and ``current``) give the objects' floats and state."""
+    from servo_axis.core.feedback.dob import DisturbanceObserver
+
+    def build() -> FeedbackLoop:
+        gains = design_pid_pole_placement(bandwidth_hz=40.0, **NOMINAL)
+        dob = DisturbanceObserver(**NOMINAL, cutoff_hz=80.0, period_s=1e-3) if with_dob else None
+        return FeedbackLoop(
+            pid=DiscretePid(gains=gains, period_s=1e-3),
+            dob=dob,
+            lead_m_per_rad=R,
+            limits=SafetyLimits(current_A=40.0),
+            sensor=sensors[0],
+            dob_sensor=sensors[1],
+        )
+
+    fused, plain, fast = build(), build(), build()
+    assert fused._fused is not None
+    plain._fused = None  # the objects' own update
+    rng = np.random.default_rng(3)
+    for k in range(3000):
+        enc, scale = rng.normal(0.0, 1e-2), rng.normal(0.0, 2e-5)
+        r, ff = rng.normal(0.0, 1e-2), rng.normal(0.0, 1.0) * (10.0 if k > 2900 else 1.0)
+        if k == 1000:
+            for loop in (fused, plain, fast):
+                loop._pid.reset()
+                if loop._dob is not None:
+                    loop._dob.reset()
+        kwargs = {"encoder_rad": enc, "scale_m": scale, "reference_rad": r, "feedforward_A": ff}
+        a, b = fused.step(**kwargs), plain.step(**kwargs)
+        c = fast.current(**kwargs)
+        assert a == b and np.float64(a.current_A).tobytes() == np.float64(c).tobytes()
+        assert fused._pid.filter.state == plain._pid.filter.state == fast._pid.filter.state
+    assert fused.fault == plain.fault == fast.fault

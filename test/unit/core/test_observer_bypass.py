@@ -84,3 +84,17 @@ def test_outside_observer_sums_its_terms_then_bypasses() -> None:
 def test_bypass_refuses_a_cutoff_at_nyquist() -> None:
     with pytest.raises(ConfigError, match="cutoff_hz: expected below the Nyquist"):
         ObserverBypass(cutoff_hz=1000.0, period_s=TU)
+
+
+def test_update_many_is_update_sample_by_sample() -> None:
+    """The block form (its first-order low-pass written out) gives update's floats and state."""
+    rng = np.random.default_rng(8)
+    many = ObserverBypass(cutoff_hz=80.0, period_s=5e-4)
+    one = ObserverBypass(cutoff_hz=80.0, period_s=5e-4)
+    for n in (1, 7, 256, 0, 33):
+        values = (rng.standard_normal(n) * 10.0 ** rng.integers(-6, 2)).tolist()
+        got = many.update_many(values)
+        expected = [one.update(c) for c in values]
+        assert [v.hex() for v in got] == [v.hex() for v in expected]
+        assert many._lpf.state == one._lpf.state
+        assert many._filtered_previous == one._filtered_previous

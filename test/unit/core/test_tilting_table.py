@@ -445,3 +445,28 @@ def test_bad_inputs_are_refused() -> None:
     with pytest.raises(SignalError, match="current_A"):
         plant.step(float("nan"))
     assert plant.step_index == 0
+
+
+def test_outputs_are_plant_outputs_as_the_constructor_makes_them() -> None:
+    """The per-sample outputs (base.plant_output) equal the dataclass's own, field for field."""
+    import dataclasses
+
+    plant = TiltingTablePlant(TiltingTableParams(), rng=np.random.default_rng(0))
+    for out in [plant.output(), *run(plant, np.linspace(-2.0, 2.0, 50))]:
+        values = {f.name: getattr(out, f.name) for f in dataclasses.fields(PlantOutput)}
+        assert out == PlantOutput(**values)
+        assert list(vars(out)) == list(values)
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            out.step = 0  # type: ignore[misc]
+
+
+def test_noise_drawn_in_blocks_is_the_draw_per_sample() -> None:
+    """The encoder noise (drawn NOISE_DRAWS at a time) is Generator.random() once per sample."""
+    from servo_axis.core.models.tilting_table import NOISE_DRAWS
+
+    params = TiltingTableParams(noise_rad=1e-5, initial_angle_rad=0.0)
+    outs = run(TiltingTablePlant(params, rng=np.random.default_rng(7)), np.zeros(3 * NOISE_DRAWS))
+    outs.insert(0, TiltingTablePlant(params, rng=np.random.default_rng(7)).output())
+    rng = np.random.default_rng(7)
+    expected = [-1e-5 + (1e-5 - -1e-5) * rng.random() for _ in range(len(outs))]
+    assert [o.encoder_rad for o in outs] == expected

@@ -35,7 +35,9 @@ class DiscreteFilter:
 
     def reset(self) -> None:
         """Zero the internal state."""
-        self._z = [0.0] * len(self._z)
+        # In place (here and in set_state, settle): the feedback loop's fused
+        # update (FeedbackLoop) holds the list itself.
+        self._z[:] = [0.0] * len(self._z)
 
     @property
     def state(self) -> list[float]:
@@ -46,15 +48,20 @@ class DiscreteFilter:
         """Restore a :attr:`state` (ConfigError on a wrong length)."""
         if len(z) != len(self._z):
             raise ConfigError(f"z: expected {len(self._z)} values, got {len(z)}")
-        self._z = [float(v) for v in z]
+        self._z[:] = [float(v) for v in z]
 
     def settle(self, x: float) -> None:
         """Set the state to the steady state for the input ``x`` held forever (DC gain b(1)/a(1))."""
         y = x * sum(self.b) / sum(self.a)
         n = len(self._z)
-        self._z = [
+        self._z[:] = [
             math.fsum(self.b[j] * x - self.a[j] * y for j in range(i + 1, n + 1)) for i in range(n)
         ]
+
+    @property
+    def order(self) -> int:
+        """The filter's order (the length of its state)."""
+        return len(self._z)
 
     def update(self, x: float) -> float:
         """Filter one sample."""

@@ -107,3 +107,28 @@ class ObserverBypass:
         out = current_A - self._filtered_previous
         self._filtered_previous = self._lpf.update(current_A)
         return out
+
+    def update_many(self, currents_A: list[float]) -> list[float]:
+        """:meth:`update` of each of ``currents_A`` in turn (A), the list of results.
+
+        The low-pass is first order (:func:`observer_lowpass`), so its update
+        (``DiscreteFilter.update`` of order 1) is written out here, the same
+        operations in the same order on its own state: a feedforward block
+        (hundreds of samples) in one call. The same floats as :meth:`update`
+        (``test_observer_bypass`` compares them).
+        """
+        lpf = self._lpf
+        if lpf.order != 1:  # pragma: no cover - observer_lowpass is first order
+            return [self.update(c) for c in currents_A]
+        (b0, b1), (_, a1) = lpf.b, lpf.a
+        z = lpf._z
+        z0 = z[0]
+        previous = self._filtered_previous
+        out = []
+        for c in currents_A:
+            out.append(c - previous)
+            previous = b0 * c + z0
+            z0 = b1 * c - a1 * previous + 0.0
+        z[0] = z0
+        self._filtered_previous = previous
+        return out

@@ -92,7 +92,13 @@ class FeedforwardGenerator:
         self._lead = require_positive("lead_m_per_rad", lead_m_per_rad)
         self._kt = nominal.torque_constant_Nm_per_A
         self.ptc = (
-            MultiratePtc(**nominal.as_kwargs(), control_period_s=self._tu, ratio=grid.ratio)
+            MultiratePtc(
+                **nominal.as_kwargs(),
+                control_period_s=self._tu,
+                ratio=grid.ratio,
+                # A short block per online estimate: the compiled PTC (the same numbers).
+                compiled=estimate_period_steps is not None,
+            )
             if ptc_enabled
             else None
         )
@@ -322,9 +328,15 @@ class FeedforwardGenerator:
         ratio = self._grid.ratio
         if self._grid_samples is not None:
             p_r, v_r, _ = self._grid_samples.range(k0, k1 + 1, ratio)
+            # np.column_stack((p_r, v_r)) / R for two 1-d arrays of one length
+            # (what range gives), without its generality: the same division.
+            x_d = np.empty((len(p_r), 2))
+            x_d[:, 0] = p_r
+            x_d[:, 1] = v_r
+            x_d /= self._lead
         else:
             p_r, v_r, _ = self._reference.sample(np.arange(k0, k1 + 1, ratio) * self._tu)
-        x_d = np.column_stack((p_r, v_r)) / self._lead
+            x_d = np.column_stack((p_r, v_r)) / self._lead
         if self._cycle_steps is not None and self._side == "target":
             nd = self._cycle_steps // self._grid.ratio
             for row in range(len(x_d)):
@@ -402,7 +414,10 @@ class FeedforwardGenerator:
                     self._block_start, self._block_end(self._block_start)
                 )
                 self._rows = [(r0, r1, r2) for r0, r1, r2 in self._block.tolist()]
-            result.append(self._rows[k - self._block_start])
-            k += 1
+            # The rows of this block up to stop, as one slice.
+            first = self._block_start
+            end = min(stop, first + len(self._block))
+            result += self._rows[k - first : end - first]
+            k = end
         self._next = stop
         return result

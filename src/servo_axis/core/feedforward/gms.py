@@ -48,7 +48,8 @@ class GmsTerm:
     ) -> None:
         self._kt = require_positive("torque_constant_Nm_per_A", torque_constant_Nm_per_A)
         self._period = require_positive("control_period_s", control_period_s)
-        self._model = GmsModel(params)
+        # The model stepped a block at a time, compiled (the same numbers).
+        self._model = GmsModel(params, compiled=True)
         self._last_step: int | None = None
 
     @property
@@ -78,16 +79,19 @@ class GmsTerm:
                 f"block: expected step, position_m and velocity_m_s of one length, got "
                 f"{len(steps)}, {len(pos)} and {len(vel)}"
             )
-        out = np.empty(len(steps))
-        update, kt, period = self._model.update, self._kt, self._period
+        kt, period = self._kt, self._period
         last = self._last_step
-        for j, (k, p, v) in enumerate(zip(steps, pos, vel, strict=True)):
+        periods: list[float] = []
+        for k in steps:
             gap = 1 if last is None else k - last
             if gap <= 0:
+                # The samples before it first, as one by one (the model moved through them).
+                self._model.update_many(pos[: len(periods)], vel[: len(periods)], periods)
                 raise SignalError(
                     f"block.step: expected steps after {last}, got {k} (each sample once, in order)"
                 )
-            out[j] = update(p, v, gap * period) / kt
+            periods.append(gap * period)
             last = int(k)
+        torques = self._model.update_many(pos, vel, periods)
         self._last_step = last
-        return out
+        return np.array([t / kt for t in torques], dtype=float)

@@ -127,6 +127,12 @@ class NonlinearityCompensator:
         self._schedule: list[tuple[int, float, float]] = [
             (0, params.unbalance_Nm, params.coulomb_Nm)
         ]
+        # sin(theta) and the friction model's shape (C = 1) at every step of the
+        # samples GridSamples keeps, computed once per chunk instead of once per
+        # block (one block per online estimate): elementwise, the same numbers.
+        self._derived_of: FloatArray | None = None
+        self._sin: list[float] = []
+        self._shape: list[float] = []
 
     def set_parameters(self, *, from_step: int, unbalance_Nm: float, coulomb_Nm: float) -> None:
         """Use ``U``, ``C`` from control sample ``from_step`` on (after the last one set).
@@ -161,8 +167,54 @@ class NonlinearityCompensator:
     def currents(self, block: ReferenceBlock) -> FloatArray:
         p = self.params
         k = np.asarray(block.step, dtype=np.int64)
-        phase = k % p.ratio
+        steps: list[int] = k.tolist() if k.ndim == 1 else []
+        if not steps:
+            return self._currents(k)
+        k0, n = steps[0], len(steps)
+        schedule = self._schedule
+        # Consecutive steps from the schedule's first on (what the generator
+        # gives); anything else, or its error, is _currents'.
+        if k0 < schedule[0][0] or steps != list(range(k0, k0 + n)):
+            return self._currents(k)
+        r = p.ratio
         # eq. (13)/(15): the interval's start for its first sample, its end after.
+        at = [s if s % r == 0 else s - s % r + r for s in steps]
+        start, values = self._samples.kept(at[0], at[-1])
+        if values is not self._derived_of:
+            # theta, sin(theta), omega and T_f(omega) / C as _currents forms them,
+            # for the whole kept range (elementwise: the same numbers), as floats.
+            self._sin = np.sin(values[0] / p.lead_m_per_rad).tolist()
+            if p.friction:
+                self._shape = friction_model_Nm(
+                    values[1] / p.lead_m_per_rad,
+                    coulomb_Nm=1.0,
+                    alpha=p.alpha,
+                    omega_th_rad_s=p.omega_th_rad_s,
+                ).tolist()
+            self._derived_of = values
+        # Per entry of the schedule in force over the block (the one
+        # parameters_at finds for each step), _currents' operations on floats,
+        # in its order: (U sin(theta) + T_f(omega) / C * C) / K_T.
+        kt = p.torque_constant_Nm_per_A
+        sin, shape = self._sin, self._shape
+        out: list[float] = []
+        end = k0 + n
+        for m, (from_step, u, c) in enumerate(schedule):
+            until = schedule[m + 1][0] if m + 1 < len(schedule) else end
+            lo, hi = max(from_step, k0) - k0, min(until, end) - k0
+            if lo >= hi:
+                continue
+            rows = [a - start for a in at[lo:hi]]
+            if p.friction:
+                out += [(u * sin[i] + shape[i] * c) / kt for i in rows]
+            else:
+                out += [u * sin[i] / kt for i in rows]
+        return np.array(out, dtype=float)
+
+    def _currents(self, k: NDArray[np.int64]) -> FloatArray:
+        """:meth:`currents` computed from the block's own samples (eqs. (13)-(15))."""
+        p = self.params
+        phase = k % p.ratio
         at = np.where(phase == 0, k, k - phase + p.ratio)
         pos, vel, _ = self._samples.steps(at)
         theta = pos / p.lead_m_per_rad

@@ -22,8 +22,9 @@ instants are grouped into calls.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, cast
+from typing import Any, NamedTuple, cast
 
 import numpy as np
 import scipy.linalg
@@ -54,9 +55,11 @@ class PtcOutput:
     velocity_rad_s: NDArray[np.float64]
 
 
-@dataclass(frozen=True)
-class _Model:
-    """``(A_d, B_d)`` at ``T_u`` and ``A = A_d^2``, ``B^-1`` over ``T_r``, from one instant on."""
+class _Model(NamedTuple):
+    """``(A_d, B_d)`` at ``T_u`` and ``A = A_d^2``, ``B^-1`` over ``T_r``, from one instant on.
+
+    A named tuple, not a frozen dataclass: one is made per online estimate (003 eq. (11)).
+    """
 
     from_instant: int
     ad: NDArray[np.float64]
@@ -67,8 +70,20 @@ class _Model:
 
 
 def _discretise(
-    from_instant: int, inertia_kgm2: float, damping_Nms_per_rad: float, kt: float, tu: float
+    from_instant: int,
+    inertia_kgm2: float,
+    damping_Nms_per_rad: float,
+    kt: float,
+    tu: float,
+    products: Callable[..., tuple[Any, Any, Any, Any]] | None = None,
 ) -> _Model:
+    """The model of ``J``, ``D``, ``K_T`` at ``T_u`` from ``from_instant`` (ZOH through ``expm``).
+
+    ``products``: :func:`~servo_axis.core.kernels.ptc_model`, which takes
+    ``A_d``, ``B_d`` and the products from the exponential in one compiled
+    call (the same numbers, ``A_d`` and ``B_d`` as contiguous copies), or
+    None for numpy.
+    """
     j = require_positive("inertia_kgm2", inertia_kgm2)
     d = require_nonnegative("damping_Nms_per_rad", damping_Nms_per_rad)
     kt = require_positive("torque_constant_Nm_per_A", kt)
@@ -77,12 +92,49 @@ def _discretise(
     m[1, 1] = -d / j
     m[1, 2] = kt / j
     e = _expm_upper(m * tu)
+    if products is not None:
+        ad, bd, a_matrix, b_matrix = products(e)
+        return _Model(from_instant, ad, bd, a_matrix, b_matrix, _inv2(b_matrix))
     ad, bd = e[:2, :2], e[:2, 2]
     b_matrix = np.empty((2, 2))
     b_matrix[:, 0] = ad @ bd
     b_matrix[:, 1] = bd
-    b_inv = cast(NDArray[np.float64], np.linalg.inv(b_matrix))
-    return _Model(from_instant, ad, bd, ad @ ad, b_matrix, b_inv)
+    return _Model(from_instant, ad, bd, ad @ ad, b_matrix, _inv2(b_matrix))
+
+
+def _inv2(b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``np.linalg.inv(b)`` of a float64 2 x 2 ``b``: the same call of numpy's own routine.
+
+    ``np.linalg.inv`` checks and converts its argument, then calls its gufunc
+    ``_umath_linalg.inv`` (LAPACK ``gesv`` on the identity) under an error
+    state that raises ``LinAlgError`` for a singular matrix. For a float64
+    2 x 2 array the checks pass and the conversions do nothing, so this calls
+    the gufunc under that error state directly (a third of the time; one
+    call per online estimate). Without those numpy internals it is
+    ``np.linalg.inv``.
+    """
+    if _linalg is None:  # pragma: no cover - another numpy
+        return cast("NDArray[np.float64]", np.linalg.inv(b))
+    gufunc, raise_singular = _linalg
+    with np.errstate(
+        call=raise_singular, invalid="call", over="ignore", divide="ignore", under="ignore"
+    ):
+        return cast("NDArray[np.float64]", gufunc(b, signature="d->d"))
+
+
+def _linalg_routines() -> tuple[Any, Any] | None:
+    """numpy's ``inv`` gufunc and its singular-matrix error handler, or None without them."""
+    try:
+        from numpy.linalg import _umath_linalg
+        from numpy.linalg._linalg import (  # type: ignore[attr-defined]
+            _raise_linalgerror_singular,
+        )
+    except ImportError:  # pragma: no cover - another numpy
+        return None
+    return _umath_linalg.inv, _raise_linalgerror_singular
+
+
+_linalg = _linalg_routines()
 
 
 def _expm_upper(a: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -134,6 +186,11 @@ class MultiratePtc:
         ``T_u``, s, > 0.
     ratio : int
         ``T_r / T_u``; must be 2 (the plant order) for a square ``B``.
+    compiled : bool
+        Compute :meth:`feedforward` with the compiled
+        :func:`~servo_axis.core.kernels.ptc_segment` (the same numbers):
+        for the adaptive feedforward, which computes a short block per
+        online estimate. It loads numba when the PTC is built.
     """
 
     def __init__(
@@ -144,14 +201,28 @@ class MultiratePtc:
         torque_constant_Nm_per_A: float,
         control_period_s: float,
         ratio: int = 2,
+        compiled: bool = False,
     ) -> None:
         self._tu = require_positive("control_period_s", control_period_s)
         if ratio != 2:
             raise ConfigError(
                 f"ratio: expected 2 (T_r = 2 T_u for the order-2 plant), got {ratio!r}"
             )
+        self._segment: Callable[..., None] | None = None
+        self._products: Callable[..., tuple[Any, Any, Any, Any]] | None = None
+        if compiled:
+            from servo_axis.core.kernels import ptc_model, ptc_segment
+
+            self._segment, self._products = ptc_segment, ptc_model
         self._models = [
-            _discretise(0, inertia_kgm2, damping_Nms_per_rad, torque_constant_Nm_per_A, self._tu)
+            _discretise(
+                0,
+                inertia_kgm2,
+                damping_Nms_per_rad,
+                torque_constant_Nm_per_A,
+                self._tu,
+                self._products,
+            )
         ]
 
     @property
@@ -203,7 +274,12 @@ class MultiratePtc:
             )
         self._models.append(
             _discretise(
-                from_instant, inertia_kgm2, damping_Nms_per_rad, torque_constant_Nm_per_A, self._tu
+                from_instant,
+                inertia_kgm2,
+                damping_Nms_per_rad,
+                torque_constant_Nm_per_A,
+                self._tu,
+                self._products,
             )
         )
 
@@ -230,20 +306,38 @@ class MultiratePtc:
         x = np.asarray(x_d, dtype=float)
         if x.ndim != 2 or x.shape[1] != 2 or x.shape[0] < 2:
             raise SignalError(f"x_d: expected shape (M+1, 2) with M >= 1, got {x.shape}")
-        if not np.all(np.isfinite(x)):
+        if not np.isfinite(x).all():
             raise SignalError("x_d: expected finite values")
         m = x.shape[0] - 1
+        if self._segment is not None:
+            return self._compiled_feedforward(x, first_instant, m)
         u = np.empty((m, 2))  # rows [u[2i], u[2i+1]]
         mid = np.empty((m, 2))  # nominal state at 2i+1
         for lo, hi, model in self._segments(first_instant, m):
             xs = x[lo : hi + 1]
             u[lo:hi] = (xs[1:] - xs[:-1] @ model.a_matrix.T) @ model.b_inv.T
-            mid[lo:hi] = xs[:-1] @ model.ad.T + np.outer(u[lo:hi, 0], model.bd)
+            # u[2i] B_d as a column times a row: np.outer's products, without its call.
+            mid[lo:hi] = xs[:-1] @ model.ad.T + u[lo:hi, 0:1] * model.bd
         current = u.reshape(2 * m)
         pos = np.empty(2 * m)
         vel = np.empty(2 * m)
         pos[0::2], vel[0::2] = x[:-1, 0], x[:-1, 1]
         pos[1::2], vel[1::2] = mid[:, 0], mid[:, 1]
+        return PtcOutput(current_A=current, position_rad=pos, velocity_rad_s=vel)
+
+    def _compiled_feedforward(
+        self, x: NDArray[np.float64], first_instant: int, m: int
+    ) -> PtcOutput:
+        """:meth:`feedforward` of checked targets, a compiled call per model (the same numbers)."""
+        segment = self._segment
+        assert segment is not None
+        x = np.ascontiguousarray(x)
+        current = np.empty(2 * m)
+        pos = np.empty(2 * m)
+        vel = np.empty(2 * m)
+        for lo, hi, model in self._segments(first_instant, m):
+            # The models of a compiled PTC are ptc_model's: contiguous arrays.
+            segment(x, lo, hi, model.a_matrix, model.b_inv, model.ad, model.bd, current, pos, vel)
         return PtcOutput(current_A=current, position_rad=pos, velocity_rad_s=vel)
 
     def _segments(self, first: int, m: int) -> list[tuple[int, int, _Model]]:

@@ -96,7 +96,7 @@ class OutsideObserver:
         total = np.zeros(len(block.step))
         for term in self._terms:
             total += term.currents(block)
-        return np.array([self._bypass.update(float(c)) for c in total], dtype=float)
+        return np.array(self._bypass.update_many(total.tolist()), dtype=float)
 
     def set_parameters(self, **kwargs: float) -> None:
         """Pass online estimates on to the terms that take them."""

@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields
 from typing import NoReturn
 
@@ -366,9 +366,13 @@ class GmsModel:
     ----------
     params : GmsParams
         The model.
+    compiled : bool
+        Step :meth:`update_many` with the compiled
+        :func:`~servo_axis.core.kernels.gms_block` (the same numbers; it
+        loads numba when the model is built), else with :meth:`update`.
     """
 
-    def __init__(self, params: GmsParams) -> None:
+    def __init__(self, params: GmsParams, *, compiled: bool = False) -> None:
         self.params = params
         self._k = list(params.stiffness_Nm_per_m)
         self._alpha = list(params.weights)
@@ -393,6 +397,11 @@ class GmsModel:
         self._pairs = [(k, 0.0) for k in self._k]  # (k_i, alpha_i s) once computed
         self._stribeck = self._fs != self._fc
         self._sticking = (False,) * n
+        self._block: Callable[..., None] | None = None
+        if compiled:
+            from servo_axis.core.kernels import gms_block
+
+            self._block = gms_block
 
     def reset(self) -> None:
         """Relax every element (virgin state); the next :meth:`update` sets the position."""
@@ -478,6 +487,65 @@ class GmsModel:
                 force[i] = f
             i += 1
         return math.fsum(force) + self._sigma2 * v
+
+    def update_many(
+        self, positions_m: list[float], velocities_m_s: list[float], periods_s: list[float]
+    ) -> list[float]:
+        """:meth:`update` of each sample in turn: the torques, N m (the same numbers).
+
+        Compiled (``compiled=True``) when every argument is finite and every
+        period > 0; else sample by sample, which raises at the first bad one.
+        """
+        block = self._block
+        pos = np.array(positions_m, dtype=float)
+        vel = np.array(velocities_m_s, dtype=float)
+        per = np.array(periods_s, dtype=float)
+        if (
+            block is None
+            or not (len(pos) == len(vel) == len(per))
+            or not (np.isfinite(pos).all() and np.isfinite(vel).all() and np.isfinite(per).all())
+            or not (per > 0.0).all()
+        ):
+            return [
+                self.update(p, v, t)
+                for p, v, t in zip(positions_m, velocities_m_s, periods_s, strict=True)
+            ]
+        force = np.array(self._force, dtype=float)
+        slipping = np.array(self._slipping, dtype=bool)
+        state = np.array(
+            [
+                0.0 if self._last is None else 1.0,
+                0.0 if self._last is None else self._last,
+                self._sign,
+                self._fc,
+                self._fs,
+                self._vs,
+                self._delta,
+                self._c,
+                self._sigma2,
+                1.0 if self._stribeck else 0.0,
+            ]
+        )
+        out = np.empty(len(pos))
+        block(
+            np.array(self._k, dtype=float),
+            np.array(self._alpha, dtype=float),
+            force,
+            slipping,
+            state,
+            pos,
+            vel,
+            per,
+            out,
+            np.empty(len(force) + 1),
+        )
+        self._force[:] = force.tolist()
+        self._slipping[:] = slipping.tolist()
+        if state[0] != 0.0:
+            self._last = float(state[1])
+        self._sign = int(state[2])
+        torques: list[float] = out.tolist()
+        return torques
 
     @staticmethod
     def _refuse(position_m: float, velocity_m_s: float, period_s: float) -> NoReturn:

@@ -314,9 +314,13 @@ class Dlpid:
     def estimate(self, step: int, updated: tuple[bool, bool, bool, bool]) -> Estimate:
         """The current estimates as an :class:`Estimate` stamped ``step``."""
         j, d, u = self.rls.theta.tolist()
-        return Estimate(
+        # Estimate(...) without the frozen dataclass's __init__ (one per RLS
+        # step): its fields in order, an equal object (test_identification).
+        out: Estimate = object.__new__(Estimate)
+        out.__dict__.update(
             step=step, J=j, D=d, U=u, C=self._c_hat, kappa=self.pe.kappa, updated=updated
         )
+        return out
 
     def update(self, step: int, angle_rad: float, torque_Nm: float) -> Estimate | None:
         """One control sample: filter, and at RLS steps run both layers.
@@ -356,8 +360,7 @@ class Dlpid:
                 f.settle(x)
                 self._z[i] = f.state
         # G_LPF y_m, G_PD1 y_m, G_PD2 y_m, G_LPF u (Fig. 3), one compiled call.
-        y, yd, ydd, ubar = self._bank(self._coef, self._z, y_m, u)
-        self._signals = (y, yd, ydd, ubar)
+        signals = self._signals = self._bank(self._coef, self._z, y_m, u)
         self._last_step = step
         self._samples += 1
         ratio = self._ratio
@@ -365,7 +368,7 @@ class Dlpid:
             return None
         if self._samples <= self._warmup:
             return self.estimate(step, (False, False, False, False))
-        return self._layers(step, y, yd, ydd, ubar)
+        return self._layers(step, *signals)
 
     def _layers(self, step: int, y: float, yd: float, ydd: float, ubar: float) -> Estimate:
         p = self.params
@@ -376,14 +379,11 @@ class Dlpid:
         sgn = 1.0 if yd > 0.0 else (-1.0 if yd < 0.0 else 0.0)  # np.sign(yd), yd finite
         u_rls = self.rls.predict_checked(phi)  # theta_hat[k-1]: eq. (8)
         u_f = self._c_hat * sgn if self._double else 0.0
-        enabled = np.array(
-            [
-                abs(ydd) > p.acceleration_min_rad_s2,
-                abs(yd) > p.velocity_min_rad_s,
-                y > p.angle_min_rad,
-            ]
-        )
-        done = self.rls.update_checked(phi, ubar - u_f, enabled)
+        flag_j = abs(ydd) > p.acceleration_min_rad_s2
+        flag_d = abs(yd) > p.velocity_min_rad_s
+        flag_u = y > p.angle_min_rad
+        # update_checked returns the mask it is given: the flags are these.
+        self.rls.update_checked(phi, ubar - u_f, np.array([flag_j, flag_d, flag_u]))
         self.pe.update_checked(phi)
         c_updated = False
         if self._double and abs(yd) > p.friction_velocity_min_rad_s:
@@ -392,8 +392,7 @@ class Dlpid:
             a = self._pole_c
             self._c_hat = min(max(a * self._c_hat + (1.0 - a) * x, lo), hi)
             c_updated = True
-        flags = (bool(done[0]), bool(done[1]), bool(done[2]), c_updated)
-        return self.estimate(step, flags)
+        return self.estimate(step, (flag_j, flag_d, flag_u, c_updated))
 
     def state(self) -> dict[str, Any]:
         """Everything needed to resume bit-identically (JSON-able, exact float text)."""

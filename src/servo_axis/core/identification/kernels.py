@@ -213,3 +213,70 @@ def conditional_rls_update(
             v = hi
         theta[i] = v
         updates[i] += 1
+
+
+@_compiled
+def outer_window_add(
+    buffer: np.ndarray,
+    total: np.ndarray,
+    slot: int,
+    v: np.ndarray,
+    full: bool,
+    window: int,
+    kappa: bool,
+) -> float:
+    """One regressor into the PE window of 003 eq. (7), in place; ``kappa`` if asked.
+
+    The arithmetic of :meth:`PeIndex.update_checked
+    <servo_axis.core.identification.pe.PeIndex.update_checked>` between its
+    recomputes, element by element as numpy does it::
+
+        if full: total -= np.outer(buffer[slot], buffer[slot])
+        buffer[slot] = v
+        total += np.outer(v, v)
+        kappa = np.linalg.eigvalsh(total / window)[0]
+
+    (``np.outer(a, b)[i, j]`` is ``a[i] * b[j]``; ``-=``, ``+=`` and ``/``
+    are elementwise; numba's ``eigvalsh`` calls LAPACK ``syevd`` on the lower
+    triangle as numpy's does).
+
+    Parameters
+    ----------
+    buffer : ndarray, shape (W, n)
+        The ring buffer of regressors; row ``slot`` is replaced by ``v``.
+    total : ndarray, shape (n, n)
+        The running sum of their outer products, updated.
+    slot : int
+        The row the new regressor goes to (the oldest one's).
+    v : ndarray, shape (n,)
+        The regressor ``phi[k]``.
+    full : bool
+        Whether the window was full (the oldest is dropped from the sum).
+    window : int
+        ``W``.
+    kappa : bool
+        Return the smallest eigenvalue of ``total / W`` after the update
+        (else 0.0).
+
+    Returns
+    -------
+    float
+        ``kappa[k]`` when asked, else 0.0.
+    """
+    n = v.shape[0]
+    if full:
+        for i in range(n):
+            for j in range(n):
+                total[i, j] = total[i, j] - buffer[slot, i] * buffer[slot, j]
+    for i in range(n):
+        buffer[slot, i] = v[i]
+    for i in range(n):
+        for j in range(n):
+            total[i, j] = total[i, j] + v[i] * v[j]
+    if not kappa:
+        return 0.0
+    mean = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            mean[i, j] = total[i, j] / window
+    return float(np.linalg.eigvalsh(mean)[0])

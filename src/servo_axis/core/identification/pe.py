@@ -17,7 +17,7 @@ running sum, it is recomputed from the buffer every ``W`` samples.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -52,7 +52,17 @@ class PeIndex:
             raise ConfigError(f"window: expected an integer >= n = {n}, got {window!r}")
         self.n = n
         self.window = window
+        # The running sum's update, compiled (the same arithmetic as np.outer
+        # and the elementwise -= / +=); numba loads only with a PE index.
+        from servo_axis.core.identification.kernels import outer_window_add
+
+        self._add = outer_window_add
         self.reset()
+        # Load the compiled step now (from numba's disk cache), not at the first
+        # RLS step after the identifier's warm-up (a stall in a realtime node).
+        outer_window_add(
+            np.zeros((window, n)), np.zeros((n, n)), 0, np.zeros(n), False, window, True
+        )
 
     def reset(self) -> None:
         """Empty the window."""
@@ -93,17 +103,27 @@ class PeIndex:
 
     def update_checked(self, v: FloatArray) -> float:
         """:meth:`update` of a finite float64 ``phi`` of shape (n,) (no checks; not kept)."""
-        old = self._buffer[self._next]
-        if self.full:
-            self._sum -= np.outer(old, old)
-        self._buffer[self._next] = v
-        self._sum += np.outer(v, v)
-        self._next = (self._next + 1) % self.window
-        self.count += 1
-        if self.count % self.window == 0:
+        window = self.window
+        count = self.count + 1
+        recompute = count % window == 0
+        # total -= outer(oldest), buffer[slot] = v, total += outer(v, v) and,
+        # unless the sum is recomputed now, kappa: one compiled call.
+        kappa = self._add(
+            self._buffer,
+            self._sum,
+            self._next,
+            v,
+            self.full,
+            window,
+            count >= window and not recompute,
+        )
+        self._next = (self._next + 1) % window
+        self.count = count
+        if recompute:
             self._sum = self._buffer.T @ self._buffer
-        if self.full:
-            self._kappa = float(np.linalg.eigvalsh(self._sum / self.window)[0])
+            self._kappa = float(_eigvalsh(self._sum / window)[0])
+        elif count >= window:
+            self._kappa = kappa
         return self._kappa
 
     def state(self) -> dict[str, Any]:
@@ -137,6 +157,41 @@ class PeIndex:
             raise SignalError(f"next: expected count % window = {count % self.window}, got {nxt}")
         self._buffer, self._sum = buffer, total
         self._next, self.count, self._kappa = nxt, count, float(kappa)
+
+
+def _eigvalsh(a: FloatArray) -> FloatArray:
+    """``np.linalg.eigvalsh(a)`` of a float64 square ``a``: the same call of numpy's own routine.
+
+    ``np.linalg.eigvalsh`` checks and converts its argument, then calls its
+    gufunc ``_umath_linalg.eigvalsh_lo`` (LAPACK ``syevd``) under an error
+    state that raises ``LinAlgError`` when it does not converge; for a float64
+    square array the checks pass and the conversions do nothing, so this
+    calls the gufunc under that error state directly (once per RLS step).
+    Without those numpy internals it is ``np.linalg.eigvalsh``.
+    """
+    if _linalg is None:  # pragma: no cover - another numpy
+        return cast(FloatArray, np.linalg.eigvalsh(a))
+    gufunc, raise_nonconvergence = _linalg
+    with np.errstate(
+        call=raise_nonconvergence, invalid="call", over="ignore", divide="ignore", under="ignore"
+    ):
+        result: FloatArray = gufunc(a, signature="d->d")
+    return result
+
+
+def _linalg_routines() -> tuple[Any, Any] | None:
+    """numpy's ``eigvalsh`` gufunc and its error handler, or None without them."""
+    try:
+        from numpy.linalg import _umath_linalg
+        from numpy.linalg._linalg import (  # type: ignore[attr-defined]
+            _raise_linalgerror_eigenvalues_nonconvergence,
+        )
+    except ImportError:  # pragma: no cover - another numpy
+        return None
+    return _umath_linalg.eigvalsh_lo, _raise_linalgerror_eigenvalues_nonconvergence
+
+
+_linalg = _linalg_routines()
 
 
 def _matrix(name: str, value: Any, shape: tuple[int, int]) -> FloatArray:

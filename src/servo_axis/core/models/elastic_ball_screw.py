@@ -136,6 +136,7 @@ from servo_axis.core.errors import (
 )
 from servo_axis.core.friction.maxwell_slip import MaxwellSlip
 from servo_axis.core.models.base import NominalModel, PlantOutput, clipped_current, sim_steps
+from servo_axis.core.models.base import plant_output as _plant_output
 from servo_axis.core.sensors import PositionSensor, SensorParams
 
 #: What may drive the ball nut's friction (``nut_friction``).
@@ -146,43 +147,8 @@ TYPICAL_MODE_HZ = (100.0, 200.0)
 
 _ENCODER_2_20 = 2.0 * math.pi / 2**20
 
-#: The fields of :class:`PlantOutput`, in order: what :func:`_plant_output` fills.
+#: The fields of :class:`PlantOutput`, in order: what :func:`~servo_axis.core.models.base.plant_output` fills.
 OUTPUT_FIELDS = tuple(f.name for f in fields(PlantOutput))
-
-
-def _plant_output(
-    step: int,
-    encoder_rad: float,
-    scale_m: float,
-    angle_rad: float,
-    velocity_rad_s: float,
-    position_m: float,
-    velocity_m_s: float,
-    motor_torque_Nm: float,
-    friction_force_N: float,
-) -> PlantOutput:
-    """``PlantOutput(...)`` of these values, made without its generated ``__init__``.
-
-    :class:`PlantOutput` is frozen, so its ``__init__`` sets each of its nine
-    fields through ``object.__setattr__``: about 0.9 us per sample, a tenth
-    of the plain-call loop of the contact scenarios. The instance's
-    ``__dict__`` is filled here directly (0.3 us): an equal object, the same
-    fields in the same order (``test_elastic_ball_screw`` compares it with
-    the constructor's and :data:`OUTPUT_FIELDS` with the dataclass's).
-    """
-    out: PlantOutput = object.__new__(PlantOutput)
-    out.__dict__.update(
-        step=step,
-        encoder_rad=encoder_rad,
-        scale_m=scale_m,
-        angle_rad=angle_rad,
-        velocity_rad_s=velocity_rad_s,
-        position_m=position_m,
-        velocity_m_s=velocity_m_s,
-        motor_torque_Nm=motor_torque_Nm,
-        friction_force_N=friction_force_N,
-    )
-    return out
 
 
 @dataclass(frozen=True, kw_only=True)

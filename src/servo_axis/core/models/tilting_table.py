@@ -60,7 +60,9 @@ of the angle.
 Sensors: the encoder reads the angle plus uniform noise in
 ``[-noise_rad, +noise_rad)`` drawn from the seeded generator (one draw per
 control sample, at :meth:`TiltingTablePlant.reset` and each
-:meth:`TiltingTablePlant.step`, none when ``noise_rad == 0``), then quantised to
+:meth:`TiltingTablePlant.step`, none when ``noise_rad == 0``; the draws are
+taken from the generator :data:`NOISE_DRAWS` at a time, ahead of the samples:
+the same numbers in the same order), then quantised to
 ``encoder_resolution_rad`` (nearest count) if that is > 0. There is no linear
 scale: ``scale_m`` is 0.0, as are ``position_m`` and ``velocity_m_s``.
 ``friction_force_N`` carries the friction TORQUE in N m (the ``C sgn(th')``
@@ -85,9 +87,13 @@ from servo_axis.core.models.base import (
     NominalModel,
     PlantOutput,
     clipped_current,
+    plant_output,
     sim_steps,
     whole_ratio,
 )
+
+#: Encoder noise draws taken from the generator at a time (``Generator.random(n)``).
+NOISE_DRAWS = 256
 
 #: Newton iterations of the zero-velocity event location, at most.
 _EVENT_ITERATIONS = 40
@@ -186,7 +192,9 @@ class TiltingTablePlant:
     params : TiltingTableParams
         Physical parameters.
     rng : numpy.random.Generator
-        Source of the encoder noise (not drawn from when ``noise_rad == 0``).
+        Source of the encoder noise (not drawn from when ``noise_rad == 0``;
+        else :data:`NOISE_DRAWS` doubles at a time, so a generator shared with
+        anything else is ahead of what the plant has used).
     """
 
     def __init__(self, params: TiltingTableParams, *, rng: np.random.Generator) -> None:
@@ -221,6 +229,17 @@ class TiltingTablePlant:
         # random() that way (the same numbers, a third of the cost).
         self._noise_low = -params.noise_rad
         self._noise_span = params.noise_rad - -params.noise_rad
+        # Generator.random() draws one double per call (0.3-0.4 us); random(n)
+        # draws the same doubles of the stream in the same order, n at a time.
+        self._draws: list[float] = []
+        # The parameters the per-sample path reads, once (params is frozen).
+        self._limit = params.current_limit_A
+        self._kt = params.torque_constant_Nm_per_A
+        self._inertia = params.inertia_kgm2
+        self._coulomb = params.coulomb_Nm
+        self._unbalance = params.unbalance_Nm
+        self._noise = params.noise_rad
+        self._resolution = params.encoder_resolution_rad
         self.reset()
 
     def reset(self) -> None:
@@ -240,16 +259,17 @@ class TiltingTablePlant:
 
     def output(self) -> PlantOutput:
         """Readings and true state at the current control sample."""
-        return PlantOutput(
-            step=self._step,
-            encoder_rad=self._encoder_rad,
-            scale_m=0.0,
-            angle_rad=self._th,
-            velocity_rad_s=self._v,
-            position_m=0.0,
-            velocity_m_s=0.0,
-            motor_torque_Nm=self._torque_Nm,
-            friction_force_N=self._friction_Nm,
+        # plant_output: PlantOutput(...) without the frozen dataclass's __init__.
+        return plant_output(
+            self._step,
+            self._encoder_rad,
+            0.0,
+            self._th,
+            self._v,
+            0.0,
+            0.0,
+            self._torque_Nm,
+            self._friction_Nm,
         )
 
     def step(self, current_A: float) -> PlantOutput:
@@ -265,36 +285,71 @@ class TiltingTablePlant:
         PlantOutput
             The state at the next control sample.
         """
-        p = self.params
-        cmd = clipped_current(current_A, p.current_limit_A)
-        torque = p.torque_constant_Nm_per_A * cmd
+        limit = self._limit
+        # Inside the limits the saturation is the current itself (what clipped_current
+        # gives it, without the call); outside them, or not finite, clipped_current.
+        cmd = (
+            float(current_A) if -limit <= current_A <= limit else clipped_current(current_A, limit)
+        )
+        torque = self._kt * cmd
         self._applied_A = cmd
         self._torque_Nm = torque
-        if p.coulomb_Nm > 0.0:
+        if self._coulomb > 0.0:
             self._th, self._v = self._kernel(self._th, self._v, torque, self._config)
         else:
             # C = 0: eq. (2) is smooth; plain RK4 (a table at rest with zero net
             # torque is an exact equilibrium of the RK4 map too).
-            b = torque / p.inertia_kgm2
+            b = torque / self._inertia
             self._th, self._v = self._kernel(self._th, self._v, b, self._config)
         self._step += 1
-        self._update_sample()
-        return self.output()
+        # _update_sample(), without the call.
+        c = self._coulomb
+        v = self._v
+        if v != 0.0:
+            self._friction_Nm = math.copysign(c, v) if c > 0.0 else 0.0
+        else:
+            net = torque - self._unbalance * math.sin(self._th)
+            self._friction_Nm = min(max(net, -c), c)
+        value = self._th
+        if self._noise > 0.0:
+            draws = self._draws
+            if not draws:
+                draws.extend(reversed(self._rng.random(NOISE_DRAWS).tolist()))
+            value += self._noise_low + self._noise_span * draws.pop()
+        res = self._resolution
+        if res > 0.0:
+            value = math.floor(value / res + 0.5) * res
+        self._encoder_rad = value
+        # output(), without the call.
+        return plant_output(
+            self._step,
+            self._encoder_rad,
+            0.0,
+            self._th,
+            self._v,
+            0.0,
+            0.0,
+            self._torque_Nm,
+            self._friction_Nm,
+        )
 
     def _update_sample(self) -> None:
         # Friction torque at the sample (eq. (2) sign: it opposes the motion)
-        # and the encoder reading, both fixed once per sample.
-        p = self.params
-        c = p.coulomb_Nm
+        # and the encoder reading, both fixed once per sample. step() has
+        # these lines written out (the per-sample path): keep the two alike.
+        c = self._coulomb
         if self._v != 0.0:
             self._friction_Nm = math.copysign(c, self._v) if c > 0.0 else 0.0
         else:
-            net = self._torque_Nm - p.unbalance_Nm * math.sin(self._th)
+            net = self._torque_Nm - self._unbalance * math.sin(self._th)
             self._friction_Nm = min(max(net, -c), c)
         value = self._th
-        if p.noise_rad > 0.0:
-            value += self._noise_low + self._noise_span * self._rng.random()
-        res = p.encoder_resolution_rad
+        if self._noise > 0.0:
+            draws = self._draws
+            if not draws:
+                draws.extend(reversed(self._rng.random(NOISE_DRAWS).tolist()))
+            value += self._noise_low + self._noise_span * draws.pop()
+        res = self._resolution
         if res > 0.0:
             value = math.floor(value / res + 0.5) * res
         self._encoder_rad = value
