@@ -134,6 +134,13 @@ class PlantNode(ServoNode):
                 "parameter 'use_sim_time': the plant owns the clock; set it false"
             )
         self.plant = build_plant(values)
+        # The compiled kernels load (or compile) on their first call: on a
+        # copy, now, while the nodes discover each other, not in the first
+        # step (0.2-0.5 s: a realtime clock's first tick, or a lockstep run's
+        # wall time, which counts from state 0).
+        spare = copy.deepcopy(self.plant)
+        for _ in range(3):
+            spare.step(0.0)
         for warning in plant_model(values["model"]).warnings(values):
             self.get_logger().warning(f"parameter check: {warning}")
         self._axis = values["axis"]
@@ -247,11 +254,6 @@ class PlantNode(ServoNode):
             self._publish(self.plant.output())
             self._awaiting = 0
             return
-        # The compiled kernels load (or compile) on their first call: on a
-        # copy, before the clock starts, not in its first tick (0.2-0.5 s).
-        spare = copy.deepcopy(self.plant)
-        for _ in range(3):
-            spare.step(0.0)
         sys.setswitchinterval(SWITCH_INTERVAL_S)
         # State 0 goes out; the clock starts when its command is in (the
         # loop has closed once: every node has its inputs), d_0 = then.
