@@ -15,6 +15,8 @@ from numpy.testing import assert_allclose
 from servo_axis.core.errors import ConfigError
 from servo_axis.params.scenario import load_scenario
 from servo_axis.run.live import (
+    HOLD_LOCKSTEP_SAMPLES,
+    HOLD_SAMPLES,
     ErrorPairs,
     InOrder,
     LiveAxis,
@@ -38,6 +40,10 @@ def test_the_axis_of_a_run_names_its_topics_sensor_and_units() -> None:
     full_closed = live_axis(load_scenario(CONFIG / "fast_reversal_sigmoid.yaml"), "/x")
     assert full_closed.sensor == "scale"
     assert full_closed.topic("tracking_error") == "/x/tracking_error"
+    assert nominal.lockstep
+    realtime = load_scenario(CONFIG / "ptc_nominal.yaml")
+    realtime["/**"]["ros__parameters"]["mode"] = "realtime"
+    assert not live_axis(realtime, "").lockstep
     tilt = live_axis(load_scenario(CONFIG / "dlpid_tilt_pid.yaml"), "")
     assert not tilt.linear  # a rotary table: the error in rad only
     assert "error_m" not in error_schema(tilt)["properties"]
@@ -45,10 +51,11 @@ def test_the_axis_of_a_run_names_its_topics_sensor_and_units() -> None:
 
 
 def test_the_axes_go_to_the_process_as_json_and_back() -> None:
-    axis = LiveAxis("/y", "y", 5e-4, "scale", 0.00191, True)
-    args = module_args(9000, [axis])
-    assert args[:2] == ["--port", "9000"]
-    assert [LiveAxis(**a) for a in json.loads(args[3])] == [axis]
+    for lockstep in (True, False):
+        axis = LiveAxis("/y", "y", 5e-4, "scale", 0.00191, True, lockstep)
+        args = module_args(9000, [axis])
+        assert args[:2] == ["--port", "9000"]
+        assert [LiveAxis(**a) for a in json.loads(args[3])] == [axis]
 
 
 def test_error_pairs_match_reference_and_output_of_the_same_step_in_either_order() -> None:
@@ -146,3 +153,24 @@ def test_samples_that_come_ahead_wait_for_the_missing_steps() -> None:
     # Steps that went by unwatched are not waited for.
     order.skip(12)
     assert order.put(13, 13) == [13]
+
+
+def test_in_lockstep_a_gap_is_waited_for_as_long_as_the_writers_keep_it() -> None:
+    from servo_axis.nodes.runtime import STREAM_QOS
+
+    assert HOLD_LOCKSTEP_SAMPLES == STREAM_QOS.depth > HOLD_SAMPLES
+    # A reader matched late at a fast run: state 0, then 1,000 live states,
+    # then the history 1..180 (the failing viewer's 181 missing states).
+    order = InOrder(hold=HOLD_LOCKSTEP_SAMPLES)
+    got = order.put(0, 0)
+    for step in range(181, 1181):
+        got += order.put(step, step)
+    for step in range(1, 181):
+        got += order.put(step, step)
+    assert got == list(range(1181))
+    # The realtime hold would have given the history up.
+    order = InOrder(hold=HOLD_SAMPLES)
+    got = order.put(0, 0)
+    for step in [*range(181, 1181), *range(1, 181)]:
+        got += order.put(step, step)
+    assert len(got) == 1 + 1000
