@@ -106,16 +106,15 @@ class LearningNode(ServoNode):
         self._memory = Path(values["memory.file"]) if values["memory.file"] else None
         self._resume_memory()
 
-        if self._side == "target":
-            self._correction_topic = "learning/correction"
-            self._correction_msg = msgs.joint_state_template(
-                msgs.motor_names(self._axis), ("position", "velocity")
-            )
-        else:
-            self._correction_topic = "learning/input_correction"
-            self._correction_msg = msgs.joint_state_template(
-                msgs.motor_names(self._axis), ("effort",)
-            )
+        self._correction_topic = (
+            "learning/correction" if self._side == "target" else "learning/input_correction"
+        )
+        # Sent as CDR bytes, as the per-sample streams: the bytes are the
+        # codec's, padding included (a message object's padding is what the
+        # middleware's buffer held), so the bag is the same every run.
+        self._correction_codec = msgs.joint_codec(
+            self._correction_topic, axis=self._axis, period_ns_=self._period_ns
+        )
         self._correction_pub = self.publisher(self._correction_topic)
         self._stats_pub = self.publisher("learning/cycle_stats")
         outputs = [
@@ -278,14 +277,12 @@ class LearningNode(ServoNode):
             position, velocity = self.law.next_correction(period=cycle + 1)
             for idx in range(self._nd):
                 self._correction_pub.publish(
-                    msgs.write_correction(
-                        self._correction_msg,
+                    self._correction_codec.encode(
                         msgs.CorrectionSample(
                             self._grid.step_of(first + idx),
                             float(position[idx]),
                             float(velocity[idx]),
-                        ),
-                        period_ns_=self._period_ns,
+                        )
                     )
                 )
             return
@@ -294,11 +291,7 @@ class LearningNode(ServoNode):
         for idx in range(self._nd):
             torque = torque_from_current(float(current[idx]), torque_constant_Nm_per_A=kt)
             self._correction_pub.publish(
-                msgs.write_input_correction(
-                    self._correction_msg,
-                    msgs.InputCorrectionSample(first + idx, torque),
-                    period_ns_=self._period_ns,
-                )
+                self._correction_codec.encode(msgs.InputCorrectionSample(first + idx, torque))
             )
 
 
