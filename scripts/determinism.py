@@ -91,6 +91,11 @@ def one_run(scenario: str, out: Path, domain: int, composed: bool, stranger: boo
                 clean_stale_shm(since=started)
 
 
+def _count(entry: tuple[int, str] | None) -> str:
+    """The message count of a topic's ``(count, sha256)``, or ``none`` if the first run had none."""
+    return "none" if entry is None else str(entry[0])
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scenario", default="rptc_friction_table")
@@ -121,8 +126,11 @@ def main(argv: list[str] | None = None) -> int:
                     reference = hashes
                 same = hashes == reference and bool(hashes)
                 identical += same
+                # The message counts say whether a topic differs in what was
+                # recorded or in how many (a repeat, a loss).
                 diff = sorted(
-                    f"{bag}:{topic}"
+                    f"{bag}:{topic} ({_count((reference or {}).get(bag, {}).get(topic))} -> "
+                    f"{value[0]} messages)"
                     for bag, per_topic in hashes.items()
                     for topic, value in per_topic.items()
                     if (reference or {}).get(bag, {}).get(topic) != value
