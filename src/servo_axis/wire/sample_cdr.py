@@ -110,7 +110,19 @@ def _unpacked(
     return fields, values
 
 
-class JointCodec(Generic[S]):
+class _Codec:
+    """What both codecs have: their precompiled :class:`struct.Struct`."""
+
+    __slots__ = ("_struct",)
+    _struct: struct.Struct
+
+    @property
+    def size(self) -> int:
+        """Bytes of an encoded sample, encapsulation header included."""
+        return self._struct.size
+
+
+class JointCodec(_Codec, Generic[S]):
     """CDR bytes of one JointState topic on one axis, and back.
 
     Parameters
@@ -135,7 +147,6 @@ class JointCodec(Generic[S]):
         "_layout",
         "_n",
         "_period_ns",
-        "_struct",
         "_values_of",
     )
 
@@ -158,11 +169,6 @@ class JointCodec(Generic[S]):
             if used:
                 shape.values(n)
         self._struct, self._constants = shape.done()
-
-    @property
-    def size(self) -> int:
-        """Bytes of an encoded sample, encapsulation header included."""
-        return self._struct.size
 
     def encode(self, sample: S) -> bytes:
         """The CDR payload of ``sample`` (what ``publish(bytes)`` sends).
@@ -211,7 +217,7 @@ class JointCodec(Generic[S]):
         return self._layout.decode(msg.name, msg, msg.stamp_ns, self._axis, self._period_ns)
 
 
-class ArrayCodec(Generic[S]):
+class ArrayCodec(_Codec, Generic[S]):
     """CDR bytes of one per-step labelled Float64MultiArray topic of scalars, and back.
 
     Parameters
@@ -227,7 +233,7 @@ class ArrayCodec(Generic[S]):
         value, or no sample class.
     """
 
-    __slots__ = ("_constants", "_layout", "_n", "_struct")
+    __slots__ = ("_constants", "_layout", "_n")
 
     def __init__(self, layout: ArrayLayout[S]) -> None:
         if not layout.per_step or layout.sample is None or set(layout.sizes) != {1}:
@@ -247,11 +253,6 @@ class ArrayCodec(Generic[S]):
         shape.uint32(n)
         shape.values(n)
         self._struct, self._constants = shape.done()
-
-    @property
-    def size(self) -> int:
-        """Bytes of an encoded sample, encapsulation header included."""
-        return self._struct.size
 
     def encode(self, sample: S) -> bytes:
         """The CDR payload of ``sample`` (the message of :func:`servo_axis.wire.messages.labelled_array`).

@@ -302,24 +302,7 @@ class TiltingTablePlant:
             b = torque / self._inertia
             self._th, self._v = self._kernel(self._th, self._v, b, self._config)
         self._step += 1
-        # _update_sample(), without the call.
-        c = self._coulomb
-        v = self._v
-        if v != 0.0:
-            self._friction_Nm = math.copysign(c, v) if c > 0.0 else 0.0
-        else:
-            net = torque - self._unbalance * math.sin(self._th)
-            self._friction_Nm = min(max(net, -c), c)
-        value = self._th
-        if self._noise > 0.0:
-            draws = self._draws
-            if not draws:
-                draws.extend(reversed(self._rng.random(NOISE_DRAWS).tolist()))
-            value += self._noise_low + self._noise_span * draws.pop()
-        res = self._resolution
-        if res > 0.0:
-            value = math.floor(value / res + 0.5) * res
-        self._encoder_rad = value
+        self._update_sample()
         # output(), without the call.
         return plant_output(
             self._step,
@@ -335,8 +318,7 @@ class TiltingTablePlant:
 
     def _update_sample(self) -> None:
         # Friction torque at the sample (eq. (2) sign: it opposes the motion)
-        # and the encoder reading, both fixed once per sample. step() has
-        # these lines written out (the per-sample path): keep the two alike.
+        # and the encoder reading, both fixed once per sample.
         c = self._coulomb
         if self._v != 0.0:
             self._friction_Nm = math.copysign(c, self._v) if c > 0.0 else 0.0
