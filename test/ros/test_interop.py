@@ -11,6 +11,7 @@
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 from typing import Any
 
@@ -136,6 +137,9 @@ def test_every_subscription_matches_a_default_qos_publisher(
     extra = {
         k: 0 if k.startswith("wait_for_") and "subscribers" in k else v for k, v in extra.items()
     }
+    # The node alone, fed by a node of another name, as a user starts it by
+    # hand: it takes whoever publishes (a run waits for its own producers).
+    extra["wait_for_producers"] = False
     outside = Node("someone_elses_node", context=context)
     node = NODE_CLASSES[role](
         context=context,
@@ -207,3 +211,58 @@ def test_latched_profiles_are_what_a_default_reader_can_match() -> None:
         assert offered.reliability == ReliabilityPolicy.RELIABLE
         assert offered.durability == DurabilityPolicy.TRANSIENT_LOCAL
         assert lease_s(offered) == pytest.approx(LIVELINESS_LEASE_S)
+
+
+# -- a run's node subscribes once its producer publishes, not on a stranger first ---------
+
+
+@pytest.mark.parametrize(
+    ("wait", "external", "made_on_stranger"),
+    [(True, [""], False), (False, [""], True), (True, ["plant"], True)],
+    ids=["run", "by_hand", "outside_plant"],
+)
+def test_a_run_node_subscribes_once_its_producer_publishes(
+    context: Context, wait: bool, external: list[str], made_on_stranger: bool
+) -> None:
+    """A stranger publishes ``plant/status`` before the plant exists. With
+    ``wait_for_producers`` the feedforward generator makes no reader on it; once a
+    node called ``plant`` publishes, the reader is made and matches both. Started by
+    hand (false), or with the plant an outside role, the stranger's publisher is
+    enough: that is the first publisher seen."""
+    data = load_scenario(CONFIG / "ptc_nominal.yaml")
+    stranger = Node("junk", context=context)
+    stranger_pub = stranger.create_publisher(Float64MultiArray, "plant/status", STREAM_QOS)
+    overrides = {
+        **node_params(data, "feedforward"),
+        "wait_for_producers": wait,
+        "external_roles": external,
+        "wait_for_reference_subscribers": 0,
+    }
+    node = NODE_CLASSES["feedforward"](
+        context=context,
+        parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()],
+    )
+    nodes = [node, stranger]
+    if made_on_stranger:
+        spin_until(context, nodes, lambda: stranger_pub.get_subscription_count() == 1, 10.0)
+    else:
+        end = time.monotonic() + 1.0
+        spin_until(context, nodes, lambda: time.monotonic() > end, 5.0)
+        # 1 s: a hundred looks at the graph, which has listed the stranger all along.
+        assert stranger.get_publishers_info_by_topic("/plant/status")
+        assert stranger_pub.get_subscription_count() == 0
+        assert stranger.get_subscriptions_info_by_topic("/plant/status") == []
+    plant = Node("plant", context=context)
+    plant_pub = plant.create_publisher(Float64MultiArray, "plant/status", STREAM_QOS)
+    nodes.append(plant)
+    spin_until(
+        context,
+        nodes,
+        lambda: plant_pub.get_subscription_count() == 1
+        and stranger_pub.get_subscription_count() == 1,
+        10.0,
+    )
+    readers = plant.get_subscriptions_info_by_topic("/plant/status")
+    assert [(i.node_name, i.node_namespace) for i in readers] == [("feedforward", "/")]
+    for n in nodes:
+        n.destroy_node()

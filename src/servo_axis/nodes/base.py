@@ -21,7 +21,9 @@
   the payload is validated and before the handler sees it, so a message
   ahead of or behind the stream never displaces it.
 * QoS: a subscription is made once the topic has a publisher in the ROS
-  graph, with the profile that matches it
+  graph (with ``wait_for_producers``, a run's node: once the node the run
+  started for the topic's producer role publishes it), with the profile
+  that matches it
   (:func:`~servo_axis.nodes.runtime.matching_reader_qos`): the suite's own
   publishers (reliable, transient-local, lease 1 s) get a reader just as
   strong, an outside node with rclpy's or rclcpp's default profile
@@ -278,13 +280,34 @@ class ServoNode(Node):
     ) -> bool:
         infos = self.get_publishers_info_by_topic(self.resolve_topic_name(name))
         profile = matching_reader_qos(wanted, [i.qos_profile for i in infos])
-        if profile is None:
+        if profile is None or not self._producer_publishes(name, infos):
             return False
         if name in topics.BY_NAME and topics.topic(name).producer in self.external_roles:
             # An outside role's publisher is the first one seen: the one there now.
             self._declared.setdefault(name, bytes(infos[0].endpoint_gid).hex())
         create(profile)
         return True
+
+    def _producer_publishes(self, name: str, infos: list[Any]) -> bool:
+        """Whether topic ``name`` may be subscribed to, with ``infos`` its publishers now.
+
+        With ``wait_for_producers`` (a run's node), a topic of the table whose
+        producer is a role the run started waits for that node's publisher:
+        the graph lists it only once this participant has discovered it, so
+        a reader made then matches it on its own side at once. A reader made
+        on a stranger's publisher that was there first matches the producer
+        on its side whenever that discovery message comes: measured, a
+        learning unit whose real ``state[0]`` came late took a stranger's
+        well-formed ``state[0]`` (stamp 0, sent 20 steps later) first, and
+        the corrupted correction tripped the loop.
+        """
+        if not self.values["wait_for_producers"] or name not in topics.BY_NAME:
+            return True
+        producer = topics.topic(name).producer
+        if producer in self.external_roles:
+            return True
+        ns = self.get_namespace()
+        return any(i.node_name == producer and i.node_namespace == ns for i in infos)
 
     def _create_pending(self) -> None:
         self._unpublished = [p for p in self._unpublished if not self._create_if_published(*p)]

@@ -91,6 +91,16 @@ SHARED: dict[str, Param] = {
         "`run`): their topics' first publisher is the declared one, not a stranger; a subset "
         "of plant, feedback, feedforward, learning, identifier",
     ),
+    "wait_for_producers": Param(
+        False,
+        meaning="subscribe to a topic of the topic table only once the node the run started "
+        "for its producer role (by that role's name, in this namespace) publishes it; an "
+        "outside role's topic (`external_roles`): once it has any publisher. A reader made "
+        "on a stranger's publisher that was there first could match the producer on its own "
+        "side late (a discovery message repaired later) and take the stranger's sample of "
+        "step 0 before the producer's; the runner sets it true. false: once the topic has "
+        "any publisher (a node started by hand, beside a probe)",
+    ),
     "thread_priority": Param(
         50,
         minimum=0,

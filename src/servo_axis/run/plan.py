@@ -145,7 +145,8 @@ def handshake_overrides(
         and keeps its memory in ``<run>/identifier_memory.json``;
         feedback, feedforward and learning get ``use_sim_time: true``;
         every node gets ``report_dir`` (``<run>/logs``, where it writes its
-        health report).
+        health report) and ``wait_for_producers`` (it subscribes to a topic
+        only once the node the run started for its producer publishes it).
     """
     recorded: list[str] = []
     out: dict[str, dict[str, Any]] = {"plant": {}}
@@ -214,6 +215,7 @@ def handshake_overrides(
             out.setdefault(role, {})["use_sim_time"] = True
     for role in roles:
         out.setdefault(role, {})["report_dir"] = str(bag_dir.parent / "logs")
+        out[role]["wait_for_producers"] = True
     if external:
         for role in roles:
             out[role]["external_roles"] = list(external)
