@@ -258,8 +258,9 @@ def test_a_run_node_subscribes_once_its_producer_publishes(
     spin_until(
         context,
         nodes,
-        lambda: plant_pub.get_subscription_count() == 1
-        and stranger_pub.get_subscription_count() == 1,
+        lambda: (
+            plant_pub.get_subscription_count() == 1 and stranger_pub.get_subscription_count() == 1
+        ),
         10.0,
     )
     readers = plant.get_subscriptions_info_by_topic("/plant/status")
