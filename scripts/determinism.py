@@ -13,7 +13,8 @@ the first run's, and each run's exit code is printed::
     .venv/bin/python scripts/determinism.py --runs 50 --extra-participant --cpu-load 2
 
 prints ``identical: 50 of 50 runs (exit codes {0: 50})``; exit 1 if any run
-differs or exits non-zero.
+differs or exits non-zero. ``--keep-different DIR`` keeps the first run and
+every differing one (bag, logs, summary) in ``DIR`` to look into.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from __future__ import annotations
 import argparse
 import multiprocessing
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -104,6 +106,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--extra-participant", action="store_true")
     parser.add_argument("--cpu-load", type=int, default=0, help="busy processes during the runs")
     parser.add_argument("--domain-id", type=int, default=60)
+    parser.add_argument(
+        "--keep-different",
+        type=Path,
+        default=None,
+        help="copy the first run and each differing run (bag, logs, summary) into this folder",
+    )
     args = parser.parse_args(argv)
 
     load = [multiprocessing.Process(target=_busy, daemon=True) for _ in range(args.cpu_load)]
@@ -135,6 +143,8 @@ def main(argv: list[str] | None = None) -> int:
                     for topic, value in per_topic.items()
                     if (reference or {}).get(bag, {}).get(topic) != value
                 )
+                if args.keep_different is not None and (i == 0 or not same):
+                    shutil.copytree(out, args.keep_different / out.name, dirs_exist_ok=True)
                 print(
                     f"run {i + 1:>3}: exit {code}, "
                     + ("identical" if same else f"DIFFERENT ({', '.join(diff) or 'no bag'})"),
