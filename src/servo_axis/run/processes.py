@@ -89,7 +89,7 @@ def run_header(domain_id: int, namespaces: list[str], settings: Mapping[str, str
         f"ROS 2: ROS_DOMAIN_ID={domain_id}, namespace{'s' if len(shown) > 1 else ''} "
         f"{', '.join(shown)} (nodes {first}/plant, {first}/feedback, ...{clock})",
         f"discovery: ROS_AUTOMATIC_DISCOVERY_RANGE={range_}, "
-        f"FASTRTPS_DEFAULT_PROFILES_FILE={profile} (100 ms announcements), "
+        f"FASTRTPS_DEFAULT_PROFILES_FILE={profile} (100 ms announcements and heartbeats), "
         f"transports FASTDDS_BUILTIN_TRANSPORTS={transports}"
         + (
             " + shared memory (rmw_fastrtps adds it under LOCALHOST)"
