@@ -280,16 +280,19 @@ class ServoNode(Node):
     ) -> bool:
         infos = self.get_publishers_info_by_topic(self.resolve_topic_name(name))
         profile = matching_reader_qos(wanted, [i.qos_profile for i in infos])
-        if profile is None or not self._producer_publishes(name, infos):
+        producer = topics.topic(name).producer if name in topics.BY_NAME else None
+        outside = producer in self.external_roles
+        if profile is None or not (outside or self._producer_publishes(producer, infos)):
             return False
-        if name in topics.BY_NAME and topics.topic(name).producer in self.external_roles:
+        if outside:
             # An outside role's publisher is the first one seen: the one there now.
             self._declared.setdefault(name, bytes(infos[0].endpoint_gid).hex())
         create(profile)
         return True
 
-    def _producer_publishes(self, name: str, infos: list[Any]) -> bool:
-        """Whether topic ``name`` may be subscribed to, with ``infos`` its publishers now.
+    def _producer_publishes(self, producer: str | None, infos: list[Any]) -> bool:
+        """Whether a topic of the suite's ``producer`` role (None: not a table topic) may be
+        subscribed to, with ``infos`` its publishers now.
 
         With ``wait_for_producers`` (a run's node), a topic of the table whose
         producer is a role the run started waits for that node's publisher:
@@ -301,10 +304,7 @@ class ServoNode(Node):
         well-formed ``state[0]`` (stamp 0, sent 20 steps later) first, and
         the corrupted correction tripped the loop.
         """
-        if not self.values["wait_for_producers"] or name not in topics.BY_NAME:
-            return True
-        producer = topics.topic(name).producer
-        if producer in self.external_roles:
+        if not self.values["wait_for_producers"] or producer is None:
             return True
         ns = self.get_namespace()
         return any(i.node_name == producer and i.node_namespace == ns for i in infos)
