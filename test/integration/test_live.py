@@ -116,6 +116,18 @@ def run(out: Path, domain: int, *extra: str) -> subprocess.CompletedProcess[str]
     )  # fmt: skip
 
 
+def missing_ranges(steps: int, got: list[int]) -> str:
+    """The steps of ``range(steps)`` not in ``got``, as ranges ("5-9, 1990-1999")."""
+    missing = sorted(set(range(steps)) - set(got))
+    ranges: list[list[int]] = []
+    for k in missing:
+        if ranges and ranges[-1][1] == k - 1:
+            ranges[-1][1] = k
+        else:
+            ranges.append([k, k])
+    return ", ".join(f"{a}-{b}" if a != b else str(a) for a, b in ranges) or "none"
+
+
 def payload_hashes(payloads: dict[str, list[bytes]]) -> dict[str, tuple[int, str]]:
     """Message count and SHA-256 of the CDR payloads, per topic."""
     return {
@@ -165,7 +177,10 @@ def test_live_view_serves_the_run_on_the_simulation_timeline_and_changes_nothing
     # is still queued when it is stopped.
     for topic in CHANNELS[:4]:
         got = viewer.messages.get(topic, [])
-        assert len(got) == steps, f"{topic}: {len(got)} messages of {steps}"
+        assert len(got) == steps, (
+            f"{topic}: {len(got)} messages of {steps}, missing steps "
+            f"{missing_ranges(steps, [m['step'] for _, m in got])}"
+        )
         times = np.array([t for t, _ in got], dtype=np.int64)
         assert np.all(times % period_ns == 0), topic
         assert np.all(np.diff(times) > 0), topic

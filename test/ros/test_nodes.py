@@ -971,3 +971,42 @@ def test_feedback_listens_only_once_its_command_is_heard(context: Context) -> No
     spin_until(context, nodes, lambda: state_pub.get_subscription_count() == 1)
     for n in nodes:
         n.destroy_node()
+
+
+def test_the_recorder_counts_a_stream_gone_only_when_a_writer_lapses(
+    context: Context, tmp_path: Path
+) -> None:
+    from types import SimpleNamespace
+
+    scenario = load_scenario(CONFIG / "ptc_nominal.yaml")
+    roles = roles_of(scenario)
+    extra = handshake_overrides(scenario, roles, tmp_path / "bag", CONFIG)["recorder"]
+    values = {**node_params(scenario, "recorder"), **extra}
+    recorder = RecorderNode(
+        context=context, parameter_overrides=[Parameter(k, value=v) for k, v in values.items()]
+    )
+    try:
+        on_liveliness = recorder._liveliness("/state")
+
+        def info(alive: int, not_alive: int, alive_change: int, not_alive_change: int) -> Any:
+            return SimpleNamespace(
+                alive_count=alive,
+                not_alive_count=not_alive,
+                alive_count_change=alive_change,
+                not_alive_count_change=not_alive_change,
+            )
+
+        # A restarted producer exits cleanly at the end while the killed
+        # one's lapsed writer is still listed: nothing is gone.
+        on_liveliness(info(0, 1, -1, 0))
+        assert recorder.health.fallbacks == []
+        # A writer's lease lapses and none is alive: the stream is gone.
+        on_liveliness(info(0, 1, -1, 1))
+        assert [f.kind for f in recorder.health.fallbacks] == ["publisher_gone"]
+        # Alive again (a restart) and lapsing while another is alive: no more.
+        on_liveliness(info(1, 1, 1, 0))
+        on_liveliness(info(1, 2, 0, 1))
+        assert len(recorder.health.fallbacks) == 1
+    finally:
+        recorder.close()
+        recorder.destroy_node()

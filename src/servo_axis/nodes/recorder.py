@@ -20,7 +20,11 @@ Every :data:`FLUSH_PERIOD_S` of wall time (a steady-clock timer) the chunk in
 progress is closed and written to the file, so that a recorder that dies,
 even by SIGKILL, loses at most the last 0.5 s of messages; ``python -m
 servo_axis bag recover <bag>`` makes such a bag readable again. The bag is
-closed (metadata.yaml written) on shutdown, SIGINT or SIGTERM.
+closed (metadata.yaml written) on shutdown, SIGINT or SIGTERM, once what is
+still on its way has been written: the runner stops the recorder after the
+other nodes, which wait until their last samples are acknowledged, and the
+recorder drains its readers until they are quiet
+(:func:`~servo_axis.nodes.runtime.finish`).
 
 Run::
 
@@ -97,6 +101,9 @@ def message_class(type_name: str) -> Any:
 class RecorderNode(ServoNode):
     """Recorder; see the module docstring."""
 
+    #: At its process's end it writes what is still arriving (runtime.finish).
+    drain_on_stop = True
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("recorder", **kwargs)
         values = self.values
@@ -172,6 +179,7 @@ class RecorderNode(ServoNode):
                 topic, qos, functools.partial(self._subscribe_raw, topic, cls, callback, events)
             )
         self.recorded = -1
+        self.messages_taken = 0
         self._ready_timer = self.create_timer(0.01, self._check_ready, clock=steady_clock())
         self._flush_timer = self.create_timer(
             FLUSH_PERIOD_S, self.writer.flush, clock=steady_clock()
@@ -196,6 +204,7 @@ class RecorderNode(ServoNode):
             t = log_time(stamp_ns, clock=clock)
             writer.write(name, data, log_time_ns=t, publish_time_ns=t)
             counts[name] += 1
+            self.messages_taken += 1
             if final:
                 self._update_progress()
             if counted:
@@ -278,7 +287,11 @@ class RecorderNode(ServoNode):
 
     def _liveliness(self, name: str) -> Any:
         def on_liveliness(info: Any) -> None:
-            if info.alive_count == 0 and info.not_alive_count > 0:
+            # Gone when a writer's lease lapses (not_alive_count_change > 0)
+            # and none is alive; not when the last alive one exits cleanly
+            # while a killed one's lapsed writer is still listed (a restarted
+            # node at the end of the run: the recorder is stopped last).
+            if info.alive_count == 0 and info.not_alive_count_change > 0:
                 self._publisher_gone(name)
             elif info.alive_count > 0:
                 self._gone.discard(name)

@@ -142,19 +142,35 @@ def matching_reader_qos(wanted: QoSProfile, offered: Sequence[QoSProfile]) -> Qo
 #: Exit code of a node that refused its configuration.
 EXIT_BAD_CONFIG = 2
 
+#: Seconds a node process gives, once its spin loop ends, for what it
+#: published to be acknowledged by every reliable reader, before its writers
+#: are destroyed: a sample a reader lost (a full shared-memory port) is
+#: repaired only while its writer exists, and a reliable reader holds back
+#: everything after the gap (suspected where a live viewer got 1,863 of 2,000
+#: states). A reader that stopped reading (SIGSTOP) costs this much.
+ACK_TIMEOUT_S = 1.0
+#: A node that drains at its end (``drain_on_stop``: the recorder) goes on
+#: taking what was sent until this many seconds pass without a message, and
+#: at most :data:`DRAIN_MAX_S` (an outside node may publish for ever).
+DRAIN_IDLE_S = 0.1
+DRAIN_MAX_S = 1.0
+
 
 def steady_clock() -> Clock:
     """Wall (steady) clock for watchdogs, whatever ``use_sim_time`` says."""
     return Clock(clock_type=ClockType.STEADY_TIME)
 
 
-def make_executor() -> rclpy.executors.Executor:
-    """EventsExecutor (fast), or SingleThreadedExecutor if ``SERVO_AXIS_EXECUTOR=single``."""
+def make_executor(context: rclpy.context.Context | None = None) -> rclpy.executors.Executor:
+    """EventsExecutor (fast), or SingleThreadedExecutor if ``SERVO_AXIS_EXECUTOR=single``.
+
+    On ``context`` (None: the default one).
+    """
     if os.environ.get("SERVO_AXIS_EXECUTOR", "events") == "single":
-        return SingleThreadedExecutor()
+        return SingleThreadedExecutor(context=context)
     from rclpy.experimental import EventsExecutor
 
-    return EventsExecutor()
+    return EventsExecutor(context=context)
 
 
 def realtime_scheduling(priority: int) -> dict[str, object]:
@@ -224,8 +240,74 @@ def spin_nodes(nodes: Sequence[Node], done: Callable[[], bool]) -> None:
                 # handing a message to Python; that is a normal stop.
                 if rclpy.ok():
                     raise
+        if rclpy.ok():
+            finish(executor, nodes)
     finally:
         executor.shutdown()
+
+
+def finish(
+    executor: rclpy.executors.Executor,
+    nodes: Sequence[Node],
+    *,
+    ack_timeout_s: float = ACK_TIMEOUT_S,
+    idle_s: float = DRAIN_IDLE_S,
+    max_s: float = DRAIN_MAX_S,
+) -> None:
+    """End a node process's spin: what it published is acknowledged, a recorder drains.
+
+    First every publisher of ``nodes`` waits until each reliable reader has
+    acknowledged what it sent (:func:`wait_for_acks`; a topic that was not is
+    logged). Then the nodes that set ``drain_on_stop`` (the recorder) spin
+    alone, taking what is already on its way to them, until ``idle_s`` pass
+    without their ``messages_taken`` moving (at most ``max_s``): the runner
+    stops them after the other nodes
+    (:func:`~servo_axis.run.processes.stop_nodes`), so what those sent last
+    is written, in a composed process too.
+    """
+    deadline = time.monotonic() + ack_timeout_s
+    for node in nodes:
+        late = wait_for_acks([node], max(0.0, deadline - time.monotonic()))
+        if late:
+            node.get_logger().warning(
+                f"not acknowledged by every reader within {ack_timeout_s:g} s: "
+                f"{', '.join(late)} (a reader that stopped reading misses the last samples)"
+            )
+    drainers = [n for n in nodes if getattr(n, "drain_on_stop", False)]
+    if not drainers:
+        return
+    for node in nodes:
+        if node not in drainers:
+            executor.remove_node(node)
+
+    def taken() -> int:
+        return sum(int(getattr(n, "messages_taken", 0)) for n in drainers)
+
+    start = last_change = time.monotonic()
+    seen = taken()
+    while drainers[0].context.ok():
+        now = time.monotonic()
+        if now - last_change >= idle_s or now - start >= max_s:
+            break
+        executor.spin_once(timeout_sec=idle_s / 4)
+        if taken() != seen:
+            seen, last_change = taken(), time.monotonic()
+
+
+def wait_for_acks(nodes: Sequence[Node], timeout_s: float) -> list[str]:
+    """Wait until every reliable reader acknowledged what ``nodes`` published.
+
+    Returns the topics of the publishers not acknowledged within
+    ``timeout_s`` seconds, all publishers together.
+    """
+    deadline = time.monotonic() + timeout_s
+    late = []
+    for node in nodes:
+        for publisher in list(node.publishers):
+            left_ns = max(0, int((deadline - time.monotonic()) * 1e9))
+            if not publisher.wait_for_all_acked(Duration(nanoseconds=left_ns)):
+                late.append(publisher.topic_name)
+    return late
 
 
 def run_main(

@@ -28,6 +28,8 @@ from servo_axis.params.names import check_domain_id
 
 #: Seconds between SIGINT and SIGKILL when the nodes are stopped.
 STOP_TIMEOUT_S = 5.0
+#: Roles stopped after the others (:func:`stop_nodes`).
+STOPPED_LAST = ("recorder",)
 #: The roles that take turns on the per-sample path in lockstep.
 LOCKSTEP_PAIR = ("plant", "feedback")
 
@@ -210,13 +212,34 @@ def cpu_set(role: str) -> set[int] | None:
     return {cpus[0]} if role in LOCKSTEP_PAIR else set(cpus[1:])
 
 
-def stop_nodes(procs: list[Proc], timeout_s: float = STOP_TIMEOUT_S) -> dict[str, int]:
+def stop_nodes(
+    procs: list[Proc], timeout_s: float = STOP_TIMEOUT_S, *, last: tuple[str, ...] = STOPPED_LAST
+) -> dict[str, int]:
     """SIGINT every live process group, SIGKILL what is left after ``timeout_s``; reap all.
+
+    The roles in ``last`` (the recorder) are stopped once the others have
+    exited: each node waits at its end until its last samples are
+    acknowledged, and the recorder then writes what is still on its way
+    (:func:`~servo_axis.nodes.runtime.finish`), so that nothing a node sent
+    before it stopped is missing from the bag.
 
     Returns the exit code of each role (negative: killed by that signal).
     After a SIGKILL the shared-memory files of the killed participants are
     removed (:func:`clean_stale_shm`).
     """
+    first = [p for p in procs if p.role not in last]
+    _interrupt(first, timeout_s)
+    _interrupt([p for p in procs if p.role in last], timeout_s)
+    for p in procs:
+        _signal_group(p.popen, signal.SIGKILL)  # stray children of the group, if any
+        p.log.close()
+    if procs and any(p.popen.returncode == -signal.SIGKILL for p in procs):
+        clean_stale_shm(since=min(p.started_at for p in procs))
+    return {p.role: p.popen.returncode for p in procs}
+
+
+def _interrupt(procs: list[Proc], timeout_s: float) -> None:
+    """SIGINT ``procs`` and wait for them, SIGKILL those still there after ``timeout_s``."""
     for p in procs:
         if p.popen.poll() is None:
             _signal_group(p.popen, signal.SIGINT)
@@ -227,12 +250,6 @@ def stop_nodes(procs: list[Proc], timeout_s: float = STOP_TIMEOUT_S) -> dict[str
         except subprocess.TimeoutExpired:
             _signal_group(p.popen, signal.SIGKILL)
             p.popen.wait()
-    for p in procs:
-        _signal_group(p.popen, signal.SIGKILL)  # stray children of the group, if any
-        p.log.close()
-    if procs and any(p.popen.returncode == -signal.SIGKILL for p in procs):
-        clean_stale_shm(since=min(p.started_at for p in procs))
-    return {p.role: p.popen.returncode for p in procs}
 
 
 def _signal_group(popen: subprocess.Popen[bytes], sig: int) -> None:

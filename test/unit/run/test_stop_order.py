@@ -1,0 +1,97 @@
+"""The order in which the runner stops a run's processes (``run.processes.stop_nodes``).
+
+The recorder is stopped only once every other node has exited: they wait at
+their end until their last samples are acknowledged, and the recorder then
+writes what is still on its way. Plain Python processes stand in for the
+nodes: each notes when SIGINT came and when it exited.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+import pytest
+
+from servo_axis.run.processes import Proc, start_process, stop_nodes
+
+# Notes "<role> sigint <t>" and, after `linger` seconds, "<role> exit <t>".
+STANDIN = """
+import signal, sys, time
+role, notes, linger = sys.argv[1], sys.argv[2], float(sys.argv[3])
+def on_sigint(*_):
+    with open(notes, "a") as f:
+        f.write(f"{role} sigint {time.monotonic()}\\n")
+    time.sleep(linger)
+    with open(notes, "a") as f:
+        f.write(f"{role} exit {time.monotonic()}\\n")
+    sys.exit(0)
+signal.signal(signal.SIGINT, on_sigint)
+print("ready", flush=True)
+while True:
+    time.sleep(0.01)
+"""
+
+
+def start(
+    role: str, notes: Path, tmp_path: Path, linger_s: float, ignore_sigint: bool = False
+) -> Proc:
+    code = STANDIN
+    if ignore_sigint:
+        code = code.replace("on_sigint)", "signal.SIG_IGN)")
+    env = {**os.environ, "SERVO_AXIS_PIN": "0"}
+    proc = start_process(
+        role, ["-c", code, role, str(notes), str(linger_s)], env, tmp_path / f"{role}.log"
+    )
+    deadline = time.monotonic() + 20
+    while "ready" not in (tmp_path / f"{role}.log").read_text():
+        assert time.monotonic() < deadline, f"{role} did not start"
+        time.sleep(0.01)
+    return proc
+
+
+def events(notes: Path) -> dict[tuple[str, str], float]:
+    out = {}
+    for line in notes.read_text().splitlines():
+        role, what, t = line.split()
+        out[(role, what)] = float(t)
+    return out
+
+
+@pytest.fixture
+def notes(tmp_path: Path) -> Path:
+    return tmp_path / "notes.txt"
+
+
+def test_the_recorder_is_interrupted_only_after_every_other_node_exited(
+    tmp_path: Path, notes: Path
+) -> None:
+    procs = [
+        start("recorder", notes, tmp_path, 0.05),
+        start("plant", notes, tmp_path, 0.3),
+        start("feedback", notes, tmp_path, 0.5),
+    ]
+    codes = stop_nodes(procs)
+    assert codes == {"recorder": 0, "plant": 0, "feedback": 0}
+    got = events(notes)
+    # The others were interrupted together, before either exited ...
+    assert got[("plant", "sigint")] < got[("feedback", "exit")]
+    assert got[("feedback", "sigint")] < got[("plant", "exit")]
+    # ... and the recorder after both had.
+    assert got[("recorder", "sigint")] >= max(got[("plant", "exit")], got[("feedback", "exit")])
+
+
+def test_a_node_that_ignores_sigint_delays_the_recorder_by_the_timeout_only(
+    tmp_path: Path, notes: Path
+) -> None:
+    procs = [
+        start("recorder", notes, tmp_path, 0.0),
+        start("plant", notes, tmp_path, 0.0, ignore_sigint=True),
+    ]
+    started = time.monotonic()
+    codes = stop_nodes(procs, timeout_s=0.5)
+    assert codes["plant"] < 0  # killed
+    assert codes["recorder"] == 0
+    got = events(notes)
+    assert 0.45 <= got[("recorder", "sigint")] - started < 3.0
