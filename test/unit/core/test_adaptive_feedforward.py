@@ -199,3 +199,29 @@ def test_ptc_inverse_is_numpys() -> None:
         assert _inv2(b).tobytes() == np.linalg.inv(b).tobytes()
     with pytest.raises(np.linalg.LinAlgError):
         _inv2(np.zeros((2, 2)))
+
+
+def test_after_the_estimates_stop_the_estimates_in_force_go_on() -> None:
+    """The identifier fallback (``stop_estimates``) mid-block: the samples go on
+    with the last estimate in force, as a generator built with it gives."""
+    initial = NominalModel(
+        inertia_kgm2=20e-4, damping_Nms_per_rad=100e-4, torque_constant_Nm_per_A=1.0
+    )
+    true = NominalModel(inertia_kgm2=J, damping_Nms_per_rad=D, torque_constant_Nm_per_A=1.0)
+
+    def mnc() -> NonlinearityCompensator:
+        return NonlinearityCompensator(
+            MncParams(unbalance_Nm=U, coulomb_Nm=C, control_period_s=TU), reference=TILT
+        )
+
+    gen = generator(initial, terms=[mnc()], estimates=True, latency=20)
+    gen.samples(0, 30)
+    gen.set_estimate(30, inertia_kgm2=J, damping_Nms_per_rad=D, unbalance_Nm=0.2, coulomb_Nm=0.03)
+    gen.samples(30, 37)  # into the estimate's period, not to its end
+    gen.stop_estimates()
+    assert gen.ready_until() is None
+    got = gen.samples(37, 300)  # across the blocks that follow
+    # Built with the estimate from the start: the same samples from 37 on.
+    term = mnc()
+    term.set_parameters(from_step=1, unbalance_Nm=0.2, coulomb_Nm=0.03)
+    assert got == generator(true, terms=[term]).samples(0, 300)[37:]

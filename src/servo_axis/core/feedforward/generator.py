@@ -408,7 +408,10 @@ class FeedforwardGenerator:
         k = start
         while k < stop:
             if not self._block_start <= k < self._block_start + len(self._block):
-                cut = self._cycle_steps is not None or self._next_estimate is not None
+                # With learning or online estimates a block starts at the next
+                # sample: the terms forget what no sample from it on uses
+                # (set_estimate), also after the estimates stopped (a fallback).
+                cut = self._cycle_steps is not None or self._estimate_period is not None
                 self._block_start = k if cut else k - (k % BLOCK_STEPS)
                 self._block = self._compute_block(
                     self._block_start, self._block_end(self._block_start)
