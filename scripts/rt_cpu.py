@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""CPU time of each node process of a realtime run, per simulated second.
+"""CPU time of each node process of a realtime (or lockstep) run, per simulated second.
 
 Runs ``python -m servo_axis run`` on each scenario with ``mode: realtime``
 (separate processes, recorder on, as the benchmark's realtime cells), reads
@@ -11,6 +11,13 @@ is saturated: misses then come from the work itself, not from the
 scheduler's latency (compare with ``scripts/benchmark.py --quick``).
 
     .venv/bin/python scripts/rt_cpu.py [--duration 2] [--repeat 1] [SCENARIO ...]
+
+``--lockstep`` runs the scenarios in lockstep instead and prints each
+node's CPU in us per step: on a 2-core host the plant and the feedback
+share one core and the other nodes the other, so the busier core's sum
+bounds the steps per second.
+
+    .venv/bin/python scripts/rt_cpu.py --lockstep --duration 4 dlpid_tilt_lpf2
 """
 
 from __future__ import annotations
@@ -47,11 +54,11 @@ def cpu_s(pid: int) -> float | None:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def measure(name: str, duration_s: float, work: Path, domain: int) -> dict:
-    """One realtime run of ``name``: CPU s per simulated s by role, misses, steps."""
+def measure(name: str, duration_s: float, work: Path, domain: int, mode: str = "realtime") -> dict:
+    """One run of ``name``: CPU s per simulated s by role, misses, steps, wall time."""
     data = load_scenario(scenario_dir() / f"{name}.yaml")
     common = data["/**"]["ros__parameters"]
-    common["mode"] = "realtime"
+    common["mode"] = mode
     common["duration_s"] = duration_s
     work.mkdir(parents=True, exist_ok=True)
     scenario = work / f"{name}_rt.yaml"
@@ -90,6 +97,8 @@ def measure(name: str, duration_s: float, work: Path, domain: int) -> dict:
         "misses": realtime.get("misses"),
         "ticks": realtime.get("ticks"),
         "exit": proc.returncode,
+        "period_s": summary["control_period_s"],
+        "realtime_factor": summary.get("realtime_factor"),
     }
 
 
@@ -101,7 +110,10 @@ def main() -> int:
     parser.add_argument("--duration", type=float, default=2.0, help="simulated s per run")
     parser.add_argument("--repeat", type=int, default=1, help="runs per scenario")
     parser.add_argument("--domain-id", type=int, default=97)
+    parser.add_argument("--lockstep", action="store_true", help="us per step in lockstep")
     args = parser.parse_args()
+    if args.lockstep:
+        return lockstep_table(args)
     print(
         f"CPU s per simulated s of each node, realtime, separate processes, recorder on; "
         f"{os.cpu_count()} cores, {time.strftime('%Y-%m-%d %H:%M')}, "
@@ -121,6 +133,34 @@ def main() -> int:
                 print(
                     f"| {name} | {' | '.join(cells)} | {sum(r['cpu'].values()):.2f} "
                     f"| {r['misses']} of {r['ticks']} ({100 * share:.2f} %) |",
+                    flush=True,
+                )
+    return 0
+
+
+def lockstep_table(args: argparse.Namespace) -> int:
+    """The ``--lockstep`` table: CPU us per step of each node and the two cores' sums."""
+    print(
+        f"CPU us per step of each node, lockstep, separate processes, recorder on; "
+        f"{os.cpu_count()} cores, {time.strftime('%Y-%m-%d %H:%M')}, "
+        f"{args.duration:g} simulated s per run (from the plant's start to its exit)\n"
+    )
+    print(
+        "| scenario | plant | feedback | feedforward | learning | identifier | recorder "
+        "| plant + feedback | others | x real time |"
+    )
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    with tempfile.TemporaryDirectory(prefix="servo_axis_rt_cpu_") as tmp:
+        for name in args.scenarios:
+            for k in range(args.repeat):
+                r = measure(name, args.duration, Path(tmp) / f"{k}", args.domain_id, "lockstep")
+                us = {role: v * r["period_s"] * 1e6 for role, v in r["cpu"].items()}
+                cells = [f"{us[role]:.0f}" if role in us else "-" for role in ROLES]
+                pair = sum(v for role, v in us.items() if role in ("plant", "feedback"))
+                others = sum(us.values()) - pair
+                print(
+                    f"| {name} | {' | '.join(cells)} | {pair:.0f} | {others:.0f} "
+                    f"| {r['realtime_factor']:.2f}x |",
                     flush=True,
                 )
     return 0

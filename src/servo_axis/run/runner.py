@@ -190,6 +190,11 @@ class _AxisRun:
     seen_dead: set[int] = field(default_factory=set)  # pids already handled
 
     @property
+    def realtime(self) -> bool:
+        """The axis runs in realtime (the plant's ``mode``)."""
+        return bool(node_values(self.scenario, "plant")["mode"] == "realtime")
+
+    @property
     def log_dir(self) -> Path:
         return self.out_dir / "logs"
 
@@ -631,7 +636,13 @@ def _run_nodes(
             for run in runs:
                 run.env = {**env, "ROS_LOG_DIR": str(run.log_dir)}
                 run.procs = start_nodes(
-                    run.params_path, run.started_roles, run.args, run.env, run.log_dir, composed
+                    run.params_path,
+                    run.started_roles,
+                    run.args,
+                    run.env,
+                    run.log_dir,
+                    composed,
+                    realtime=run.realtime,
                 )
             if on_started is not None:
                 on_started([p for run in runs for p in run.procs])
@@ -808,6 +819,7 @@ def _check_processes(runs: list[_AxisRun], watch: _Watch, respawn_limit: int) ->
                     env,
                     run.log_dir,
                     log_name=log_name,
+                    realtime=run.realtime,
                 )
                 run.procs.append(new)
                 action, again = "restarted", time.monotonic() - watch.t_start - after

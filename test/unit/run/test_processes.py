@@ -1,4 +1,4 @@
-"""The order in which the runner stops a run's processes (``run.processes.stop_nodes``).
+"""How the runner places and stops a run's processes (``run.processes``): stop order, cores.
 
 The recorder is stopped only once every other node has exited: they wait at
 their end until their last samples are acknowledged, and the recorder then
@@ -95,3 +95,22 @@ def test_a_node_that_ignores_sigint_delays_the_recorder_by_the_timeout_only(
     assert codes["recorder"] == 0
     got = events(notes)
     assert 0.45 <= got[("recorder", "sigint")] - started < 3.0
+
+
+@pytest.mark.parametrize("cores", [[0, 1], [2, 5, 7]])
+def test_cores_are_shared_out_by_time_mode(cores: list[int]) -> None:
+    from servo_axis.run.processes import cpu_set
+
+    rest = set(cores[1:])
+    # Lockstep: the pair takes turns on the first core, the others get the rest.
+    for role in ("plant", "feedback"):
+        assert cpu_set(role, cpus=cores) == {cores[0]}
+    for role in ("feedforward", "learning", "identifier", "recorder", "composed", "live"):
+        assert cpu_set(role, cpus=cores) == rest
+    # Realtime: the plant's clock has the first core to itself.
+    assert cpu_set("plant", realtime=True, cpus=cores) == {cores[0]}
+    for role in ("feedback", "feedforward", "identifier", "recorder", "live"):
+        assert cpu_set(role, realtime=True, cpus=cores) == rest
+    # One core: nothing to share out.
+    assert cpu_set("plant", cpus=cores[:1]) is None
+    assert cpu_set("feedback", realtime=True, cpus=cores[:1]) is None
