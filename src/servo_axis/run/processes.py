@@ -32,6 +32,8 @@ STOP_TIMEOUT_S = 5.0
 STOPPED_LAST = ("recorder",)
 #: The roles that take turns on the per-sample path in lockstep.
 LOCKSTEP_PAIR = ("plant", "feedback")
+#: The roles on the plant's core in realtime (:func:`cpu_set`).
+REALTIME_FIRST_CORE = ("plant", "identifier", "learning")
 
 
 def ros_environment(domain_id: int, log_dir: Path) -> dict[str, str]:
@@ -227,19 +229,28 @@ def cpu_set(
     Lockstep: the plant and the feedback take turns, so one core is enough
     for both, and the recorder, the feedforward generator and the others get
     the rest (measured on 2 cores, ``dlpid_tilt_lpf2``: 1.22-1.32x real time
-    pinned so, 0.80-1.00x unpinned). Realtime: the plant's clock thread gets
-    the first core to itself and every other node the rest, the feedback
-    among them. With the pair on one core the plant's wait for its next
-    deadline and the feedback's answer took turns on it; measured on 2 cores
-    against that, alternated (``scripts/rt_cpu.py``), deadline misses fell
-    from 0.70-1.90 % to 0.38-0.68 % (``ptc_nominal``), 1.20-2.80 % to
-    0.12-0.55 % (``rptc_detailed``), 7.6-9.7 % to 1.0-1.5 %
-    (``fast_reversal_sigmoid``) and 14 % to 2.3-6.8 % (``dlpid_tilt_lpf2``).
+    pinned so, 0.80-1.00x unpinned). Realtime: the first core is the
+    plant's, shared only with the nodes that read the per-sample streams at
+    their own pace and answer nothing within a period (the identifier, the
+    learning unit: the plant's wake-up at each deadline preempts them);
+    the feedback, the feedforward generator (which must stay a preview
+    window ahead) and the recorder get the rest. With the pair on one core
+    the plant's wait for its next deadline and the feedback's answer took
+    turns on it. Measured on 2 cores (``scripts/benchmark.py --quick``,
+    docs/benchmarks.md), deadline misses against the pair on one core:
+    ``ptc_nominal`` 0.00-0.10 % against 0.40-1.10 %, ``fast_reversal_sigmoid``
+    0.40-1.25 % against 2.20-3.35 %, ``dlpid_tilt_lpf2`` 1.44-1.92 % against
+    4.12-11.76 %. A 12 s realtime ``dlpid_tilt_lpf2`` (30,000 ticks of
+    0.4 ms) failed 5 runs of 7 with the plant alone on its core (the
+    identifier, on the other core with three nodes, fell behind, and the
+    feedforward waited for its estimates) and 2 of 4 with the pair on one
+    core; with the identifier beside the plant 6 of 7 ran to the end
+    without a fault (1.6-2.5 % misses) and one tripped on following error.
     """
     cores = sorted(os.sched_getaffinity(0) if cpus is None else cpus)
     if len(cores) < 2:
         return None
-    first = role == "plant" if realtime else role in LOCKSTEP_PAIR
+    first = role in REALTIME_FIRST_CORE if realtime else role in LOCKSTEP_PAIR
     return {cores[0]} if first else set(cores[1:])
 
 
