@@ -29,6 +29,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import yaml
@@ -124,18 +125,23 @@ def main() -> int:
         "| sum | misses |"
     )
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    for name, r in runs(args, "realtime"):
+        cells = [f"{r['cpu'][role]:.2f}" if role in r["cpu"] else "-" for role in ROLES]
+        share = r["misses"] / r["ticks"] if r["ticks"] else float("nan")
+        print(
+            f"| {name} | {' | '.join(cells)} | {sum(r['cpu'].values()):.2f} "
+            f"| {r['misses']} of {r['ticks']} ({100 * share:.2f} %) |",
+            flush=True,
+        )
+    return 0
+
+
+def runs(args: argparse.Namespace, mode: str) -> Iterator[tuple[str, dict]]:
+    """``(scenario, measure(...))`` for each scenario and repeat, in a temporary directory."""
     with tempfile.TemporaryDirectory(prefix="servo_axis_rt_cpu_") as tmp:
         for name in args.scenarios:
             for k in range(args.repeat):
-                r = measure(name, args.duration, Path(tmp) / f"{k}", args.domain_id)
-                cells = [f"{r['cpu'][role]:.2f}" if role in r["cpu"] else "-" for role in ROLES]
-                share = r["misses"] / r["ticks"] if r["ticks"] else float("nan")
-                print(
-                    f"| {name} | {' | '.join(cells)} | {sum(r['cpu'].values()):.2f} "
-                    f"| {r['misses']} of {r['ticks']} ({100 * share:.2f} %) |",
-                    flush=True,
-                )
-    return 0
+                yield name, measure(name, args.duration, Path(tmp) / f"{k}", args.domain_id, mode)
 
 
 def lockstep_table(args: argparse.Namespace) -> int:
@@ -150,19 +156,16 @@ def lockstep_table(args: argparse.Namespace) -> int:
         "| plant + feedback | others | x real time |"
     )
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
-    with tempfile.TemporaryDirectory(prefix="servo_axis_rt_cpu_") as tmp:
-        for name in args.scenarios:
-            for k in range(args.repeat):
-                r = measure(name, args.duration, Path(tmp) / f"{k}", args.domain_id, "lockstep")
-                us = {role: v * r["period_s"] * 1e6 for role, v in r["cpu"].items()}
-                cells = [f"{us[role]:.0f}" if role in us else "-" for role in ROLES]
-                pair = sum(v for role, v in us.items() if role in ("plant", "feedback"))
-                others = sum(us.values()) - pair
-                print(
-                    f"| {name} | {' | '.join(cells)} | {pair:.0f} | {others:.0f} "
-                    f"| {r['realtime_factor']:.2f}x |",
-                    flush=True,
-                )
+    for name, r in runs(args, "lockstep"):
+        us = {role: v * r["period_s"] * 1e6 for role, v in r["cpu"].items()}
+        cells = [f"{us[role]:.0f}" if role in us else "-" for role in ROLES]
+        pair = sum(v for role, v in us.items() if role in ("plant", "feedback"))
+        others = sum(us.values()) - pair
+        print(
+            f"| {name} | {' | '.join(cells)} | {pair:.0f} | {others:.0f} "
+            f"| {r['realtime_factor']:.2f}x |",
+            flush=True,
+        )
     return 0
 
 

@@ -14,6 +14,9 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Any
 
 from rclpy.context import Context
 from rclpy.node import Node
@@ -47,19 +50,33 @@ def wait_matched(publisher, count: int, timeout_s: float = 10.0) -> None:  # typ
         time.sleep(0.01)
 
 
-def test_finish_writes_what_was_sent_before_the_stop_and_nothing_is_spun_twice(
-    context: Context,
-) -> None:
+@contextmanager
+def published_unspun(context: Context, reader: Node, count: int) -> Iterator[tuple[Any, Node, Any]]:
+    """A producer beside ``reader`` on one executor, ``count`` samples sent, nothing spun.
+
+    Yields ``(executor, producer, publisher)``; the nodes are destroyed after.
+    """
     producer = Node("producer", context=context)
-    sink = Sink(context)
     executor = make_executor(context)
     executor.add_node(producer)
-    executor.add_node(sink)
+    executor.add_node(reader)
     try:
         pub = producer.create_publisher(Float64MultiArray, TOPIC, STREAM_QOS)
         wait_matched(pub, 1)
-        for step in range(500):
+        for step in range(count):
             pub.publish(Float64MultiArray(data=[float(step)]))
+        yield executor, producer, pub
+    finally:
+        executor.shutdown()
+        reader.destroy_node()
+        producer.destroy_node()
+
+
+def test_finish_writes_what_was_sent_before_the_stop_and_nothing_is_spun_twice(
+    context: Context,
+) -> None:
+    sink = Sink(context)
+    with published_unspun(context, sink, 500) as (executor, producer, pub):
         # Nothing was spun: the samples wait in the sink's reader.
         assert sink.messages_taken == 0
         started = time.monotonic()
@@ -69,35 +86,19 @@ def test_finish_writes_what_was_sent_before_the_stop_and_nothing_is_spun_twice(
         assert pub.wait_for_all_acked(_duration(0.0))
         # It ends once idle_s passed without a message, not at max_s.
         assert took < 2.0, took
-    finally:
-        executor.shutdown()
-        sink.destroy_node()
-        producer.destroy_node()
 
 
 def test_finish_without_a_draining_node_only_waits_for_the_acknowledgements(
     context: Context,
 ) -> None:
-    producer = Node("producer", context=context)
     reader = Node("reader", context=context)
     taken: list[int] = []
     reader.create_subscription(Float64MultiArray, TOPIC, lambda m: taken.append(1), STREAM_QOS)
-    executor = make_executor(context)
-    executor.add_node(producer)
-    executor.add_node(reader)
-    try:
-        pub = producer.create_publisher(Float64MultiArray, TOPIC, STREAM_QOS)
-        wait_matched(pub, 1)
-        for step in range(50):
-            pub.publish(Float64MultiArray(data=[float(step)]))
+    with published_unspun(context, reader, 50) as (executor, producer, pub):
         finish(executor, [producer, reader], idle_s=0.1, max_s=5.0)
         # Acknowledged (in the reader's history) but not taken: no node drains.
         assert pub.wait_for_all_acked(_duration(0.0))
         assert taken == []
-    finally:
-        executor.shutdown()
-        reader.destroy_node()
-        producer.destroy_node()
 
 
 # A reliable reader in a process of its own, which is then stopped (SIGSTOP).

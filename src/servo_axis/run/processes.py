@@ -236,16 +236,9 @@ def cpu_set(
     the feedback, the feedforward generator (which must stay a preview
     window ahead) and the recorder get the rest. With the pair on one core
     the plant's wait for its next deadline and the feedback's answer took
-    turns on it. Measured on 2 cores (``scripts/benchmark.py --quick``,
-    docs/benchmarks.md), deadline misses against the pair on one core:
-    ``ptc_nominal`` 0.00-0.10 % against 0.40-1.10 %, ``fast_reversal_sigmoid``
-    0.40-1.25 % against 2.20-3.35 %, ``dlpid_tilt_lpf2`` 1.44-1.92 % against
-    4.12-11.76 %. A 12 s realtime ``dlpid_tilt_lpf2`` (30,000 ticks of
-    0.4 ms) failed 5 runs of 7 with the plant alone on its core (the
-    identifier, on the other core with three nodes, fell behind, and the
-    feedforward waited for its estimates) and 2 of 4 with the pair on one
-    core; with the identifier beside the plant 6 of 7 ran to the end
-    without a fault (1.6-2.5 % misses) and one tripped on following error.
+    turns on it; with the plant alone, the other core was overloaded at
+    0.4 ms and the identifier fell behind. Figures: docs/benchmarks.md
+    ("realtime: the identifier and the learning unit beside the plant").
     """
     cores = sorted(os.sched_getaffinity(0) if cpus is None else cpus)
     if len(cores) < 2:
@@ -269,8 +262,7 @@ def stop_nodes(
     After a SIGKILL the shared-memory files of the killed participants are
     removed (:func:`clean_stale_shm`).
     """
-    first = [p for p in procs if p.role not in last]
-    _interrupt(first, timeout_s)
+    _interrupt([p for p in procs if p.role not in last], timeout_s)
     _interrupt([p for p in procs if p.role in last], timeout_s)
     for p in procs:
         _signal_group(p.popen, signal.SIGKILL)  # stray children of the group, if any
