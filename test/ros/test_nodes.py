@@ -1007,6 +1007,15 @@ def test_the_recorder_counts_a_stream_gone_only_when_a_writer_lapses(
         on_liveliness(info(1, 1, 1, 0))
         on_liveliness(info(1, 2, 0, 1))
         assert len(recorder.health.fallbacks) == 1
+        # A stream recorded to its last step whose writer then lapses (its
+        # producer exiting under load at the end of the run) is not gone.
+        on_liveliness(info(0, 1, -1, 0))
+        gate = recorder._gates["/state"][1]
+        for step in range(recorder._steps):
+            gate.accept(step)
+        recorder._gone.clear()
+        on_liveliness(info(0, 2, 0, 1))
+        assert len(recorder.health.fallbacks) == 1 and "/state" not in recorder._gone
     finally:
         recorder.close()
         recorder.destroy_node()
