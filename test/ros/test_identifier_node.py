@@ -255,6 +255,81 @@ def test_feedforward_rejects_bad_estimates_and_takes_a_repeat_silently(
         destroy(nodes)
 
 
+def test_realtime_feedforward_goes_on_without_an_estimate_once_its_samples_are_due(
+    context: Context, tmp_path: Path
+) -> None:
+    """Realtime: an estimate is waited for until its samples are due by the plant's
+    clock (plant/status); then the samples go out with the model in force, and the
+    late estimate applies from the next sample not yet published (late_estimates)."""
+    data, _ = short_lpf2(tmp_path)
+    values = {**node_values(data, "feedforward"), "mode": "realtime", "thread_priority": 0}
+    ff = FeedforwardNode(context=context, parameter_overrides=parameters(values))
+    probe = Node("plant", context=context)
+    status = probe.create_publisher(Float64MultiArray, "plant/status", STREAM_QOS)
+    est = probe.create_publisher(Float64MultiArray, "identifier/estimates", STREAM_QOS)
+    refs: list[msgs.ReferenceSample] = []
+    probe.create_subscription(
+        JointState,
+        "reference",
+        lambda m: refs.append(msgs.reference_from_msg(m, axis=AXIS, period_ns_=PERIOD_NS)),
+        STREAM_QOS,
+    )
+    nodes = [ff, probe]
+    first = R + LATENCY
+    kt = values["nominal.torque_constant_Nm_per_A"]
+
+    def as_refs(samples: list[tuple[float, float, float]]) -> np.ndarray:
+        out = np.array(samples)
+        out[:, 2] = torque_from_current(out[:, 2], torque_constant_Nm_per_A=kt)
+        return out
+
+    def got(a: int, b: int) -> np.ndarray:
+        return np.array([(r.position_rad, r.velocity_rad_s, r.torque_Nm) for r in refs[a:b]])
+
+    try:
+        spin_until(
+            context,
+            nodes,
+            lambda: (
+                status.get_subscription_count() >= 1
+                and est.get_subscription_count() >= 1
+                and len(refs) == first
+            ),
+        )
+        # Before the plant says where its clock is, the first estimate is waited for.
+        spin_for(context, nodes, 0.2)
+        assert ff.published == first and len(refs) == first
+        # The plant at step 150: the estimates up to there are due and none has
+        # come; the window (200) goes out with the initial model as it falls due.
+        status.publish(msgs.labelled_array(msgs.STATUS_LABELS, [150, 0, 0, 0]))
+        spin_until(context, nodes, lambda: len(refs) == 350)
+        spin_for(context, nodes, 0.1)
+        assert ff.published == 350 and len(refs) == 350
+        assert ff.estimates_taken == 0 and ff.late_estimates == 0 and not ff.health.fallbacks
+        core = build_generator(values)
+        core.stop_waiting_for_estimates()
+        assert_array_equal(got(0, 350), as_refs(core.samples(0, 350)))
+        # The first estimate, late: from sample 350 on.
+        est.publish(estimate_msg(R - 1, first))
+        spin_until(context, nodes, lambda: ff.estimates_taken == 1)
+        assert ff.late_estimates == 1 and ff.generator.next_estimate_step == first + R
+        # The plant at 250 (half the window used): the next samples follow.
+        status.publish(msgs.labelled_array(msgs.STATUS_LABELS, [250, 0, 0, 0]))
+        spin_until(context, nodes, lambda: len(refs) >= 400)
+        applied = core.set_estimate(
+            first, inertia_kgm2=4e-3, damping_Nms_per_rad=1.2e-2, unbalance_Nm=0.25, coulomb_Nm=0.02
+        )
+        assert applied == 350
+        with_estimate = as_refs(core.samples(350, 400))
+        assert_array_equal(got(350, 400), with_estimate)
+        without = build_generator(values)
+        without.stop_waiting_for_estimates()
+        assert not np.array_equal(as_refs(without.samples(0, 400))[350:], with_estimate)
+        assert ff.rejected == 0 and not ff.health.fallbacks
+    finally:
+        destroy(nodes)
+
+
 # -- the lone identifier against a core Dlpid ----------------------------------------------
 
 

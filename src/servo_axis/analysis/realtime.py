@@ -44,6 +44,14 @@ class Realtime(Serial):
         The plant process's scheduling: ``policy`` (``fifo`` or ``other``),
         ``priority`` and, where the system refused ``thread_priority``,
         ``refused`` (why); None from a plant that did not report it.
+    references_held : int or None
+        States the feedback answered without their reference, with the last
+        one (the feedforward generator was late); None if not reported.
+    late_estimates, late_corrections : int or None
+        Online estimates (paper 003) and learning corrections that came after
+        the samples they were for had gone out: applied from the next sample
+        not yet published (the feedforward generator's report); None if not
+        reported.
     """
 
     period_ns: int
@@ -56,6 +64,9 @@ class Realtime(Serial):
     command_late_us: dict[str, float] | None = field(metadata={"missing": None})
     floor: dict[str, Any] | None = field(default=None, metadata={"omit_none": True})
     scheduling: dict[str, Any] | None = field(default=None, metadata={"omit_none": True})
+    references_held: int | None = field(default=None, metadata={"omit_none": True})
+    late_estimates: int | None = field(default=None, metadata={"omit_none": True})
+    late_corrections: int | None = field(default=None, metadata={"omit_none": True})
 
     @property
     def miss_fraction(self) -> float:

@@ -178,6 +178,13 @@ def _realtime_lines(rt: Realtime | None) -> list[str]:
         f"command late (us) {_late(rt.command_late_us)}  (after its state's tick; a miss: > "
         f"{period_us:g})",
     ]
+    if rt.references_held is not None or rt.late_estimates is not None:
+        lines.append(
+            f"late inputs       {rt.references_held if rt.references_held is not None else '-'} "
+            "state(s) answered with the last reference; applied late: "
+            f"{rt.late_estimates if rt.late_estimates is not None else '-'} estimate(s), "
+            f"{rt.late_corrections if rt.late_corrections is not None else '-'} correction(s)"
+        )
     if rt.scheduling is not None:
         sched = rt.scheduling
         how = (

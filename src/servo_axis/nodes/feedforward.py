@@ -15,8 +15,9 @@ Topics (relative to the namespace):
   period's correction from the period it is stamped for;
 * with ``adaptive.enabled`` (paper 003), subscribes ``identifier/estimates``
   and applies each estimate from its ``applies_from_step``: the PTC's model
-  is rebuilt from ``J``, ``D`` (eq. (11)) and the MNC gets ``U``, ``C``; no
-  sample from there on is published before the estimate is in. Estimates
+  is rebuilt from ``J``, ``D`` (eq. (11)) and the MNC gets ``U``, ``C``; in
+  lockstep no sample from there on is published before the estimate is in
+  (realtime: below). Estimates
   must come in order, each the next one expected (its step and application
   step on the schedule of ``adaptive.rls_period_s`` and
   ``adaptive.latency_s``); an exact repeat of the last one (a restarted
@@ -50,10 +51,27 @@ yet published once it is in (``replace_correction``; counted as
 ``late_corrections`` on ``/diagnostics``), a few preview windows into its
 period; the law's fixed point (``c_{j+1} = c_j``) is the same.
 
-Identifier fallback (``adaptive.timeout_s``): the same rule with the
-identifier as the peer (liveliness of ``identifier/estimates``); on it the
-generator keeps the estimates in force for the rest of the run and takes no
-later one (:meth:`~servo_axis.core.feedforward.generator.FeedforwardGenerator.stop_estimates`).
+Identifier fallback (``adaptive.timeout_s``, lockstep): the same rule with
+the identifier as the peer (liveliness of ``identifier/estimates``); on it
+the generator keeps the estimates in force for the rest of the run and takes
+no later one (:meth:`~servo_axis.core.feedforward.generator.FeedforwardGenerator.stop_estimates`).
+
+In realtime an estimate is waited for only until its sample is due: the
+plant's clock does not wait for the identifier, and a reference held back
+past its sample's deadline makes the feedback hold the last one while the
+axis moves on (measured: ``dlpid_tilt_lpf2``, 4 s at 0.4 ms, the identifier
+some 4 ms late at step ~8,650: 0.43 rad of tracking error, 165 times
+lockstep's RMS). So when the plant's clock (estimated from ``plant/status``,
+:func:`~servo_axis.core.deadlines.start_estimate_ns`) is
+:data:`ESTIMATE_LEAD_S` before the next estimate's ``applies_from_step``
+and the estimate is not in, the references of one more estimate period go
+out with the model in force, and the estimate applies from the first
+reference instant not yet published once it is in (counted as
+``late_estimates``;
+:meth:`~servo_axis.core.feedforward.generator.FeedforwardGenerator.stop_waiting_for_estimates`).
+An estimate in time applies from its own step, as in lockstep. Nothing
+stalls, so there is no identifier fallback; a restarted identifier's
+estimates are applied as they come.
 
 Run: ``python -m servo_axis.nodes.feedforward --ros-args --params-file config/<scenario>.yaml``
 """
@@ -65,6 +83,7 @@ from typing import Any
 
 import numpy as np
 
+from servo_axis.core.deadlines import start_estimate_ns
 from servo_axis.core.drive import current_from_torque, torque_from_current
 from servo_axis.core.errors import ServoAxisError, SignalError
 from servo_axis.nodes.base import ServoNode
@@ -78,6 +97,11 @@ from servo_axis.params.factories import (
     run_steps,
 )
 from servo_axis.wire import messages as msgs
+
+#: Realtime: how long before the next estimate's first sample is due the
+#: references go on without it (publishing, the timer's lateness and the
+#: transport to the feedback: 0.2-0.5 ms each on a loaded 2-core host).
+ESTIMATE_LEAD_S = 1.2e-3
 
 
 class FeedforwardNode(ServoNode):
@@ -150,12 +174,28 @@ class FeedforwardNode(ServoNode):
         self._identifier = PeerWatch()
         self.last_estimate: msgs.EstimateData | None = None
         self.estimates_taken = 0
+        self.late_estimates = 0  # realtime: applied from after their step
         self._estimate_wait_since: float | None = None
         if self._adaptive:
             self.subscribe("identifier/estimates", self._estimate_gate, self._on_estimate)
-            self.create_timer(
-                values["adaptive.timeout_s"] / 5.0, self._identifier_watchdog, clock=steady_clock()
-            )
+            if self._lockstep:
+                self.create_timer(
+                    values["adaptive.timeout_s"] / 5.0,
+                    self._identifier_watchdog,
+                    clock=steady_clock(),
+                )
+            else:
+                self.generator.stop_waiting_for_estimates()
+                self._estimate_period = estimate_schedule(
+                    values, "adaptive.rls_period_s", "adaptive.latency_s"
+                )[0]
+                self._lead_steps = -(-round(ESTIMATE_LEAD_S * 1e9) // self._period_ns)
+                self._without_until = 0  # published without their estimate up to here
+                self._plant_start_ns: int | None = None  # the plant clock's d_0
+                self._start_provisional = False  # from status 0, sent before d_0
+                self._due_for: int | None = None  # the estimate step the timer is set for
+                self._due_timer = self.create_timer(1.0, self._estimate_due, clock=steady_clock())
+                self._due_timer.cancel()
         self.subscribe(
             "plant/status",
             lambda m: self._plausible_status(msgs.labelled_array_values(m, msgs.STATUS_LABELS)[0]),
@@ -171,7 +211,16 @@ class FeedforwardNode(ServoNode):
             ("missed_corrections", self.missed_corrections),
             ("late_corrections", self.late_corrections),
             ("estimates_taken", self.estimates_taken),
+            ("late_estimates", self.late_estimates),
         ]
+
+    def close(self) -> None:
+        if not self._lockstep:
+            self.health.realtime = {
+                "late_corrections": self.late_corrections,
+                "late_estimates": self.late_estimates,
+            }
+        super().close()
 
     def _try_start(self) -> None:
         if not self.consumers_matched(
@@ -198,6 +247,21 @@ class FeedforwardNode(ServoNode):
     def _on_status(self, step: int) -> None:
         self.start_realtime()
         self._plant_step = step
+        if self._adaptive and not self._lockstep:
+            now_ns = time.monotonic_ns()
+            if step == 0 and self._plant_start_ns is None:
+                # Before its clock starts: early, so an estimate is let go
+                # early at worst (the first ones are the initial model).
+                self._plant_start_ns = now_ns
+                self._start_provisional = True
+            elif step > 0:
+                self._plant_start_ns = start_estimate_ns(
+                    None if self._start_provisional else self._plant_start_ns,
+                    now_ns,
+                    step,
+                    self._period_ns,
+                )
+                self._start_provisional = False
         if self._waiting_since is not None:
             self._waiting_since = time.monotonic()  # the plant still moves: not stalled yet
         if self._estimate_wait_since is not None:
@@ -272,7 +336,7 @@ class FeedforwardNode(ServoNode):
         if e is None:
             return
         try:
-            self.generator.set_estimate(
+            first = self.generator.set_estimate(
                 e.applies_from_step,
                 inertia_kgm2=e.inertia_kgm2,
                 damping_Nms_per_rad=e.damping_Nms_per_rad,
@@ -286,6 +350,11 @@ class FeedforwardNode(ServoNode):
             return
         self.last_estimate = e
         self.estimates_taken += 1
+        self.late_estimates += first != e.applies_from_step
+        nxt = self.generator.next_estimate_step
+        if not self._lockstep and self._due_for is not None and (nxt or 0) > self._due_for:
+            self._due_timer.cancel()  # in before its samples were due
+            self._due_for = None
         self._estimate_wait_since = None
         self._identifier.forget()
         if self.started:
@@ -352,7 +421,7 @@ class FeedforwardNode(ServoNode):
             ready is None
             or self.published < ready
             or ready >= self._steps
-            or ready == self.generator.next_estimate_step  # a wait for the identifier
+            or (self._lockstep and ready == self.generator.next_estimate_step)  # the identifier
         ):
             self._waiting_since = None
             return
@@ -387,16 +456,13 @@ class FeedforwardNode(ServoNode):
             # be in before the boundary it is learned at); the last one goes
             # on, and the new one applies once it is in (_on_correction).
             lead = self.generator.boundary_lead()
-            while (
-                ready is not None
-                and ready < until
-                and ready != self.generator.next_estimate_step
-                and ready + lead < self._steps
-            ):
+            while ready is not None and ready < until and ready + lead < self._steps:
                 self.generator.repeat_correction((ready + lead) // self._cycle_steps)
                 ready = self.generator.ready_until()
         if ready is not None:
             until = min(until, ready)
+        if self._adaptive and not self._lockstep:
+            until = self._within_estimates(until)
         if until <= self.published:
             return
         samples = self.generator.samples(self.published, until)
@@ -413,6 +479,33 @@ class FeedforwardNode(ServoNode):
                 )
             )
         self.published = until
+
+    def _within_estimates(self, until: int) -> int:
+        """Realtime: ``until``, but not past the next estimate's step before it is due."""
+        nxt = self.generator.next_estimate_step
+        if nxt is None:
+            return until
+        # Past an estimate that was let go, the next wait is a period on.
+        wait_at = max(nxt, self._without_until)
+        if until <= wait_at or wait_at >= self._steps:
+            return until
+        if self._due_for != wait_at and self._plant_start_ns is not None:
+            # Not before the plant has said where it is (plant/status).
+            self._due_for = wait_at
+            due_ns = self._plant_start_ns + (wait_at - self._lead_steps) * self._period_ns
+            self._due_timer.timer_period_ns = max(1, due_ns - time.monotonic_ns())
+            self._due_timer.reset()
+        return wait_at
+
+    def _estimate_due(self) -> None:
+        """Realtime: the samples from ``_due_for`` are due, their estimate is not in."""
+        self._due_timer.cancel()
+        wait_at, self._due_for = self._due_for, None
+        nxt = self.generator.next_estimate_step
+        if wait_at is None or nxt is None or nxt > wait_at:
+            return
+        self._without_until = wait_at + self._estimate_period
+        self._fill(self._plant_step + self._window)
 
 
 def main(args: list[str] | None = None) -> int:

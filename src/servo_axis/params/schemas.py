@@ -443,7 +443,9 @@ FEEDFORWARD: dict[str, Param] = {
         False,
         meaning="take online estimates from identifier/estimates: the PTC model is rebuilt from "
         "J, D (003 eq. (11)) and the MNC gets U, C, each from the step the estimate applies "
-        "from; samples from there on wait for it (the runner sets it when an identifier runs)",
+        "from; samples from there on wait for it (realtime: until they are due, then a late "
+        "estimate applies from the next sample not yet published) (the runner sets it when an "
+        "identifier runs)",
     ),
     "adaptive.rls_period_s": Param(
         4e-3,
@@ -466,8 +468,7 @@ FEEDFORWARD: dict[str, Param] = {
         meaning="lockstep: how long a gone identifier (liveliness of identifier/estimates) gets "
         "to come back before the feedforward keeps its last estimates for the rest of the run "
         "(a fallback; a restarted identifier resumes well within it); while it lives the axis "
-        "waits. Realtime: wall time the plant may stand "
-        "still waiting for an estimate",
+        "waits. Realtime: unused (no sample waits for an estimate past its due time)",
     ),
 }
 

@@ -909,7 +909,9 @@ def summarise_run(
         summary = dataclasses.replace(summary, health=health)
         plant = reports.get("plant")
         if plant is not None and plant.realtime:
-            rt = summaries.Realtime.from_dict(plant.realtime)
+            # The plant's clock, with the feedback's and the generator's counts.
+            figures = {k: v for h in reports.values() for k, v in h.realtime.items()}
+            rt = summaries.Realtime.from_dict({**figures, **plant.realtime})
             at = (floor or {}).get(round(rt.period_ns / 1000))
             summary = dataclasses.replace(summary, realtime=dataclasses.replace(rt, floor=at))
         (run.out_dir / summaries.SUMMARY_FILE).write_text(summary.to_json())

@@ -61,9 +61,11 @@ class NodeHealth:
         (``"<namespace>/<node> <gid>"``), as the ROS graph showed them.
     fallbacks : list of Fallback
     realtime : dict
-        The plant of a realtime run: its clock's ticks, deadline misses and
-        lateness (:class:`servo_axis.analysis.summary.Realtime` as a
-        mapping); empty otherwise.
+        A realtime run's figures of the node, as fields of
+        :class:`servo_axis.analysis.summary.Realtime`: the plant's clock
+        (ticks, deadline misses, lateness), the feedback's
+        ``references_held``, the feedforward generator's ``late_estimates``
+        and ``late_corrections``; empty otherwise.
     stepping : dict
         The plant's wall time of its steps: ``steps``, and ``first_s`` and
         ``last_s`` (``CLOCK_MONOTONIC`` seconds, the host's one clock) when

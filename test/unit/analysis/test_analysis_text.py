@@ -219,6 +219,15 @@ def test_a_realtime_summary_reports_misses_and_lateness_and_is_never_determinist
     assert "tick late (us)    p50 3  p99 240  max 1800" in text
     assert "command late (us) p50 310  p99 980  max 4200" in text
     assert "floor (rt_floor)  0.25 % misses at 1000 us (events)" in text
+    assert "late inputs" not in text  # nothing reported by the feedback or the generator
+    late = {"references_held": 5, "late_estimates": 12, "late_corrections": 0}
+    s2 = RunSummary.from_dict(dict(data, realtime=dict(REALTIME, **late)))
+    assert RunSummary.from_json(s2.to_json()) == s2
+    assert s2.realtime is not None and s2.realtime.late_estimates == 12
+    assert (
+        "late inputs       5 state(s) answered with the last reference; applied late: "
+        "12 estimate(s), 0 correction(s)"
+    ) in format_summary(s2)
     # A lockstep summary has no realtime entry and says nothing of one.
     assert "realtime" not in demo_summary().to_dict()
     assert "deadline misses" not in format_summary(demo_summary())

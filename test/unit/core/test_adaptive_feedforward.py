@@ -225,3 +225,56 @@ def test_after_the_estimates_stop_the_estimates_in_force_go_on() -> None:
     term = mnc()
     term.set_parameters(from_step=1, unbalance_Nm=0.2, coulomb_Nm=0.03)
     assert got == generator(true, terms=[term]).samples(0, 300)[37:]
+
+
+def test_without_waiting_a_late_estimate_applies_from_the_first_instant_not_given() -> None:
+    """Realtime (``stop_waiting_for_estimates``): samples past an estimate's step
+    go on with the model in force; a late estimate applies from the next
+    reference instant not given, a second late one an interval after it."""
+    initial = NominalModel(
+        inertia_kgm2=20e-4, damping_Nms_per_rad=100e-4, torque_constant_Nm_per_A=1.0
+    )
+
+    def model(scale: float) -> NominalModel:
+        return NominalModel(
+            inertia_kgm2=J * scale, damping_Nms_per_rad=D * scale, torque_constant_Nm_per_A=1.0
+        )
+
+    def mnc(u: float | None = None, c: float | None = None) -> NonlinearityCompensator:
+        term = NonlinearityCompensator(
+            MncParams(unbalance_Nm=U, coulomb_Nm=C, control_period_s=TU), reference=TILT
+        )
+        if u is not None and c is not None:
+            term.set_parameters(from_step=1, unbalance_Nm=u, coulomb_Nm=c)
+        return term
+
+    def estimate(scale: float, u: float, c: float) -> dict[str, float]:
+        return {
+            "inertia_kgm2": J * scale,
+            "damping_Nms_per_rad": D * scale,
+            "unbalance_Nm": u,
+            "coulomb_Nm": c,
+        }
+
+    gen = generator(initial, terms=[mnc()], estimates=True, latency=20)
+    gen.stop_waiting_for_estimates()
+    assert gen.ready_until() is None
+    early = gen.samples(0, 37)  # past step 30, whose estimate is not in
+    in_force = generator(initial, terms=[mnc()]).samples(0, 300)
+    assert early == in_force[:37]
+    # Sample 37 is the second of reference interval 18: the estimate applies
+    # from instant 19, sample 38, and the generator keeps its schedule.
+    assert gen.set_estimate(30, **estimate(1.0, 0.2, 0.03)) == 38
+    assert gen.next_estimate_step == 40
+    late = gen.samples(37, 300)
+    assert late[0] == in_force[37]
+    assert late[1:] == generator(model(1.0), terms=[mnc(0.2, 0.03)]).samples(0, 300)[38:]
+    # Two more, both late, before any other sample is given.
+    assert gen.set_estimate(40, **estimate(1.1, 0.25, 0.02)) == 300
+    assert gen.set_estimate(50, **estimate(0.9, 0.28, 0.01)) == 302
+    after = gen.samples(300, 400)
+    assert after[:2] == generator(model(1.1), terms=[mnc(0.25, 0.02)]).samples(0, 302)[300:]
+    assert after[2:] == generator(model(0.9), terms=[mnc(0.28, 0.01)]).samples(0, 400)[302:]
+    # An estimate on time still applies from its own step.
+    assert gen.set_estimate(60, **estimate(1.0, 0.3, 0.02)) == 400
+    assert gen.set_estimate(70, **estimate(1.0, 0.3, 0.02)) == 402

@@ -139,6 +139,8 @@ class FeedforwardGenerator:
                     f"({estimate_period_steps} samples), got {estimate_latency_steps!r}"
                 )
             self._next_estimate = estimate_period_steps + estimate_latency_steps
+        self._estimates_wait = True
+        self._last_estimate_from = -1  # first sample of the last estimate set
         # With online estimates a block ends at the next estimate (a few
         # samples): the reference is then taken from samples computed a
         # chunk at a time (the same numbers, GridSamples).
@@ -230,13 +232,24 @@ class FeedforwardGenerator:
         damping_Nms_per_rad: float,
         unbalance_Nm: float,
         coulomb_Nm: float,
-    ) -> None:
+    ) -> int:
         """The online estimate that applies from ``from_step`` (003 Fig. 3, eq. (11)-(15)).
 
         The PTC's model is rebuilt from ``J``, ``D`` (eq. (11)) and every
         adaptive term (one with ``set_parameters``: the MNC) gets ``U``, ``C``,
         from ``from_step`` on. Estimates come in order, one per estimate
         period: ``from_step`` must be :attr:`next_estimate_step`.
+
+        After :meth:`stop_waiting_for_estimates`, an estimate that comes
+        once samples from ``from_step`` on were given (late) applies from
+        the first reference instant whose samples were not given, and at
+        least one reference interval after the last estimate's start.
+
+        Returns
+        -------
+        int
+            The first control sample that uses it: ``from_step``, or later
+            for a late estimate.
 
         Raises
         ------
@@ -252,9 +265,17 @@ class FeedforwardGenerator:
                 f"got {from_step!r}"
             )
         ratio = self._grid.ratio
+        first = from_step
+        if not self._estimates_wait:
+            not_given = -(-self._next // ratio) * ratio
+            first = max(from_step, not_given, self._last_estimate_from + ratio)
+            # The samples in hand from ``first`` on used the model in force
+            # (a block ends on a reference instant, and so does ``first``).
+            keep = max(0, first - self._block_start)
+            self._block, self._rows = self._block[:keep], self._rows[:keep]
         if self.ptc is not None:
             self.ptc.replace_model(
-                from_instant=from_step // ratio,
+                from_instant=first // ratio,
                 inertia_kgm2=inertia_kgm2,
                 damping_Nms_per_rad=damping_Nms_per_rad,
                 torque_constant_Nm_per_A=self._kt,
@@ -263,11 +284,24 @@ class FeedforwardGenerator:
         for term in self._terms:
             setter = getattr(term, "set_parameters", None)
             if setter is not None:
-                setter(from_step=from_step, unbalance_Nm=unbalance_Nm, coulomb_Nm=coulomb_Nm)
+                setter(from_step=first, unbalance_Nm=unbalance_Nm, coulomb_Nm=coulomb_Nm)
                 forget = getattr(term, "forget_before", None)
                 if forget is not None:
                     forget(self._next)
         self._next_estimate = from_step + self._estimate_period
+        self._last_estimate_from = first
+        return first
+
+    def stop_waiting_for_estimates(self) -> None:
+        """No sample waits for an online estimate any more; a late one applies late.
+
+        What a realtime feedforward does: the plant's clock does not wait
+        for the identifier, so the model in force goes on past an
+        estimate's ``from_step`` until the estimate is in, and applies
+        from the first reference instant not yet given then
+        (:meth:`set_estimate`). Estimates are still taken in order.
+        """
+        self._estimates_wait = False
 
     def stop_estimates(self) -> None:
         """Keep the model and the terms' ``U``, ``C`` in force for the rest of the run.
@@ -285,7 +319,9 @@ class FeedforwardGenerator:
         ``j-1`` need ``x_d`` at the first instant of period ``j``, so they
         wait for ``c_j``. Input side: period ``j`` starts with its own.
         """
-        limits = [] if self._next_estimate is None else [self._next_estimate]
+        limits = (
+            [] if self._next_estimate is None or not self._estimates_wait else [self._next_estimate]
+        )
         if self._cycle_steps is not None:
             cycle = max(1, self._next // self._cycle_steps)
             while cycle in self._corrections:
@@ -395,7 +431,11 @@ class FeedforwardGenerator:
             stop == start + 1
             and self._cycle_steps is None
             and 0 <= index < len(self._rows)
-            and (self._next_estimate is None or stop <= self._next_estimate)
+            and (
+                self._next_estimate is None
+                or not self._estimates_wait
+                or stop <= self._next_estimate
+            )
         ):
             self._next = stop
             return [self._rows[index]]
