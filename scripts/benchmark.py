@@ -459,6 +459,9 @@ def realtime_cells(s: Any) -> dict[str, Any]:
         "tick": rt.tick_late_us,
         "command": rt.command_late_us,
         "rate": rt.timer_rate,
+        "late": "/".join(
+            "-" if v is None else str(v) for v in (rt.references_held, rt.late_estimates)
+        ),
     }
 
 
@@ -555,8 +558,9 @@ def run_all(args: argparse.Namespace) -> int:
     ]
     rt_lines = [
         "| scenario | T_u (ms) | misses | floor misses | tick late p50/p99/max (us) "
-        "| command late p50/p99/max (us) | rate | exit | RMS error rt / lockstep (um) |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+        "| command late p50/p99/max (us) | rate | exit | RMS error rt / lockstep (um) "
+        "| references held / late estimates |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     for row in rows:
         per = row["period"]
@@ -571,7 +575,7 @@ def run_all(args: argparse.Namespace) -> int:
         fl_text = f"{fl['miss_pct']:.2f} %" if fl else "-"
         if isinstance(rt, str) or not rt:
             rt_lines.append(
-                f"| {row['name']} | {per * 1e3:g} | {rt or 'no figures'} | {fl_text} | | | | | |"
+                f"| {row['name']} | {per * 1e3:g} | {rt or 'no figures'} | {fl_text} | | | | | | |"
             )
             continue
         errs = "/".join(
@@ -580,7 +584,7 @@ def run_all(args: argparse.Namespace) -> int:
         rt_lines.append(
             f"| {row['name']} | {per * 1e3:g} | {rt['misses']} of {rt['ticks']} "
             f"({rt['miss_pct']:.2f} %) | {fl_text} | {_pct(rt['tick'])} | {_pct(rt['command'])} | "
-            f"{rt['rate']:.4f} | {row['rt_exit']} | {errs} |"
+            f"{rt['rate']:.4f} | {row['rt_exit']} | {errs} | {rt.get('late', '-')} |"
         )
     floor_lines = [
         "| period (us) | misses | tick late p50/p99/max (us) | round trip p50/p99/max (us) |",
