@@ -1016,6 +1016,23 @@ def test_the_recorder_counts_a_stream_gone_only_when_a_writer_lapses(
         recorder._gone.clear()
         on_liveliness(info(0, 2, 0, 1))
         assert len(recorder.health.fallbacks) == 1 and "/state" not in recorder._gone
+        # A writer in this process (a composed run) lapses a lease after its
+        # last message while it lives: not gone, until it leaves the graph.
+        on_streams = recorder._liveliness("/reference")
+        producer = Node("feedforward", context=context)
+        pub = producer.create_publisher(JointState, "/reference", STREAM_QOS)
+        spin_until(
+            context, [recorder, producer], lambda: recorder.published_in_process("/reference")
+        )
+        on_streams(info(0, 1, -1, 1))
+        assert len(recorder.health.fallbacks) == 1
+        producer.destroy_publisher(pub)
+        spin_until(
+            context, [recorder, producer], lambda: not recorder.published_in_process("/reference")
+        )
+        on_streams(info(0, 1, 0, 1))
+        assert [f.kind for f in recorder.health.fallbacks] == ["publisher_gone"] * 2
+        producer.destroy_node()
     finally:
         recorder.close()
         recorder.destroy_node()

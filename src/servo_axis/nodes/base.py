@@ -394,6 +394,14 @@ class ServoNode(Node):
         sub = self._subscriptions_by_topic.get(name)
         if sub is not None and sub.get_publisher_count() > 0 and not self._lapsed.get(name, 0):
             return True
+        return self.published_in_process(name)
+
+    def published_in_process(self, name: str) -> bool:
+        """Whether a publisher of topic ``name`` is in this process's participant (the graph).
+
+        Its AUTOMATIC liveliness lapses a lease after its last message (see
+        :meth:`peer_alive`), which says nothing about whether it lives.
+        """
         prefix = self._participant_prefix()
         if prefix is None:
             return False

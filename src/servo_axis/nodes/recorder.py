@@ -291,7 +291,12 @@ class RecorderNode(ServoNode):
             # and none is alive; not when the last alive one exits cleanly
             # while a killed one's lapsed writer is still listed (a restarted
             # node at the end of the run: the recorder is stopped last).
-            if info.alive_count == 0 and info.not_alive_count_change > 0:
+            # Nor when the writer is in this process (a composed run): its
+            # lease lapses a second after its last message, during a long
+            # start-up too (measured: publisher_gone at step 0 with 2.1 s of
+            # start-up), while it lives.
+            lapsed = info.alive_count == 0 and info.not_alive_count_change > 0
+            if lapsed and not self.published_in_process(name):
                 self._publisher_gone(name)
             elif info.alive_count > 0:
                 self._gone.discard(name)
