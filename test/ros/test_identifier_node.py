@@ -148,6 +148,30 @@ def test_identification_graph_equals_the_plain_call_loop(context: Context, tmp_p
 # -- 2. the feedforward refuses bad estimates ---------------------------------------------
 
 
+def references_heard(probe: Node) -> list[msgs.ReferenceSample]:
+    """The ``reference`` samples ``probe`` hears, in order (a list that grows as it spins)."""
+    refs: list[msgs.ReferenceSample] = []
+    probe.create_subscription(
+        JointState,
+        "reference",
+        lambda m: refs.append(msgs.reference_from_msg(m, axis=AXIS, period_ns_=PERIOD_NS)),
+        STREAM_QOS,
+    )
+    return refs
+
+
+def as_references(samples: list[tuple[float, float, float]], kt: float) -> np.ndarray:
+    """A core generator's ``(r, r', u_ff)`` as the wire's ``(r, r', K_T u_ff)`` rows."""
+    out = np.array(samples)
+    out[:, 2] = torque_from_current(out[:, 2], torque_constant_Nm_per_A=kt)
+    return out
+
+
+def rows_of(refs: list[msgs.ReferenceSample]) -> np.ndarray:
+    """``(position, velocity, torque)`` rows of heard reference samples."""
+    return np.array([(r.position_rad, r.velocity_rad_s, r.torque_Nm) for r in refs])
+
+
 def estimate_msg(
     step: int, applies: int, *, j: float = 4e-3, d: float = 1.2e-2, u: float = 0.25, c: float = 0.02
 ) -> Float64MultiArray:
@@ -174,13 +198,7 @@ def test_feedforward_rejects_bad_estimates_and_takes_a_repeat_silently(
     ff = FeedforwardNode(context=context, parameter_overrides=parameters(values))
     probe = Node("identifier", context=context)  # the producer, by name
     pub = probe.create_publisher(Float64MultiArray, "identifier/estimates", STREAM_QOS)
-    refs: list[msgs.ReferenceSample] = []
-    probe.create_subscription(
-        JointState,
-        "reference",
-        lambda m: refs.append(msgs.reference_from_msg(m, axis=AXIS, period_ns_=PERIOD_NS)),
-        STREAM_QOS,
-    )
+    refs = references_heard(probe)
     nodes = [ff, probe]
     first = R + LATENCY  # the first estimate (from step R - 1) applies from 20
     try:
@@ -232,11 +250,9 @@ def test_feedforward_rejects_bad_estimates_and_takes_a_repeat_silently(
         core.set_estimate(
             first, inertia_kgm2=4e-3, damping_Nms_per_rad=1.2e-2, unbalance_Nm=0.25, coulomb_Nm=0.02
         )
-        expected = np.array(core.samples(0, first + R))
-        got = np.array([(r.position_rad, r.velocity_rad_s, r.torque_Nm) for r in refs])
         kt = values["nominal.torque_constant_Nm_per_A"]
-        expected[:, 2] = torque_from_current(expected[:, 2], torque_constant_Nm_per_A=kt)
-        assert_array_equal(got, expected)
+        expected = as_references(core.samples(0, first + R), kt)
+        assert_array_equal(rows_of(refs), expected)
         before = build_generator(values)
         before.set_estimate(
             first, inertia_kgm2=2e-3, damping_Nms_per_rad=1e-2, unbalance_Nm=0.1, coulomb_Nm=0.01
@@ -267,24 +283,10 @@ def test_realtime_feedforward_goes_on_without_an_estimate_once_its_samples_are_d
     probe = Node("plant", context=context)
     status = probe.create_publisher(Float64MultiArray, "plant/status", STREAM_QOS)
     est = probe.create_publisher(Float64MultiArray, "identifier/estimates", STREAM_QOS)
-    refs: list[msgs.ReferenceSample] = []
-    probe.create_subscription(
-        JointState,
-        "reference",
-        lambda m: refs.append(msgs.reference_from_msg(m, axis=AXIS, period_ns_=PERIOD_NS)),
-        STREAM_QOS,
-    )
+    refs = references_heard(probe)
     nodes = [ff, probe]
     first = R + LATENCY
     kt = values["nominal.torque_constant_Nm_per_A"]
-
-    def as_refs(samples: list[tuple[float, float, float]]) -> np.ndarray:
-        out = np.array(samples)
-        out[:, 2] = torque_from_current(out[:, 2], torque_constant_Nm_per_A=kt)
-        return out
-
-    def got(a: int, b: int) -> np.ndarray:
-        return np.array([(r.position_rad, r.velocity_rad_s, r.torque_Nm) for r in refs[a:b]])
 
     try:
         spin_until(
@@ -308,7 +310,7 @@ def test_realtime_feedforward_goes_on_without_an_estimate_once_its_samples_are_d
         assert ff.estimates_taken == 0 and ff.late_estimates == 0 and not ff.health.fallbacks
         core = build_generator(values)
         core.stop_waiting_for_estimates()
-        assert_array_equal(got(0, 350), as_refs(core.samples(0, 350)))
+        assert_array_equal(rows_of(refs[:350]), as_references(core.samples(0, 350), kt))
         # The first estimate, late: from sample 350 on.
         est.publish(estimate_msg(R - 1, first))
         spin_until(context, nodes, lambda: ff.estimates_taken == 1)
@@ -320,11 +322,11 @@ def test_realtime_feedforward_goes_on_without_an_estimate_once_its_samples_are_d
             first, inertia_kgm2=4e-3, damping_Nms_per_rad=1.2e-2, unbalance_Nm=0.25, coulomb_Nm=0.02
         )
         assert applied == 350
-        with_estimate = as_refs(core.samples(350, 400))
-        assert_array_equal(got(350, 400), with_estimate)
+        with_estimate = as_references(core.samples(350, 400), kt)
+        assert_array_equal(rows_of(refs[350:400]), with_estimate)
         without = build_generator(values)
         without.stop_waiting_for_estimates()
-        assert not np.array_equal(as_refs(without.samples(0, 400))[350:], with_estimate)
+        assert not np.array_equal(as_references(without.samples(0, 400), kt)[350:], with_estimate)
         assert ff.rejected == 0 and not ff.health.fallbacks
     finally:
         destroy(nodes)

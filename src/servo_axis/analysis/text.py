@@ -179,11 +179,13 @@ def _realtime_lines(rt: Realtime | None) -> list[str]:
         f"{period_us:g})",
     ]
     if rt.references_held is not None or rt.late_estimates is not None:
+        held, estimates, corrections = (
+            "-" if n is None else str(n)
+            for n in (rt.references_held, rt.late_estimates, rt.late_corrections)
+        )
         lines.append(
-            f"late inputs       {rt.references_held if rt.references_held is not None else '-'} "
-            "state(s) answered with the last reference; applied late: "
-            f"{rt.late_estimates if rt.late_estimates is not None else '-'} estimate(s), "
-            f"{rt.late_corrections if rt.late_corrections is not None else '-'} correction(s)"
+            f"late inputs       {held} state(s) answered with the last reference; "
+            f"applied late: {estimates} estimate(s), {corrections} correction(s)"
         )
     if rt.scheduling is not None:
         sched = rt.scheduling

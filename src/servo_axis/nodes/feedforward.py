@@ -118,11 +118,14 @@ class FeedforwardNode(ServoNode):
         self._steps = run_steps(values)
         self._window = values["preview_steps"]
         self._kt = values["nominal.torque_constant_Nm_per_A"]
-        self._estimate_lag = (
-            estimate_schedule(values, "adaptive.rls_period_s", "adaptive.latency_s")[1] + 1
+        # Estimate period and latency (control samples); an estimate applies
+        # ``latency + 1`` samples after the last one it is computed from.
+        self._estimate_period, latency = (
+            estimate_schedule(values, "adaptive.rls_period_s", "adaptive.latency_s")
             if values["adaptive.enabled"]
-            else 0
+            else (0, -1)
         )
+        self._estimate_lag = latency + 1
 
         self._pub = self.publisher("reference")
         # Sent as CDR bytes, as the plant's and the feedback's per-sample streams.
@@ -186,9 +189,6 @@ class FeedforwardNode(ServoNode):
                 )
             else:
                 self.generator.stop_waiting_for_estimates()
-                self._estimate_period = estimate_schedule(
-                    values, "adaptive.rls_period_s", "adaptive.latency_s"
-                )[0]
                 self._lead_steps = -(-round(ESTIMATE_LEAD_S * 1e9) // self._period_ns)
                 self._without_until = 0  # published without their estimate up to here
                 self._plant_start_ns: int | None = None  # the plant clock's d_0
@@ -351,10 +351,6 @@ class FeedforwardNode(ServoNode):
         self.last_estimate = e
         self.estimates_taken += 1
         self.late_estimates += first != e.applies_from_step
-        nxt = self.generator.next_estimate_step
-        if not self._lockstep and self._due_for is not None and (nxt or 0) > self._due_for:
-            self._due_timer.cancel()  # in before its samples were due
-            self._due_for = None
         self._estimate_wait_since = None
         self._identifier.forget()
         if self.started:
@@ -498,7 +494,11 @@ class FeedforwardNode(ServoNode):
         return wait_at
 
     def _estimate_due(self) -> None:
-        """Realtime: the samples from ``_due_for`` are due, their estimate is not in."""
+        """Realtime: the samples from ``_due_for`` are due; go on if their estimate is not in.
+
+        An estimate that came in time moved the next wait on, and
+        :meth:`_within_estimates` set the timer for that one.
+        """
         self._due_timer.cancel()
         wait_at, self._due_for = self._due_for, None
         nxt = self.generator.next_estimate_step
