@@ -1036,3 +1036,22 @@ def test_the_recorder_counts_a_stream_gone_only_when_a_writer_lapses(
     finally:
         recorder.close()
         recorder.destroy_node()
+
+
+def test_a_stranger_after_the_last_look_at_the_graph_is_reported_when_the_node_closes(
+    context: Context,
+) -> None:
+    """The graph is looked at every STRANGER_CHECK_S; a publisher that joined since
+    (a short lockstep run ends within 0.2 s) is still reported: the node looks once
+    more when it closes."""
+    ff = FeedforwardNode(context=context)
+    intruder = Node("not_the_plant", context=context)
+    intruder.create_publisher(Float64MultiArray, "plant/status", 10)
+    try:
+        assert ff.health.strangers == {}  # not spun: no periodic look has run
+        ff.close()
+        whos = [who for found in ff.health.strangers.values() for who in found]
+        assert any("/not_the_plant " in who for who in whos), ff.health.strangers
+    finally:
+        intruder.destroy_node()
+        ff.destroy_node()

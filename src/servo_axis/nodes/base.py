@@ -588,7 +588,17 @@ class ServoNode(Node):
         )
 
     def close(self) -> None:
-        """Called once when the node's process ends: write the report, a last status."""
+        """Called once when the node's process ends: a last look for strangers, the report, a last status.
+
+        The graph is looked at every :data:`STRANGER_CHECK_S`; a stranger
+        that began publishing after the last look of a short run (a lockstep
+        run of 0.2 s) would otherwise go unreported.
+        """
+        if self.context.ok():
+            try:
+                self._check_strangers()
+            except Exception as err:  # the context may be going down
+                self.get_logger().warning(f"no last look for strangers: {err}")
         self.write_report()
         if self.context.ok():
             try:
