@@ -122,6 +122,15 @@ def run_with_outside(
     return code, nodes
 
 
+def run_params(proc: subprocess.Popen[bytes], out: Path) -> dict[str, Any]:
+    """The parameter file the run at ``out`` wrote for its nodes, once it is there."""
+    deadline = time.monotonic() + 30
+    while not (out / "params.yaml").is_file():
+        assert time.monotonic() < deadline and proc.poll() is None, tails(out)
+        time.sleep(0.05)
+    return dict(yaml.safe_load((out / "params.yaml").read_text()))
+
+
 def payload_hashes(bag: Path, raw_payloads: Any) -> dict[str, str]:
     return {
         topic: hashlib.sha256(b"".join(data)).hexdigest()
@@ -239,6 +248,59 @@ def test_the_example_reference_generator_feeds_the_axis(
     assert max(abs(e) for e in err[250:]) < 0.01 * 2 * a
 
 
+#: A listener on `command` with the default profile, in plain rclpy.
+COMMAND_LISTENER = """
+import rclpy
+from sensor_msgs.msg import JointState
+rclpy.init()
+node = rclpy.create_node("my_command_listener", namespace="{ns}")
+node.create_subscription(JointState, "command", lambda m: None, 10)
+rclpy.spin(node)
+"""
+
+
+def test_a_feedback_that_listens_last_still_gets_the_generators_first_reference(
+    ros_env: int, tmp_path: Path, raw_payloads: Any
+) -> None:
+    """The sine example answers `state` too, so it cannot stand in for the feedback. The
+    suite's feedback, started by hand as `my_feedback`, is made to subscribe only once a
+    third listener on `command` comes, 3 s after everything else: the plant waits for it,
+    and the bag equals that of the same run with the feedback started by the runner. (CI
+    once hung at step 1: a slow feedback missed reference[0], sent before it listened.)"""
+    path = short("ptc_nominal", tmp_path, duration_s=0.2)
+    gen = [str(EXAMPLES / "sine_reference.py"), "--ros-args", "-r", f"__ns:={NS}"]
+    runner_fed = tmp_path / "runner_fed"
+    code, _ = run_with_outside(path, runner_fed, ["feedforward"], [gen])
+    assert code == 0, tails(runner_fed)
+
+    out = tmp_path / "late"
+    proc = start_run(path, out, "--external", "feedforward", "--external", "feedback")
+    nodes = [start_outside(gen, tmp_path / "late.generator.log")]
+    try:
+        params = run_params(proc, out)
+        params["/**/my_feedback"] = params.pop("/**/feedback")
+        section = params["/**/my_feedback"]["ros__parameters"]
+        section["wait_for_command_subscribers"] += 1
+        mine = tmp_path / "my_feedback.yaml"
+        mine.write_text(yaml.safe_dump(params))
+        feedback = ["-m", "servo_axis.nodes.feedback", "--ros-args", "--params-file", str(mine),
+                    "-r", "__node:=my_feedback", "-r", f"__ns:={NS}"]  # fmt: skip
+        nodes.append(start_outside(feedback, tmp_path / "late.feedback.log"))
+        time.sleep(3.0)
+        assert proc.poll() is None, tails(out)
+        listener = ["-c", COMMAND_LISTENER.format(ns=NS)]
+        nodes.append(start_outside(listener, tmp_path / "late.listener.log"))
+        code = finish(proc, RUN_TIMEOUT_S)
+    finally:
+        for node in nodes:
+            stop(node)
+    assert code == 0, tails(out)
+    assert payload_hashes(out / "bag", raw_payloads) == payload_hashes(
+        runner_fed / "bag", raw_payloads
+    )
+    assert len(joint_series(out / "bag", f"{NS}/reference")) == 200
+
+
 # -- the suite's own nodes as outside nodes ---------------------------------------------
 
 
@@ -254,11 +316,7 @@ def outside_suite_node_gives_the_suites_own_result(
 
     out = tmp_path / "outside"
     proc = start_run(path, out, "--external", role)
-    deadline = time.monotonic() + 30
-    while not (out / "params.yaml").is_file():
-        assert time.monotonic() < deadline and proc.poll() is None, tails(out)
-        time.sleep(0.05)
-    params = yaml.safe_load((out / "params.yaml").read_text())
+    params = run_params(proc, out)
     params[f"/**/{name}"] = params.pop(f"/**/{role}")
     mine = tmp_path / f"{name}.yaml"
     mine.write_text(yaml.safe_dump(params))

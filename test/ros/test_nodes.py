@@ -21,6 +21,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 from servo_axis.core.errors import ParameterFileError
+from servo_axis.nodes.base import MATCH_SETTLE_S
 from servo_axis.nodes.feedback import FeedbackNode
 from servo_axis.nodes.feedforward import FeedforwardNode
 from servo_axis.nodes.learning import LearningNode
@@ -273,6 +274,30 @@ def test_plant_rejects_bad_commands_and_waits_for_a_valid_one(context: Context) 
     assert plant.plant.step_index == 1
     plant.destroy_node()
     probe.destroy_node()
+
+
+def test_plant_starts_only_once_the_node_that_answers_state_listens(context: Context) -> None:
+    """Another subscriber of `state` (an outside reference generator that answers it too)
+    does not stand in for the node that publishes `command`: with the expected count met
+    and settled, and `command` matched, the plant waits until that node subscribes."""
+    plant = PlantNode(
+        context=context, parameter_overrides=[Parameter("wait_for_state_subscribers", value=1)]
+    )
+    generator = Node("my_sine_reference", context=context)
+    generator.create_subscription(JointState, "state", lambda m: None, 10)
+    controller = Node("my_controller", context=context)
+    controller.create_publisher(JointState, "command", 10)
+    nodes = [plant, generator, controller]
+    settled = time.monotonic() + 2 * MATCH_SETTLE_S + 0.5
+    spin_until(context, nodes, lambda: time.monotonic() > settled)
+    assert plant.consumers_matched(plant._state_pub, "state", 1)
+    assert plant.input_matched("command") and not plant.started
+    states: list[JointState] = []
+    controller.create_subscription(JointState, "state", states.append, 10)
+    spin_until(context, nodes, lambda: plant.started and len(states) == 1)
+    assert states[0].header.stamp.sec == 0 and states[0].header.stamp.nanosec == 0
+    for n in nodes:
+        n.destroy_node()
 
 
 def test_realtime_plant_holds_the_newest_command_and_counts_misses(context: Context) -> None:
@@ -949,8 +974,8 @@ def test_realtime_feedforward_never_waits_for_a_correction_and_takes_a_late_one(
 def test_feedback_listens_only_once_its_command_is_heard(context: Context) -> None:
     """Its `command` consumers are counted by topic, whatever their node is called: an
     outside plant with rclpy's default profile (volatile, no lease) counts once it has held
-    for the settle time; before anyone listens, or before a reference generator is matched,
-    the feedback does not subscribe to state."""
+    for the settle time; before anyone listens, or before a reference generator is matched
+    and settled, the feedback does not subscribe to state."""
     fb = FeedbackNode(
         context=context, parameter_overrides=[Parameter("wait_for_command_subscribers", value=1)]
     )
@@ -965,8 +990,12 @@ def test_feedback_listens_only_once_its_command_is_heard(context: Context) -> No
     deadline = time.monotonic() + 0.7
     spin_until(context, nodes, lambda: time.monotonic() > deadline)
     assert not fb.inputs_subscribed and state_pub.get_subscription_count() == 0
-    plant_side.create_publisher(JointState, "reference", 10)
+    reference_pub = plant_side.create_publisher(JointState, "reference", 10)
+    spin_until(context, nodes, lambda: reference_pub.get_subscription_count() == 1)
+    matched = time.monotonic()
     spin_until(context, nodes, lambda: fb.inputs_subscribed)
+    # A volatile generator's match settles first: it must have matched on its own side.
+    assert time.monotonic() - matched > MATCH_SETTLE_S / 2
     # Its state subscription matches the default-QoS publisher.
     spin_until(context, nodes, lambda: state_pub.get_subscription_count() == 1)
     for n in nodes:

@@ -43,7 +43,9 @@
 * Handshake: :meth:`ServoNode.consumers_matched` counts the subscriptions
   on the topic, whatever their node is called; when there are more than
   expected (a stranger subscribed too), the count must hold for
-  :data:`MATCH_SETTLE_S` before it is believed.
+  :data:`MATCH_SETTLE_S` before it is believed;
+  :meth:`ServoNode.answerer_listens` tells whether the node that answers a
+  topic subscribes to it (a count cannot: another subscriber may stand in).
 * Report: :mod:`servo_axis.wire.health`, written to ``report_dir`` on each
   fallback, on each new stranger and when the node closes.
 * Diagnostics: about once a second of wall time and when it closes, a
@@ -169,7 +171,8 @@ class ServoNode(Node):
         self._watched: list[str] = []
         self._stranger_gids: set[str] = set()
         self._twin_looks: dict[str, dict[str, int]] = {}
-        self._matched_since: dict[str, float] = {}
+        # key -> (who was matched: the counts, since when by the steady clock)
+        self._matched_since: dict[str, tuple[tuple[int, int], float]] = {}
         self._prefix: bytes | None = None
         self.external_roles = external_roles(self.values)
         self._declared: dict[str, str] = {}  # topic -> gid of an external role's publisher
@@ -332,14 +335,14 @@ class ServoNode(Node):
         """
         sub = subscription or self._subscriptions_by_topic.get(name)
         key = f"input:{name}"
-        if sub is None or sub.get_publisher_count() < 1:
+        matched = 0 if sub is None else sub.get_publisher_count()
+        if matched < 1:
             self._matched_since.pop(key, None)
             return False
         infos = self.get_publishers_info_by_topic(self.resolve_topic_name(name))
         if all(i.qos_profile.durability != DurabilityPolicy.VOLATILE for i in infos):
             return True
-        since = self._matched_since.setdefault(key, time.monotonic())
-        return time.monotonic() - since >= MATCH_SETTLE_S
+        return self._settled(key, (len(infos), matched))
 
     def reject(self, topic_name: str, text: str) -> None:
         """Count a dropped message of ``topic_name`` and log it (at most once a second)."""
@@ -453,8 +456,38 @@ class ServoNode(Node):
         volatile = any(i.qos_profile.durability == DurabilityPolicy.VOLATILE for i in infos)
         if len(infos) == count and not volatile:
             return True
-        since = self._matched_since.setdefault(name, time.monotonic())
-        return time.monotonic() - since >= MATCH_SETTLE_S
+        return self._settled(name, (len(infos), matched))
+
+    def _settled(self, key: str, counts: tuple[int, int]) -> bool:
+        """Whether ``counts`` (endpoints in the graph, matched) have held for
+        :data:`MATCH_SETTLE_S`: an endpoint that joins later (an outside node's
+        volatile reader beside a stranger) settles in its turn."""
+        now = time.monotonic()
+        held = self._matched_since.get(key)
+        if held is None or held[0] != counts:
+            held = self._matched_since[key] = (counts, now)
+        return now - held[1] >= MATCH_SETTLE_S
+
+    def answerer_listens(self, answer: str, question: str) -> bool:
+        """Whether a node that publishes ``answer`` subscribes to ``question``.
+
+        The node that answers ``question[k]`` with ``answer[k]`` must listen
+        before sample 0 goes out, and counting the subscribers of
+        ``question`` does not tell: another one (an outside reference
+        generator that answers ``state`` too, a stranger) may stand in for it
+        while it still waits for its own inputs. Nodes are told apart by
+        namespace and name, whatever the name: an outside node plays a role
+        by its topics.
+        """
+
+        def nodes(infos: list[Any]) -> set[tuple[str, str]]:
+            return {
+                (i.node_namespace, i.node_name) for i in infos if i.node_name != UNKNOWN_NODE_NAME
+            }
+
+        answering = nodes(self.get_publishers_info_by_topic(self.resolve_topic_name(answer)))
+        listening = nodes(self.get_subscriptions_info_by_topic(self.resolve_topic_name(question)))
+        return not answering.isdisjoint(listening)
 
     def after_consumers_matched(
         self, outputs: list[tuple[Publisher, str, int]], then: Callable[[], None]

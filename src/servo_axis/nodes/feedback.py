@@ -156,16 +156,16 @@ class FeedbackNode(ServoNode):
             raw=True,
             gate=self._refs,
         )
-        # `state` (which starts the plant) only once `reference` is matched: a
-        # generator with the default volatile profile that answers state[k]
-        # with reference[k] would otherwise send reference[0] to no one.
+        # `state` (which starts the plant) only once `reference` is matched,
+        # and a volatile generator's match has settled on its side too: one
+        # with the default profile that answers state[k] with reference[k]
+        # would otherwise send reference[0] to no one.
         self._reference_wait = self.create_timer(
             0.01, self._subscribe_state_once_referenced, clock=steady_clock()
         )
 
     def _subscribe_state_once_referenced(self) -> None:
-        sub = self._subscriptions_by_topic.get("reference")
-        if sub is None or sub.get_publisher_count() == 0:
+        if not self.input_matched("reference"):
             return
         self._reference_wait.cancel()
         self.destroy_timer(self._reference_wait)

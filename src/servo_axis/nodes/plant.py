@@ -234,13 +234,15 @@ class PlantNode(ServoNode):
             self._clock_pub, "/clock", v["wait_for_clock_subscribers"]
         ):
             return False
-        if not self.input_matched("command"):
+        if not (self.input_matched("command") and self.answerer_listens("command", "state")):
             # Whoever answers state[k] must be there before step 0: a stranger
-            # subscribed to state must not stand in for an outside feedback
-            # node that would miss what was sent before it matched. In
-            # realtime too: a clock that starts before the commands can
-            # reach it counts misses that are no one's and holds zero
-            # current while the feedback winds up.
+            # subscribed to state, or an outside reference generator that
+            # answers state too, must not stand in for a feedback node that
+            # would miss what was sent before it matched, or that still
+            # waits for its reference (its generator's reference[0] would go
+            # to no one). In realtime too: a clock that starts before the
+            # commands can reach it counts misses that are no one's and
+            # holds zero current while the feedback winds up.
             return False
         return self._flow.ready
 
