@@ -29,6 +29,12 @@ a step's time goes in each node process.
     .venv/bin/python scripts/benchmark.py --all [--duration 1] [--floor floor.jsonl]
     .venv/bin/python scripts/benchmark.py --quick
     .venv/bin/python scripts/benchmark.py --budget [--scenario config/ptc_nominal.yaml]
+
+``--topology`` measures what the recorded graph's transport alone allows: the
+ping-pong with a listener of both directions (the least a recorder costs) and a
+reference stream, next to ``--scenario`` in lockstep, alternated ``--repeat`` times.
+
+    .venv/bin/python scripts/benchmark.py --topology [--repeat 5] [--duration 2]
 """
 
 from __future__ import annotations
@@ -69,7 +75,7 @@ def table_count(counts: dict[str, int], name: str) -> int:
 
 
 def pong() -> None:
-    """Child process: echo every ``ping`` on ``pong``."""
+    """Child process: echo every ``ping`` on ``pong``; take ``reference`` (if any) as bytes."""
     import rclpy
     from sensor_msgs.msg import JointState
 
@@ -79,6 +85,7 @@ def pong() -> None:
     node = rclpy.create_node("pong")
     pub = node.create_publisher(JointState, "pong", STREAM_QOS)
     node.create_subscription(JointState, "ping", pub.publish, STREAM_QOS)
+    node.create_subscription(JointState, "reference", lambda _: None, STREAM_QOS, raw=True)
     ex = make_executor()
     ex.add_node(node)
     try:
@@ -92,8 +99,40 @@ def pong() -> None:
         rclpy.try_shutdown()
 
 
-def ping_pong(env: dict[str, str]) -> float:
-    """Round trips per second between this process and a ``pong`` process."""
+def listen() -> None:
+    """Child process: take every ``ping``, ``pong`` and ``reference`` as bytes and count
+    them (what a recorder of the streams costs the pair at the least)."""
+    import rclpy
+    from sensor_msgs.msg import JointState
+
+    from servo_axis.nodes.runtime import STREAM_QOS, make_executor
+
+    rclpy.init()
+    node = rclpy.create_node("listener")
+    counts = [0]
+    for topic in ("ping", "pong", "reference"):
+        node.create_subscription(
+            JointState, topic, lambda _: counts.__setitem__(0, counts[0] + 1), STREAM_QOS,
+            raw=True,
+        )  # fmt: skip
+    ex = make_executor()
+    ex.add_node(node)
+    try:
+        while rclpy.ok():
+            ex.spin_once(timeout_sec=0.1)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        ex.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+def ping_pong(env: dict[str, str], listeners: int = 0, reference: bool = False) -> float:
+    """Round trips per second between this process and a ``pong`` process, with
+    ``listeners`` more processes taking every stream (:func:`listen`) and, with
+    ``reference``, one more JointState per round trip to ``pong`` and the listeners (the
+    reference a feedback takes each step)."""
     os.environ.update(env)
     import rclpy
     from sensor_msgs.msg import JointState
@@ -101,13 +140,16 @@ def ping_pong(env: dict[str, str]) -> float:
     from servo_axis.nodes.runtime import STREAM_QOS, make_executor
     from servo_axis.wire import messages as msgs
 
-    child = subprocess.Popen(
-        [sys.executable, __file__, "--pong"],
-        env=env,
-        start_new_session=True,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
+    children = [
+        subprocess.Popen(
+            [sys.executable, __file__, flag],
+            env=env,
+            start_new_session=True,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+        for flag in ["--pong"] + ["--listen"] * listeners
+    ]
     rclpy.init()
     node = rclpy.create_node("ping")
     pub = node.create_publisher(JointState, "ping", STREAM_QOS)
@@ -116,15 +158,24 @@ def ping_pong(env: dict[str, str]) -> float:
         JointState, "pong", lambda m: got.__setitem__(0, got[0] + 1), STREAM_QOS
     )
     ex = make_executor()
+    ref_pub = node.create_publisher(JointState, "reference", STREAM_QOS) if reference else None
     ex.add_node(node)
     try:
-        while pub.get_subscription_count() < 1 or node.count_publishers("pong") < 1:
+        while (
+            pub.get_subscription_count() < 1 + listeners
+            or (ref_pub is not None and ref_pub.get_subscription_count() < 1 + listeners)
+            or node.count_publishers("pong") < 1
+            or node.count_subscribers("pong") < 1 + listeners
+        ):
             ex.spin_once(timeout_sec=0.05)
         time.sleep(0.5)  # the reverse direction matches a little later
         state = msgs.StateSample(0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        ref = JointState(name=["x_motor"], position=[0.0], velocity=[0.0], effort=[0.0])
 
         def bounce(n: int) -> None:
             for k in range(n):
+                if ref_pub is not None:
+                    ref_pub.publish(ref)
                 pub.publish(msgs.state_to_msg(state, axis="x", period_ns_=1_000_000))
                 while got[0] <= k + offset[0]:
                     ex.spin_once(timeout_sec=1.0)
@@ -139,8 +190,9 @@ def ping_pong(env: dict[str, str]) -> float:
         ex.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
-        child.send_signal(2)
-        child.wait(timeout=10)
+        for child in children:
+            child.send_signal(2)
+            child.wait(timeout=10)
 
 
 def write_section(out: Path, title: str, section: str) -> None:
@@ -696,6 +748,88 @@ def budget(args: argparse.Namespace) -> int:
     return 0
 
 
+def topology(args: argparse.Namespace) -> int:
+    """``--topology``: the ping-pong with listeners of both directions and a reference
+    stream, and ``--scenario`` in lockstep (separate processes, recorder on), alternated
+    ``--repeat`` times.
+
+    A listener takes each message as bytes and does nothing else: the least a
+    recorder costs the pair. The reference stream is one more JointState per
+    round trip to the pong and the listener, as a feedforward's reference is
+    each step (published here by the ping itself, on the round trip's path).
+    The pair's rate with them bounds what a lockstep run with its recorder can
+    reach in x baseline, whatever its nodes do.
+    """
+    from servo_axis.run.processes import ros_environment
+
+    tmp = Path(tempfile.mkdtemp(prefix="servo_axis_bench_topology_"))
+    domain = 60 + os.getpid() % 30
+    env = ros_environment(domain, tmp)
+    scenario, _ = prepared(Path(args.scenario), tmp, args.duration)
+    rates: dict[str, list[float]] = {}
+    cases = {
+        "ping-pong (the baseline)": (0, False),
+        "ping-pong, a listener of both": (1, False),
+        "ping-pong, a listener of both, a reference stream": (1, True),
+        "ping-pong, 2 listeners of both": (2, False),
+    }
+    name = Path(args.scenario).stem
+    for r in range(args.repeat):
+        for case, (listeners, reference) in cases.items():
+            print(f"{case} ({r + 1}/{args.repeat}) ...", flush=True)
+            rates.setdefault(case, []).append(run_child_ping_pong(env, listeners, reference))
+        print(f"{name} ({r + 1}/{args.repeat}) ...", flush=True)
+        summary = one_run(scenario, tmp / f"run{r}", domain)
+        rates.setdefault(f"{name}, separate processes, recorder on", []).append(
+            steps_per_s(summary) if not isinstance(summary, str) else float("nan")
+        )
+    lines = [
+        f"| {'case':<52} | {'round trips or steps/s':>24} | {'x baseline (same repeat)':>24} |",
+        f"|{'-' * 54}|{'-' * 26}|{'-' * 26}|",
+    ]
+    base = rates["ping-pong (the baseline)"]
+    for case, values in rates.items():
+        ratios = [v / b for v, b in zip(values, base, strict=True)]
+        lines.append(
+            f"| {case:<52} | {min(values):>11,.0f} - {max(values):<10,.0f} "
+            f"| {min(ratios):>11.2f} - {max(ratios):<10.2f} |"
+        )
+    floor_case = "ping-pong, a listener of both, a reference stream"
+    run_case = f"{name}, separate processes, recorder on"
+    of_floor = [v / f for v, f in zip(rates[run_case], rates[floor_case], strict=True)]
+    lines.append(
+        f"\n{name} / the ping-pong with a listener and a reference stream (the recorded "
+        f"graph's transport alone), same repeat: {min(of_floor):.2f} - {max(of_floor):.2f}"
+    )
+    text = "\n".join(lines)
+    print()
+    print(text)
+    scen = Path(args.scenario).resolve()
+    shown = scen.relative_to(REPO) if scen.is_relative_to(REPO) else scen
+    write_section(
+        Path(args.out),
+        "## lockstep transport: the ping-pong with listeners",
+        f"`scripts/benchmark.py --topology --scenario {shown} "
+        f"--duration {args.duration:g} --repeat {args.repeat}` on {platform.node()} "
+        f"({os.cpu_count()} CPUs): ranges over the repeats; each ratio is to the two-process "
+        f"ping-pong of the same repeat.\n\n{text}\n",
+    )
+    return 0
+
+
+def run_child_ping_pong(env: dict[str, str], listeners: int, reference: bool) -> float:
+    """:func:`ping_pong` in a process of its own (rclpy is initialised once per process)."""
+    out = subprocess.run(
+        [sys.executable, __file__, "--ping-pong", str(listeners)]
+        + (["--with-reference"] if reference else []),
+        env={**os.environ, **env},
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    return float(out.stdout.split()[-1])
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -715,6 +849,14 @@ def main() -> int:
     )
     parser.add_argument("--repeat", type=int, default=3, help="runs per case for the costs")
     parser.add_argument("--pong", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("--listen", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("--ping-pong", type=int, help=argparse.SUPPRESS)
+    parser.add_argument("--with-reference", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument(
+        "--topology",
+        action="store_true",
+        help="instead: the ping-pong with listeners and a reference stream, next to --scenario",
+    )
     parser.add_argument(
         "--all", action="store_true", help="every shipped scenario, lockstep and realtime"
     )
@@ -730,6 +872,16 @@ def main() -> int:
     if args.pong:
         pong()
         return 0
+    if args.listen:
+        listen()
+        return 0
+    if args.ping_pong is not None:
+        print(ping_pong(dict(os.environ), args.ping_pong, args.with_reference))
+        return 0
+    if args.topology:
+        if args.duration == 10.0:
+            args.duration = 2.0
+        return topology(args)
     if args.all or args.quick:
         if args.duration == 10.0:
             args.duration = 1.0
