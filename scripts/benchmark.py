@@ -74,47 +74,29 @@ def table_count(counts: dict[str, int], name: str) -> int:
     return sum(n for topic, n in counts.items() if table_name(topic) == name)
 
 
-def pong() -> None:
-    """Child process: echo every ``ping`` on ``pong``; take ``reference`` (if any) as bytes."""
+def child(role: str) -> None:
+    """Child process of :func:`ping_pong`, until SIGINT.
+
+    ``pong`` echoes every ``ping`` on ``pong`` and takes ``reference`` (if
+    any) as bytes; ``listener`` takes ``ping``, ``pong`` and ``reference`` as
+    bytes and does nothing else (the least a recorder of the streams costs
+    the pair).
+    """
     import rclpy
     from sensor_msgs.msg import JointState
 
     from servo_axis.nodes.runtime import STREAM_QOS, make_executor
 
     rclpy.init()
-    node = rclpy.create_node("pong")
-    pub = node.create_publisher(JointState, "pong", STREAM_QOS)
-    node.create_subscription(JointState, "ping", pub.publish, STREAM_QOS)
-    node.create_subscription(JointState, "reference", lambda _: None, STREAM_QOS, raw=True)
-    ex = make_executor()
-    ex.add_node(node)
-    try:
-        while rclpy.ok():
-            ex.spin_once(timeout_sec=0.1)
-    except KeyboardInterrupt:
-        pass
-    finally:
-        ex.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
-
-
-def listen() -> None:
-    """Child process: take every ``ping``, ``pong`` and ``reference`` as bytes and count
-    them (what a recorder of the streams costs the pair at the least)."""
-    import rclpy
-    from sensor_msgs.msg import JointState
-
-    from servo_axis.nodes.runtime import STREAM_QOS, make_executor
-
-    rclpy.init()
-    node = rclpy.create_node("listener")
-    counts = [0]
-    for topic in ("ping", "pong", "reference"):
-        node.create_subscription(
-            JointState, topic, lambda _: counts.__setitem__(0, counts[0] + 1), STREAM_QOS,
-            raw=True,
-        )  # fmt: skip
+    node = rclpy.create_node(role)
+    taken = ["reference"]
+    if role == "pong":
+        pub = node.create_publisher(JointState, "pong", STREAM_QOS)
+        node.create_subscription(JointState, "ping", pub.publish, STREAM_QOS)
+    else:
+        taken += ["ping", "pong"]
+    for topic in taken:
+        node.create_subscription(JointState, topic, lambda _: None, STREAM_QOS, raw=True)
     ex = make_executor()
     ex.add_node(node)
     try:
@@ -130,7 +112,7 @@ def listen() -> None:
 
 def ping_pong(env: dict[str, str], listeners: int = 0, reference: bool = False) -> float:
     """Round trips per second between this process and a ``pong`` process, with
-    ``listeners`` more processes taking every stream (:func:`listen`) and, with
+    ``listeners`` more processes taking every stream (:func:`child`) and, with
     ``reference``, one more JointState per round trip to ``pong`` and the listeners (the
     reference a feedback takes each step)."""
     os.environ.update(env)
@@ -148,7 +130,7 @@ def ping_pong(env: dict[str, str], listeners: int = 0, reference: bool = False) 
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
         )
-        for flag in ["--pong"] + ["--listen"] * listeners
+        for flag in ["--pong"] + ["--listener"] * listeners
     ]
     rclpy.init()
     node = rclpy.create_node("ping")
@@ -849,7 +831,7 @@ def main() -> int:
     )
     parser.add_argument("--repeat", type=int, default=3, help="runs per case for the costs")
     parser.add_argument("--pong", action="store_true", help=argparse.SUPPRESS)
-    parser.add_argument("--listen", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("--listener", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--ping-pong", type=int, help=argparse.SUPPRESS)
     parser.add_argument("--with-reference", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument(
@@ -869,11 +851,8 @@ def main() -> int:
         "--budget", action="store_true", help="where a lockstep step's time goes (profiled run)"
     )
     args = parser.parse_args()
-    if args.pong:
-        pong()
-        return 0
-    if args.listen:
-        listen()
+    if args.pong or args.listener:
+        child("pong" if args.pong else "listener")
         return 0
     if args.ping_pong is not None:
         print(ping_pong(dict(os.environ), args.ping_pong, args.with_reference))

@@ -620,6 +620,12 @@ class ServoNode(Node):
             )
         )
 
+    def realtime_counts(self) -> dict[str, int]:
+        """What the node counted of a realtime run for the summary's ``realtime`` block
+        (fields of :class:`~servo_axis.analysis.summary.Realtime`; put in ``health.realtime``
+        when it closes); none here."""
+        return {}
+
     def close(self) -> None:
         """Called once when the node's process ends: a last look for strangers, the report, a last status.
 
@@ -632,6 +638,9 @@ class ServoNode(Node):
                 self._check_strangers()
             except Exception as err:  # the context may be going down
                 self.get_logger().warning(f"no last look for strangers: {err}")
+        counts = self.realtime_counts()
+        if counts and self.values["mode"] != "lockstep":
+            self.health.realtime = counts
         self.write_report()
         if self.context.ok():
             try:

@@ -248,10 +248,8 @@ class FeedbackNode(ServoNode):
             )
             self._deformation_pub.publish(self._deformation_codec.encode(sample))
 
-    def close(self) -> None:
-        if not self._lockstep:
-            self.health.realtime = {"references_held": self.missed_references}
-        super().close()
+    def realtime_counts(self) -> dict[str, int]:
+        return {"references_held": self.missed_references}
 
     def _answer_now(self, step: int) -> bool:
         """Realtime: whether state ``step``'s command can still be used (see the module)."""

@@ -214,13 +214,8 @@ class FeedforwardNode(ServoNode):
             ("late_estimates", self.late_estimates),
         ]
 
-    def close(self) -> None:
-        if not self._lockstep:
-            self.health.realtime = {
-                "late_corrections": self.late_corrections,
-                "late_estimates": self.late_estimates,
-            }
-        super().close()
+    def realtime_counts(self) -> dict[str, int]:
+        return {"late_corrections": self.late_corrections, "late_estimates": self.late_estimates}
 
     def _try_start(self) -> None:
         if not self.consumers_matched(
