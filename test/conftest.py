@@ -19,12 +19,34 @@ CONFIG = REPO / "config"
 
 # Each test that touches ROS gets its own domain; the base depends on the pid
 # so that two suites on one machine are unlikely to collide.
+# SERVO_AXIS_TEST_DOMAINS=LO-HI confines a suite to domains LO..HI (inclusive),
+# so that suites run side by side (two checkouts) never share one.
 _domains = itertools.count()
-_BASE = 10 + (os.getpid() % 9) * 10
+
+
+def _domain_range() -> tuple[int, int]:
+    given = os.environ.get("SERVO_AXIS_TEST_DOMAINS", "")
+    if not given:
+        return 10, 99
+    try:
+        low, high = (int(part) for part in given.split("-"))
+    except ValueError:
+        raise pytest.UsageError(
+            f"SERVO_AXIS_TEST_DOMAINS: expected LO-HI (two domain ids), got {given!r}"
+        ) from None
+    if not 0 <= low <= high <= 232:
+        raise pytest.UsageError(
+            f"SERVO_AXIS_TEST_DOMAINS: expected 0 <= LO <= HI <= 232, got {given!r}"
+        )
+    return low, high
+
+
+_LOW, _HIGH = _domain_range()
+_START = (os.getpid() % 9) * 10
 
 
 def next_domain_id() -> int:
-    return 10 + (_BASE - 10 + next(_domains)) % 90
+    return _LOW + (_START + next(_domains)) % (_HIGH - _LOW + 1)
 
 
 @pytest.fixture
