@@ -11,8 +11,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from pathlib import Path
 
+from servo_axis.params.param import Param
 from servo_axis.params.registry import REGISTRIES, parameter_sections
-from servo_axis.params.schema import Param
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -147,8 +147,8 @@ def _gms_fit(args: argparse.Namespace) -> int:
 
 
 def _sweep(args: argparse.Namespace) -> int:
-    from servo_axis.study.engine import VersionMismatchError, run_study
-    from servo_axis.study.spec import load_study
+    from servo_axis.sweep.engine import VersionMismatchError, run_study
+    from servo_axis.sweep.spec import load_study
 
     study = load_study(args.study)
     out = Path(args.out) if args.out else Path("studies") / study.name

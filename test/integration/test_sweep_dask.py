@@ -6,7 +6,7 @@ each, no nanny: the process started is the worker) on 127.0.0.1, runs a
 about 0.5 s each) through ``python -m servo_axis sweep --scheduler``,
 SIGKILLs one worker once a few points are done, and checks that every point
 is in the table with the same figures as a serial, in-process run of the
-same points (:func:`servo_axis.study.point.run_point`, no dask). Every
+same points (:func:`servo_axis.sweep.point.run_point`, no dask). Every
 process is reaped.
 """
 
@@ -26,8 +26,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from servo_axis.study.point import run_point
-from servo_axis.study.spec import load_study
+from servo_axis.sweep.point import run_point
+from servo_axis.sweep.spec import load_study
 
 pytestmark = pytest.mark.integration
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from servo_axis.study.point import run_point
+from servo_axis.sweep.point import run_point
 
 pytestmark = pytest.mark.integration
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from servo_axis.core.models.base import PlantOutput
 from servo_axis.params.factories import PLANT_MODELS, register_plant_model
-from servo_axis.params.schema import Param
+from servo_axis.params.param import Param
 
 NAME = "toy_rigid_body"
 

@@ -1,7 +1,7 @@
 """What happened to a run besides its numbers: node deaths, restarts, fallbacks, strangers.
 
 The runner gathers it (process exit codes, restarts, the nodes' own reports
-of :mod:`servo_axis.wire.health`) into a :class:`RunHealth`, which goes into
+of :mod:`servo_axis.wire.node_report`) into a :class:`RunHealth`, which goes into
 ``summary.json`` (``health``) and decides the exit code of ``python -m
 servo_axis run``:
 
@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from servo_axis.analysis.serial import Serial
-from servo_axis.wire.health import NodeHealth
+from servo_axis.wire.node_report import NodeHealth
 
 EXIT_OK = 0
 EXIT_FAILED = 1
@@ -87,7 +87,7 @@ class RunHealth(Serial):
         Why the run is not ``0`` (one line each).
     deaths : tuple of NodeDeath
     nodes : dict
-        Each node's own report (:class:`servo_axis.wire.health.NodeHealth` as a mapping).
+        Each node's own report (:class:`servo_axis.wire.node_report.NodeHealth` as a mapping).
     bag_recovered : bool
         The recorder died and its bag was recovered (``bag recover``).
     """

@@ -46,7 +46,7 @@
   :data:`MATCH_SETTLE_S` before it is believed;
   :meth:`ServoNode.answerer_listens` tells whether the node that answers a
   topic subscribes to it (a count cannot: another subscriber may stand in).
-* Report: :mod:`servo_axis.wire.health`, written to ``report_dir`` on each
+* Report: :mod:`servo_axis.wire.node_report`, written to ``report_dir`` on each
   fallback, on each new stranger and when the node closes.
 * Diagnostics: about once a second of wall time and when it closes, a
   ``DiagnosticArray`` on ``/diagnostics`` (:mod:`servo_axis.nodes.diagnostics`):
@@ -92,9 +92,9 @@ from servo_axis.nodes.runtime import (
     steady_clock,
 )
 from servo_axis.params.factories import checked_values, external_roles, node_schema
-from servo_axis.params.schema import BUILTIN, Param
+from servo_axis.params.param import BUILTIN, Param
 from servo_axis.wire import topics
-from servo_axis.wire.health import Fallback, NodeHealth, write_health
+from servo_axis.wire.node_report import Fallback, NodeHealth, write_health
 from servo_axis.wire.streams import StreamGate
 
 

@@ -11,7 +11,7 @@ The status is built by :func:`node_status` from plain values (no rclpy):
 
 * ``name``: the node's fully qualified name (``/x/plant``); ``hardware_id``:
   the axis;
-* ``level``: ERROR on a fallback (:mod:`servo_axis.wire.health`) or an
+* ``level``: ERROR on a fallback (:mod:`servo_axis.wire.node_report`) or an
   error the node states (the feedback's trip), WARN when messages were
   rejected or strangers publish on its topics, OK otherwise;
 * ``message``: one line saying why;
@@ -27,7 +27,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from servo_axis.wire.health import NodeHealth
+from servo_axis.wire.node_report import NodeHealth
 
 #: ``DiagnosticStatus`` levels (diagnostic_msgs: OK=0, WARN=1, ERROR=2).
 OK, WARN, ERROR = 0, 1, 2

@@ -1,7 +1,7 @@
 """Parameter descriptors generated from the schemas, for ``ros2 param describe``.
 
 Every key a node declares gets an ``rcl_interfaces/msg/ParameterDescriptor``
-made from its :class:`~servo_axis.params.schema.Param`:
+made from its :class:`~servo_axis.params.param.Param`:
 
 * ``description``: the meaning and the unit (``[m]``);
 * ``floating_point_range`` / ``integer_range`` where the schema has bounds
@@ -30,7 +30,7 @@ from rcl_interfaces.msg import (
     ParameterType,
 )
 
-from servo_axis.params.schema import Param
+from servo_axis.params.param import Param
 
 INT64_MIN = -(2**63)
 INT64_MAX = 2**63 - 1

@@ -33,6 +33,7 @@ from servo_axis.core.models.base import NominalModel, Plant
 from servo_axis.core.reference import Reference, make_reference
 from servo_axis.core.timing import SampleGrid
 from servo_axis.params import schemas
+from servo_axis.params.param import Param, build, check_values, section
 from servo_axis.params.registry import FEEDFORWARD_TERMS as FEEDFORWARD_TERMS
 from servo_axis.params.registry import IDENTIFIERS as IDENTIFIERS
 from servo_axis.params.registry import LEARNING_LAWS as LEARNING_LAWS
@@ -42,7 +43,6 @@ from servo_axis.params.registry import IdentifierEntry as IdentifierEntry
 from servo_axis.params.registry import LearningLawEntry as LearningLawEntry
 from servo_axis.params.registry import PlantModelEntry as PlantModelEntry
 from servo_axis.params.registry import Values, feedforward_terms
-from servo_axis.params.schema import Param, build, check_values, section
 
 #: The keys of the ``nominal.*`` values, by the names the core constructors give them.
 NOMINAL_KEYS = {
@@ -472,7 +472,7 @@ def node_schema(role: str, given: Values) -> dict[str, Param]:
 def checked_values(role: str, given: Values) -> dict[str, Any]:
     """Checked values of node ``role``: ``given`` where set, defaults elsewhere.
 
-    Each key against its schema first (:func:`~servo_axis.params.schema.check_values`),
+    Each key against its schema first (:func:`~servo_axis.params.param.check_values`),
     then what depends on several keys (:func:`check_consistency`), so that
     whoever checks a section (the node, the runner before it starts any
     process) refuses what the node would.

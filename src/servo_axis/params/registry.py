@@ -36,7 +36,7 @@ from servo_axis.core.identification.base import OnlineIdentifier
 from servo_axis.core.learning.base import LearningLaw
 from servo_axis.core.models.base import Plant
 from servo_axis.params import schemas
-from servo_axis.params.schema import Param
+from servo_axis.params.param import Param
 
 Values = Mapping[str, Any]
 Scenario = dict[str, Any]
@@ -76,7 +76,7 @@ class PlantModelEntry:
     build : callable
         ``build(values, rng) -> Plant`` from the checked plant values; what
         it rejects is reported as ``parameter '<key>': ...``
-        (:func:`servo_axis.params.schema.build`).
+        (:func:`servo_axis.params.param.build`).
     warnings : callable
         ``warnings(values) -> list of str``: what is allowed but unusual
         (the plant node logs each at start).

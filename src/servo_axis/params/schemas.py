@@ -1,6 +1,6 @@
 """Every node parameter, once: default, SI unit, allowed range and meaning.
 
-One :class:`~servo_axis.params.schema.Param` per (dotted) key, per section of
+One :class:`~servo_axis.params.param.Param` per (dotted) key, per section of
 a scenario file: :data:`SHARED` (``/**``), :data:`PLANT`, :data:`FEEDBACK`,
 :data:`FEEDFORWARD`, :data:`LEARNING`, :data:`IDENTIFIER` and
 :data:`RECORDER`: the nodes' own keys. The keys of a plant model, a
@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from servo_axis.core.feedback.loop import SafetyLimits
 from servo_axis.core.models.ball_screw import BallScrewParams
-from servo_axis.params.schema import Param, dataclass_defaults
+from servo_axis.params.param import Param, dataclass_defaults
 from servo_axis.wire import topics
 
 _BALL_SCREW = dataclass_defaults(BallScrewParams)

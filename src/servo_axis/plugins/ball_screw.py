@@ -16,8 +16,8 @@ from servo_axis.core.friction.model import FrictionParams
 from servo_axis.core.models.ball_screw import BallScrewParams, BallScrewPlant, DisturbanceParams
 from servo_axis.core.models.base import Plant
 from servo_axis.params.factories import MAX_SIM_STEPS
+from servo_axis.params.param import Param, build, dataclass_defaults, section
 from servo_axis.params.registry import PlantModelEntry, Values
-from servo_axis.params.schema import Param, build, dataclass_defaults, section
 from servo_axis.plugins.sensors import ENCODER_AND_SCALE, encoder_and_scale
 
 _BALL_SCREW = dataclass_defaults(BallScrewParams)

@@ -19,8 +19,8 @@ from servo_axis.core.identification.base import OnlineIdentifier
 from servo_axis.core.identification.dlpid import Dlpid, DlpidParams
 from servo_axis.core.identification.rls import RlsParams
 from servo_axis.params.factories import estimate_schedule
+from servo_axis.params.param import Param, build
 from servo_axis.params.registry import IdentifierEntry, Values
-from servo_axis.params.schema import Param, build
 
 #: The keys of method ``dlpid`` only: the friction layer of 003 eq. (8).
 DLPID_FRICTION: dict[str, Param] = {

@@ -17,8 +17,8 @@ from servo_axis.core.models.elastic_ball_screw import (
     ElasticBallScrewPlant,
     mode_warning,
 )
+from servo_axis.params.param import Param, build, dataclass_defaults
 from servo_axis.params.registry import PlantModelEntry, Values
-from servo_axis.params.schema import Param, build, dataclass_defaults
 from servo_axis.plugins.sensors import ENCODER_AND_SCALE, encoder_and_scale
 
 _ELASTIC = dataclass_defaults(ElasticBallScrewParams)

@@ -12,8 +12,8 @@ from __future__ import annotations
 from servo_axis.core.errors import ParameterFileError, ServoAxisError
 from servo_axis.core.feedforward.terms import FeedforwardTerm, FrictionTableTerm
 from servo_axis.params.factories import NOMINAL_KEYS, term_file
+from servo_axis.params.param import Param, build
 from servo_axis.params.registry import FeedforwardTermEntry, Values
-from servo_axis.params.schema import Param, build
 from servo_axis.storage import load_friction_table
 
 SCHEMA: dict[str, Param] = {

@@ -28,8 +28,8 @@ from servo_axis.params.factories import (
     grid,
     nominal_model,
 )
+from servo_axis.params.param import Param, build
 from servo_axis.params.registry import LearningLawEntry, Values
-from servo_axis.params.schema import Param, build
 
 #: Keys of the trial laws of paper 001 (``silc``, ``pilc_bf``, ``pilc_bfft``).
 ILC: dict[str, Param] = {

@@ -13,8 +13,8 @@ from __future__ import annotations
 from servo_axis.core.feedforward.mnc import MncParams, NonlinearityCompensator
 from servo_axis.core.feedforward.terms import FeedforwardTerm
 from servo_axis.params.factories import build_reference, grid
+from servo_axis.params.param import Param, build
 from servo_axis.params.registry import FeedforwardTermEntry, Values
-from servo_axis.params.schema import Param, build
 
 SCHEMA: dict[str, Param] = {
     "mnc.enabled": Param(

@@ -12,8 +12,8 @@ from __future__ import annotations
 from servo_axis.core.learning.base import LearningLaw
 from servo_axis.core.learning.rptc import LearningParams, PeriodicSignalGenerator
 from servo_axis.params.factories import PERIOD_KEYS, cycle_instants, grid
+from servo_axis.params.param import build
 from servo_axis.params.registry import LearningLawEntry, Values
-from servo_axis.params.schema import build
 
 
 def _rptc(values: Values) -> LearningLaw:

@@ -10,8 +10,8 @@ from __future__ import annotations
 import math
 
 from servo_axis.core.sensors import SensorParams
+from servo_axis.params.param import Param, build, section
 from servo_axis.params.registry import Values
-from servo_axis.params.schema import Param, build, section
 
 #: The four keys: count and noise of the encoder (motor angle) and of the scale (table).
 ENCODER_AND_SCALE: dict[str, Param] = {

@@ -16,8 +16,8 @@ from servo_axis.core.feedforward.sigmoid import (
 )
 from servo_axis.core.feedforward.terms import FeedforwardTerm
 from servo_axis.params.factories import NOMINAL_KEYS, build_reference
+from servo_axis.params.param import Param, build
 from servo_axis.params.registry import FeedforwardTermEntry, Values
-from servo_axis.params.schema import Param, build
 
 _SIGMOID_GAMMA = gamma_for_width(
     sigma_m2_per_rad=PAPER_SIGMA_M2_PER_RAD, half_width_m=PAPER_PRESLIDING_M / 2

@@ -13,8 +13,8 @@ import numpy as np
 
 from servo_axis.core.models.base import Plant
 from servo_axis.core.models.tilting_table import TiltingTableParams, TiltingTablePlant
+from servo_axis.params.param import Param, build, dataclass_defaults
 from servo_axis.params.registry import PlantModelEntry, Values
-from servo_axis.params.schema import Param, build, dataclass_defaults
 
 #: Keys of the plant model ``tilting_table`` (paper 003 eq. (2); defaults: its Table I).
 _TILT = dataclass_defaults(TiltingTableParams)

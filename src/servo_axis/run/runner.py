@@ -83,7 +83,7 @@ from servo_axis.run.processes import (
 )
 from servo_axis.run.progress import ProgressLine, ProgressWatcher
 from servo_axis.stop_signals import catch_stop_signals, restore_handlers
-from servo_axis.wire.health import NodeHealth, read_health
+from servo_axis.wire.node_report import NodeHealth, read_health
 
 if TYPE_CHECKING:
     from servo_axis.analysis.summary import AxesSummary, RunSummary
@@ -841,7 +841,7 @@ def stepping_span(
 ) -> tuple[float, float] | None:
     """When the plant's steps ran: ``(first_s, last_s)`` on ``time.monotonic()``'s clock.
 
-    From the plant's report (:attr:`~servo_axis.wire.health.NodeHealth.stepping`):
+    From the plant's report (:attr:`~servo_axis.wire.node_report.NodeHealth.stepping`):
     state 0 out, the last step integrated. None when it did not report them
     (an outside plant, a run stopped before its end) or when they do not lie
     within the runner's ``started_s`` .. ``ended_s`` (the node processes'

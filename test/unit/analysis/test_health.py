@@ -15,7 +15,7 @@ from servo_axis.analysis.health import (
     RunHealth,
     assess,
 )
-from servo_axis.wire.health import Fallback, NodeHealth, read_health, write_health
+from servo_axis.wire.node_report import Fallback, NodeHealth, read_health, write_health
 
 
 def _clean() -> dict[str, NodeHealth]:

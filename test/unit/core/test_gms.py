@@ -14,7 +14,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from servo_axis.core.errors import ConfigError, SignalError, TableError
-from servo_axis.core.feedforward.gms import GmsTerm
+from servo_axis.core.feedforward.gms_compensation import GmsTerm
 from servo_axis.core.feedforward.terms import FeedforwardTerm, ReferenceBlock
 from servo_axis.core.friction.gms import (
     HEADER_LINE,

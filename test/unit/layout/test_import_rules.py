@@ -188,7 +188,7 @@ ROS_FREE = [
         m
         for m in MODULES
         if m.startswith(
-            ("servo_axis.analysis", "servo_axis.params", "servo_axis.plugins", "servo_axis.study")
+            ("servo_axis.analysis", "servo_axis.params", "servo_axis.plugins", "servo_axis.sweep")
         )
     ),
 ]

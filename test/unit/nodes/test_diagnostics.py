@@ -6,7 +6,7 @@ import ast
 from pathlib import Path
 
 from servo_axis.nodes.diagnostics import ERROR, OK, WARN, node_status, text
-from servo_axis.wire.health import Fallback, NodeHealth
+from servo_axis.wire.node_report import Fallback, NodeHealth
 
 
 def test_a_clean_node_is_ok_with_its_state_first() -> None:

@@ -31,9 +31,9 @@ from servo_axis.params.factories import (
     checked_values,
     node_schema,
 )
+from servo_axis.params.param import Param, build
 from servo_axis.params.registry import parameter_sections
 from servo_axis.params.scenario import ROLES, check_params_files
-from servo_axis.params.schema import Param, build
 
 
 def bases(role: str) -> list[dict[str, Any]]:

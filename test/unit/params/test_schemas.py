@@ -12,9 +12,9 @@ import pytest
 import yaml
 
 from servo_axis.core.errors import ParameterFileError
+from servo_axis.params.param import Param
 from servo_axis.params.registry import FEEDFORWARD_TERMS, feedforward_terms, parameter_sections
 from servo_axis.params.scenario import flatten
-from servo_axis.params.schema import Param
 from servo_axis.params.schemas import (
     FEEDBACK,
     FEEDFORWARD,

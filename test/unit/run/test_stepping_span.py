@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from servo_axis.run.runner import stepping_span
-from servo_axis.wire.health import NodeHealth
+from servo_axis.wire.node_report import NodeHealth
 
 
 def _plant(**stepping: object) -> NodeHealth:

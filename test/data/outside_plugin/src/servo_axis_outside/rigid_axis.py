@@ -20,8 +20,8 @@ from typing import Any
 import numpy as np
 
 from servo_axis.core.models.base import Plant, PlantOutput, clipped_current
+from servo_axis.params.param import Param, build
 from servo_axis.params.registry import PlantModelEntry, Values
-from servo_axis.params.schema import Param, build
 
 SCHEMA: dict[str, Param] = {
     "torque_constant_Nm_per_A": Param(

@@ -11,8 +11,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from servo_axis.core.feedforward.terms import FeedforwardTerm, ReferenceBlock
+from servo_axis.params.param import Param
 from servo_axis.params.registry import FeedforwardTermEntry, Values
-from servo_axis.params.schema import Param
 
 SCHEMA: dict[str, Param] = {
     "viscous_ff.enabled": Param(False, meaning="add the viscous-friction feedforward b v / R K_T"),

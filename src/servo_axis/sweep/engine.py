@@ -23,8 +23,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from servo_axis.study.point import cell, run_point
-from servo_axis.study.spec import Study, StudyError
+from servo_axis.sweep.point import cell, run_point
+from servo_axis.sweep.spec import Study, StudyError
 
 MANIFEST = "manifest.json"
 RESULTS = "results"  # results.parquet, results.csv
@@ -138,7 +138,7 @@ def run_study(
     Parameters
     ----------
     study : Study
-        The checked study (:func:`servo_axis.study.spec.load_study`).
+        The checked study (:func:`servo_axis.sweep.spec.load_study`).
     out : Path
         The study's directory (``manifest.json``, ``results.parquet``,
         ``results.csv``, one PNG per figure and swept parameter).

@@ -16,8 +16,8 @@ import yaml
 from numpy.testing import assert_allclose
 
 from servo_axis.simulate import simulate_identification, simulate_learning
-from servo_axis.study.point import run_point
-from servo_axis.study.spec import scenario_for
+from servo_axis.sweep.point import run_point
+from servo_axis.sweep.spec import scenario_for
 
 REPO = Path(__file__).resolve().parents[3]
 STUDIES = REPO / "src" / "servo_axis" / "studies"

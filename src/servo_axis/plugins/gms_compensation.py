@@ -2,7 +2,7 @@
 
 The generalized Maxwell-slip model (Al-Bender et al. 2005) driven by the
 reference's motion, with the parameters of a ``servo_axis gms-fit`` file
-(:class:`servo_axis.core.feedforward.gms.GmsTerm`). The file carries the
+(:class:`servo_axis.core.feedforward.gms_compensation.GmsTerm`). The file carries the
 fingerprint of the plant it was identified on; ``gms.plant`` is that of this
 run's plant section (:func:`servo_axis.params.resolve.plant_fingerprint`)
 and a file of another plant is refused.
@@ -13,12 +13,12 @@ from __future__ import annotations
 from typing import Any
 
 from servo_axis.core.errors import ParameterFileError, ServoAxisError
-from servo_axis.core.feedforward.gms import GmsTerm
+from servo_axis.core.feedforward.gms_compensation import GmsTerm
 from servo_axis.core.feedforward.terms import FeedforwardTerm
 from servo_axis.params.factories import NOMINAL_KEYS, PERIOD_KEYS, term_file
+from servo_axis.params.param import Param, build
 from servo_axis.params.registry import FeedforwardTermEntry, Scenario, Values
 from servo_axis.params.resolve import plant_fingerprint
-from servo_axis.params.schema import Param, build
 from servo_axis.storage import load_gms_parameters
 
 SCHEMA: dict[str, Param] = {

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from servo_axis.study.engine import MANIFEST, run_study
-from servo_axis.study.spec import StudyError, load_study
+from servo_axis.sweep.engine import MANIFEST, run_study
+from servo_axis.sweep.spec import StudyError, load_study
 
 
 def test_a_second_call_runs_only_the_points_the_manifest_lacks(tmp_path: Path) -> None:
@@ -48,7 +48,7 @@ class _Client:
 
 
 def test_a_worker_with_other_versions_is_refused_by_name() -> None:
-    from servo_axis.study.engine import VersionMismatchError, check_workers, versions
+    from servo_axis.sweep.engine import VersionMismatchError, check_workers, versions
 
     mine = versions()
     assert check_workers(_Client({"tcp://a:1": mine, "tcp://b:2": mine})) == 2

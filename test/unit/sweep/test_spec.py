@@ -11,8 +11,8 @@ import pytest
 from servo_axis.__main__ import main
 from servo_axis.params.resolve import node_values
 from servo_axis.simulate import simulate
-from servo_axis.study.point import run_point
-from servo_axis.study.spec import StudyError, figure, load_study, scenario_for
+from servo_axis.sweep.point import run_point
+from servo_axis.sweep.spec import StudyError, figure, load_study, scenario_for
 
 
 def write(tmp_path: Path, text: str) -> Path:

@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from servo_axis.study.spec import dump_scenario, figure, scenario_for
+from servo_axis.sweep.spec import dump_scenario, figure, scenario_for
 
 #: The first ROS domain of the ``nodes`` backend; point ``i`` uses ``DOMAIN_BASE + i % 100``.
 DOMAIN_BASE = 110
@@ -160,7 +160,7 @@ def run_point(
     scenario : str
         The base scenario (a shipped name or an absolute path).
     overrides : dict
-        Dotted keys -> values (:func:`servo_axis.study.spec.apply_override`).
+        Dotted keys -> values (:func:`servo_axis.sweep.spec.apply_override`).
     figures : dict
         Column name -> path into the summary.
     backend : str

@@ -1,6 +1,0 @@
-"""Studies: parameter sweeps of a scenario on dask.distributed (``python -m servo_axis sweep``).
-
-:mod:`~servo_axis.study.spec` reads a study file, :mod:`~servo_axis.study.point`
-runs one point, :mod:`~servo_axis.study.engine` runs them all and writes the
-results. Nothing here imports rclpy.
-"""
