@@ -368,7 +368,7 @@ class GmsModel:
         The model.
     compiled : bool
         Step :meth:`update_many` with the compiled
-        :func:`~servo_axis.core.kernels.gms_block` (the same numbers; it
+        :func:`~servo_axis.core.friction.gms_kernels.gms_block` (the same numbers; it
         loads numba when the model is built), else with :meth:`update`.
     """
 
@@ -399,7 +399,7 @@ class GmsModel:
         self._sticking = (False,) * n
         self._block: Callable[..., None] | None = None
         if compiled:
-            from servo_axis.core.kernels import gms_block
+            from servo_axis.core.friction.gms_kernels import gms_block
 
             self._block = gms_block
 
