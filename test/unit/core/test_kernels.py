@@ -77,7 +77,8 @@ for i0 in range(0, 400, 7):
     rows.append([x.hex() for x in [*f.current_A, *f.position_rad, *f.velocity_rad_s]])
     ptc.forget_before(i0 + 7)
 out["ptc"] = rows
-from servo_axis.core.friction.gms import GmsModel, GmsParams
+from servo_axis.core.friction.gms_model import GmsModel
+from servo_axis.core.friction.gms_params import GmsParams
 from servo_axis.core.friction.gms_kernels import exact_sum
 gms = GmsModel(GmsParams(stiffness_Nm_per_m=(2e5, 8e4, 2e4), weights=(0.3, 0.3, 0.4),
                          coulomb_Nm=0.4, static_Nm=0.6, stribeck_velocity_m_s=1e-3,
@@ -212,7 +213,8 @@ def test_the_exact_sum_is_math_fsum() -> None:
 @pytest.mark.parametrize("static", [0.4, 0.55])
 def test_the_compiled_gms_block_is_update_sample_by_sample(static: float) -> None:
     """GmsModel.update_many (gms_block) = update() per sample: torques and state, to the bit."""
-    from servo_axis.core.friction.gms import GmsModel, GmsParams
+    from servo_axis.core.friction.gms_model import GmsModel
+    from servo_axis.core.friction.gms_params import GmsParams
 
     params = GmsParams(
         stiffness_Nm_per_m=(2.6e5, 8.3e4, 2.1e4, 1.2e4),

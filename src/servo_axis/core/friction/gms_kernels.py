@@ -1,7 +1,7 @@
 """Compiled block step of the GMS friction model (004) and its exact element sum.
 
 :func:`gms_block` steps a block of samples of
-:class:`~servo_axis.core.friction.gms.GmsModel` (the GMS feedforward's
+:class:`~servo_axis.core.friction.gms_model.GmsModel` (the GMS feedforward's
 model) in one call, its element sum by :func:`exact_sum`, CPython's
 ``math.fsum`` ported step for step. How they are compiled, and why the
 numbers are the interpreted Python's bit for bit: :mod:`servo_axis.core.kernels`.
@@ -82,7 +82,7 @@ def gms_block(
     out: np.ndarray,
     partials: np.ndarray,
 ) -> None:
-    """:meth:`GmsModel.update <servo_axis.core.friction.gms.GmsModel.update>` of each sample in turn.
+    """:meth:`GmsModel.update <servo_axis.core.friction.gms_model.GmsModel.update>` of each sample in turn.
 
     The same steps in the same order (see that method and its class), on
     finite arguments with ``periods > 0`` (the caller checks them), the
