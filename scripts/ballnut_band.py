@@ -55,7 +55,7 @@ import numpy as np
 from servo_axis.analysis import ballnut as bn
 from servo_axis.core.deformation import deformation_ratio
 from servo_axis.core.feedforward.sigmoid import gamma_for_width
-from servo_axis.core.friction.gms import fit_gms
+from servo_axis.core.friction.gms_fitting import fit_gms
 from servo_axis.core.models.elastic_ball_screw import ElasticBallScrewParams
 from servo_axis.params.resolve import plant_fingerprint
 from servo_axis.params.scenario import load_scenario

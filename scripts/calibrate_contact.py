@@ -38,7 +38,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from servo_axis.analysis import ballnut as bn
-from servo_axis.core.friction.gms import fit_gms
+from servo_axis.core.friction.gms_fitting import fit_gms
 from servo_axis.params.resolve import plant_fingerprint
 from servo_axis.params.scenario import load_scenario
 from servo_axis.storage import save_gms_parameters

@@ -8,7 +8,7 @@ the run is a ``friction_id`` one: as for the friction table
 supplies less the nominal inertial and viscous parts,
 ``K_T i - J_n a_r - D_n v_r``, against the reference at the table
 (``reference_rad * lead_m_per_rad``). The fit
-(:func:`servo_axis.core.friction.gms.fit_gms`) counts the samples from the
+(:func:`servo_axis.core.friction.gms_fitting.fit_gms`) counts the samples from the
 first reversal on: those before it (the virgin start) only bring the
 model into the same sliding state as the axis.
 
@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from servo_axis.core.errors import SignalError
-from servo_axis.core.friction.gms import GmsFit, fit_gms
+from servo_axis.core.friction.gms_fitting import GmsFit, fit_gms
 from servo_axis.friction_id import measured_friction
 from servo_axis.params import resolve
 from servo_axis.params.resolve import node_values

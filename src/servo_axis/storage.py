@@ -4,7 +4,8 @@ Core formats the text (:meth:`FrictionTable.to_text`,
 :func:`servo_axis.core.learning.base.encode_memory`); this module does the
 I/O: a memory is written atomically (temporary file, then rename), so that a
 unit killed mid-write leaves the previous memory. GMS friction parameters
-(:meth:`GmsParams.to_text`, paper 004 Fig. 4(b)) are written the same way.
+(:func:`~servo_axis.core.friction.gms_text.gms_to_text`, paper 004 Fig. 4(b))
+are written the same way.
 """
 
 from __future__ import annotations
@@ -16,7 +17,8 @@ from typing import Any
 
 from servo_axis.core.errors import SignalError, TableError
 from servo_axis.core.feedforward.friction_table import FrictionTable
-from servo_axis.core.friction.gms import GmsParams, gms_from_text
+from servo_axis.core.friction.gms_params import GmsParams
+from servo_axis.core.friction.gms_text import gms_from_text, gms_to_text
 from servo_axis.core.learning.base import LearningLaw, decode_memory, encode_memory
 
 
@@ -33,8 +35,8 @@ def save_friction_table(path: Path | str, table: FrictionTable) -> None:
 def save_gms_parameters(
     path: Path | str, params: GmsParams, *, plant_model: str, plant_fingerprint: str
 ) -> None:
-    """Write a GMS parameter file atomically (:meth:`GmsParams.to_text`)."""
-    text = params.to_text(plant_model=plant_model, plant_fingerprint=plant_fingerprint)
+    """Write a GMS parameter file atomically (:func:`gms_to_text`)."""
+    text = gms_to_text(params, plant_model=plant_model, plant_fingerprint=plant_fingerprint)
     _write_atomically(Path(path), text)
 
 
@@ -45,7 +47,7 @@ def load_gms_parameters(path: Path | str) -> tuple[GmsParams, str, str]:
     ------
     TableError
         Naming the file, when it cannot be read or is malformed
-        (:func:`~servo_axis.core.friction.gms.gms_from_text`).
+        (:func:`~servo_axis.core.friction.gms_text.gms_from_text`).
     """
     source = str(path)
     try:

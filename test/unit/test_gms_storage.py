@@ -19,7 +19,9 @@ from numpy.testing import assert_allclose
 from servo_axis.__main__ import main
 from servo_axis.analysis.summary import summarise
 from servo_axis.core.errors import TableError
-from servo_axis.core.friction.gms import GmsParams, fit_gms, simulate_gms
+from servo_axis.core.friction.gms_fitting import fit_gms
+from servo_axis.core.friction.gms_model import simulate_gms
+from servo_axis.core.friction.gms_params import GmsParams
 from servo_axis.friction_id import estimate_friction_torque
 from servo_axis.gms_fit import fit_from_run, load_fit_data, plant_fingerprint, plot_fit
 from servo_axis.params.scenario import load_scenario

@@ -21,7 +21,7 @@ from numpy.testing import assert_allclose
 from servo_axis.analysis import ballnut as bn
 from servo_axis.core.deformation import deformation_ratio
 from servo_axis.core.errors import ConfigError
-from servo_axis.core.kernels import contact_load
+from servo_axis.core.models.ball_screw_kernels import contact_load
 from servo_axis.core.models.elastic_ball_screw import (
     ElasticBallScrewParams,
     ElasticBallScrewPlant,

@@ -16,14 +16,10 @@ from numpy.testing import assert_allclose
 from servo_axis.core.errors import ConfigError, SignalError, TableError
 from servo_axis.core.feedforward.gms_compensation import GmsTerm
 from servo_axis.core.feedforward.terms import FeedforwardTerm, ReferenceBlock
-from servo_axis.core.friction.gms import (
-    HEADER_LINE,
-    GmsModel,
-    GmsParams,
-    fit_gms,
-    gms_from_text,
-    simulate_gms,
-)
+from servo_axis.core.friction.gms_fitting import fit_gms
+from servo_axis.core.friction.gms_model import GmsModel, simulate_gms
+from servo_axis.core.friction.gms_params import GmsParams
+from servo_axis.core.friction.gms_text import HEADER_LINE, gms_from_text, gms_to_text
 
 FC = 3.2
 ALPHA = (0.3, 0.45, 0.25)
@@ -259,16 +255,18 @@ def test_text_round_trip_is_exact() -> None:
         attraction_per_s=123456.789,
         viscous_Nms_per_m=1e-300,
     )
-    text = p.to_text(plant_model="ball_screw", plant_fingerprint="ball_screw:0123456789abcdef")
+    text = gms_to_text(p, plant_model="ball_screw", plant_fingerprint="ball_screw:0123456789abcdef")
     assert text.splitlines()[0] == HEADER_LINE
     back, model, fingerprint = gms_from_text(text, source="gms.txt")
     assert back == p
-    assert back.to_text(plant_model=model, plant_fingerprint=fingerprint) == text
+    assert gms_to_text(back, plant_model=model, plant_fingerprint=fingerprint) == text
     assert (model, fingerprint) == ("ball_screw", "ball_screw:0123456789abcdef")
 
 
 def good_text() -> str:
-    return three_elements().to_text(plant_model="ball_screw", plant_fingerprint="ball_screw:ab")
+    return gms_to_text(
+        three_elements(), plant_model="ball_screw", plant_fingerprint="ball_screw:ab"
+    )
 
 
 def replace_line(text: str, key: str, line: str | None) -> str:
@@ -323,11 +321,11 @@ def test_malformed_text_names_the_problem(text: str, problem: str) -> None:
     assert problem in str(info.value)
 
 
-def test_to_text_refuses_a_plant_name_that_would_not_read_back() -> None:
+def test_gms_to_text_refuses_a_plant_name_that_would_not_read_back() -> None:
     with pytest.raises(ConfigError, match="plant_model"):
-        three_elements().to_text(plant_model="", plant_fingerprint="x")
+        gms_to_text(three_elements(), plant_model="", plant_fingerprint="x")
     with pytest.raises(ConfigError, match="plant_fingerprint"):
-        three_elements().to_text(plant_model="ball_screw", plant_fingerprint="a\nb")
+        gms_to_text(three_elements(), plant_model="ball_screw", plant_fingerprint="a\nb")
 
 
 # --------------------------------------------------------------------------- (d) validation

@@ -1,10 +1,12 @@
 """The compiled sub-step loops compute exactly what the same code computes interpreted.
 
-``core/kernels.py`` is compiled with numba; with ``NUMBA_DISABLE_JIT=1`` the
-very same functions run as plain Python. Every plant model that uses a
-kernel is run both ways in a process of its own, through stick, slip,
-reversals, saturation and sensor noise, and every output must agree to the
-last bit.
+The kernel modules (``core/models/ball_screw_kernels.py``,
+``tilting_table_kernels.py``, ``core/feedforward/ptc_kernels.py``,
+``core/friction/gms_kernels.py``) are compiled with numba; with
+``NUMBA_DISABLE_JIT=1`` the very same functions run as plain Python. Every
+plant model that uses a kernel is run both ways in a process of its own,
+through stick, slip, reversals, saturation and sensor noise, and every
+output must agree to the last bit.
 """
 
 from __future__ import annotations
@@ -75,8 +77,9 @@ for i0 in range(0, 400, 7):
     rows.append([x.hex() for x in [*f.current_A, *f.position_rad, *f.velocity_rad_s]])
     ptc.forget_before(i0 + 7)
 out["ptc"] = rows
-from servo_axis.core.friction.gms import GmsModel, GmsParams
-from servo_axis.core.kernels import exact_sum
+from servo_axis.core.friction.gms_model import GmsModel
+from servo_axis.core.friction.gms_params import GmsParams
+from servo_axis.core.friction.gms_kernels import exact_sum
 gms = GmsModel(GmsParams(stiffness_Nm_per_m=(2e5, 8e4, 2e4), weights=(0.3, 0.3, 0.4),
                          coulomb_Nm=0.4, static_Nm=0.6, stribeck_velocity_m_s=1e-3,
                          stribeck_exponent=1.5, attraction_per_s=5e4, viscous_Nms_per_m=2.0),
@@ -187,7 +190,7 @@ def test_the_exact_sum_is_math_fsum() -> None:
     """exact_sum (CPython's fsum, ported) = math.fsum, sign of zero included."""
     import math
 
-    from servo_axis.core.kernels import exact_sum
+    from servo_axis.core.friction.gms_kernels import exact_sum
 
     rng = np.random.default_rng(12)
     for t in range(20000):
@@ -210,7 +213,8 @@ def test_the_exact_sum_is_math_fsum() -> None:
 @pytest.mark.parametrize("static", [0.4, 0.55])
 def test_the_compiled_gms_block_is_update_sample_by_sample(static: float) -> None:
     """GmsModel.update_many (gms_block) = update() per sample: torques and state, to the bit."""
-    from servo_axis.core.friction.gms import GmsModel, GmsParams
+    from servo_axis.core.friction.gms_model import GmsModel
+    from servo_axis.core.friction.gms_params import GmsParams
 
     params = GmsParams(
         stiffness_Nm_per_m=(2.6e5, 8.3e4, 2.1e4, 1.2e4),

@@ -17,7 +17,8 @@ from numpy.typing import NDArray
 
 from servo_axis.core.errors import SignalError, require_positive
 from servo_axis.core.feedforward.terms import ReferenceBlock
-from servo_axis.core.friction.gms import GmsModel, GmsParams
+from servo_axis.core.friction.gms_model import GmsModel
+from servo_axis.core.friction.gms_params import GmsParams
 
 FloatArray = NDArray[np.float64]
 

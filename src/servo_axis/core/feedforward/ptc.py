@@ -79,10 +79,10 @@ def _discretise(
 ) -> _Model:
     """The model of ``J``, ``D``, ``K_T`` at ``T_u`` from ``from_instant`` (ZOH through ``expm``).
 
-    ``products``: :func:`~servo_axis.core.kernels.ptc_model`, which takes
-    ``A_d``, ``B_d`` and the products from the exponential in one compiled
-    call (the same numbers, ``A_d`` and ``B_d`` as contiguous copies), or
-    None for numpy.
+    ``products``: :func:`~servo_axis.core.feedforward.ptc_kernels.ptc_model`,
+    which takes ``A_d``, ``B_d`` and the products from the exponential in one
+    compiled call (the same numbers, ``A_d`` and ``B_d`` as contiguous
+    copies), or None for numpy.
     """
     j = require_positive("inertia_kgm2", inertia_kgm2)
     d = require_nonnegative("damping_Nms_per_rad", damping_Nms_per_rad)
@@ -188,9 +188,9 @@ class MultiratePtc:
         ``T_r / T_u``; must be 2 (the plant order) for a square ``B``.
     compiled : bool
         Compute :meth:`feedforward` with the compiled
-        :func:`~servo_axis.core.kernels.ptc_segment` (the same numbers):
-        for the adaptive feedforward, which computes a short block per
-        online estimate. It loads numba when the PTC is built.
+        :func:`~servo_axis.core.feedforward.ptc_kernels.ptc_segment` (the same
+        numbers): for the adaptive feedforward, which computes a short block
+        per online estimate. It loads numba when the PTC is built.
     """
 
     def __init__(
@@ -211,7 +211,7 @@ class MultiratePtc:
         self._segment: Callable[..., None] | None = None
         self._products: Callable[..., tuple[Any, Any, Any, Any]] | None = None
         if compiled:
-            from servo_axis.core.kernels import ptc_model, ptc_segment
+            from servo_axis.core.feedforward.ptc_kernels import ptc_model, ptc_segment
 
             self._segment, self._products = ptc_segment, ptc_model
         self._models = [

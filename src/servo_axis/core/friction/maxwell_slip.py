@@ -3,9 +3,11 @@
 The model behind the "region A/B" characteristic of paper 000 Fig. 4 and
 paper 001 Sect. II: rate independent, a function of the displacement from
 the last reversal, with non-local memory. Written once: the update is the
-compiled :func:`servo_axis.core.kernels.maxwell_slip_move`, which the plants'
-compiled sub-step loops call on the element arrays :meth:`MaxwellSlip.elements`
-hands out (the ball screw inlines it in its rigid-body loop).
+compiled :func:`servo_axis.core.models.ball_screw_kernels.maxwell_slip_move`,
+which the ball screws' compiled sub-step loops call on the element arrays
+:meth:`MaxwellSlip.elements` hands out (the rigid screw inlines it in its
+rigid-body loop). It is compiled beside those loops rather than here: numba
+would not notice a change to it in a cached loop of another file.
 """
 
 from __future__ import annotations
@@ -102,7 +104,7 @@ class MaxwellSlip:
 
     def move(self, displacement_rad: float) -> float:
         """Advance by ``displacement_rad`` and return the new torque, N m."""
-        from servo_axis.core.kernels import maxwell_slip_move
+        from servo_axis.core.models.ball_screw_kernels import maxwell_slip_move
 
         return float(
             maxwell_slip_move(self._z, self._delta, self._stiffness, float(displacement_rad))

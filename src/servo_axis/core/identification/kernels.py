@@ -8,34 +8,26 @@ plain Python they cost more than the plant. Here the four updates are one
 compiled call (``nopython``, ``cache=True``), written as the same arithmetic
 as :meth:`DiscreteFilter.update <servo_axis.core.feedback.discrete.DiscreteFilter.update>`,
 operation for operation and in the same order, with IEEE semantics (no
-``fastmath``): the same numbers bit for bit, as
-:mod:`servo_axis.core.kernels` does for the plants.
+``fastmath``): the same numbers bit for bit, compiled by
+:func:`servo_axis.core.kernels.compiled` as the plants' kernels are.
 ``test/unit/core/test_identification_kernels.py`` checks the kernel compiled
 against the same code interpreted (``NUMBA_DISABLE_JIT=1``) and against the
 filter objects it replaces.
 
 The compiled code is cached on disk where :mod:`servo_axis.core.kernels`
-caches its own. This module is imported by :class:`Dlpid`'s constructor
-only, so a process that builds no identifier never imports numba.
+says. This module is imported by the constructors of :class:`Dlpid`,
+:class:`ConditionalRls` and :class:`PeIndex` only, so a process that
+builds no identifier never imports numba.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any, TypeVar, cast
-
-import numba
 import numpy as np
 
-F = TypeVar("F", bound=Callable[..., Any])
+from servo_axis.core.kernels import compiled
 
 
-def _compiled(fn: F) -> F:
-    """``fn`` compiled by numba (nopython, cached on disk, IEEE arithmetic)."""
-    return cast(F, numba.njit(cache=True, fastmath=False, nogil=True)(fn))
-
-
-@_compiled
+@compiled
 def second_order_bank(
     coef: np.ndarray, z: np.ndarray, angle: float, torque: float
 ) -> tuple[float, float, float, float]:
@@ -94,7 +86,7 @@ def second_order_bank(
     return out0, out1, out2, out3
 
 
-@_compiled
+@compiled
 def conditional_rls_update(
     theta: np.ndarray,
     p: np.ndarray,
@@ -215,7 +207,7 @@ def conditional_rls_update(
         updates[i] += 1
 
 
-@_compiled
+@compiled
 def outer_window_add(
     buffer: np.ndarray,
     total: np.ndarray,

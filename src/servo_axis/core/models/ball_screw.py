@@ -240,7 +240,7 @@ class BallScrewPlant:
         )
         self._has_friction = params.friction.enabled
         if self._has_friction:
-            from servo_axis.core.kernels import ball_screw_rigid_with_friction
+            from servo_axis.core.models.ball_screw_kernels import ball_screw_rigid_with_friction
 
             self._kernel = ball_screw_rigid_with_friction
             rolling = self._friction.rolling

@@ -39,7 +39,7 @@ The spring becomes a linear part ``k_h`` (screw axial and torsion, bearings,
 the balls once loaded on one flank) in series with the balls' contact, whose
 deformation is ``delta_c = D tanh(F / F_p)`` (004 Fig. 7: the balls as
 nonlinear springs): ``F / k_h + D tanh(F / F_p) = delta``, solved for ``F``
-at every RK4 stage (:func:`servo_axis.core.kernels.contact_load`; the soft
+at every RK4 stage (:func:`servo_axis.core.models.ball_screw_kernels.contact_load`; the soft
 zone ``g`` must then be 0). ``delta_c`` is the micro-motion of the screw
 groove against the nut across the balls: it stays near ``+-D`` while one
 flank carries the load and travels ``2 D`` when the load changes flank
@@ -76,7 +76,7 @@ a function of the motor angle (``bearing_friction_Nm``,
 ``bearing_presliding_m``), the guide's ``f_g`` of the table's displacement.
 With ``"displacement"`` (the default) ``nut_friction_Nm`` is nut and bearings
 in one set on the motor angle, as before. The sub-step loop of ``"contact"``
-is :func:`servo_axis.core.kernels.elastic_ball_screw_contact_period`.
+is :func:`servo_axis.core.models.ball_screw_kernels.elastic_ball_screw_contact_period`.
 
 Current loop: a first-order lag of ``current_bandwidth_hz`` (004 Sect. II-A:
 1 kHz) from the commanded to the actual current ``i_a``, solved exactly over
@@ -88,7 +88,7 @@ displacement and held over the next one (its springs are far
 slower than the sub-step: about 45 Hz for the table on the guide's elements
 at the default values, against 10 us sub-steps of 50 us). ``i_a`` is
 evaluated exactly at each RK4 stage. The sub-step loop is compiled
-(:func:`servo_axis.core.kernels.elastic_ball_screw_period`).
+(:func:`servo_axis.core.models.ball_screw_kernels.elastic_ball_screw_period`).
 
 Sensors: the rotary encoder reads ``th`` (2^20 pulses/rev), the linear scale
 ``x_t`` (100 nm), both quantised to the nearest count (optional seeded
@@ -434,7 +434,7 @@ class ElasticBallScrewPlant:
         r = p.lead_m_per_rad
         self._contact = p.nut_friction == "contact"
         # The RK4 sub-steps and the friction sets, compiled (the plant's whole cost).
-        from servo_axis.core.kernels import (
+        from servo_axis.core.models.ball_screw_kernels import (
             ELASTIC_CONTACT_LAYOUT,
             ELASTIC_LAYOUT,
             elastic_ball_screw_contact_period,

@@ -36,8 +36,9 @@ which is split into ``control_period_s / sim_step_s`` sub-steps of ``h``.
   sticking and sliding back for the rest of the sub-step. There is hence no
   chattering: a stopped table has ``th' == 0.0`` exactly and cannot creep.
 
-Both loops are compiled (:func:`servo_axis.core.kernels.tilting_friction_period`,
-:func:`~servo_axis.core.kernels.tilting_smooth_period`), the same arithmetic.
+Both loops are compiled, the same arithmetic
+(:func:`~servo_axis.core.models.tilting_table_kernels.tilting_friction_period`,
+:func:`~servo_axis.core.models.tilting_table_kernels.tilting_smooth_period`).
 
 Error: between events the RK4 local error is ``O((w h)^5)`` with ``w`` the
 largest rate of the motion (``sqrt(U/J) = 7.7 rad/s`` and ``D/J = 2.6 1/s``
@@ -207,7 +208,10 @@ class TiltingTablePlant:
         self._d = params.damping_Nms_per_rad / params.inertia_kgm2
         self._u = params.unbalance_Nm / params.inertia_kgm2
         # The sub-step loops (RK4, the zero-velocity events), compiled.
-        from servo_axis.core.kernels import tilting_friction_period, tilting_smooth_period
+        from servo_axis.core.models.tilting_table_kernels import (
+            tilting_friction_period,
+            tilting_smooth_period,
+        )
 
         self._kernel = tilting_friction_period if params.coulomb_Nm > 0.0 else tilting_smooth_period
         self._config = np.array(

@@ -1,0 +1,59 @@
+"""``list``: the shipped scenarios, then the installed extensions with their keys."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from servo_axis.cli.options import Subparsers, existing_dir
+from servo_axis.core.errors import ConfigError
+
+
+def add_parser(commands: Subparsers) -> None:
+    """The ``list`` command and its option."""
+    ls = commands.add_parser(
+        "list",
+        help="the shipped scenarios and what each runs, then the installed plant models, "
+        "feedforward terms, learning laws and identification methods with their keys",
+    )
+    ls.add_argument(
+        "--config-dir",
+        type=existing_dir,
+        default=None,
+        help="list this folder's scenarios instead",
+    )
+    ls.set_defaults(func=handle)
+
+
+def handle(args: argparse.Namespace) -> int:
+    """Each scenario with its description, then :func:`_list_extensions`."""
+    from servo_axis.params.scenario import load_scenario, scenario_dir, shared
+
+    folder = Path(args.config_dir) if args.config_dir else scenario_dir()
+    found = sorted(folder.glob("*.yaml"))
+    if not found:
+        raise ConfigError(f"--config-dir {folder}: no scenario files (*.yaml) there")
+    for path in found:
+        about = shared(load_scenario(path)).get("scenario", {})
+        print(f"{path.stem:<24} {about.get('description', '')}")
+    _list_extensions()
+    return 0
+
+
+def _list_extensions() -> None:
+    """The installed plant models, feedforward terms, learning laws and identification methods."""
+    from servo_axis.params.registry import REGISTRIES
+
+    selected_by = {
+        "plant model": "plant.model",
+        "feedforward term": "its <term>.enabled",
+        "learning law": "learning.law",
+        "identification method": "identifier.method",
+    }
+    for kind, registry in REGISTRIES.items():
+        print(f"\n{kind}s (selected by {selected_by[kind]}; entry points {registry.group}):")
+        for name in sorted(registry):
+            entry = registry[name]
+            print(f"  {name:<22} {entry.description} [{registry.source(name)}]")
+            if entry.schema:
+                print(f"  {'':<22} keys: {', '.join(entry.schema)}")
