@@ -45,6 +45,26 @@ def test_generator_imports_no_node_and_no_rclpy() -> None:
     subprocess.run([sys.executable, "-c", code], check=True, cwd=REPO)
 
 
+def test_help_writes_nothing_and_check_tells_a_stale_file(tmp_path: Path) -> None:
+    """`parameter_docs.py --help` rewrote docs/parameters.md (it took no options)."""
+    page = REPO / "docs" / "parameters.md"
+    before = page.stat().st_mtime_ns
+    helped = subprocess.run(
+        [sys.executable, str(SCRIPT), "--help"], capture_output=True, text=True, cwd=tmp_path
+    )
+    assert helped.returncode == 0 and helped.stdout.startswith("usage: parameter_docs.py")
+    assert "written" not in helped.stdout and page.stat().st_mtime_ns == before
+    out = tmp_path / "p.md"
+    check = [sys.executable, str(SCRIPT), "--out", str(out), "--check"]
+    assert subprocess.run(check, capture_output=True).returncode == 1  # no file yet
+    subprocess.run(
+        [sys.executable, str(SCRIPT), "--out", str(out)], check=True, capture_output=True
+    )
+    assert out.read_text() == page.read_text()
+    assert subprocess.run(check, capture_output=True).returncode == 0
+    assert page.stat().st_mtime_ns == before
+
+
 def test_the_repository_refers_to_nothing_a_clone_lacks() -> None:
     """No ``../shared/...`` and no "DESIGN N": the design intent is docs/design.md,
     the papers are cited in docs/papers.md, and the links between the docs resolve."""
