@@ -31,6 +31,6 @@ def test_outputs_are_ignored_and_shipped_files_are_not() -> None:
     for shipped in (
         "src/servo_axis/studies/reversal_004.yaml",
         "src/servo_axis/scenarios/ptc_nominal.yaml",
-        "docs/img/studies/reversal_004_max.png",
+        "docs/figures/studies/reversal_004_max.png",
     ):
         assert not ignored(shipped), shipped
