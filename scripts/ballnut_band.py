@@ -26,8 +26,8 @@ draw's measured pre-sliding: "F_0 to -F_0 mainly in [-x_s/2, x_s/2]"). The
 window ``p`` of eq. (6) does not enter the law (``d_r^ = sigma / z`` of eq. (8)
 on the distance to the reference's reversal; only gamma / sigma counts).
 
-Writes ``docs/ballnut_band.csv``, ``docs/ballnut_band.png`` and
-``docs/ballnut_reversal.png`` (the frozen pair at the reversal at 1.5 s:
+Writes ``docs/figures/ballnut_band.csv``, ``docs/figures/ballnut_band.png`` and
+``docs/figures/ballnut_reversal.png`` (the frozen pair at the reversal at 1.5 s:
 position, d_r, T_f of the nut, bearings and guide, error; like 004 Figs.
 12-13).
 
@@ -63,7 +63,7 @@ from servo_axis.storage import save_gms_parameters
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIG = ROOT / "src" / "servo_axis" / "scenarios"
-DOCS = ROOT / "docs"
+DOCS = ROOT / "docs" / "figures"
 PAPER_SIGMA = 0.04e-6
 IDENTIFIED_F0 = 0.4289
 NOMINAL = {"inertia_kgm2": 2.6e-3, "damping_Nms_per_rad": 0.070}
@@ -295,7 +295,7 @@ def main() -> int:
     parser.add_argument(
         "--resume",
         action="store_true",
-        help="keep the rows of docs/ballnut_band.csv and run only the draws not in it "
+        help="keep the rows of docs/figures/ballnut_band.csv and run only the draws not in it "
         "(the same seeded sequence: the same table as one run)",
     )
     args = parser.parse_args()

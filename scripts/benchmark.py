@@ -13,7 +13,11 @@ Measures, in one run on this machine:
 
 Figures are printed as steps/s, as a ratio to real time at the control
 period (1.0x = as fast as the real axis) and as a ratio to the baseline
-measured in the same run, and written to docs/benchmarks.md.
+measured in the same run. Each measurement is appended, dated, to
+docs/history/benchmarks.md; ``--all`` and ``--quick`` also update the rows of
+the scenarios they measured in the table of today's numbers at the top of
+docs/benchmarks.md (``--current-from-history`` rebuilds that table from the
+newest ``--all``/``--quick`` section of each scenario in the history).
 
     .venv/bin/python scripts/benchmark.py [--scenario config/ptc_nominal.yaml] [--duration 10]
 
@@ -44,6 +48,7 @@ import copy
 import json
 import os
 import platform
+import re
 import subprocess
 import sys
 import tempfile
@@ -59,12 +64,37 @@ import yaml
 
 REPO = Path(__file__).resolve().parents[1]
 PING_ROUNDS = 5000
-INTRO = """# Benchmarks
+INTRO = """# Benchmark history
 
-Written by `scripts/benchmark.py`. Ratios are to real time at the control
-period and to a two-process ping-pong baseline measured in the same run: the
-machines are shared and noisy, so only ratios within one run compare.
+Every measurement of `scripts/benchmark.py`, dated, oldest first, with the
+notes written beside them. Ratios are to real time at the control period and
+to a two-process ping-pong baseline measured in the same run: the machines
+are shared and noisy, so only ratios within one run compare. Today's numbers
+are the table of [benchmarks](../benchmarks.md).
 """
+
+#: The markers around the table of today's numbers in docs/benchmarks.md.
+CURRENT_START = "<!-- scripts/benchmark.py: today's table, start -->"
+CURRENT_END = "<!-- scripts/benchmark.py: today's table, end -->"
+CURRENT_COLUMNS = (
+    "scenario",
+    "T_u (ms)",
+    "lockstep, separate: x real time (x baseline)",
+    "lockstep, composed",
+    "core only",
+    "realtime misses (host floor)",
+    "measured",
+)
+#: The headers of the two tables of an ``--all`` / ``--quick`` section (:func:`run_all`).
+LOCK_HEADER = (
+    "| scenario | T_u (ms) | separate: x real time (x baseline) | start-up / end (s) "
+    "| composed | core only |"
+)
+RT_HEADER = (
+    "| scenario | T_u (ms) | misses | floor misses | tick late p50/p99/max (us) "
+    "| command late p50/p99/max (us) | rate | exit | RMS error rt / lockstep (um) "
+    "| references held / late estimates |"
+)
 
 
 def table_count(counts: dict[str, int], name: str) -> int:
@@ -178,7 +208,7 @@ def ping_pong(env: dict[str, str], listeners: int = 0, reference: bool = False) 
 
 
 def write_section(out: Path, title: str, section: str) -> None:
-    """Append ``section`` (which starts with ``title``) to ``out``, the title dated.
+    """Append ``section`` (which starts with ``title``) to the history ``out``, the title dated.
 
     The file keeps the history: an earlier section with the same title stays.
     """
@@ -187,6 +217,137 @@ def write_section(out: Path, title: str, section: str) -> None:
     old = out.read_text() if out.exists() else INTRO
     out.write_text(old.rstrip("\n") + "\n\n" + dated + body.rstrip("\n") + "\n")
     print(f"\nwritten to {out}")
+
+
+def _cells(line: str) -> list[str]:
+    return [c.strip() for c in line.strip().strip("|").split("|")]
+
+
+def _table_after(text: str, header: str) -> list[list[str]]:
+    """The rows of the first table of ``text`` whose header line is ``header``."""
+    lines = text.splitlines()
+    if header not in lines:
+        return []
+    rows = []
+    for line in lines[lines.index(header) + 2 :]:
+        if not line.startswith("|"):
+            break
+        rows.append(_cells(line))
+    return rows
+
+
+def current_row(
+    name: str,
+    period_ms: str,
+    separate: str,
+    composed: str,
+    core: str,
+    misses: str,
+    measured: str,
+) -> list[str]:
+    """One row of today's table (the cells as they are shown)."""
+    return [name, period_ms, separate, composed, core, misses, measured]
+
+
+def rows_from_section(section: str, measured: str) -> dict[str, list[str]]:
+    """Today's rows from an ``--all`` / ``--quick`` section of the history (its two tables).
+
+    ``measured`` is what the rows' last cell says (when, at which commit, which mode).
+    """
+    realtime = {r[0]: r for r in _table_after(section, RT_HEADER)}
+    rows = {}
+    for r in _table_after(section, LOCK_HEADER):
+        name, period, separate, _, composed, core = r[:6]
+        rt = realtime.get(name)
+        if rt and " of " in rt[2]:
+            pct = rt[2][rt[2].index("(") + 1 : rt[2].index(")")]
+            misses = f"{pct} ({rt[3]})"
+        else:
+            misses = "-"
+        short = composed.split(":")[0] if composed.startswith("n/a") else composed
+        rows[name] = current_row(name, period, separate, short, core, misses, measured)
+    return rows
+
+
+def read_current(page_text: str) -> dict[str, list[str]]:
+    """The rows of today's table in the benchmarks page, by scenario."""
+    if CURRENT_START not in page_text:
+        return {}
+    block = page_text[page_text.index(CURRENT_START) : page_text.index(CURRENT_END)]
+    header = "| " + " | ".join(CURRENT_COLUMNS) + " |"
+    return {r[0]: r for r in _table_after(block, header)}
+
+
+def render_current(rows: dict[str, list[str]]) -> str:
+    """Today's table, one row per scenario in name order, between its markers."""
+    lines = [
+        CURRENT_START,
+        "",
+        "| " + " | ".join(CURRENT_COLUMNS) + " |",
+        "|" + " --- |" * len(CURRENT_COLUMNS),
+        *("| " + " | ".join(rows[name]) + " |" for name in sorted(rows)),
+        "",
+        CURRENT_END,
+    ]
+    return "\n".join(lines)
+
+
+def update_current(page: Path, new: dict[str, list[str]]) -> None:
+    """Put ``new`` into today's table of ``page`` (other scenarios' rows stay)."""
+    text = page.read_text() if page.exists() else "# Benchmarks\n"
+    rows = {**read_current(text), **new}
+    table = render_current(rows)
+    if CURRENT_START in text:
+        head = text[: text.index(CURRENT_START)]
+        tail = text[text.index(CURRENT_END) + len(CURRENT_END) :]
+        text = head + table + tail
+    else:
+        text = text.rstrip("\n") + "\n\n" + table + "\n"
+    page.write_text(text)
+    print(f"today's table in {page}: {len(new)} row(s) updated, {len(rows)} in all")
+
+
+def sections_of(history: str) -> list[tuple[str, str]]:
+    """``(title, body)`` of each ``## `` section of the history, oldest first."""
+    parts = re.split(r"^## ", history, flags=re.MULTILINE)[1:]
+    return [(p.split("\n", 1)[0], p.split("\n", 1)[1] if "\n" in p else "") for p in parts]
+
+
+def measured_label(title: str, body: str) -> str:
+    """When and at which commit a section was measured, and which mode (``--all``)."""
+    when = re.search(r"\((\d{4}-\d\d-\d\d \d\d:\d\d)\)\s*$", title)
+    commit = re.search(r"\bat ([0-9a-f]{7,12})\b", title + " " + body[:400])
+    mode = "--quick" if "(--quick)" in title else "--all"
+    return ", ".join([when.group(1) if when else "?", *([commit.group(1)] if commit else []), mode])
+
+
+def current_from_history(history: str) -> dict[str, list[str]]:
+    """Today's rows from the history alone: per scenario, its newest ``--all``/``--quick`` row."""
+    rows: dict[str, list[str]] = {}
+    for title, body in sections_of(history):
+        if title.startswith("every scenario (--all") or title.startswith("every scenario (--quick"):
+            rows.update(rows_from_section(body, measured_label(title, body)))
+    return rows
+
+
+def git_commit() -> str:
+    """The checkout's short commit, ``+dirty`` with uncommitted changes; ``?`` outside git."""
+    try:
+        head = subprocess.run(
+            ["git", "-C", str(REPO), "rev-parse", "--short", "HEAD"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "-C", str(REPO), "status", "--porcelain", "--untracked-files=no"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "?"
+    return head + ("+dirty" if dirty else "")
 
 
 def learning_cost(
@@ -237,7 +398,7 @@ def learning_cost(
     )
     print()
     print(text)
-    out = Path(args.out)
+    out = Path(args.history)
     command = (
         f"`.venv/bin/python scripts/benchmark.py --scenario config/{scenario.name} "
         f"--duration {args.duration:g} --learning-cost --repeat {args.repeat}`"
@@ -335,7 +496,7 @@ def identifier_cost(
     when = time.strftime("%Y-%m-%d %H:%M")
     title = f"## identifier cost ({scenario.stem})\n"
     section = f"{title}\n{steps} steps per run, measured {when}.\nCommand: {command}\n\n{text}"
-    write_section(Path(args.out), title, section)
+    write_section(Path(args.history), title, section)
     return 0
 
 
@@ -650,14 +811,16 @@ def run_all(args: argparse.Namespace) -> int:
     print(f"({elapsed:.0f} s)")
     which = "--quick" if args.quick else "--all"
     when = time.strftime("%Y-%m-%d %H:%M")
-    title = f"## every scenario ({which})\n"
+    commit = git_commit()
+    title = f"## every scenario ({which}) at {commit}\n"
     section = (
         f"{title}\nMeasured {when} on {platform.node()} ({os.cpu_count()} cores), at most "
         f"{args.duration:g} simulated s per run, {elapsed / 60:.1f} min in all.\n"
         f"Command: `.venv/bin/python scripts/benchmark.py {which} --duration {args.duration:g}"
         f"{' --floor ' + Path(args.floor).name if args.floor else ''}`\n\n{text}"
     )
-    write_section(Path(args.out), title, section)
+    write_section(Path(args.history), title, section)
+    update_current(Path(args.out), rows_from_section(text, f"{when}, {commit}, {which}"))
     return 0
 
 
@@ -789,7 +952,7 @@ def topology(args: argparse.Namespace) -> int:
     scen = Path(args.scenario).resolve()
     shown = scen.relative_to(REPO) if scen.is_relative_to(REPO) else scen
     write_section(
-        Path(args.out),
+        Path(args.history),
         "## lockstep transport: the ping-pong with listeners",
         f"`scripts/benchmark.py --topology --scenario {shown} "
         f"--duration {args.duration:g} --repeat {args.repeat}` on {platform.node()} "
@@ -818,7 +981,22 @@ def main() -> int:
     )
     parser.add_argument("--scenario", default=str(REPO / "config" / "ptc_nominal.yaml"))
     parser.add_argument("--duration", type=float, default=10.0, help="simulated seconds per run")
-    parser.add_argument("--out", default=str(REPO / "docs" / "benchmarks.md"))
+    parser.add_argument(
+        "--out",
+        default=str(REPO / "docs" / "benchmarks.md"),
+        help="the page whose table of today's numbers --all/--quick update",
+    )
+    parser.add_argument(
+        "--history",
+        default=str(REPO / "docs" / "history" / "benchmarks.md"),
+        help="the file every measurement is appended to, dated",
+    )
+    parser.add_argument(
+        "--current-from-history",
+        action="store_true",
+        help="instead: rewrite today's table of --out from the newest --all/--quick "
+        "section of each scenario in --history (nothing is measured)",
+    )
     parser.add_argument(
         "--learning-cost",
         action="store_true",
@@ -851,6 +1029,19 @@ def main() -> int:
         "--budget", action="store_true", help="where a lockstep step's time goes (profiled run)"
     )
     args = parser.parse_args()
+    if args.current_from_history:
+        rows = current_from_history(Path(args.history).read_text())
+        page = Path(args.out)
+        text = page.read_text()
+        if CURRENT_START in text:  # rebuilt whole: no row of an older table survives
+            text = (
+                text[: text.index(CURRENT_START)]
+                + render_current({})
+                + text[text.index(CURRENT_END) + len(CURRENT_END) :]
+            )
+            page.write_text(text)
+        update_current(page, rows)
+        return 0
     if args.pong or args.listener:
         child("pong" if args.pong else "listener")
         return 0
@@ -934,7 +1125,7 @@ def main() -> int:
         f"Python {platform.python_version()}, executor {os.environ.get('SERVO_AXIS_EXECUTOR', 'events')}).\n\n"
         f"Command: `.venv/bin/python scripts/benchmark.py --scenario {shown} --duration {args.duration:g}`\n\n"
     )
-    out = Path(args.out)
+    out = Path(args.history)
     section = f"## {Path(args.scenario).stem}\n\n{header}{table_text}\n"
     write_section(out, f"## {Path(args.scenario).stem}\n", section)
     return 0

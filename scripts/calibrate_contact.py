@@ -19,7 +19,7 @@ shipped files the comparison then runs on unchanged:
   compensation is worse at the fast reversal than at the slow one.
 
 Writes ``src/servo_axis/scenarios/{friction_id,slow_reversal,fast_reversal}_contact_*.yaml``,
-the GMS file and ``docs/ballnut_calibration.png``; prints every figure.
+the GMS file and ``docs/figures/ballnut_calibration.png``; prints every figure.
 
     .venv/bin/python scripts/calibrate_contact.py
 """
@@ -45,7 +45,7 @@ from servo_axis.storage import save_gms_parameters
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIG = ROOT / "src" / "servo_axis" / "scenarios"
-DOCS = ROOT / "docs"
+DOCS = ROOT / "docs" / "figures"
 
 #: The calibrated plant (the keys the contact scenarios set). Grid searched by
 #: :func:`choose_contact_law` over D and F_p; the rest chosen as stated.
@@ -302,7 +302,7 @@ def main() -> int:
     fig.tight_layout()
     DOCS.mkdir(exist_ok=True)
     fig.savefig(DOCS / "ballnut_calibration.png", dpi=110)
-    print(f"docs/ballnut_calibration.png written; {time.monotonic() - start:.1f} s")
+    print(f"docs/figures/ballnut_calibration.png written; {time.monotonic() - start:.1f} s")
     return 0
 
 

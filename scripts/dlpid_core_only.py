@@ -7,7 +7,7 @@ and ``dlpid_tilt_lpf2`` (the proposal) through
 reproduces bit for bit (``test/integration/test_dlpid_runs.py``). Prints the
 RMSD of theta_d - theta (true angle and measured angle), its reduction
 against PID, the final estimates against the plant's and the peak-to-peak of
-J, D, U over the last reference period: the table of the README and of
+J, D, U over the last reference period: the table of docs/explanation/paper-003.md and of
 003 Fig. 9.
 
     .venv/bin/python scripts/dlpid_core_only.py [--seconds 20]

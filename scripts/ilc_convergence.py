@@ -1,10 +1,10 @@
 #!/usr/bin/env python3
-"""Convergence condition eq. (7) of paper 001 for its simulation (Sect. IV-A) into docs/.
+"""Convergence condition eq. (7) of paper 001 for its simulation (Sect. IV-A) into docs/figures/.
 
 |Q (1 - S L P)| against frequency for the nominal model (Table I) and the
 true plant J = 0.8 J_n, D = 1.2 D_n, with the 30 Hz pole-placement PID
 (Tustin), T_s = 1 ms, L the ZPETC of S_n P_n and Q of eq. (24) with Nq = 16.
-Prints both maxima and writes docs/ilc_convergence.png.
+Prints both maxima and writes docs/figures/ilc_convergence.png.
 
     .venv/bin/python scripts/ilc_convergence.py
 """
@@ -59,7 +59,7 @@ def main() -> None:
     ax.grid(True, which="both", alpha=0.4)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    out = REPO / "docs" / "ilc_convergence.png"
+    out = REPO / "docs" / "figures" / "ilc_convergence.png"
     fig.savefig(out, dpi=120)
     print(f"wrote {out.relative_to(REPO)}")
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Figures of the learning filters (000 Fig. 11, 12, 14) into docs/.
+"""Figures of the learning filters (000 Fig. 11, 12, 14) into docs/figures/.
 
 .venv/bin/python scripts/learning_figures.py
 """
@@ -61,7 +61,7 @@ def main() -> None:
     ax2.grid(True, which="both")
     ax2.legend(fontsize=8)
     fig.tight_layout()
-    out = REPO / "docs" / "learning_filters.png"
+    out = REPO / "docs" / "figures" / "learning_filters.png"
     fig.savefig(out, dpi=110)
     print(f"written {out}")
 

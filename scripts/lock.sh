@@ -2,8 +2,8 @@
 # Refresh requirements.lock and, with it, the scenario hashes: one command.
 #
 # The lock holds the exact versions, with their SHA-256 hashes, that
-# scripts/setup.sh installs (pyproject's dependencies + the test, dev and sweep
-# extras, for Python 3.11 on Linux x86_64), resolved with uv 0.13 against the
+# scripts/setup.sh installs (pyproject's dependencies + the test, dev, sweep and
+# docs extras, for Python 3.11 on Linux x86_64), resolved with uv 0.13 against the
 # package index pip is configured with. Other numpy/scipy/numba versions may
 # change the recorded bytes, so the command then reinstalls .venv from the new
 # lock and rewrites test/data/scenario_hashes.txt from every shipped scenario
@@ -19,7 +19,7 @@ command -v "$PY" >/dev/null 2>&1 || PY=python3
 tools=.venv-lock
 [ -x "$tools/bin/uv" ] || { "$PY" -m venv "$tools" && "$tools/bin/python" -m pip install -q 'uv==0.13.9'; }
 "$tools/bin/uv" pip compile pyproject.toml \
-  --extra test --extra dev --extra sweep \
+  --extra test --extra dev --extra sweep --extra docs \
   --python-version 3.11 --python-platform x86_64-unknown-linux-gnu \
   --generate-hashes \
   --custom-compile-command 'scripts/lock.sh' \

@@ -1,13 +1,17 @@
 #!/usr/bin/env python3
 """Write docs/parameters.md from the parameter schemas (the single source of truth).
 
-.venv/bin/python scripts/parameter_docs.py
+    .venv/bin/python scripts/parameter_docs.py            # rewrite docs/parameters.md
+    .venv/bin/python scripts/parameter_docs.py --check    # exit 1 if it is stale
+    .venv/bin/python scripts/parameter_docs.py --out FILE
 
 Imports only ``servo_axis.params``: no node module, no rclpy.
 """
 
 from __future__ import annotations
 
+import argparse
+import sys
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -109,11 +113,36 @@ def render() -> str:
     )
 
 
-def main() -> None:
-    out = REPO / "docs" / "parameters.md"
-    out.write_text(render())
-    print(f"written {out}")
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        description=__doc__.splitlines()[0],
+        epilog="The page lists every key of every node and installed extension: "
+        "default, unit, range, meaning.",
+    )
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=REPO / "docs" / "parameters.md",
+        help="file to write (default: docs/parameters.md of this checkout)",
+    )
+    parser.add_argument(
+        "--check",
+        action="store_true",
+        help="write nothing; exit 1 if the file differs from what the schemas generate",
+    )
+    args = parser.parse_args(argv)
+    text = render()
+    if args.check:
+        current = args.out.read_text() if args.out.is_file() else ""
+        if current != text:
+            print(f"{args.out} is stale: run scripts/parameter_docs.py", file=sys.stderr)
+            return 1
+        print(f"{args.out} is up to date")
+        return 0
+    args.out.write_text(text)
+    print(f"written {args.out}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

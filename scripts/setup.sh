@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Create .venv (Python 3.11) and install servo_axis with ROS 2 Jazzy from PyPI:
 # the exact versions and hashes of requirements.lock (pyproject's dependencies and
-# the test, dev and sweep extras; refresh it with scripts/lock.sh), then the
+# the test, dev, sweep and docs extras; refresh it with scripts/lock.sh), then the
 # package itself without dependencies. Idempotent: a second call only re-checks.
 set -euo pipefail
 cd "$(dirname "$0")/.."

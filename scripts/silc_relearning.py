@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""S-ILC after a reversed Ref. 2 (paper 001 Sect. IV-B), before and after the fix, into docs/.
+"""S-ILC after a reversed Ref. 2 (paper 001 Sect. IV-B), before and after the fix, into docs/figures/.
 
 The 001 scenario ``pilc_ref_change_silc`` with Ref. 2 of the opposite
 direction (A = -3 mm: out in -x, back in +x) for 20 trials, and the same
@@ -9,7 +9,7 @@ reproduces exactly). "Before" is eq. (3) applied to the absolute input,
 ``f_{j+1} = Q (f_j + L e_j)``, as :class:`StandardIlc` did until the fix;
 "after" is the law as shipped (eq. (3) on the input relative to the level
 the trial starts from, see :mod:`servo_axis.core.learning.ilc`). Prints the
-RMS per trial and writes docs/silc_relearning.png.
+RMS per trial and writes docs/figures/silc_relearning.png.
 
     .venv/bin/python scripts/silc_relearning.py
 """
@@ -132,7 +132,7 @@ def main() -> None:
     for a in ax.ravel():
         a.grid(True, alpha=0.4)
     fig.tight_layout()
-    out = REPO / "docs" / "silc_relearning.png"
+    out = REPO / "docs" / "figures" / "silc_relearning.png"
     fig.savefig(out, dpi=90)
     print(f"wrote {out.relative_to(REPO)}")
 

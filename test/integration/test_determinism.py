@@ -5,7 +5,7 @@ again and again. The 1-in-20 failure it guards against: a subscriber that
 the run did not start (``ros2 topic echo`` on the correction topic) made a
 publisher's handshake count complete before the real peer was matched, the
 first learning correction was lost and the plant went on by a wall-clock
-timeout. The 50-run figure of the README comes from the same script
+timeout. The figures in docs/history/index.md (Determinism) come from the same script
 (``--runs 50``).
 """
 

@@ -63,7 +63,7 @@ def start_run(scenario: Path, out: Path, *extra: str) -> subprocess.Popen[bytes]
 def start_outside(
     args: list[str], log: Path, *, run_profile: bool = False
 ) -> subprocess.Popen[bytes]:
-    """An outside node in the run's domain, with localhost discovery (what the README asks
+    """An outside node in the run's domain, with localhost discovery (what the docs ask
     of a user) and Fast DDS's own defaults, or with ``run_profile`` the run's profile too."""
     env = dict(os.environ)
     if not run_profile:

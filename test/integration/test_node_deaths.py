@@ -1,13 +1,13 @@
-"""The node-death policy of the README, under ``python -m servo_axis run``.
+"""The node-death policy (docs/explanation/reliability.md) under ``python -m servo_axis run``.
 
 Each test starts the default learning scenario through the user's entry
 point, SIGKILLs one node once the plant is running, and checks what the
-README's table promises: the learning unit is restarted and the axis runs
+the table promises: the learning unit is restarted and the axis runs
 on; a dead feedforward generator trips the feedback to zero current and the
 run ends safely with the exit code of a fault; a dead plant, feedback or
 recorder stops the run, every process is reaped and the bag reads back. In
 every case ``summary.json`` says what happened. The measured times are
-printed (``pytest -s``) for docs/reliability.md.
+printed (``pytest -s``) for docs/explanation/reliability.md.
 """
 
 from __future__ import annotations
@@ -206,7 +206,7 @@ def test_killed_feedforward_trips_the_feedback_and_the_run_ends_safely(
     trip_s = k.trip_seen_at - k.killed_at
     params = yaml.safe_load((k.run_dir / "params.yaml").read_text())
     timeout = params["/**/feedback"]["ros__parameters"]["input_timeout_s"]
-    # README: the liveliness lease + input_timeout_s (the time a gone peer gets
+    # docs/explanation/reliability.md: the liveliness lease + input_timeout_s (the time a gone peer gets
     # to come back) + one watchdog period (input_timeout_s / 10); the margin
     # covers the lease's detection (measured 0.3-1 s) and this test's polling.
     bound = LIVELINESS_LEASE_S + timeout + timeout / 10

@@ -258,7 +258,7 @@ def test_killed_feedforward_trips_the_feedback_and_the_bag_survives(
         trip_delay = faults[0][0] - killed_at
         step, code, _ = faults[0][1]
         assert code == 4  # input_timeout
-        # README: the preview left (<= 200 samples, well under 1 s) drains,
+        # docs/explanation/time.md: the preview left (<= 200 samples, well under 1 s) drains,
         # then input_timeout_s (0.5 s) + one watchdog period (0.05 s).
         print(f"trip {trip_delay:.3f} s after the kill, at step {int(step)}")
         assert trip_delay < 2.5

@@ -4,7 +4,7 @@
 ``python -m servo_axis run`` and compares the SHA-256 of every recorded
 topic with ``test/data/scenario_hashes.txt``: with the versions of
 ``requirements.lock`` (``scripts/setup.sh``) a fresh machine records the same
-bytes. The whole file is checked by the script itself (README, Development);
+bytes. The whole file is checked by the script itself (docs/how-to/develop.md);
 here two scenarios of 2 s each.
 """
 

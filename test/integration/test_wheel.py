@@ -80,6 +80,11 @@ def test_the_wheel_holds_every_file_a_shipped_scenario_names(wheel: Path) -> Non
             assert (REPO / "src" / file).is_file(), f"{scenario}: {file} is not in the checkout"
             assert file in names, f"{scenario} names {file}, which the wheel lacks"
     assert "servo_axis/data/fastdds_localhost.xml" in names
+    # The outside nodes the docs point to (examples/ of a checkout links to them).
+    examples = sorted(p.name for p in (REPO / "examples").glob("*.py"))
+    assert {"pd_controller.py", "sine_reference.py", "watch_run.py"} <= set(examples)
+    for example in examples:
+        assert f"servo_axis/examples/{example}" in names, f"the wheel lacks examples/{example}"
     info = next(n for n in names if n.endswith(".dist-info/METADATA")).rsplit("/", 1)[0]
     licence = zipfile.ZipFile(wheel).read(f"{info}/licenses/LICENSE").decode()
     assert "Apache License" in licence and "Version 2.0, January 2004" in licence

@@ -87,8 +87,9 @@ def error_scale(values: Any, unit: str = "m") -> tuple[float, str]:
 
     Parameters
     ----------
-    values : array_like
-        The errors, in ``unit``.
+    values : array_like or sequence of array_like
+        The errors, in ``unit``; a sequence of arrays of different lengths
+        (one run's cycles against another's) counts as their concatenation.
     unit : str
         ``m`` or ``rad``.
 
@@ -99,7 +100,9 @@ def error_scale(values: Any, unit: str = "m") -> tuple[float, str]:
     label : str
         The unit of the scaled values, e.g. ``nm``.
     """
-    data = np.abs(np.asarray(values, dtype=float).ravel())
+    parts = values if isinstance(values, list | tuple) else [values]
+    flat = [np.ravel(np.asarray(part, dtype=float)) for part in parts]
+    data = np.abs(np.concatenate(flat)) if flat else np.zeros(0)
     data = data[np.isfinite(data)]
     peak = float(data.max()) if data.size else 0.0
     if peak <= 0.0:

@@ -11,14 +11,17 @@ Nothing here imports rclpy.
 
 from __future__ import annotations
 
+import difflib
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-from servo_axis.core.errors import ConfigError
+from servo_axis.core.errors import ConfigError, ParameterFileError
+from servo_axis.params.param import BUILTIN
 from servo_axis.params.registry import term_files
+from servo_axis.params.schemas import SHARED
 
 #: Node roles, in the order of the sections of a scenario file.
 ROLES = ("plant", "feedback", "feedforward", "learning", "identifier", "recorder")
@@ -106,7 +109,33 @@ def load_scenario(path: Path) -> dict[str, Any]:
             raise ConfigError(f"scenario {path}: section '{key}' must hold only 'ros__parameters'")
     if "plant" not in data:
         raise ConfigError(f"scenario {path}: a 'plant' section is required")
+    check_shared_keys(data, f"scenario {path}")
     return data
+
+
+def check_shared_keys(scenario: dict[str, Any], where: str) -> None:
+    """Every key of the shared ``/**`` section is a shared parameter.
+
+    Every node reads the whole ``/**`` section, so a key there that is not
+    shared is refused by the first node checked (``unknown parameter
+    'duraton_s' for node 'plant'``), which named the node but not the
+    section the key is in.
+
+    Raises
+    ------
+    ParameterFileError
+        ``<where>: unknown parameter '<key>' in the shared section '/**'``,
+        with the closest shared key and the list of them.
+    """
+    unknown = sorted(set(flatten(shared(scenario))) - set(SHARED) - BUILTIN)
+    if not unknown:
+        return
+    close = difflib.get_close_matches(unknown[0], list(SHARED), n=1)
+    hint = f"did you mean '{close[0]}'?" if close else f"the shared keys: {', '.join(SHARED)}"
+    raise ParameterFileError(
+        f"{where}: unknown parameter '{unknown[0]}' in the shared section '/**', which every "
+        f"node reads ({hint}; a node's own key goes in its section)"
+    )
 
 
 def params_files(args: list[str]) -> list[str]:

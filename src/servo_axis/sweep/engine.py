@@ -7,28 +7,42 @@ is a row with its error; a worker that dies has its points rerun on another
 written to ``manifest.json`` at once, so a study that is stopped and started
 again with the same ``--out`` runs only the points it has not finished.
 Workers whose package versions differ from the client's are refused.
+
+Ctrl-C stops a study cleanly: the LocalCluster's workers ignore SIGINT (the
+terminal sends it to the whole process group; the client closes them), the
+finished rows stay in the manifest, ``results.csv`` is written with the rest
+marked ``not run``, and the line printed says how to resume. A corrected
+figure path is not another study: the points run again (a ``nodes`` point's
+figures are read again from its run's ``summary.json``).
 """
 
 from __future__ import annotations
 
 import contextlib
 import json
+import logging
 import math
 import os
 import re
+import signal
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 from servo_axis.sweep.point import cell, run_point
-from servo_axis.sweep.spec import Study, StudyError
+from servo_axis.sweep.spec import Study, StudyError, figure
 
 MANIFEST = "manifest.json"
 RESULTS = "results"  # results.parquet, results.csv
 COLUMNS_AFTER = ("status", "error", "wall_time_s")
+#: The status of a point an interrupted study did not finish (``results.csv`` only).
+NOT_RUN = "not run"
+#: How long a client waits for a ``--scheduler`` that does not answer (s).
+CONNECT_TIMEOUT_S = 30.0
 
 
 class VersionMismatchError(RuntimeError):
@@ -85,35 +99,114 @@ def _write_json(path: Path, data: Any) -> None:
     os.replace(tmp, path)
 
 
-def _load_manifest(out: Path, study: Study, fingerprint: str) -> dict[str, dict[str, Any]]:
+def _load_manifest(out: Path, study: Study) -> dict[str, dict[str, Any]]:
+    """The finished rows of an earlier run of ``study`` in ``out`` (none if there is none).
+
+    A manifest of the same points whose figures differ (a path corrected
+    after a run) is the same study: a ``nodes`` point whose run directory
+    still holds its ``summary.json`` has its figures picked again from it,
+    every other point runs again.
+    """
     path = out / MANIFEST
     if not path.is_file():
         return {}
     data = json.loads(path.read_text())
-    if data.get("fingerprint") != fingerprint:
+    rows = {str(k): v for k, v in data.get("rows", {}).items()}
+    if data.get("fingerprint") == study.fingerprint():
+        return rows
+    runs = data.get("runs_fingerprint")
+    if runs is None or runs != study.runs_fingerprint():
         raise StudyError(
             f"study {study.name}: {out} holds another study's results "
-            f"(fingerprint {data.get('fingerprint')}, this one {fingerprint}); use another --out"
+            f"(fingerprint {data.get('fingerprint')}, this one {study.fingerprint()}); "
+            "use another --out"
         )
-    return {str(k): v for k, v in data.get("rows", {}).items()}
+    old_figures = set(data.get("figures") or {})
+    kept = {}
+    for key, row in rows.items():
+        summary_file = out / "runs" / f"point_{int(key):05d}" / "summary.json"
+        if study.backend != "nodes" or row.get("status") != "ok" or not summary_file.is_file():
+            continue
+        summary = json.loads(summary_file.read_text())
+        try:
+            values = {n: cell(figure(summary, w)) for n, w in study.figures.items()}
+        except KeyError:
+            continue  # runs again, and fails with the figure's error as a row
+        kept[key] = {
+            **{c: v for c, v in row.items() if c not in old_figures and c not in COLUMNS_AFTER},
+            **values,
+            **{c: row.get(c) for c in COLUMNS_AFTER},
+        }
+    print(
+        f"study {study.name}: the figures differ from those of {out}; "
+        f"{len(kept)} finished point(s) read again from their runs, "
+        f"{len(study.points) - len(kept)} to run",
+        file=sys.stderr,
+    )
+    return kept
 
 
 @contextlib.contextmanager
-def _client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
+def _quiet_sigint() -> Iterator[None]:
+    """SIGINT ignored while the block starts processes: they inherit it and ignore Ctrl-C.
+
+    The terminal sends Ctrl-C to the whole process group; the client alone
+    handles it (and closes the workers), so no worker prints a traceback.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+@contextlib.contextmanager
+def _client(
+    scheduler: str | None, workers: int | None, connect_timeout_s: float = CONNECT_TIMEOUT_S
+) -> Iterator[Any]:
     from dask.distributed import Client, LocalCluster
 
     if scheduler:
-        with Client(scheduler, timeout="30s") as client:
+        try:
+            client = Client(scheduler, timeout=f"{connect_timeout_s}s")
+        except (OSError, TimeoutError) as err:
+            raise StudyError(
+                f"--scheduler {scheduler}: no dask scheduler answered within "
+                f"{connect_timeout_s:g} s ({err})"
+            ) from err
+        with client:
             yield client
         return
     n = workers or os.cpu_count() or 1
-    with (
-        LocalCluster(
+    with _quiet_sigint():
+        cluster = LocalCluster(
             n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None
-        ) as cluster,
-        Client(cluster) as client,
-    ):
+        )
+    with cluster, Client(cluster) as client:
         yield client
+
+
+def _silence(client: Any) -> None:
+    """Dask's own warnings off, here and on the workers, for a shutdown we asked for."""
+
+    def quiet() -> None:
+        for name in ("distributed", "tornado"):
+            logging.getLogger(name).setLevel(logging.CRITICAL)
+
+    quiet()
+    with contextlib.suppress(Exception):
+        client.run(quiet, wait=True)
+
+
+def resume_command(study: Study, out: Path, scheduler: str | None) -> str:
+    """The command that resumes ``study`` in ``out``."""
+    where = study.source or study.name
+    return f"python -m servo_axis sweep {where} --out {out}" + (
+        f" --scheduler {scheduler}" if scheduler else ""
+    )
 
 
 def _clock(seconds: float) -> str:
@@ -132,6 +225,7 @@ def run_study(
     retry_failed: bool = False,
     plots: bool = True,
     progress: bool = True,
+    connect_timeout_s: float = CONNECT_TIMEOUT_S,
 ) -> list[dict[str, Any]]:
     """Run the points a previous run of the study in ``out`` has not finished; write the results.
 
@@ -152,22 +246,32 @@ def run_study(
         Write the figures' PNGs.
     progress : bool
         Print a progress line (points done, failed, time left) on stderr.
+    connect_timeout_s : float
+        How long to wait for ``scheduler`` (s); ``out`` is made only once it answered.
 
     Returns
     -------
     list of dict
         The rows, in point order.
+
+    Raises
+    ------
+    StudyError
+        ``out`` holds another study, or the scheduler does not answer.
+    KeyboardInterrupt
+        After Ctrl-C, once the manifest and ``results.csv`` hold the finished
+        points and the line that says how to resume is printed.
     """
     from dask.distributed import as_completed
 
-    out.mkdir(parents=True, exist_ok=True)
     fingerprint = study.fingerprint()
-    rows = _load_manifest(out, study, fingerprint)
+    rows = _load_manifest(out, study)
     if retry_failed:
         rows = {k: r for k, r in rows.items() if r.get("status") == "ok"}
     manifest: dict[str, Any] = {
         "study": study.name,
         "fingerprint": fingerprint,
+        "runs_fingerprint": study.runs_fingerprint(),
         "scenario": study.scenario,
         "backend": study.backend,
         "parameters": list(study.parameters),
@@ -196,8 +300,9 @@ def run_study(
         print(line, end="\n" if final else "", file=sys.stderr, flush=True)
 
     if todo:
-        with _client(scheduler, workers) as client:
+        with _client(scheduler, workers, connect_timeout_s) as client:
             check_workers(client)
+            out.mkdir(parents=True, exist_ok=True)
             t0 = time.perf_counter()
             report()
             futures = {
@@ -215,23 +320,41 @@ def run_study(
                 ): i
                 for i in todo
             }
-            for future in as_completed(futures):
-                i = futures[future]
-                try:
-                    row = future.result()
-                except Exception as err:  # e.g. KilledWorker: died on too many workers
-                    row = {
-                        "point": i,
-                        **{k: cell(v) for k, v in study.points[i].items()},
-                        **dict.fromkeys(study.figures, math.nan),
-                        "status": "failed",
-                        "error": f"{type(err).__name__}: {err}",
-                        "wall_time_s": math.nan,
-                    }
-                rows[str(i)] = row
-                done_now += 1
+            try:
+                for future in as_completed(futures):
+                    i = futures[future]
+                    try:
+                        row = future.result()
+                    except Exception as err:  # e.g. KilledWorker: died on too many workers
+                        row = {
+                            "point": i,
+                            **{k: cell(v) for k, v in study.points[i].items()},
+                            **dict.fromkeys(study.figures, math.nan),
+                            "status": "failed",
+                            "error": f"{type(err).__name__}: {err}",
+                            "wall_time_s": math.nan,
+                        }
+                    rows[str(i)] = row
+                    done_now += 1
+                    _write_json(out / MANIFEST, manifest)
+                    report()
+            except KeyboardInterrupt:
+                _silence(client)
+                client.cancel(list(futures))
                 _write_json(out / MANIFEST, manifest)
-                report()
+                ordered = [
+                    _complete(rows.get(str(i)) or _not_run(i, study), study) for i in range(total)
+                ]
+                write_results(ordered, study, out)
+                print(
+                    f"\nstudy {study.name}: interrupted with {len(rows)} of {total} points "
+                    f"finished ({out / MANIFEST}, {out / RESULTS}.csv); "
+                    f"the same command resumes: {resume_command(study, out, scheduler)}",
+                    file=sys.stderr,
+                    flush=True,
+                )
+                raise
+    out.mkdir(parents=True, exist_ok=True)
     _write_json(out / MANIFEST, manifest)
     report(final=True)
     ordered = [_complete(rows[str(i)], study) for i in range(total)]
@@ -241,10 +364,23 @@ def run_study(
     return ordered
 
 
+def _not_run(i: int, study: Study) -> dict[str, Any]:
+    """The row of a point an interrupted study did not finish."""
+    return {
+        "point": i,
+        **{k: cell(v) for k, v in study.points[i].items()},
+        "status": NOT_RUN,
+        "error": "",
+    }
+
+
 def _complete(row: dict[str, Any], study: Study) -> dict[str, Any]:
     """A row with every column of the study, in the table's order."""
     columns = ["point", *study.parameters, *study.figures, *COLUMNS_AFTER]
-    return {c: row.get(c, math.nan if c in study.figures else None) for c in columns}
+    return {
+        c: row.get(c, math.nan if c in study.figures or c == "wall_time_s" else None)
+        for c in columns
+    }
 
 
 def write_results(rows: list[dict[str, Any]], study: Study, out: Path) -> None:
@@ -268,6 +404,25 @@ def _slug(text: str) -> str:
     return re.sub(r"[^\w.-]+", "_", text).strip("_")
 
 
+def _splitting_keys(rows: list[dict[str, Any]], param: str, others: list[str]) -> list[str]:
+    """The keys of ``others`` that tell rows apart beyond ``param`` and the keys kept before.
+
+    A key that follows from the swept one (``sigmoid.enabled`` = not
+    ``gms.enabled`` in ``reversal_004``) or from the others splits no line:
+    grouping by it made one line per point, each a single marker under a
+    legend of as many entries.
+    """
+
+    def kinds(keys: list[str]) -> int:
+        return len({tuple(str(r.get(k)) for k in keys) for r in rows})
+
+    kept: list[str] = []
+    for key in others:
+        if kinds([param, *kept, key]) > kinds([param, *kept]):
+            kept.append(key)
+    return kept
+
+
 def plot_figures(rows: list[dict[str, Any]], study: Study, out: Path) -> list[Path]:
     """One PNG per figure and swept parameter (a line per combination of the other parameters)."""
     import matplotlib
@@ -281,7 +436,7 @@ def plot_figures(rows: list[dict[str, Any]], study: Study, out: Path) -> list[Pa
     written = []
     for name in study.figures:
         for param in study.parameters:
-            others = [p for p in study.parameters if p != param]
+            others = _splitting_keys(ok, param, [p for p in study.parameters if p != param])
             groups: dict[tuple[Any, ...], list[tuple[Any, float]]] = {}
             for r in ok:
                 value = r[name]
@@ -290,6 +445,11 @@ def plot_figures(rows: list[dict[str, Any]], study: Study, out: Path) -> list[Pa
                 groups.setdefault(tuple(r[p] for p in others), []).append((r[param], value))
             if not groups:
                 continue
+            merged = len(groups) > 1 and all(len(pts) == 1 for pts in groups.values())
+            if merged:
+                # No two points differ in this key alone: one set of markers, no lines.
+                others = []
+                groups = {(): [pt for pts in groups.values() for pt in pts]}
             fig, ax = plt.subplots(figsize=(6.5, 4))
             # A length or angle in a unit its values read in (um, nm, urad, ...), as the
             # run's own error plots do; anything else as it is, without an offset.
@@ -301,11 +461,12 @@ def plot_figures(rows: list[dict[str, Any]], study: Study, out: Path) -> list[Pa
                 for pts in groups.values()
                 for x, _ in pts
             )
+            style = "o" if merged else "o-"
             for key, pts in groups.items():
                 pts.sort(key=lambda p: p[0] if numeric else str(p[0]))
                 xs = [p[0] if numeric else str(p[0]) for p in pts]
                 label = ", ".join(f"{p}={v}" for p, v in zip(others, key, strict=True)) or None
-                ax.plot(xs, [factor * p[1] for p in pts], "o-", label=label)
+                ax.plot(xs, [factor * p[1] for p in pts], style, label=label)
             ax.set_xlabel(param)
             ax.set_ylabel(f"{name} ({shown})" if unit else name)
             ax.ticklabel_format(axis="y", style="plain", useOffset=False)

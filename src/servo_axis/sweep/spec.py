@@ -29,6 +29,7 @@ is the plant's). Nothing here imports rclpy.
 from __future__ import annotations
 
 import copy
+import difflib
 import hashlib
 import itertools
 import json
@@ -43,6 +44,7 @@ from servo_axis.core.errors import ConfigError
 from servo_axis.params.scenario import (
     ROLES,
     SHARED_SECTION,
+    axes_of,
     axis_section,
     find_scenario,
     load_scenario,
@@ -51,6 +53,16 @@ from servo_axis.params.scenario import (
 )
 
 BACKENDS = ("plain", "nodes")
+#: The top-level fields of a ``plain`` point's summary (:func:`servo_axis.sweep.point.plain_summary`):
+#: those of ``summary.json`` that a plain-call loop computes, with the same paths.
+PLAIN_SUMMARY_FIELDS = (
+    "steps",
+    "sim_time_s",
+    "reference_period_s",
+    "tracking_error",
+    "ilc_convergence",
+    "identification",
+)
 _KEYS = {"name", "scenario", "backend", "set", "grid", "points", "figures"}
 _FIGURE = re.compile(r"^[A-Za-z_][\w]*(\[-?\d+\])*(\.[A-Za-z_][\w]*(\[-?\d+\])*)*$")
 _PART = re.compile(r"([A-Za-z_]\w*)|\[(-?\d+)\]")
@@ -87,19 +99,29 @@ class Study:
     points: tuple[dict[str, Any], ...]
     figures: dict[str, str]
     fixed: dict[str, Any] = field(default_factory=dict)
+    source: str = ""
 
     def fingerprint(self) -> str:
         """A hash of what the results depend on (base scenario bytes, points, figures, backend)."""
-        text = json.dumps(
-            {
-                "scenario": find_scenario(self.scenario).read_text(),
-                "backend": self.backend,
-                "points": list(self.points),
-                "figures": self.figures,
-            },
-            sort_keys=True,
-            default=str,
-        )
+        return self._hash(figures=True)
+
+    def runs_fingerprint(self) -> str:
+        """A hash of what the runs depend on: :meth:`fingerprint` without the figures.
+
+        Two studies with the same runs fingerprint run the same points; only the
+        values they pick from each summary may differ (a corrected figure path).
+        """
+        return self._hash(figures=False)
+
+    def _hash(self, *, figures: bool) -> str:
+        content: dict[str, Any] = {
+            "scenario": find_scenario(self.scenario).read_text(),
+            "backend": self.backend,
+            "points": list(self.points),
+        }
+        if figures:
+            content["figures"] = self.figures
+        text = json.dumps(content, sort_keys=True, default=str)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -196,6 +218,13 @@ def load_study(path: Path | str) -> Study:
                 _check_section(trial, _section_of(trial, key)[0])
             except ConfigError as err:
                 raise _fail(path, where, f"{err} (value {value!r})") from err
+    # Before any point runs: a figure no summary can have would only show up as a
+    # failed row of every point, after all of them ran.
+    summary_kind = "axes" if axes_of(base) else backend
+    for name, where in figures.items():
+        problem = figure_problem(where, summary_kind)
+        if problem:
+            raise _fail(path, f"figures.{name}", problem)
     return Study(
         name=str(data.get("name") or path.stem),
         scenario=scenario,
@@ -204,6 +233,7 @@ def load_study(path: Path | str) -> Study:
         points=points,
         figures=figures,
         fixed=dict(fixed),
+        source=str(path),
     )
 
 
@@ -216,6 +246,95 @@ def _figures(path: Path, raw: Any) -> dict[str, str]:
         if not isinstance(figure, str) or not _FIGURE.match(figure):
             raise _fail(path, f"figures.{name}", f"{figure!r} is not a path like a.b[-1].c")
     return {str(k): str(v) for k, v in raw.items()}
+
+
+def _summary_fields(kind: str) -> dict[str, Any]:
+    """The top-level fields (name -> type) of a point's summary: ``plain``, ``nodes`` or ``axes``."""
+    from servo_axis.analysis.summary import AxesSummary, RunSummary
+
+    fields = _dataclass_fields(AxesSummary if kind == "axes" else RunSummary)
+    if kind == "plain":
+        return {k: v for k, v in fields.items() if k in PLAIN_SUMMARY_FIELDS}
+    return fields
+
+
+def _dataclass_fields(cls: type) -> dict[str, Any]:
+    """The fields ``summary.json`` writes of a dataclass, with their types."""
+    import dataclasses
+    import typing
+
+    hints = typing.get_type_hints(cls)
+    return {
+        f.name: hints[f.name] for f in dataclasses.fields(cls) if f.metadata.get("summary", True)
+    }
+
+
+def _strip_none(kind: Any) -> Any:
+    """``X`` of ``X | None``."""
+    import types
+    import typing
+
+    if typing.get_origin(kind) in (types.UnionType, typing.Union):
+        args = [a for a in typing.get_args(kind) if a is not type(None)]
+        return args[0] if len(args) == 1 else Any
+    return kind
+
+
+def figure_problem(path: str, kind: str) -> str | None:
+    """What is wrong with a figure path for a point's summary, or None when it may be there.
+
+    The path is checked against the summary's layout (the dataclasses of
+    :mod:`servo_axis.analysis.summary` and their type hints): each name a
+    field of the block it is in, each ``[i]`` on a list. What only a run
+    decides (a block absent from some runs, an index past the end, the keys of
+    a mapping) is left to the run.
+
+    Parameters
+    ----------
+    path : str
+        ``a.b[-1].c``.
+    kind : str
+        ``plain`` (the plain-call loops' fields), ``nodes`` (``summary.json``
+        of a single-axis run) or ``axes`` (of a multi-axis run).
+    """
+    import dataclasses
+    import typing
+
+    node: Any = None
+    fields: dict[str, Any] | None = _summary_fields(kind)
+    done = ""
+    for name, index in _PART.findall(path):
+        if fields is not None:
+            if not name:
+                return f"{path!r}: [{index}] at '{done or '.'}', which is a block, not a list"
+            if name not in fields:
+                close = difflib.get_close_matches(name, fields, n=1)
+                hint = f"did you mean '{close[0]}'? " if close else ""
+                return (
+                    f"{path!r}: no '{name}' at '{done or '.'}' of a {kind} point's summary; "
+                    f"{hint}expected one of {', '.join(fields)}"
+                )
+            node = _strip_none(fields[name])
+            done = f"{done}.{name}" if done else name
+        else:
+            origin = typing.get_origin(node)
+            if node is Any or origin is dict:
+                node = Any if node is Any else _strip_none(typing.get_args(node)[1])
+                done = f"{done}.{name}" if name else f"{done}[{index}]"
+                fields = _dataclass_fields(node) if dataclasses.is_dataclass(node) else None
+                continue
+            if origin in (tuple, list):
+                if name:
+                    return f"{path!r}: '{done}' is a list; index it first: '{done}[-1]'"
+                node = _strip_none(typing.get_args(node)[0])
+                done = f"{done}[{index}]"
+            else:
+                return f"{path!r}: '{done}' is a value ({getattr(node, '__name__', node)}), not a block"
+        if dataclasses.is_dataclass(node) and isinstance(node, type):
+            fields = _dataclass_fields(node)
+        else:
+            fields = None
+    return None
 
 
 def _section_of(scenario: dict[str, Any], key: str) -> tuple[str, str]:

@@ -45,7 +45,7 @@ class Topic:
         never runs more than ``max_recorder_lag_steps`` ahead of the
         smallest count of these.
     meaning : str
-        One line for the README's table.
+        One line for the topic table (docs/reference/topics.md).
     enabled_by : str
         The producer's bool parameter that switches the topic on ("" when
         it always runs): a switched-off topic is neither recorded nor counted.

@@ -125,3 +125,20 @@ def test_plain_axes_show_the_numbers_as_they_are() -> None:
     labels = [float(x.get_text().replace("\u2212", "-")) for x in plain.get_yticklabels()]
     assert all(587.12 < v < 587.14 for v in labels), labels
     plt.close(fig)
+
+
+def test_runs_with_different_cycle_counts_share_one_error_axis(
+    tmp_path: Path, figures: list[Any]
+) -> None:
+    """`compare --out` of rptc_friction_table (6 cycles) against ptc_nominal (4) crashed
+    in error_scale (`setting an array element with a sequence`); the larger maximum sets
+    the unit, whichever run has it."""
+    long, short = summary(3e-7, cycles=7), summary(2e-6, cycles=4)
+    plot_cycles([long, short], ["long", "short"], tmp_path / "c.png", title="t")
+    (ax,) = figures[0].axes
+    assert ax.get_ylabel() == "tracking error (um)"
+    lines = ax.get_lines()
+    assert [line.get_xdata().size for line in lines] == [7, 7, 4, 4]
+    # Max of the short run's cycle 4: 2 um (1 + 0.3) at its peak sample.
+    assert_allclose(lines[2].get_ydata()[-1], 2.0 * 1.3, rtol=1e-3)
+    assert error_scale([np.ones(3) * 2e-6, np.ones(5) * 3e-9]) == (1e6, "um")

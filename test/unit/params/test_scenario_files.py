@@ -76,6 +76,35 @@ def test_a_section_that_is_no_node_or_axis_is_refused_by_name(tmp_path: Path, ke
         load_scenario(write(tmp_path, data))
 
 
+@pytest.mark.parametrize(
+    ("shared", "hint"),
+    [
+        ({"duraton_s": 1.0}, "did you mean 'duration_s'?"),
+        ({"bandwidth_hz": 40.0}, "the shared keys: mode, control_period_s, duration_s"),
+        ({"nominal": {"inertia_kg": 0.01}}, "did you mean 'nominal.inertia_kgm2'?"),
+    ],
+)
+def test_an_unknown_shared_key_is_named_with_its_section(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], shared: dict, hint: str
+) -> None:
+    """It was `unknown parameter 'duraton_s' for node 'plant'`: the first node checked,
+    not the `/**` section the key is in."""
+    from servo_axis.__main__ import main
+
+    data = yaml.safe_load((CONFIG / "ptc_nominal.yaml").read_text())
+    data["/**"]["ros__parameters"].update(shared)
+    path = write(tmp_path, data)
+    key = next(iter(shared)) + ("." + next(iter(shared["nominal"])) if "nominal" in shared else "")
+    line = f"unknown parameter '{key}' in the shared section '/**', which every node reads ("
+    with pytest.raises(ConfigError, match=re.escape(line + hint)):
+        load_scenario(path)
+    out = tmp_path / "run"
+    assert main(["run", str(path), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and line in err and "for node" not in err
+    assert not out.exists()
+
+
 def test_a_multi_axis_scenario_refuses_composed_and_namespace_before_starting(
     tmp_path: Path,
 ) -> None:

@@ -43,7 +43,7 @@ def counts(overrides: dict[str, dict[str, Any]]) -> tuple[int, int, int, int]:
     )
 
 
-# Counted by hand from the node graph (README, "Topics"):
+# Counted by hand from the node graph (docs/reference/topics.md):
 #   state:        feedback, learning, recorder
 #   /clock:       feedback, feedforward, learning (use_sim_time), recorder
 #   plant/status: feedforward, recorder

@@ -6,6 +6,7 @@ angle, rad), velocity r' (rad/s) and effort = the feedforward torque J r'' + D r
 of a rigid model. The feedback answers state[k] once reference[k] is in.
 
     python examples/sine_reference.py --ros-args -r __ns:=/x -p amplitude_rad:=5.0 -p frequency_hz:=2.0
+    python -m servo_axis.examples.sine_reference --ros-args -r __ns:=/x   # from an installed servo_axis
 """
 
 import math

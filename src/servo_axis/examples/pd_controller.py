@@ -6,6 +6,7 @@ motor torque (N m) = feedforward torque + Kp (r - y) + Kd (r' - y'), with r, r' 
 feedforward torque from `reference` and y, y' from `state`.
 
     python examples/pd_controller.py --ros-args -r __ns:=/x -p bandwidth_hz:=20.0 -p inertia_kgm2:=0.01
+    python -m servo_axis.examples.pd_controller --ros-args -r __ns:=/x   # from an installed servo_axis
 """
 
 import math

@@ -1,0 +1,54 @@
+"""Watch a run without the ros2 CLI: its state, its diagnostics and a parameter's descriptor.
+
+Plain rclpy, nothing imported from servo_axis. Start it in the run's domain, with the
+run's localhost discovery and its namespace (the run's header prints all three):
+
+    ROS_DOMAIN_ID=42 ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST \
+        python examples/watch_run.py --ros-args -r __ns:=/x
+    python -m servo_axis.examples.watch_run --ros-args -r __ns:=/x   # from an installed servo_axis
+
+Ctrl-C ends it quietly at any point, also while it still waits for the run's plant.
+"""
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from rcl_interfaces.srv import DescribeParameters
+from rclpy.executors import ExternalShutdownException
+from sensor_msgs.msg import JointState
+
+LEVELS = {b"\x00": "OK", b"\x01": "WARN", b"\x02": "ERROR", b"\x03": "STALE"}
+
+
+def show_status(msg: DiagnosticArray) -> None:
+    for status in msg.status:
+        print(status.name, LEVELS.get(status.level, status.level), status.message, flush=True)
+
+
+def main() -> None:
+    rclpy.init()
+    node = rclpy.create_node("watcher")
+    try:
+        node.create_subscription(
+            JointState, "state", lambda m: print("state", list(m.position), flush=True), 10
+        )
+        node.create_subscription(DiagnosticArray, "/diagnostics", show_status, 10)
+        name = node.resolve_service_name("plant/describe_parameters")
+        describe = node.create_client(DescribeParameters, name)
+        while not describe.wait_for_service(timeout_sec=1.0):
+            print(f"waiting for {name} ...", flush=True)
+        request = DescribeParameters.Request(names=["duration_s", "inertia_kgm2"])
+        future = describe.call_async(request)
+        rclpy.spin_until_future_complete(node, future)
+        for d in future.result().descriptors:
+            span = list(d.floating_point_range)
+            print(d.name, "|", d.description, "|", span, "| read-only:", d.read_only, flush=True)
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass  # Ctrl-C, or the context shut down: a normal end
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()
