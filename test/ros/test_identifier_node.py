@@ -131,9 +131,11 @@ def test_identification_graph_equals_the_plain_call_loop(context: Context, tmp_p
     assert_array_equal([reference[k] for k in range(STEPS)], core.trajectory.reference_rad)
     # Every estimate, in the order published, with its schedule and flags.
     assert_array_equal(np.array(estimates).reshape(-1, 11), core.estimates)
-    assert identifier.published == n_estimates and ff.estimates_taken == n_estimates
-    assert identifier.rejected == 0 and ff.rejected == 0 and plant.rejected == 0
-    assert not ff.health.fallbacks and not plant.health.fallbacks
+    assert identifier.published == n_estimates and ff.estimates.taken == n_estimates
+    assert (
+        identifier.report.rejected == 0 and ff.report.rejected == 0 and plant.report.rejected == 0
+    )
+    assert not ff.report.health.fallbacks and not plant.report.health.fallbacks
     # The run is not trivial: J, D, U and C were updated along it and moved.
     assert core.estimates[:, 7:].sum(axis=0).min() > 0
     assert abs(core.estimates[-1, 2] - 0.002) > 1e-3  # J from the nominal 0.002 kg m^2
@@ -229,20 +231,20 @@ def test_feedforward_rejects_bad_estimates_and_takes_a_repeat_silently(
         ]
         for m in bad:
             pub.publish(m)
-        spin_until(context, nodes, lambda: ff.rejected >= len(bad))
+        spin_until(context, nodes, lambda: ff.report.rejected >= len(bad))
         spin_for(context, nodes, 0.2)  # nothing may still come of them
-        assert ff.rejected == len(bad)
-        assert ff.health.rejected == {"identifier/estimates": len(bad)}
-        assert ff.estimates_taken == 0 and ff.last_estimate is None
+        assert ff.report.rejected == len(bad)
+        assert ff.report.health.rejected == {"identifier/estimates": len(bad)}
+        assert ff.estimates.taken == 0 and ff.estimates.last is None
         assert ff.generator.next_estimate_step == first
         assert ff.published == first and max(r.step for r in refs) == first - 1
         # The next estimate, valid: taken, and the preview moves on to the next one.
         good = estimate_msg(R - 1, first)
         pub.publish(good)
-        spin_until(context, nodes, lambda: ff.estimates_taken == 1 and len(refs) == first + R)
+        spin_until(context, nodes, lambda: ff.estimates.taken == 1 and len(refs) == first + R)
         assert ff.generator.next_estimate_step == first + R
-        assert ff.last_estimate == msgs.estimate_from_msg(good)
-        assert ff.published == first + R and ff.rejected == len(bad)
+        assert ff.estimates.last == msgs.estimate_from_msg(good)
+        assert ff.published == first + R and ff.report.rejected == len(bad)
         assert [r.step for r in refs] == list(range(first + R))
         # The samples from step 20 on are computed with the estimate: those of a
         # core generator given it.
@@ -263,8 +265,8 @@ def test_feedforward_rejects_bad_estimates_and_takes_a_repeat_silently(
         # reliable stream, tells that it has been handled.
         pub.publish(good)
         pub.publish(estimate_msg(2 * R - 1, first + R, u=0.3))
-        spin_until(context, nodes, lambda: ff.estimates_taken >= 2 and len(refs) == first + 2 * R)
-        assert ff.rejected == len(bad) and ff.estimates_taken == 2
+        spin_until(context, nodes, lambda: ff.estimates.taken >= 2 and len(refs) == first + 2 * R)
+        assert ff.report.rejected == len(bad) and ff.estimates.taken == 2
         assert ff.generator.next_estimate_step == first + 2 * R
         assert ff.published == first + 2 * R
     finally:
@@ -307,14 +309,14 @@ def test_realtime_feedforward_goes_on_without_an_estimate_once_its_samples_are_d
         spin_until(context, nodes, lambda: len(refs) == 350)
         spin_for(context, nodes, 0.1)
         assert ff.published == 350 and len(refs) == 350
-        assert ff.estimates_taken == 0 and ff.late_estimates == 0 and not ff.health.fallbacks
+        assert ff.estimates.taken == 0 and ff.estimates.late == 0 and not ff.report.health.fallbacks
         core = build_generator(values)
         core.stop_waiting_for_estimates()
         assert_array_equal(rows_of(refs[:350]), as_references(core.samples(0, 350), kt))
         # The first estimate, late: from sample 350 on.
         est.publish(estimate_msg(R - 1, first))
-        spin_until(context, nodes, lambda: ff.estimates_taken == 1)
-        assert ff.late_estimates == 1 and ff.generator.next_estimate_step == first + R
+        spin_until(context, nodes, lambda: ff.estimates.taken == 1)
+        assert ff.estimates.late == 1 and ff.generator.next_estimate_step == first + R
         # The plant at 250 (half the window used): the next samples follow.
         status.publish(msgs.labelled_array(msgs.STATUS_LABELS, [250, 0, 0, 0]))
         spin_until(context, nodes, lambda: len(refs) >= 400)
@@ -327,7 +329,7 @@ def test_realtime_feedforward_goes_on_without_an_estimate_once_its_samples_are_d
         without = build_generator(values)
         without.stop_waiting_for_estimates()
         assert not np.array_equal(as_references(without.samples(0, 400), kt)[350:], with_estimate)
-        assert ff.rejected == 0 and not ff.health.fallbacks
+        assert ff.report.rejected == 0 and not ff.report.health.fallbacks
     finally:
         destroy(nodes)
 
@@ -451,10 +453,13 @@ def test_identifier_rejects_bad_samples_and_estimates_from_the_valid_ones(
         for m in bad_commands:
             feeder.command_pub.publish(m)
         n_bad = len(bad_states) + len(bad_commands)
-        spin_until(context, nodes, lambda: node.rejected >= n_bad)
+        spin_until(context, nodes, lambda: node.report.rejected >= n_bad)
         spin_for(context, nodes, 0.1)
-        assert node.rejected == n_bad
-        assert node.health.rejected == {"state": len(bad_states), "command": len(bad_commands)}
+        assert node.report.rejected == n_bad
+        assert node.report.health.rejected == {
+            "state": len(bad_states),
+            "command": len(bad_commands),
+        }
         assert node.identifier.last_step == 4 and node.published == 0 and not feeder.estimates
         feeder.send(range(5, R))
         spin_until(context, nodes, lambda: len(feeder.estimates) >= 1)
@@ -464,7 +469,7 @@ def test_identifier_rejects_bad_samples_and_estimates_from_the_valid_ones(
         (e,) = expected
         assert e.step == R - 1 and e.updated == (True, True, True, True)
         assert_array_equal(got.values(), as_message_values(e))
-        assert node.last_estimate == got and node.published == 1 and node.rejected == n_bad
+        assert node.last_estimate == got and node.published == 1 and node.report.rejected == n_bad
         assert node.identifier.state() == core.state()
         # The estimate depends on the samples: U moved off its initial 0.1.
         assert e.U != values["initial.unbalance_Nm"]
@@ -559,7 +564,7 @@ def test_a_restarted_identifier_resumes_bit_identically_from_its_memory(
         assert_array_equal(feeder.estimates[3].values(), as_message_values(expected[2]))
         assert second.identifier.state() == core.state()
         # The history it already had is skipped, not rejected.
-        assert second.rejected == 0 and second.published == 1
+        assert second.report.rejected == 0 and second.published == 1
     finally:
         destroy(nodes)
     # A fresh start (not late_join) with that memory on disk starts at step 0

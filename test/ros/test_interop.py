@@ -109,7 +109,7 @@ def test_a_volatile_wish_stays_volatile() -> None:
 
 def subscribed_topics(node: Any, role: str) -> list[str]:
     """The table topics the node subscribes to (the recorder: its list), /clock aside."""
-    names = node.values["topics"] if role == "recorder" else node.inputs
+    names = node.values["topics"] if role == "recorder" else node.inputs.topics
     return [n for n in names if n != "/clock"]
 
 

@@ -196,7 +196,7 @@ def test_diagnostics_levels_of_a_node_seen_by_a_default_qos_subscriber(context: 
             ex.spin_once(timeout_sec=0.02)
         ok = publish_and_read()
         assert ok.level == DiagnosticStatus.OK and ok.hardware_id == "x"
-        feedback.reject("state", "state rejected: junk")
+        feedback.report.reject("state", "state rejected: junk")
         warn = publish_and_read()
         assert warn.level == DiagnosticStatus.WARN
         assert warn.message == "1 messages rejected (1 state)"

@@ -1,4 +1,4 @@
-"""Realtime scheduling of the per-sample pair (``nodes.runtime.realtime_scheduling``)."""
+"""Realtime scheduling of the per-sample pair (``nodes.realtime.fifo_every_thread``)."""
 
 from __future__ import annotations
 
@@ -9,10 +9,10 @@ import sys
 # Run in a child: the test process itself must not end up under SCHED_FIFO.
 PROBE = """
 import json, os, sys, threading
-from servo_axis.nodes.runtime import realtime_scheduling
+from servo_axis.nodes.realtime import fifo_every_thread
 before = threading.Thread(target=threading.Event().wait, args=(5,), daemon=True)
 before.start()
-got = realtime_scheduling(int(sys.argv[1]))
+got = fifo_every_thread(int(sys.argv[1]))
 after = threading.Thread(target=threading.Event().wait, args=(5,), daemon=True)
 after.start()
 policies = {int(t): os.sched_getscheduler(int(t)) for t in os.listdir("/proc/self/task")}

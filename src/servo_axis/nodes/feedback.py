@@ -31,7 +31,7 @@ ahead of the stream is refused and never displaces it.
 
 Handshake: with ``wait_for_command_subscribers``, the node subscribes to
 ``reference`` only once its ``command`` publisher is matched with the plant
-and the recorder (:meth:`~servo_axis.nodes.base.ServoNode.consumers_matched`),
+and the recorder (:meth:`~servo_axis.nodes.graph.GraphWatch.consumers_matched`),
 so that no command is published unheard, and to ``state`` (which the plant
 waits for before step 0) only once ``reference`` has a matched publisher,
 so that no reference is sent unheard by a volatile generator.
@@ -49,16 +49,12 @@ the wall-clock rule stays: ``input_timeout_s`` after a state came without
 its reference.
 
 Catching up (realtime): every state goes through the loop, in order, but a
-state whose command could no longer reach the plant in time to be used
-(:func:`~servo_axis.core.deadlines.answer_useful`: after a stall, while
-newer states wait in the queue) is not answered, so that the node catches
-up with the clock instead of answering a backlog; it still answers at least
-every :data:`ANSWER_GAP` steps, and always the last state of the run. The
-deadlines are those of the plant's clock as the states' arrivals show it
-(:func:`~servo_axis.core.deadlines.start_estimate_ns`: never before its
-start, so a useful answer is never skipped). The skipped ones are counted
-(``skipped_answers`` on ``/diagnostics``); in the plant's report they are
-commands missing.
+state whose command could no longer reach the plant in time to be used is
+not answered (:class:`~servo_axis.nodes.realtime.CatchUp`), so that the node
+catches up with the clock instead of answering a backlog; it still answers
+at least every :data:`ANSWER_GAP` steps, and always the last state of the
+run. The skipped ones are counted (``skipped_answers`` on
+``/diagnostics``); in the plant's report they are commands missing.
 
 Run: ``python -m servo_axis.nodes.feedback --ros-args --params-file config/<scenario>.yaml``
 """
@@ -68,12 +64,12 @@ from __future__ import annotations
 import time
 from typing import Any
 
-from servo_axis.core.deadlines import answer_useful, start_estimate_ns
 from servo_axis.core.drive import current_from_torque, torque_from_current
 from servo_axis.core.errors import SignalError
 from servo_axis.core.feedback.loop import Fault, LoopOutput
 from servo_axis.nodes.base import ServoNode
-from servo_axis.nodes.lockstep import REALTIME_WINDOW, PeerWatch, SampleBuffer, stream_window
+from servo_axis.nodes.lockstep import REALTIME_WINDOW, PeerWatch, SampleBuffer, stream_gate
+from servo_axis.nodes.realtime import CatchUp
 from servo_axis.nodes.runtime import run_main, steady_clock
 from servo_axis.params.factories import build_deformation, build_loop, run_steps
 from servo_axis.wire import messages as msgs
@@ -87,17 +83,17 @@ ANSWER_GAP = REALTIME_WINDOW // 2
 class FeedbackNode(ServoNode):
     """Feedback loop; see the module docstring for its protocol."""
 
+    realtime_below = 0  # the per-sample pair
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("feedback", **kwargs)
         values = self.values
         self.loop = build_loop(values)
         self._v = values
         self._axis = values["axis"]
-        self._lead = values["lead_m_per_rad"]
         self._period_ns = msgs.period_ns(values["control_period_s"])
         self._lockstep = values["mode"] == "lockstep"
         self._kt = values["nominal.torque_constant_Nm_per_A"]
-        self.realtime_scheduling()
 
         # The per-sample path sends and takes CDR bytes (plant.py says why).
         self._command_codec = msgs.joint_codec(
@@ -111,23 +107,24 @@ class FeedbackNode(ServoNode):
             self._deformation_pub = self.publisher("deformation")
 
         self._references: SampleBuffer[msgs.ReferenceSample] = SampleBuffer()
-        self._states = StreamGate(window=stream_window(self._lockstep), first=0)
+        self._states = stream_gate(self._lockstep, first=0)
+        # Exactly in order: the generator publishes it so.
         self._refs = StreamGate(window=1, first=0)
         self._held: msgs.ReferenceSample | None = None
         self._pending: msgs.StateSample | None = None
         self._pending_since = 0.0
         self._feedforward = PeerWatch()
         self.missed_references = 0
-        self.skipped_answers = 0
-        # realtime: the plant clock's start d_0 as the states show it (never before it)
-        self._start_ns: int | None = None
-        self._answered = -1
-        self._last_step = run_steps(values) - 1  # always answered: the recorder counts to it
+        self.catch_up = (
+            None
+            if self._lockstep
+            else CatchUp(period_ns=self._period_ns, last_step=run_steps(values) - 1, gap=ANSWER_GAP)
+        )
         self.inputs_subscribed = False
         # The plant starts only once this node subscribes to `state`; doing so
         # only after `command` is matched with its consumers means that no
         # command is lost to a reader still being discovered.
-        self.after_consumers_matched(
+        self.graph.after_consumers_matched(
             [(self._command_pub, "command", values["wait_for_command_subscribers"])],
             self._subscribe_inputs,
         )
@@ -139,8 +136,8 @@ class FeedbackNode(ServoNode):
             ("tripped", self.loop.tripped),
             ("fault", "none" if fault is None else fault.name.lower()),
             ("missed_references", self.missed_references),
-            ("skipped_answers", self.skipped_answers),
-            ("scheduling", "other" if self.scheduling is None else self.scheduling["policy"]),
+            ("skipped_answers", 0 if self.catch_up is None else self.catch_up.skipped),
+            ("scheduling", "fifo" if self.realtime.fifo else "other"),
         ]
 
     def diagnostic_error(self) -> str | None:
@@ -149,7 +146,7 @@ class FeedbackNode(ServoNode):
 
     def _subscribe_inputs(self) -> None:
         reference = msgs.joint_codec("reference", axis=self._axis, period_ns_=self._period_ns)
-        self.subscribe(
+        self.inputs.subscribe(
             "reference",
             lambda data: self._within_preview(reference.decode(data)),
             self._on_reference,
@@ -165,11 +162,11 @@ class FeedbackNode(ServoNode):
         )
 
     def _subscribe_state_once_referenced(self) -> None:
-        if not self.input_matched("reference"):
+        if not self.inputs.matched("reference"):
             return
         self._reference_wait.cancel()
         self.destroy_timer(self._reference_wait)
-        self.subscribe(
+        self.inputs.subscribe(
             "state",
             msgs.joint_codec("state", axis=self._axis, period_ns_=self._period_ns).decode,
             self._on_state,
@@ -185,11 +182,9 @@ class FeedbackNode(ServoNode):
         return ref
 
     def _on_state(self, state: msgs.StateSample) -> None:
-        self.start_realtime()
-        if not self._lockstep:
-            self._start_ns = start_estimate_ns(
-                self._start_ns, time.monotonic_ns(), state.step, self._period_ns
-            )
+        self.realtime.start()
+        if self.catch_up is not None:
+            self.catch_up.arrived(state.step, time.monotonic_ns())
         self._pending = state
         self._pending_since = time.monotonic()
         self._try_answer()
@@ -226,8 +221,7 @@ class FeedbackNode(ServoNode):
             self._publish_fault(state.step, out.fault, out.fault_value)
         if self._deformation is not None:
             d = self._deformation.update(state.encoder_rad, state.scale_m)
-        if not self._lockstep and not self._answer_now(state.step):
-            self.skipped_answers += 1
+        if self.catch_up is not None and not self.catch_up.answer(state.step, time.monotonic_ns()):
             return
         # The command first: it is what the plant waits for.
         self._command_pub.publish(
@@ -251,27 +245,9 @@ class FeedbackNode(ServoNode):
     def realtime_counts(self) -> dict[str, int]:
         return {"references_held": self.missed_references}
 
-    def _answer_now(self, step: int) -> bool:
-        """Realtime: whether state ``step``'s command can still be used (see the module)."""
-        if (
-            self._start_ns is not None
-            and step < self._last_step
-            and not answer_useful(
-                time.monotonic_ns(),
-                self._start_ns,
-                self._period_ns,
-                step,
-                self._answered,
-                ANSWER_GAP,
-            )
-        ):
-            return False
-        self._answered = step
-        return True
-
     def _watchdog(self) -> None:
         now = time.monotonic()
-        self._feedforward.look(self.peer_alive("reference"), now)
+        self._feedforward.look(self.inputs.peer_alive("reference"), now)
         if self._pending is None or self.loop.tripped:
             return
         timeout = self._v["input_timeout_s"]
@@ -289,7 +265,9 @@ class FeedbackNode(ServoNode):
             step = self._pending.step
             self.loop.trip(Fault.INPUT_TIMEOUT)
             self._publish_fault(step, Fault.INPUT_TIMEOUT, waited)
-            self.fallback("input_timeout", step, f"{detail}: tripped, zero current from here")
+            self.report.fallback(
+                "input_timeout", step, f"{detail}: tripped, zero current from here"
+            )
             self._try_answer()
 
     def _publish_fault(self, step: int, fault: Fault, value: float) -> None:

@@ -45,23 +45,23 @@ from typing import Any
 from servo_axis.core.errors import ParameterFileError, ServoAxisError
 from servo_axis.core.identification.dlpid import Estimate
 from servo_axis.nodes.base import ServoNode
-from servo_axis.nodes.lockstep import stream_window
+from servo_axis.nodes.lockstep import stream_gate
 from servo_axis.nodes.runtime import run_main
 from servo_axis.params.factories import build_identifier, estimate_schedule, run_steps
 from servo_axis.storage import load_identifier_memory, save_identifier_memory
 from servo_axis.wire import messages as msgs
-from servo_axis.wire.streams import StreamGate
 
 
 class IdentifierNode(ServoNode):
     """Online identifier; see the module docstring for its protocol."""
 
+    # Realtime: what it sends the generator is on the reference path, so it
+    # preempts other work, below the generator and the pair.
+    realtime_below = 2
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("identifier", **kwargs)
         values = self.values
-        # Realtime: what it sends the generator is on the reference path, so
-        # it preempts other work, below the generator and the pair.
-        self.realtime_scheduling(below=2)
         self.identifier = build_identifier(values)
         _, self._latency = estimate_schedule(values, "rls_period_s", "latency_s")
         self._v = values
@@ -82,16 +82,15 @@ class IdentifierNode(ServoNode):
         if values["late_join"]:
             first = None if resumed is None else resumed + 1
         self._skip_through = -1 if resumed is None else resumed
-        window = stream_window(values["mode"] == "lockstep")
-        self._state_gate = StreamGate(window=window, first=first, limit=self._steps)
-        self._command_gate = StreamGate(window=window, first=first, limit=self._steps)
+        self._lockstep = values["mode"] == "lockstep"
+        self._state_gate = stream_gate(self._lockstep, first=first, limit=self._steps)
+        self._command_gate = stream_gate(self._lockstep, first=first, limit=self._steps)
         self._angles: dict[int, float] = {}
         self._torques: dict[int, float] = {}
-        self._lockstep = values["mode"] == "lockstep"
         self._last_torque = 0.0
         self.held_torques = 0  # realtime: steps whose command never came
         self.inputs_subscribed = False
-        self.after_consumers_matched(
+        self.graph.after_consumers_matched(
             [(self._pub, "identifier/estimates", values["wait_for_estimate_subscribers"])],
             self._subscribe_inputs,
         )
@@ -122,14 +121,14 @@ class IdentifierNode(ServoNode):
         if self.last_estimate is not None:
             # The dead identifier may have saved it without publishing it.
             self._pub.publish(msgs.estimate_to_msg(self.last_estimate))
-        self.subscribe(
+        self.inputs.subscribe(
             "state",
             lambda data: self._fresh(state.decode(data)),
             lambda s: self._take(s.step, angle=s.encoder_rad) if s is not None else None,
             raw=True,
             gate=self._state_gate,
         )
-        self.subscribe(
+        self.inputs.subscribe(
             "command",
             lambda data: self._fresh(command.decode(data)),
             lambda c: self._take(c.step, torque=c.torque_Nm) if c is not None else None,
@@ -143,7 +142,7 @@ class IdentifierNode(ServoNode):
         return None if sample.step <= self._skip_through else sample
 
     def _take(self, step: int, *, angle: float | None = None, torque: float | None = None) -> None:
-        self.start_realtime()
+        self.realtime.start()
         if angle is not None:
             self._angles[step] = angle
         if torque is not None:

@@ -51,7 +51,7 @@ from servo_axis.core.errors import ParameterFileError, ServoAxisError, SignalErr
 from servo_axis.core.feedback.output import controlled_output
 from servo_axis.core.learning.base import IdentifyingLaw
 from servo_axis.nodes.base import ServoNode
-from servo_axis.nodes.lockstep import PeriodCollector, stream_window
+from servo_axis.nodes.lockstep import PeriodCollector, stream_gate
 from servo_axis.nodes.runtime import LATE_JOIN_QOS, STREAM_QOS, run_main
 from servo_axis.params.factories import (
     build_learning_law,
@@ -62,18 +62,18 @@ from servo_axis.params.factories import (
 )
 from servo_axis.storage import load_memory, save_memory
 from servo_axis.wire import messages as msgs
-from servo_axis.wire.streams import StreamGate
 
 
 class LearningNode(ServoNode):
     """Learning unit; see the module docstring."""
 
+    # Realtime: what it sends the generator is on the reference path, so it
+    # preempts other work, below the generator and the pair.
+    realtime_below = 2
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("learning", **kwargs)
         values = self.values
-        # Realtime: what it sends the generator is on the reference path, so
-        # it preempts other work, below the generator and the pair.
-        self.realtime_scheduling(below=2)
         self._grid = grid(values)
         self.law = build_learning_law(values)
         self._kt = values["nominal.torque_constant_Nm_per_A"]
@@ -115,30 +115,9 @@ class LearningNode(ServoNode):
         self._correction_codec = msgs.joint_codec(
             self._correction_topic, axis=self._axis, period_ns_=self._period_ns
         )
-        self._correction_pub = self.publisher(self._correction_topic)
-        self._stats_pub = self.publisher("learning/cycle_stats")
-        outputs = [
-            (
-                self._correction_pub,
-                self._correction_topic,
-                values["wait_for_correction_subscribers"],
-            ),
-            (self._stats_pub, "learning/cycle_stats", values["wait_for_stats_subscribers"]),
-        ]
-        # What a projection-based law identified, recorded with the stats.
-        self._parameters_pub = self._table_pub = None
-        if "learning/parameters" in law_outputs:
-            self._parameters_pub = self.publisher("learning/parameters")
-            outputs.append(
-                (self._parameters_pub, "learning/parameters", values["wait_for_stats_subscribers"])
-            )
-        if "learning/friction_table" in law_outputs:
-            self._table_pub = self.publisher("learning/friction_table")
-            outputs.append(
-                (self._table_pub, "learning/friction_table", values["wait_for_stats_subscribers"])
-            )
-        self._gate = StreamGate(
-            window=stream_window(values["mode"] == "lockstep"),
+        outputs = self._make_publishers(law_outputs)
+        self._gate = stream_gate(
+            values["mode"] == "lockstep",
             first=None if values["late_join"] else 0,
             limit=self._steps,
             stride=self._stride,
@@ -150,14 +129,38 @@ class LearningNode(ServoNode):
         # only after its own outputs are matched means that nothing it
         # publishes is lost to a reader still being discovered.
         self.state_subscribed = False
-        self.after_consumers_matched(outputs, self._subscribe_state)
+        self.graph.after_consumers_matched(outputs, self._subscribe_state)
+
+    def _make_publishers(self, law_outputs: Any) -> list[tuple[Any, str, int]]:
+        """The node's publishers, each with its topic and the consumers it waits for."""
+        values = self.values
+        self._correction_pub = self.publisher(self._correction_topic)
+        self._stats_pub = self.publisher("learning/cycle_stats")
+        stats = values["wait_for_stats_subscribers"]
+        outputs = [
+            (
+                self._correction_pub,
+                self._correction_topic,
+                values["wait_for_correction_subscribers"],
+            ),
+            (self._stats_pub, "learning/cycle_stats", stats),
+        ]
+        # What a projection-based law identified, recorded with the stats.
+        self._parameters_pub = self._table_pub = None
+        if "learning/parameters" in law_outputs:
+            self._parameters_pub = self.publisher("learning/parameters")
+            outputs.append((self._parameters_pub, "learning/parameters", stats))
+        if "learning/friction_table" in law_outputs:
+            self._table_pub = self.publisher("learning/friction_table")
+            outputs.append((self._table_pub, "learning/friction_table", stats))
+        return outputs
 
     def _subscribe_state(self) -> None:
         # raw: only the samples learned from are decoded; the gate sees only
         # those, once they are known valid.
         # A late joiner takes no history: it resumes from what comes next.
         qos = LATE_JOIN_QOS if self._v["late_join"] else None
-        self.subscribe(
+        self.inputs.subscribe(
             "state", self._decode_state, self._on_state, raw=True, gate=self._gate, qos=qos
         )
         self.state_subscribed = True
@@ -193,7 +196,7 @@ class LearningNode(ServoNode):
         return self._state_codec.decode(data)
 
     def _on_state(self, state: msgs.StateSample | None) -> None:
-        self.start_realtime()
+        self.realtime.start()
         if state is None:
             return
         cycle, idx = divmod(state.step // self._stride, self._nd)

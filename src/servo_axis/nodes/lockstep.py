@@ -1,9 +1,11 @@
 """The lockstep stepping logic of the nodes, without rclpy (testable as plain objects).
 
-* :func:`stream_window`: how far a per-sample stream may jump
-  (:class:`servo_axis.wire.streams.StreamGate` takes the stamps);
+* :func:`stream_gate`: the gate through which a node takes a per-sample
+  stream (:class:`servo_axis.wire.streams.StreamGate`; :func:`stream_window`:
+  how far it may jump);
 * :class:`PeerWatch`: since when a lockstep node's producer is gone (the only
-  case in which it stops waiting for it);
+  case in which it stops waiting for it), and :func:`waited_too_long`: when a
+  wait for a peer ends;
 * :class:`FlowControl`: the plant never runs more than a lag ahead of what
   the recorder has acknowledged, and ends only when it has everything;
 * :class:`SampleBuffer`: samples that came ahead (the feedforward's preview)
@@ -18,6 +20,8 @@ import math
 from typing import Generic, TypeVar
 
 import numpy as np
+
+from servo_axis.wire.streams import StreamGate
 
 S = TypeVar("S")
 
@@ -37,10 +41,23 @@ def stream_window(lockstep: bool) -> int:
     return 1 if lockstep else REALTIME_WINDOW
 
 
+def stream_gate(
+    lockstep: bool, *, first: int | None = 0, limit: int | None = None, stride: int = 1
+) -> StreamGate:
+    """The gate through which a node takes a per-sample stream (every node's, in one place).
+
+    Exactly the next sample in lockstep; in realtime at most
+    :data:`REALTIME_WINDOW` samples ahead of the last one taken (a stamp
+    further ahead is refused as in lockstep). ``first``, ``limit`` and
+    ``stride`` are the :class:`~servo_axis.wire.streams.StreamGate`'s.
+    """
+    return StreamGate(window=stream_window(lockstep), first=first, limit=limit, stride=stride)
+
+
 class PeerWatch:
     """Whether, and since when, a peer (a topic's publisher) is gone.
 
-    A watchdog calls :meth:`look` with :meth:`ServoNode.peer_alive`'s answer;
+    A watchdog calls :meth:`look` with :meth:`~servo_axis.nodes.inputs.Inputs.peer_alive`'s answer;
     :meth:`gone_for` is how long the peer has been gone without interruption
     (0 while it lives; a peer never seen is gone from the first look), and
     :attr:`lost_at` when a peer seen alive went away (it may be back since:
@@ -71,6 +88,37 @@ class PeerWatch:
     def forget(self) -> None:
         """Clear :attr:`lost_at` (the wait it mattered for is over)."""
         self.lost_at = None
+
+
+def waited_too_long(
+    peer: PeerWatch,
+    *,
+    waiting_since: float,
+    timeout_s: float,
+    now: float,
+    name: str,
+    lockstep: bool,
+) -> str | None:
+    """Why a wait for ``peer`` (called ``name``) has lasted too long, or None to go on waiting.
+
+    ``waiting_since`` is when the wait began, or when the plant last moved
+    during it. Realtime: the plant stood still for ``timeout_s``. Lockstep:
+    the peer has been gone for ``timeout_s``, or it went away during the
+    wait (a respawned peer may not deliver what the dead one owed) and the
+    plant has then stood still for ``timeout_s``; while it lives, never.
+    """
+    if not lockstep:
+        still = now - waiting_since
+        return f"the plant stood still for {still:.3g} s" if still > timeout_s else None
+    if peer.gone_for(now) > timeout_s:
+        return f"the {name} has been gone for {peer.gone_for(now):.3g} s"
+    if peer.lost_at is not None:
+        still = now - max(waiting_since, peer.lost_at)
+        if still > timeout_s:
+            return (
+                f"the {name} went away during the wait and the plant stood still for {still:.3g} s"
+            )
+    return None
 
 
 class FlowControl:

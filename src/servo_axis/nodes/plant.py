@@ -32,23 +32,20 @@ command timeouts), and only once the recorder has been gone that long does
 it switch flow control off (a fallback).
 Realtime: the plant publishes state 0 and, once its command is in (the loop
 has closed once, every node has its inputs: a clock started earlier counts
-misses of a loop still starting up), a thread of the plant's own steps at
-absolute deadlines ``d_j = start + j T_u`` of the monotonic clock (``start``:
-the arrival of command 0) (it sleeps until shortly
-before each, then spins to it; an rclpy timer slips), so the executor's
-callbacks never delay a tick by more than the interpreter's switch interval,
-set short. A command that has not arrived by its tick's deadline is a
-deadline miss and the newest current received is held, as a drive holds its
-last set-point: a command that arrives after its deadline is not applied
-for its own step but replaces the held value (it is newer than what is
-held), and the miss was counted at the tick. A tick that wakes more than a
-period late runs at once with those that are due (:mod:`servo_axis.core.deadlines`).
-The command arrives in the executor's thread: the state both threads touch
-is guarded by a lock. The garbage collector is off while the clock runs
-(start-up objects are frozen, :func:`servo_axis.nodes.runtime.run_main`),
-with a young-generation collection every :data:`GC_EVERY_TICKS` ticks where
-the next deadline leaves room. The plant's report (``realtime``) holds the
-ticks, the misses and the lateness of ticks and commands (p50, p99, max).
+misses of a loop still starting up), a thread of the plant's own
+(:class:`~servo_axis.nodes.realtime.ClockThread`) steps at absolute
+deadlines ``d_j = start + j T_u`` of the monotonic clock (``start``: the
+arrival of command 0). A command that has not arrived by its tick's
+deadline is a deadline miss and the newest current received is held, as a
+drive holds its last set-point (:class:`~servo_axis.nodes.realtime.HeldSetPoint`):
+a command that arrives after its deadline is not applied for its own step
+but replaces the held value (it is newer than what is held), and the miss
+was counted at the tick. A tick that wakes more than a period late runs at
+once with those that are due (:mod:`servo_axis.core.deadlines`). The
+command arrives in the executor's thread: the state both threads touch is
+guarded by a lock. The plant's report (``realtime``) holds the ticks, the
+misses and the lateness of ticks and commands (p50, p99, max;
+:class:`~servo_axis.nodes.realtime.ClockRecord`).
 
 Run: ``python -m servo_axis.nodes.plant --ros-args --params-file config/<scenario>.yaml``
 """
@@ -56,20 +53,16 @@ Run: ``python -m servo_axis.nodes.plant --ros-args --params-file config/<scenari
 from __future__ import annotations
 
 import copy
-import gc
-import sys
 import threading
 import time
 from typing import Any
 
-import numpy as np
-
-from servo_axis.core import deadlines
 from servo_axis.core.drive import current_from_torque
 from servo_axis.core.errors import ParameterFileError, SignalError
-from servo_axis.core.models.base import PlantOutput
+from servo_axis.core.models.base import Plant, PlantOutput
 from servo_axis.nodes.base import ServoNode
 from servo_axis.nodes.lockstep import FlowControl, PeerWatch
+from servo_axis.nodes.realtime import ClockRecord, ClockThread, HeldSetPoint
 from servo_axis.nodes.runtime import run_main, steady_clock
 from servo_axis.params.factories import build_plant, plant_model, run_steps
 from servo_axis.wire import messages as msgs
@@ -82,21 +75,6 @@ FINISH_TIMEOUT_S = 10.0
 #: the feedback is gone: the executor stays free for the recorder and for a
 #: feedback that comes back.
 ZERO_STEPS_PER_LOOK = 100
-#: Realtime: the clock thread sleeps until this long before a deadline, then
-#: spins to it, releasing the GIL (time.sleep wakes up to ~100 us late on a
-#: loaded host, even with the thread's timer slack at 1 us).
-SPIN_NS = 200_000
-#: The same under SCHED_FIFO (``thread_priority``), where a sleep wakes within
-#: tens of us: a shorter spin, because a realtime thread's busy time counts
-#: against the kernel's realtime budget (95 % of each second; past it every
-#: realtime thread is stopped for the remaining 50 ms).
-SPIN_FIFO_NS = 50_000
-#: Realtime: the interpreter's switch interval while the clock runs, s: how
-#: long the clock thread may wait for the GIL held by a callback (default 5 ms).
-SWITCH_INTERVAL_S = 5e-5
-#: Realtime: a young-generation collection every this many ticks, when the
-#: next deadline is at least half a period away.
-GC_EVERY_TICKS = 256
 
 
 def state_sample(out: PlantOutput) -> msgs.StateSample:
@@ -112,19 +90,22 @@ def state_sample(out: PlantOutput) -> msgs.StateSample:
     )
 
 
-def _least_timer_slack() -> None:
-    """Linux: the calling thread's sleeps end within 1 us of their time, not 50 us (best effort)."""
-    try:
-        import ctypes
+def warm_up(plant: Plant) -> None:
+    """Load (or compile) the model's compiled kernels, on a copy of ``plant``.
 
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(29, 1000, 0, 0, 0)  # PR_SET_TIMERSLACK, ns
-    except (OSError, AttributeError):
-        pass
+    They load on their first call: now, while the nodes discover each other,
+    not in the first step (0.2-0.5 s: a realtime clock's first tick, or a
+    lockstep run's wall time, which counts from state 0).
+    """
+    spare = copy.deepcopy(plant)
+    for _ in range(3):
+        spare.step(0.0)
 
 
 class PlantNode(ServoNode):
     """Plant simulator; see the module docstring for its protocol."""
+
+    realtime_below = 0  # the per-sample pair
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("plant", **kwargs)
@@ -134,13 +115,7 @@ class PlantNode(ServoNode):
                 "parameter 'use_sim_time': the plant owns the clock; set it false"
             )
         self.plant = build_plant(values)
-        # The compiled kernels load (or compile) on their first call: on a
-        # copy, now, while the nodes discover each other, not in the first
-        # step (0.2-0.5 s: a realtime clock's first tick, or a lockstep run's
-        # wall time, which counts from state 0).
-        spare = copy.deepcopy(self.plant)
-        for _ in range(3):
-            spare.step(0.0)
+        warm_up(self.plant)
         for warning in plant_model(values["model"]).warnings(values):
             self.get_logger().warning(f"parameter check: {warning}")
         self._axis = values["axis"]
@@ -149,7 +124,6 @@ class PlantNode(ServoNode):
         self._lockstep = values["mode"] == "lockstep"
         self._kt = values["torque_constant_Nm_per_A"]
         self._v = values
-        self.realtime_scheduling()
         self._flow = FlowControl(
             enabled=values["flow_control"],
             max_lag_steps=values["max_recorder_lag_steps"],
@@ -166,26 +140,23 @@ class PlantNode(ServoNode):
 
         self.done = False
         self.started = False
-        self._awaiting: int | None = None  # step whose command we wait for
-        self._command: float | None = None
+        self._awaiting: int | None = None  # lockstep: step whose command we wait for
+        self._command: float | None = None  # lockstep: its current, once in
         self._published = 0  # states 0 .. _published - 1 are out
         self._feedback = PeerWatch()
         self._recorder = PeerWatch()
         self._feedback_gone_step: int | None = None  # first step of a zero-current fallback
-        self._last_current = 0.0
-        self._held_step = -1  # step of the command whose current is held
         self._finishing = False
-        self._deadline_misses = 0
         self._timeouts = 0
         self._finish_started = 0.0
         self._first_step_s = 0.0  # time.monotonic() when state 0 went out
-        self.subscribe(
+        self.inputs.subscribe(
             "command",
             lambda data: self._awaited_command(command_codec.decode(data)),
             self._on_command,
             raw=True,
         )
-        self.subscribe(
+        self.inputs.subscribe(
             "recorder/progress",
             lambda m: self._plausible_progress(
                 msgs.labelled_array_values(m, msgs.PROGRESS_LABELS)[0]
@@ -194,16 +165,14 @@ class PlantNode(ServoNode):
         )
 
         self._start_timer = self.create_timer(0.01, self._try_start, clock=steady_clock())
-        # Realtime: the clock thread and what it shares with the executor's thread.
+        # Realtime: the clock thread, what it records, the set-point it applies,
+        # and the lock on what it shares with the executor's thread.
         self._lock = threading.Lock()
-        self._rt_thread: threading.Thread | None = None
-        self._rt_stop = threading.Event()
-        self._rt_error: BaseException | None = None
-        self._rt_start_ns = 0
-        self._command_arrival_ns = 0
-        self._tick_late_ns = np.full(self._steps + 1, np.nan)  # by tick j (1 .. steps)
-        self._command_late_ns = np.full(self._steps, np.nan)  # by step k (0 .. steps - 1)
-        self._last_tick_ns = 0
+        self.clock_record = ClockRecord(steps=self._steps, period_ns=self._period_ns)
+        self._setpoint = HeldSetPoint()
+        self._clock_thread = ClockThread(
+            period_ns=self._period_ns, tick=self._realtime_tick, name="plant-clock"
+        )
         self.create_timer(0.05, self._watchdog, clock=steady_clock())
 
     # -- start ---------------------------------------------------------------
@@ -214,7 +183,7 @@ class PlantNode(ServoNode):
             ("done", self.done),
             ("step", self.plant.step_index),
             ("steps", self._steps),
-            ("deadline_misses", self._deadline_misses),
+            ("deadline_misses", self.clock_record.misses),
             ("command_timeouts", self._timeouts),
         ]
 
@@ -223,18 +192,18 @@ class PlantNode(ServoNode):
         return int(self.plant.step_index) * self._period_ns
 
     def _connected(self) -> bool:
-        v = self._v
-        if not self.consumers_matched(self._state_pub, "state", v["wait_for_state_subscribers"]):
+        v, graph = self._v, self.graph
+        if not graph.consumers_matched(self._state_pub, "state", v["wait_for_state_subscribers"]):
             return False
-        if not self.consumers_matched(
+        if not graph.consumers_matched(
             self._status_pub, "plant/status", v["wait_for_status_subscribers"]
         ):
             return False
-        if self._clock_pub is not None and not self.consumers_matched(
+        if self._clock_pub is not None and not graph.consumers_matched(
             self._clock_pub, "/clock", v["wait_for_clock_subscribers"]
         ):
             return False
-        if not (self.input_matched("command") and self.answerer_listens("command", "state")):
+        if not (self.inputs.matched("command") and graph.answerer_listens("command", "state")):
             # Whoever answers state[k] must be there before step 0: a stranger
             # subscribed to state, or an outside reference generator that
             # answers state too, must not stand in for a feedback node that
@@ -256,19 +225,11 @@ class PlantNode(ServoNode):
             self._publish(self.plant.output())
             self._awaiting = 0
             return
-        sys.setswitchinterval(SWITCH_INTERVAL_S)
+        self._clock_thread.prepare()
         # State 0 goes out; the clock starts when its command is in (the
         # loop has closed once: every node has its inputs), d_0 = then.
         with self._lock:
             self._publish(self.plant.output())
-
-    def _start_clock(self, now_ns: int) -> None:
-        """Realtime: the first command is in at ``now_ns``: d_0, and the clock thread starts."""
-        self._rt_start_ns = now_ns
-        self._rt_thread = threading.Thread(
-            target=self._realtime_loop, name="plant-clock", daemon=True
-        )
-        self._rt_thread.start()
 
     # -- input checks (nothing changes before a message is known good) ----------
     def _awaited_command(self, cmd: msgs.CommandSample) -> msgs.CommandSample:
@@ -281,21 +242,16 @@ class PlantNode(ServoNode):
 
     def _checked_command(self, cmd: msgs.CommandSample) -> msgs.CommandSample:
         expected = self.plant.step_index
-        if self._lockstep:
-            if self._awaiting is None:
-                raise SignalError(f"not waiting for a command (step {cmd.step})")
-            if cmd.step < expected:
-                raise SignalError(f"stale stamp (step {cmd.step}, expected {expected})")
-            if cmd.step > expected:
-                raise SignalError(
-                    f"stamp ahead of the stream (step {cmd.step}, expected {expected})"
-                )
-            if self._command is not None:
-                raise SignalError(f"a second command for step {cmd.step}")
-        elif not self._held_step < cmd.step <= expected:
-            when = "stale" if cmd.step <= self._held_step else "future"
-            raise SignalError(f"{when} stamp (step {cmd.step}, expected {expected})")
-        elif cmd.step == expected and self._command is not None:
+        if not self._lockstep:
+            self._setpoint.check(cmd.step, expected)
+            return cmd
+        if self._awaiting is None:
+            raise SignalError(f"not waiting for a command (step {cmd.step})")
+        if cmd.step < expected:
+            raise SignalError(f"stale stamp (step {cmd.step}, expected {expected})")
+        if cmd.step > expected:
+            raise SignalError(f"stamp ahead of the stream (step {cmd.step}, expected {expected})")
+        if self._command is not None:
             raise SignalError(f"a second command for step {cmd.step}")
         return cmd
 
@@ -322,19 +278,13 @@ class PlantNode(ServoNode):
             return
         with self._lock:
             now = time.monotonic_ns()
-            k = cmd.step
-            if self._rt_thread is None:
-                self.start_realtime()  # the clock thread inherits it
-                self._start_clock(now)  # command 0: the only one the plant can wait for
-            if 0 <= k < self._steps:
-                self._command_late_ns[k] = now - (self._rt_start_ns + k * self._period_ns)
-            if k < self.plant.step_index:
-                # Late (its tick has run), but newer than the held current: it replaces it.
-                if k > self._held_step:
-                    self._last_current, self._held_step = current, k
-                return
-            self._command = current
-            self._command_arrival_ns = now
+            if not self._clock_thread.started:
+                # Command 0, the only one the plant can wait for: d_0 = now.
+                self.realtime.start()  # the clock thread inherits it
+                self.clock_record.start_ns = now
+                self._clock_thread.start(now, fifo=self.realtime.fifo)
+            self.clock_record.arrived(cmd.step, now)
+            self._setpoint.arrived(cmd.step, current, now, self.plant.step_index)
 
     def _on_progress(self, recorded: int) -> None:
         if self._lockstep:
@@ -348,56 +298,68 @@ class PlantNode(ServoNode):
                 self._advance()
 
     def _watchdog(self) -> None:
-        if self._rt_error is not None:
-            raise RuntimeError(f"the plant's realtime clock failed: {self._rt_error!r}")
+        """Every 50 ms: the clock thread's failure, the peers, the end, the fallbacks."""
+        if self._clock_thread.error is not None:
+            raise RuntimeError(f"the plant's realtime clock failed: {self._clock_thread.error!r}")
         now = time.monotonic()
-        grace = self._v["command_timeout_s"]
-        self._feedback.look(self.peer_alive("command"), now)
-        self._recorder.look(self.peer_alive("recorder/progress"), now)
+        self._feedback.look(self.inputs.peer_alive("command"), now)
+        self._recorder.look(self.inputs.peer_alive("recorder/progress"), now)
         if self.done:
             return
-        recorder_gone = self._recorder.gone_for(now)
-        if self._lockstep and self._waits_for_recorder() and recorder_gone > grace:
-            # A gone recorder gets command_timeout_s to come back; while it
-            # lives the plant waits for it however long it takes.
-            self._flow.enabled = False
-            self.fallback(
-                "recorder_gone",
-                self.plant.step_index,
-                f"the recorder (recorder/progress) has been gone for {recorder_gone:.3g} s at "
-                f"{self._flow.recorded} steps acknowledged: flow control off",
-            )
-            self._advance()
+        if self._lockstep and self._recorder_gone(now):
             return
         if self._finishing:
-            if self._lockstep and not self.health.fallbacks:
-                if now - self._finish_started > FINISH_TIMEOUT_S:
-                    self.get_logger().warning(
-                        f"waiting for the recorder: {self._flow.recorded} of {self._steps} steps "
-                        "acknowledged (it lives)"
-                    )
-                    self._finish_started = now
-                return
-            # Realtime, or a run that already went on by a fallback (whose
-            # commands the recorder may never get): stop after FINISH_TIMEOUT_S.
+            self._watch_the_end(now)
+        elif self._lockstep and self._awaiting is not None and self._command is None:
+            self._answer_for_a_gone_feedback(now)
+
+    def _recorder_gone(self, now: float) -> bool:
+        """Lockstep: flow control off (a fallback) once the recorder it waits for is gone."""
+        gone = self._recorder.gone_for(now)
+        if not (self._waits_for_recorder() and gone > self._v["command_timeout_s"]):
+            # A gone recorder gets command_timeout_s to come back; while it
+            # lives the plant waits for it however long it takes.
+            return False
+        self._flow.enabled = False
+        self.report.fallback(
+            "recorder_gone",
+            self.plant.step_index,
+            f"the recorder (recorder/progress) has been gone for {gone:.3g} s at "
+            f"{self._flow.recorded} steps acknowledged: flow control off",
+        )
+        self._advance()
+        return True
+
+    def _watch_the_end(self, now: float) -> None:
+        """After the last step: wait for the recorder (lockstep: while it lives)."""
+        if self._lockstep and not self.report.health.fallbacks:
             if now - self._finish_started > FINISH_TIMEOUT_S:
-                self.get_logger().error(
-                    f"recorder acknowledged {self._flow.recorded} of {self._steps} steps within "
-                    f"{FINISH_TIMEOUT_S} s; stopping anyway"
+                self.get_logger().warning(
+                    f"waiting for the recorder: {self._flow.recorded} of {self._steps} steps "
+                    "acknowledged (it lives)"
                 )
-                self.done = True
+                self._finish_started = now
             return
-        if not self._lockstep or self._awaiting is None or self._command is not None:
-            return
+        # Realtime, or a run that already went on by a fallback (whose
+        # commands the recorder may never get): stop after FINISH_TIMEOUT_S.
+        if now - self._finish_started > FINISH_TIMEOUT_S:
+            self.get_logger().error(
+                f"recorder acknowledged {self._flow.recorded} of {self._steps} steps within "
+                f"{FINISH_TIMEOUT_S} s; stopping anyway"
+            )
+            self.done = True
+
+    def _answer_for_a_gone_feedback(self, now: float) -> None:
+        """Lockstep: zero current (a fallback) for the steps of a feedback gone for good."""
         gone = self._feedback.gone_for(now)
-        if gone <= grace:
+        if gone <= self._v["command_timeout_s"]:
             # While the feedback lives, wait for its command however long it takes.
             self._feedback_gone_step = None
             return
         step = self._awaiting
         if self._feedback_gone_step is None:
             self._feedback_gone_step = step
-            self.fallback(
+            self.report.fallback(
                 "command_timeout",
                 step,
                 f"the feedback (command) has been gone for {gone:.3g} s: zero current from "
@@ -442,87 +404,28 @@ class PlantNode(ServoNode):
         self._awaiting = out.step
         self._publish(out)
 
-    def _realtime_loop(self) -> None:
-        """The clock thread: tick ``j`` at ``d_j`` until the last step or a stop."""
-        period, start = self._period_ns, self._rt_start_ns
-        fifo = self.scheduling is not None and self.scheduling["policy"] == "fifo"
-        spin = SPIN_FIFO_NS if fifo else SPIN_NS
-        clock, sleep = time.monotonic_ns, time.sleep
-        _least_timer_slack()
-        gc.disable()
-        try:
-            tick = 1
-            while not self._rt_stop.is_set():
-                deadline = start + tick * period
-                now = clock()
-                if now < deadline:
-                    pause = deadlines.sleep_s(now, deadline, spin)
-                    if pause > 0.0:
-                        sleep(pause)
-                    while clock() < deadline:
-                        sleep(0)  # spin, but let the executor's thread have the GIL
-                if self._realtime_tick(tick, deadline):
-                    break
-                tick += 1
-                if tick % GC_EVERY_TICKS == 0 and deadline + period - clock() > period // 2:
-                    gc.collect(0)
-        except BaseException as err:  # reported by the watchdog, in the executor's thread
-            self._rt_error = err
-        finally:
-            gc.enable()
-
     def _realtime_tick(self, tick: int, deadline: int) -> bool:
-        """Step ``tick`` (due at ``deadline``, ns); True after the last step."""
+        """The clock thread's tick ``tick`` (due at ``deadline``, ns); True after the last step."""
         with self._lock:
             if self._finishing:
                 return True
-            now = time.monotonic_ns()
-            self._tick_late_ns[tick] = now - deadline
-            self._last_tick_ns = now
-            command, self._command = self._command, None
-            if command is not None and deadlines.command_on_time(
-                self._command_arrival_ns, deadline
-            ):
-                current = command
-            else:
-                self._deadline_misses += 1
-                current = self._last_current
-            if command is not None:
-                # On time, or after the deadline yet before the tick ran: the
-                # newest current, held from now on.
-                self._held_step = self.plant.step_index
-                self._last_current = command
+            self.clock_record.ticked(tick, deadline, time.monotonic_ns())
+            current, on_time = self._setpoint.take(deadline, self.plant.step_index)
+            if not on_time:
+                self.clock_record.misses += 1
             out = self.plant.step(current)
             if out.step >= self._steps:
-                self.health.realtime = self.realtime_report()
+                self.report.health.realtime = self.clock_record.report(
+                    self.plant.step_index, self.realtime.applied
+                )
                 self._finish()
                 return True
             self._publish(out)
             return False
 
-    def realtime_report(self) -> dict[str, Any]:
-        """The clock's ticks, deadline misses and lateness (``health.realtime``)."""
-        ticks = self.plant.step_index
-        command_late = self._command_late_ns[:ticks]
-        return {
-            "period_ns": self._period_ns,
-            "ticks": int(ticks),
-            "misses": int(self._deadline_misses),
-            "commands_missing": int(np.count_nonzero(np.isnan(command_late))),
-            "commands_late": int(np.count_nonzero(command_late > self._period_ns)),
-            "timer_rate": deadlines.timer_rate(
-                ticks, self._period_ns, self._rt_start_ns, self._last_tick_ns
-            ),
-            "tick_late_us": deadlines.lateness_stats(self._tick_late_ns[1 : ticks + 1]),
-            "command_late_us": deadlines.lateness_stats(command_late),
-            "scheduling": self.scheduling,
-        }
-
     def close(self) -> None:
         """Stop the clock thread (a run stopped from outside), then the base's close."""
-        self._rt_stop.set()
-        if self._rt_thread is not None:
-            self._rt_thread.join(timeout=2.0)
+        self._clock_thread.stop()
         super().close()
 
     def _finish(self) -> None:
@@ -537,7 +440,7 @@ class PlantNode(ServoNode):
         self._finish_started = time.monotonic()
         # The run's wall time is its steps': the start-up before state 0 and
         # the wait for the recorder after the last step are the runner's.
-        self.health.stepping = {
+        self.report.health.stepping = {
             "steps": self._steps,
             "first_s": self._first_step_s,
             "last_s": self._finish_started,
@@ -563,8 +466,8 @@ class PlantNode(ServoNode):
                 msgs.STATUS_LABELS,
                 [
                     self.plant.step_index,
-                    self._deadline_misses,
-                    self.health.rejected.get("command", 0),
+                    self.clock_record.misses,
+                    self.report.health.rejected.get("command", 0),
                     self._timeouts,
                 ],
             )

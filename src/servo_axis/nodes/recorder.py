@@ -137,7 +137,6 @@ class RecorderNode(ServoNode):
         # acknowledged, so it cannot move the plant's flow control).
         self._gates: dict[str, tuple[str, StreamGate]] = {}
         self._gone: set[str] = set()
-        window = 1 if values["mode"] == "lockstep" else 100
         self._period_ns = msgs.period_ns(values["control_period_s"])
         self._axis = values["axis"]
         self._subs: dict[str, Any] = {}
@@ -145,39 +144,7 @@ class RecorderNode(ServoNode):
         self._topics = list(topics)
         self.timeline = SimTimeline()
         for topic, type_name, cls in zip(topics, types, classes, strict=True):
-            name = self.resolve_topic_name(topic)
-            latched = topic in values["latched_topics"]
-            self.writer.add_topic(
-                name, type_name, qos_text=LATCHED_QOS_TEXT if latched else DEFAULT_QOS
-            )
-            self._counts[name] = 0
-            if topic in values["counted_topics"]:
-                self._counted.append(name)
-                if topic not in STEP_STREAMS:
-                    raise ParameterFileError(
-                        f"parameter 'counted_topics': {topic!r} is not a per-sample stream "
-                        f"(one of {sorted(STEP_STREAMS)})"
-                    )
-                self._gates[name] = (topic, StreamGate(window=window, first=0, limit=self._steps))
-            qos = LATCHED_READ_QOS if topic in values["latched_topics"] else STREAM_QOS
-            stamp = stamp_reader(type_name)
-            if topic in ARRAY_STREAMS:
-                # A vector of one step carries the step: logged at its time.
-                stamp = self._array_step_ns(topic)
-            # The loop's own streams move the timeline; the reference runs ahead.
-            clock = stamp is clock_ns_from_cdr or topic in ("state", "command")
-            events = (
-                SubscriptionEventCallbacks(liveliness=self._liveliness(name))
-                if name in self._gates
-                else None
-            )
-
-            # Made once the topic has a publisher, with the profile that matches
-            # it (an outside node's default QoS too: ServoNode.when_published).
-            callback = self._callback(name, stamp, clock=clock)
-            self.when_published(
-                topic, qos, functools.partial(self._subscribe_raw, topic, cls, callback, events)
-            )
+            self._record(topic, type_name, cls)
         self.recorded = -1
         self.messages_taken = 0
         self._ready_timer = self.create_timer(0.01, self._check_ready, clock=steady_clock())
@@ -186,6 +153,44 @@ class RecorderNode(ServoNode):
         )
         self.create_timer(0.5, self._check_gone, clock=steady_clock())
         self._closed = False
+
+    def _record(self, topic: str, type_name: str, cls: Any) -> None:
+        """Record ``topic`` (``type_name``, message class ``cls``): its bag topic, its
+        count (and gate, if counted), its subscription once it is published."""
+        values = self._v
+        name = self.resolve_topic_name(topic)
+        latched = topic in values["latched_topics"]
+        self.writer.add_topic(
+            name, type_name, qos_text=LATCHED_QOS_TEXT if latched else DEFAULT_QOS
+        )
+        self._counts[name] = 0
+        if topic in values["counted_topics"]:
+            self._counted.append(name)
+            if topic not in STEP_STREAMS:
+                raise ParameterFileError(
+                    f"parameter 'counted_topics': {topic!r} is not a per-sample stream "
+                    f"(one of {sorted(STEP_STREAMS)})"
+                )
+            window = 1 if values["mode"] == "lockstep" else 100
+            self._gates[name] = (topic, StreamGate(window=window, first=0, limit=self._steps))
+        qos = LATCHED_READ_QOS if latched else STREAM_QOS
+        stamp = stamp_reader(type_name)
+        if topic in ARRAY_STREAMS:
+            # A vector of one step carries the step: logged at its time.
+            stamp = self._array_step_ns(topic)
+        # The loop's own streams move the timeline; the reference runs ahead.
+        clock = stamp is clock_ns_from_cdr or topic in ("state", "command")
+        events = (
+            SubscriptionEventCallbacks(liveliness=self._liveliness(name))
+            if name in self._gates
+            else None
+        )
+        # Made once the topic has a publisher, with the profile that matches
+        # it (an outside node's default QoS too: Inputs.when_published).
+        callback = self._callback(name, stamp, clock=clock)
+        self.inputs.when_published(
+            topic, qos, functools.partial(self._subscribe_raw, topic, cls, callback, events)
+        )
 
     def _callback(self, name: str, stamp: Callable[[bytes], int] | None, *, clock: bool) -> Any:
         writer = self.writer
@@ -221,7 +226,7 @@ class RecorderNode(ServoNode):
                     )
                     gate.accept(step)
                 except SignalError as err:
-                    self.reject(topic, f"{topic} recorded but not counted: {err}")
+                    self.report.reject(topic, f"{topic} recorded but not counted: {err}")
                     return
                 self._update_progress()
 
@@ -245,7 +250,7 @@ class RecorderNode(ServoNode):
         counts (an outside feedback need not publish ``fault`` before it trips).
         """
         entry = topics_table.BY_NAME.get(topic)
-        if entry is None or entry.producer not in self.external_roles:
+        if entry is None or not self.graph.is_outside(entry.producer):
             return True
         return topic in self._v["counted_topics"] or topic in self._v["final_topics"]
 
@@ -259,7 +264,7 @@ class RecorderNode(ServoNode):
 
     def _check_ready(self) -> None:
         if self._v["wait_for_publishers"] and not all(
-            self.input_matched(t, self._subs.get(t)) if t in self._subs else False
+            self.inputs.matched(t, self._subs.get(t)) if t in self._subs else False
             for t in self._topics
             if self._required(t)
         ):
@@ -296,7 +301,7 @@ class RecorderNode(ServoNode):
             # start-up too (measured: publisher_gone at step 0 with 2.1 s of
             # start-up), while it lives.
             lapsed = info.alive_count == 0 and info.not_alive_count_change > 0
-            if lapsed and not self.published_in_process(name):
+            if lapsed and not self.graph.published_in_process(name):
                 self._publisher_gone(name)
             elif info.alive_count > 0:
                 self._gone.discard(name)
@@ -326,7 +331,7 @@ class RecorderNode(ServoNode):
         # The producer is gone: its stream stops being counted (what it
         # published is on disk), so the rest of the run is recorded.
         self._gone.add(name)
-        self.fallback(
+        self.report.fallback(
             "publisher_gone",
             self._recorded_steps(name),
             f"the publisher of {name} is gone; its stream is no longer counted",

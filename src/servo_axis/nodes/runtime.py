@@ -1,4 +1,4 @@
-"""What every node process shares: QoS profiles, the executor, the main() wrapper."""
+"""What every node process shares: QoS profiles and message types, the executor, the main() wrapper."""
 
 from __future__ import annotations
 
@@ -21,9 +21,13 @@ from rclpy.qos import (
     ReliabilityPolicy,
 )
 from rclpy.signals import SignalHandlerOptions
+from rosgraph_msgs.msg import Clock as ClockMsg
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
 
 from servo_axis.core.errors import ServoAxisError
 from servo_axis.stop_signals import catch_stop_signals, restore_handlers
+from servo_axis.wire import topics
 
 #: Seconds after which a publisher whose process stopped asserting its
 #: liveliness (it died, or hangs) counts as gone for its subscribers: the
@@ -67,6 +71,28 @@ LATCHED_QOS = _reliable(1, DurabilityPolicy.TRANSIENT_LOCAL)
 #: took it, and the plant never started (measured: every run with a junk
 #: publisher already on the domain).
 LATCHED_READ_QOS = _reliable(STREAM_QOS.depth, DurabilityPolicy.TRANSIENT_LOCAL)
+
+#: What a publisher of the table offers, by the table's QoS name.
+QOS: dict[str, QoSProfile] = {"stream": STREAM_QOS, "latched": LATCHED_QOS}
+#: What the subscriptions ask for (a deep queue on latched topics too).
+READER_QOS: dict[str, QoSProfile] = {"stream": STREAM_QOS, "latched": LATCHED_READ_QOS}
+#: The message class of each type of the table.
+MESSAGE_CLASSES: dict[str, type] = {
+    topics.JOINT_STATE: JointState,
+    topics.FLOAT64_MULTI_ARRAY: Float64MultiArray,
+    topics.CLOCK: ClockMsg,
+}
+
+
+def topic_qos(name: str) -> QoSProfile:
+    """The QoS profile of a topic of the table (its publisher's)."""
+    return QOS[topics.topic(name).qos]
+
+
+def reader_qos(name: str) -> QoSProfile:
+    """The QoS profile a subscription to a topic of the table asks for."""
+    return READER_QOS[topics.topic(name).qos]
+
 
 #: Seconds of lease above which an offered liveliness lease counts as none
 #: (rmw reports "infinite" as about 9.2e9 s).
@@ -171,55 +197,6 @@ def make_executor(context: rclpy.context.Context | None = None) -> rclpy.executo
     from rclpy.experimental import EventsExecutor
 
     return EventsExecutor(context=context)
-
-
-def realtime_scheduling(priority: int) -> dict[str, object]:
-    """Put every thread of this process under ``SCHED_FIFO`` at ``priority`` (1-99; 0: leave it).
-
-    The realtime per-sample pair (plant and feedback) asks for it, as
-    ros2_control's controller manager does with its ``thread_priority``: the
-    middleware's receive threads, the executor and the plant's clock then
-    preempt everything else on the host (the recorder, the learning unit,
-    other users' work). Threads made later inherit it. Where the system
-    refuses (no ``CAP_SYS_NICE``, an ``RLIMIT_RTPRIO`` below ``priority``, not
-    Linux), nothing changes and the reason is returned.
-
-    Returns
-    -------
-    dict
-        ``{"policy": "fifo", "priority": p, "threads": n}``, or
-        ``{"policy": "other", "priority": 0}`` plus ``"refused": reason``.
-    """
-    if priority <= 0:
-        return {"policy": "other", "priority": 0}
-    done: list[int] = []
-    try:
-        for tid in sorted(int(t) for t in os.listdir("/proc/self/task")):
-            os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(priority))
-            done.append(tid)
-    except (OSError, AttributeError) as err:
-        for tid in done:  # all or nothing
-            try:
-                os.sched_setscheduler(tid, os.SCHED_OTHER, os.sched_param(0))
-            except OSError:
-                pass
-        return {"policy": "other", "priority": 0, "refused": f"{type(err).__name__}: {err}"}
-    return {"policy": "fifo", "priority": priority, "threads": len(done)}
-
-
-class Throttle:
-    """At most one log line per ``period_s`` of wall time for a repeated complaint."""
-
-    def __init__(self, period_s: float = 1.0) -> None:
-        self._period = period_s
-        self._last = -1e18
-
-    def ready(self) -> bool:
-        now = time.monotonic()
-        if now - self._last >= self._period:
-            self._last = now
-            return True
-        return False
 
 
 def spin_nodes(nodes: Sequence[Node], done: Callable[[], bool]) -> None:
@@ -330,42 +307,12 @@ def run_main(
     once, so a callback under way (a stop in the middle of a run) would fail
     to publish and log a traceback.
     """
-    import re
-    import tempfile
-
     from rclpy.exceptions import NameValidationException, ParameterException
     from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 
-    from servo_axis.params.scenario import check_params_files
-
-    def refuse(problem: object) -> int:
-        # rcl's messages carry C source locations (", at /project/src/...:271").
-        text = re.sub(r",? at \S+:\d+", "", " ".join(str(problem).split()))
-        print(f"{name}: {text}", file=sys.stderr, flush=True)
-        return EXIT_BAD_CONFIG
-
-    try:
-        check_params_files(sys.argv if args is None else args)
-    except ServoAxisError as err:
-        return refuse(err)
-    # rcl logs its own line on stderr before it raises: hold stderr while it
-    # reads the arguments, and pass on what it wrote only if it succeeded.
-    refused: Exception | None = None
-    sys.stderr.flush()
-    saved = os.dup(2)
-    with tempfile.TemporaryFile() as held:
-        os.dup2(held.fileno(), 2)
-        try:
-            rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-        except _rclpy.RCLError as err:
-            refused = err
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
-        if refused is not None:
-            return refuse(f"bad ROS arguments or parameter file: {refused}")
-        held.seek(0)
-        os.write(2, held.read())
+    refused = _init(args)
+    if refused is not None:
+        return _refuse(name, refused)
     stop_requested: list[int] = []
     previous = catch_stop_signals(stop_requested)
     nodes: list[Node] = []
@@ -375,7 +322,7 @@ def run_main(
             try:
                 nodes.append(factory())
             except (_rclpy.RCLError, ParameterException, NameValidationException) as err:
-                return refuse(err)
+                return _refuse(name, err)
             if stop_requested:
                 return code
         # Start-up made every long-lived object (modules, models, messages):
@@ -383,19 +330,9 @@ def run_main(
         # scans only what the run allocates (no multi-ms pause mid-run).
         gc.collect()
         gc.freeze()
-        profile_dir = os.environ.get("SERVO_AXIS_PROFILE")
-        profiler = None
-        if profile_dir:  # scripts/benchmark.py --budget: where a step's time goes
-            import cProfile
-
-            profiler = cProfile.Profile()
-            profiler.enable()
-        try:
-            spin_nodes(nodes, lambda: bool(stop_requested) or (done is not None and done(nodes)))
-        finally:
-            if profiler is not None:
-                profiler.disable()
-                profiler.dump_stats(os.path.join(profile_dir or ".", f"{name}.{os.getpid()}.prof"))
+        _spin_profiled(
+            name, nodes, lambda: bool(stop_requested) or (done is not None and done(nodes))
+        )
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except ServoAxisError as err:
@@ -410,3 +347,66 @@ def run_main(
         rclpy.try_shutdown()
         restore_handlers(previous)
     return code
+
+
+def _refuse(name: str, problem: object) -> int:
+    """One line on stderr for what the node refused; :data:`EXIT_BAD_CONFIG`."""
+    import re
+
+    # rcl's messages carry C source locations (", at /project/src/...:271").
+    text = re.sub(r",? at \S+:\d+", "", " ".join(str(problem).split()))
+    print(f"{name}: {text}", file=sys.stderr, flush=True)
+    return EXIT_BAD_CONFIG
+
+
+def _init(args: list[str] | None) -> str | ServoAxisError | None:
+    """rclpy initialised with ``args`` (the parameter files checked first); what it refused, or None.
+
+    rcl logs its own line on stderr before it raises: stderr is held while it
+    reads the arguments, and what it wrote is passed on only if it succeeded.
+    """
+    import tempfile
+
+    from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+
+    from servo_axis.params.scenario import check_params_files
+
+    try:
+        check_params_files(sys.argv if args is None else args)
+    except ServoAxisError as err:
+        return err
+    refused: Exception | None = None
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as held:
+        os.dup2(held.fileno(), 2)
+        try:
+            rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+        except _rclpy.RCLError as err:
+            refused = err
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        if refused is not None:
+            return f"bad ROS arguments or parameter file: {refused}"
+        held.seek(0)
+        os.write(2, held.read())
+    return None
+
+
+def _spin_profiled(name: str, nodes: Sequence[Node], done: Callable[[], bool]) -> None:
+    """:func:`spin_nodes`, under cProfile into ``$SERVO_AXIS_PROFILE`` if set
+    (``scripts/benchmark.py --budget``: where a step's time goes)."""
+    profile_dir = os.environ.get("SERVO_AXIS_PROFILE")
+    profiler = None
+    if profile_dir:
+        import cProfile
+
+        profiler = cProfile.Profile()
+        profiler.enable()
+    try:
+        spin_nodes(nodes, done)
+    finally:
+        if profiler is not None:
+            profiler.disable()
+            profiler.dump_stats(os.path.join(profile_dir or ".", f"{name}.{os.getpid()}.prof"))

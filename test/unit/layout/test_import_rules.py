@@ -4,7 +4,8 @@ Function-local imports count as much as module-level ones: an import circle
 hidden inside a function is still a circle.
 
 * no import circle between the modules of ``servo_axis``;
-* no node module imports another node module (the composed container aside);
+* no node module imports a role's node module (the composed container aside),
+  and a role's parts (``nodes/<role>_*.py``) are imported by that role only;
 * ``servo_axis.core`` imports nothing of the project outside ``core``, and
   nothing but numpy, scipy, numba (only ``core.kernels``, which compiles the
   kernels) and the standard library;
@@ -16,7 +17,8 @@ hidden inside a function is still a circle.
   finds its own extensions by entry point, as it finds an outside package's;
 * ``simulate``, ``analysis``, ``friction_id``, ``gms_fit``, ``params``, ``plugins``,
   ``study``, ``wire.topics``, ``wire.layouts``, ``wire.checks``, ``wire.streams``,
-  ``wire.cdr``, ``wire.sample_cdr`` and ``recording.reader`` reach no rclpy and no ROS message
+  ``wire.cdr``, ``wire.sample_cdr``, ``recording.reader``, ``nodes.lockstep`` and
+  ``nodes.realtime`` reach no rclpy and no ROS message
   package, directly or through other modules of the project.
 """
 
@@ -102,16 +104,14 @@ def test_no_import_circle() -> None:
             visit(name)
 
 
+#: The node of each role (``nodes/<role>.py``); a role's own parts are ``nodes/<role>_*.py``.
+ROLES = ("plant", "feedback", "feedforward", "learning", "identifier", "recorder")
+
+
 def test_no_node_module_imports_another() -> None:
     nodes = {m for m in MODULES if m.startswith("servo_axis.nodes.")}
-    shared = {
-        "servo_axis.nodes.base",
-        "servo_axis.nodes.runtime",
-        "servo_axis.nodes.lockstep",
-        "servo_axis.nodes.parameters",
-        "servo_axis.nodes.diagnostics",
-    }
-    roles = nodes - shared - {"servo_axis.nodes.composed"}
+    roles = {f"servo_axis.nodes.{r}" for r in ROLES}
+    assert roles <= nodes
     for name in sorted(nodes - {"servo_axis.nodes.composed"}):
         assert not (GRAPH[name] & roles), f"{name} imports {sorted(GRAPH[name] & roles)}"
 
@@ -136,6 +136,21 @@ def test_the_kernel_modules_are_found() -> None:
         "servo_axis.core.friction.gms_kernels",
         "servo_axis.core.identification.kernels",
     } <= set(KERNEL_MODULES)
+
+
+def test_a_roles_parts_are_imported_by_that_role_only() -> None:
+    """``nodes/feedforward_estimates.py`` is the feedforward's, used by no other module;
+    the shared parts of every node (``base``, ``inputs``, ...) belong to no role."""
+    parts = {
+        m: role for m in MODULES for role in ROLES if m.startswith(f"servo_axis.nodes.{role}_")
+    }
+    assert "servo_axis.nodes.feedforward_estimates" in parts
+    for name in sorted(MODULES):
+        for part in sorted(GRAPH[name] & set(parts)):
+            owner = f"servo_axis.nodes.{parts[part]}"
+            assert name in (owner, part) or name.startswith(f"{owner}_"), (
+                f"{name} imports {part}, a part of {owner}"
+            )
 
 
 def test_core_imports_only_core_numpy_scipy_numba_and_the_standard_library() -> None:
@@ -215,6 +230,8 @@ ROS_FREE = [
     "servo_axis.wire.cdr",
     "servo_axis.wire.sample_cdr",
     "servo_axis.recording.reader",
+    "servo_axis.nodes.lockstep",
+    "servo_axis.nodes.realtime",
     *sorted(
         m
         for m in MODULES

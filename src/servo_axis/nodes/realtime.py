@@ -1,0 +1,407 @@
+"""What a node does in realtime mode: its scheduling, the plant's clock, deadlines kept.
+
+Nothing here imports rclpy (the numbers are :mod:`servo_axis.core.deadlines`'):
+
+* :class:`RealtimeScheduling`: which threads of a node get a realtime
+  priority, and when (:func:`realtime_priority`, :func:`fifo_every_thread`).
+* :class:`ClockThread`: the thread that ticks at absolute deadlines
+  ``d_j = start + j T_u`` of the monotonic clock (the plant's clock).
+* :class:`ClockRecord`: a clock's ticks, its misses and the lateness of the
+  ticks and of the arrivals they wait for (the plant's ``realtime`` report).
+* :class:`HeldSetPoint`: the current a drive applies at a tick: the command
+  of the step if it arrived by the deadline, else the newest one received.
+* :class:`CatchUp`: which states a node that fell behind still answers.
+"""
+
+from __future__ import annotations
+
+import gc
+import os
+import sys
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from servo_axis.core import deadlines
+from servo_axis.core.errors import SignalError
+
+#: The clock thread sleeps until this long before a deadline, then spins to
+#: it, releasing the GIL (time.sleep wakes up to ~100 us late on a loaded
+#: host, even with the thread's timer slack at 1 us).
+SPIN_NS = 200_000
+#: The same under SCHED_FIFO (``thread_priority``), where a sleep wakes within
+#: tens of us: a shorter spin, because a realtime thread's busy time counts
+#: against the kernel's realtime budget (95 % of each second; past it every
+#: realtime thread is stopped for the remaining 50 ms).
+SPIN_FIFO_NS = 50_000
+#: The interpreter's switch interval while a clock runs, s: how long the
+#: clock thread may wait for the GIL held by a callback (default 5 ms).
+SWITCH_INTERVAL_S = 5e-5
+#: A young-generation collection every this many ticks, when the next
+#: deadline is at least half a period away.
+GC_EVERY_TICKS = 256
+
+
+# -- scheduling -------------------------------------------------------------------------
+def realtime_priority(*, mode: str, thread_priority: int, below: int | None) -> int | None:
+    """The ``SCHED_FIFO`` priority a node asks for, or None for the default scheduler.
+
+    Parameters
+    ----------
+    mode : str
+        ``lockstep`` (nothing waits on the wall clock: None) or ``realtime``.
+    thread_priority : int
+        The pair's priority (the ``thread_priority`` parameter, 0-99; 0: None).
+    below : int or None
+        How far below the pair the node's work is (plant and feedback 0, the
+        feedforward generator 1, the learning unit and the identifier 2; at
+        least priority 1); None: a node that never asks (the recorder).
+    """
+    if below is None or mode == "lockstep" or thread_priority <= 0:
+        return None
+    return max(1, thread_priority - below)
+
+
+def fifo_every_thread(priority: int) -> dict[str, object]:
+    """Put every thread of this process under ``SCHED_FIFO`` at ``priority`` (1-99; 0: leave it).
+
+    The realtime per-sample pair (plant and feedback) asks for it, as
+    ros2_control's controller manager does with its ``thread_priority``: the
+    middleware's receive threads, the executor and the plant's clock then
+    preempt everything else on the host (the recorder, the learning unit,
+    other users' work). Threads made later inherit it. Where the system
+    refuses (no ``CAP_SYS_NICE``, an ``RLIMIT_RTPRIO`` below ``priority``, not
+    Linux), nothing changes and the reason is returned.
+
+    Returns
+    -------
+    dict
+        ``{"policy": "fifo", "priority": p, "threads": n}``, or
+        ``{"policy": "other", "priority": 0}`` plus ``"refused": reason``.
+    """
+    if priority <= 0:
+        return {"policy": "other", "priority": 0}
+    done: list[int] = []
+    try:
+        for tid in sorted(int(t) for t in os.listdir("/proc/self/task")):
+            os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(priority))
+            done.append(tid)
+    except (OSError, AttributeError) as err:
+        for tid in done:  # all or nothing
+            try:
+                os.sched_setscheduler(tid, os.SCHED_OTHER, os.sched_param(0))
+            except OSError:
+                pass
+        return {"policy": "other", "priority": 0, "refused": f"{type(err).__name__}: {err}"}
+    return {"policy": "fifo", "priority": priority, "threads": len(done)}
+
+
+class RealtimeScheduling:
+    """A node's realtime priority: asked for at start-up, applied once the run starts.
+
+    Start-up (discovery, matching, loading the compiled kernels) runs at the
+    default scheduler: realtime threads that saturate a small host while the
+    others are still being set up can starve them (a run on 2 cores once
+    never started). So the node calls :meth:`start` when its first
+    per-sample input arrives (the plant: its first command, just before its
+    clock thread starts, which inherits it).
+
+    Parameters
+    ----------
+    priority : int or None
+        From :func:`realtime_priority`; None: nothing to do.
+    warn : callable
+        Where a refusal is said (one line).
+    apply : callable
+        What applies a priority (:func:`fifo_every_thread`: every thread of
+        the process).
+    """
+
+    def __init__(
+        self,
+        priority: int | None,
+        *,
+        warn: Callable[[str], Any],
+        apply: Callable[[int], dict[str, object]] = fifo_every_thread,
+    ) -> None:
+        self._pending = priority
+        self._warn = warn
+        self._apply = apply
+        #: What :meth:`start` got (``fifo_every_thread``'s answer); None before, or never asked.
+        self.applied: dict[str, object] | None = None
+
+    @property
+    def fifo(self) -> bool:
+        """Whether the node's threads run under ``SCHED_FIFO``."""
+        return self.applied is not None and self.applied["policy"] == "fifo"
+
+    def start(self) -> None:
+        """Apply the priority asked for (a warning if refused), once; later calls do nothing."""
+        priority = self._pending
+        if priority is None:
+            return
+        self._pending = None
+        got = self._apply(priority)
+        self.applied = got
+        if "refused" in got:
+            self._warn(
+                f"thread_priority {priority}: refused ({got['refused']}); the default scheduler"
+            )
+
+
+# -- the clock -------------------------------------------------------------------------
+def _least_timer_slack() -> None:
+    """Linux: the calling thread's sleeps end within 1 us of their time, not 50 us (best effort)."""
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(29, 1000, 0, 0, 0)  # PR_SET_TIMERSLACK, ns
+    except (OSError, AttributeError):
+        pass
+
+
+class ClockThread:
+    """A thread that calls ``tick(j, d_j)`` at ``d_j = start + j period`` (monotonic ns), j = 1, 2, ...
+
+    It sleeps until shortly before each deadline, then spins to it (an rclpy
+    timer slips), so the executor's callbacks never delay a tick by more
+    than the interpreter's switch interval (:meth:`prepare`). A tick that
+    wakes more than a period late runs at once with those that are due.
+    The garbage collector is off while it runs (start-up objects are
+    frozen, :func:`servo_axis.nodes.runtime.run_main`), with a
+    young-generation collection every :data:`GC_EVERY_TICKS` ticks where
+    the next deadline leaves room. It ends when ``tick`` returns True, on
+    :meth:`stop`, or when ``tick`` raises (kept in :attr:`error`).
+
+    Parameters
+    ----------
+    period_ns : int
+        The period, ns, > 0.
+    tick : callable
+        ``tick(j, deadline_ns) -> bool``: True after the last one.
+    name : str
+        The thread's name.
+    """
+
+    def __init__(self, *, period_ns: int, tick: Callable[[int, int], bool], name: str) -> None:
+        self.period_ns = period_ns
+        self._tick = tick
+        self._name = name
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self.start_ns = 0
+        #: What ``tick`` raised, if it did (the thread then ended).
+        self.error: BaseException | None = None
+
+    @staticmethod
+    def prepare() -> None:
+        """Before the run: the interpreter's switch interval short (:data:`SWITCH_INTERVAL_S`)."""
+        sys.setswitchinterval(SWITCH_INTERVAL_S)
+
+    @property
+    def started(self) -> bool:
+        return self._thread is not None
+
+    def start(self, start_ns: int, *, fifo: bool) -> None:
+        """Start ticking from ``d_0 = start_ns`` (tick 1 at ``start_ns + period``).
+
+        ``fifo``: the thread runs under ``SCHED_FIFO`` (it spins less).
+        """
+        self.start_ns = start_ns
+        spin_ns = SPIN_FIFO_NS if fifo else SPIN_NS
+        self._thread = threading.Thread(
+            target=self._run, args=(spin_ns,), name=self._name, daemon=True
+        )
+        self._thread.start()
+
+    def stop(self, timeout_s: float = 2.0) -> None:
+        """Stop after the tick under way (if running), waiting at most ``timeout_s``."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=timeout_s)
+
+    def _run(self, spin_ns: int) -> None:
+        period, start = self.period_ns, self.start_ns
+        clock, sleep = time.monotonic_ns, time.sleep
+        _least_timer_slack()
+        gc.disable()
+        try:
+            tick = 1
+            while not self._stop.is_set():
+                deadline = start + tick * period
+                now = clock()
+                if now < deadline:
+                    pause = deadlines.sleep_s(now, deadline, spin_ns)
+                    if pause > 0.0:
+                        sleep(pause)
+                    while clock() < deadline:
+                        sleep(0)  # spin, but let the executor's thread have the GIL
+                if self._tick(tick, deadline):
+                    break
+                tick += 1
+                if tick % GC_EVERY_TICKS == 0 and deadline + period - clock() > period // 2:
+                    gc.collect(0)
+        except BaseException as err:  # the node reports it, in the executor's thread
+            self.error = err
+        finally:
+            gc.enable()
+
+
+class ClockRecord:
+    """A realtime clock's ticks and the arrivals it waits for, against its deadlines.
+
+    Tick ``j`` is due at ``d_j = start + j T``; the input that answers state
+    ``k`` (the plant's command ``k``) is late by its arrival minus ``d_k``,
+    so that later than one period is a missed deadline
+    (:mod:`servo_axis.core.deadlines`).
+
+    Parameters
+    ----------
+    steps : int
+        Steps of the run (ticks 1 .. steps, arrivals 0 .. steps - 1).
+    period_ns : int
+        The control period ``T``, ns.
+    """
+
+    def __init__(self, *, steps: int, period_ns: int) -> None:
+        self.steps = steps
+        self.period_ns = period_ns
+        self.start_ns = 0
+        self.misses = 0
+        self.last_tick_ns = 0
+        self._tick_late_ns = np.full(steps + 1, np.nan)  # by tick j (1 .. steps)
+        self._arrival_late_ns = np.full(steps, np.nan)  # by step k (0 .. steps - 1)
+
+    def arrived(self, step: int, now_ns: int) -> None:
+        """The input of ``step`` arrived at ``now_ns`` (a step outside the run is not kept)."""
+        if 0 <= step < self.steps:
+            self._arrival_late_ns[step] = now_ns - (self.start_ns + step * self.period_ns)
+
+    def ticked(self, tick: int, deadline_ns: int, now_ns: int) -> None:
+        """Tick ``tick``, due at ``deadline_ns``, ran at ``now_ns``."""
+        self._tick_late_ns[tick] = now_ns - deadline_ns
+        self.last_tick_ns = now_ns
+
+    def report(self, ticks: int, scheduling: dict[str, object] | None) -> dict[str, Any]:
+        """The figures of the first ``ticks`` ticks (the plant's ``health.realtime``)."""
+        late = self._arrival_late_ns[:ticks]
+        return {
+            "period_ns": self.period_ns,
+            "ticks": int(ticks),
+            "misses": int(self.misses),
+            "commands_missing": int(np.count_nonzero(np.isnan(late))),
+            "commands_late": int(np.count_nonzero(late > self.period_ns)),
+            "timer_rate": deadlines.timer_rate(
+                ticks, self.period_ns, self.start_ns, self.last_tick_ns
+            ),
+            "tick_late_us": deadlines.lateness_stats(self._tick_late_ns[1 : ticks + 1]),
+            "command_late_us": deadlines.lateness_stats(late),
+            "scheduling": scheduling,
+        }
+
+
+class HeldSetPoint:
+    """The current a drive applies at each tick, as a drive holds its last set-point.
+
+    A command that has arrived by its tick's deadline is applied at that
+    tick; otherwise the tick is a deadline miss and the newest current
+    received is held. A command that arrives after its tick ran is not
+    applied for its own step but replaces the held value if it is newer than
+    what is held.
+    """
+
+    def __init__(self) -> None:
+        self.pending: float | None = None  # the command of the step the next tick applies
+        self.arrival_ns = 0
+        self.held = 0.0
+        self.held_step = -1  # step of the command whose current is held
+
+    def check(self, step: int, expected: int) -> None:
+        """Raise :class:`SignalError` unless a command of ``step`` may be taken now.
+
+        ``expected``: the step the next tick applies (the plant's step); a
+        command not newer than the held one, ahead of ``expected``, or a
+        second one for ``expected`` is refused.
+        """
+        if not self.held_step < step <= expected:
+            when = "stale" if step <= self.held_step else "future"
+            raise SignalError(f"{when} stamp (step {step}, expected {expected})")
+        if step == expected and self.pending is not None:
+            raise SignalError(f"a second command for step {step}")
+
+    def arrived(self, step: int, current_A: float, now_ns: int, expected: int) -> None:
+        """A checked command of ``step`` (``current_A``) arrived at ``now_ns``."""
+        if step < expected:
+            # Late (its tick has run), but newer than the held current: it replaces it.
+            if step > self.held_step:
+                self.held, self.held_step = current_A, step
+            return
+        self.pending = current_A
+        self.arrival_ns = now_ns
+
+    def take(self, deadline_ns: int, step: int) -> tuple[float, bool]:
+        """The current for the tick of ``step`` due at ``deadline_ns``, and whether it was on time."""
+        command, self.pending = self.pending, None
+        on_time = command is not None and deadlines.command_on_time(self.arrival_ns, deadline_ns)
+        current = command if on_time and command is not None else self.held
+        if command is not None:
+            # On time, or after the deadline yet before the tick ran: the
+            # newest current, held from now on.
+            self.held_step = step
+            self.held = command
+        return current, on_time
+
+
+class CatchUp:
+    """Realtime: which states a node answers once it has fallen behind its plant's clock.
+
+    Every state goes through the loop, in order, but a state whose answer
+    could no longer reach the plant in time to be used
+    (:func:`~servo_axis.core.deadlines.answer_useful`: after a stall, while
+    newer states wait in the queue) is not answered, so that the node
+    catches up with the clock instead of answering a backlog; it still
+    answers at least every ``gap`` steps, and always ``last_step``. The
+    deadlines are those of the plant's clock as the states' arrivals show
+    it (:func:`~servo_axis.core.deadlines.start_estimate_ns`: never before
+    its start, so a useful answer is never skipped).
+
+    Parameters
+    ----------
+    period_ns : int
+        The control period, ns.
+    last_step : int
+        The run's last step (always answered: the recorder counts to it).
+    gap : int
+        The most steps between two answered states, >= 1.
+    """
+
+    def __init__(self, *, period_ns: int, last_step: int, gap: int) -> None:
+        self.period_ns = period_ns
+        self.last_step = last_step
+        self.gap = gap
+        self.start_ns: int | None = None  # the plant clock's d_0 as the states show it
+        self.answered = -1
+        #: States not answered.
+        self.skipped = 0
+
+    def arrived(self, step: int, now_ns: int) -> None:
+        """State ``step`` arrived at ``now_ns``: the estimate of the clock's start follows it."""
+        self.start_ns = deadlines.start_estimate_ns(self.start_ns, now_ns, step, self.period_ns)
+
+    def answer(self, step: int, now_ns: int) -> bool:
+        """Whether state ``step`` is answered now (else counted in :attr:`skipped`)."""
+        if (
+            self.start_ns is not None
+            and step < self.last_step
+            and not deadlines.answer_useful(
+                now_ns, self.start_ns, self.period_ns, step, self.answered, self.gap
+            )
+        ):
+            self.skipped += 1
+            return False
+        self.answered = step
+        return True

@@ -1,0 +1,214 @@
+"""A node's realtime parts without ROS: its priority, the clock thread, its record, the held
+set-point, catching up."""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from servo_axis.core import deadlines
+from servo_axis.core.errors import SignalError
+from servo_axis.nodes.realtime import (
+    CatchUp,
+    ClockRecord,
+    ClockThread,
+    HeldSetPoint,
+    RealtimeScheduling,
+    realtime_priority,
+)
+
+
+def test_only_a_realtime_run_asks_for_a_priority_and_each_role_below_the_pair() -> None:
+    assert realtime_priority(mode="lockstep", thread_priority=50, below=0) is None
+    assert realtime_priority(mode="realtime", thread_priority=0, below=0) is None
+    assert realtime_priority(mode="realtime", thread_priority=50, below=None) is None
+    assert realtime_priority(mode="realtime", thread_priority=50, below=0) == 50
+    assert realtime_priority(mode="realtime", thread_priority=50, below=2) == 48
+    assert realtime_priority(mode="realtime", thread_priority=2, below=2) == 1  # at least 1
+
+
+def test_the_priority_is_applied_once_when_the_run_starts() -> None:
+    asked: list[int] = []
+    warnings: list[str] = []
+
+    def apply(priority: int) -> dict[str, object]:
+        asked.append(priority)
+        return {"policy": "fifo", "priority": priority, "threads": 3}
+
+    scheduling = RealtimeScheduling(49, warn=warnings.append, apply=apply)
+    assert scheduling.applied is None and not scheduling.fifo and asked == []
+    scheduling.start()
+    scheduling.start()
+    assert asked == [49] and scheduling.fifo and scheduling.applied == apply(49)
+    assert warnings == []
+
+
+def test_a_refused_priority_leaves_the_default_scheduler_and_says_why() -> None:
+    warnings: list[str] = []
+    refused = {"policy": "other", "priority": 0, "refused": "PermissionError: no"}
+    scheduling = RealtimeScheduling(50, warn=warnings.append, apply=lambda p: refused)
+    scheduling.start()
+    assert not scheduling.fifo and scheduling.applied == refused
+    assert warnings == ["thread_priority 50: refused (PermissionError: no); the default scheduler"]
+    never = RealtimeScheduling(None, warn=warnings.append, apply=lambda p: refused)
+    never.start()
+    assert never.applied is None and len(warnings) == 1
+
+
+def test_the_clock_thread_ticks_in_order_never_before_a_deadline() -> None:
+    period_ns = 2_000_000
+    seen: list[tuple[int, int, int]] = []
+
+    last = threading.Event()
+
+    def tick(j: int, deadline_ns: int) -> bool:
+        seen.append((j, deadline_ns, time.monotonic_ns()))
+        if j == 20:
+            last.set()
+        return j == 20
+
+    clock = ClockThread(period_ns=period_ns, tick=tick, name="test-clock")
+    assert not clock.started
+    start = time.monotonic_ns()
+    clock.start(start, fifo=False)
+    assert last.wait(5.0)
+    time.sleep(5 * period_ns * 1e-9)  # no tick after the last one
+    clock.stop(timeout_s=5.0)
+    assert clock.started and clock.error is None
+    assert [j for j, _, _ in seen] == list(range(1, 21))
+    assert [d for _, d, _ in seen] == [start + j * period_ns for j in range(1, 21)]
+    assert all(now >= d for _, d, now in seen)
+
+
+def test_a_tick_that_raises_ends_the_clock_and_is_kept() -> None:
+    def tick(j: int, deadline_ns: int) -> bool:
+        raise ZeroDivisionError("model blew up")
+
+    clock = ClockThread(period_ns=1_000_000, tick=tick, name="test-clock")
+    clock.start(time.monotonic_ns(), fifo=True)
+    deadline = time.monotonic() + 5.0
+    while clock.error is None and time.monotonic() < deadline:
+        time.sleep(0.001)
+    assert isinstance(clock.error, ZeroDivisionError)
+    clock.stop(timeout_s=5.0)
+
+
+def test_stop_ends_a_running_clock() -> None:
+    ticks = threading.Event()
+
+    def tick(j: int, deadline_ns: int) -> bool:
+        ticks.set()
+        return False  # never the last one
+
+    clock = ClockThread(period_ns=1_000_000, tick=tick, name="test-clock")
+    clock.start(time.monotonic_ns(), fifo=False)
+    assert ticks.wait(5.0)
+    t0 = time.monotonic()
+    clock.stop(timeout_s=5.0)
+    assert time.monotonic() - t0 < 1.0 and clock.error is None
+
+
+def test_the_clock_record_counts_what_came_late_or_never_against_the_deadlines() -> None:
+    period, start, steps = 1_000, 50_000, 6
+    record = ClockRecord(steps=steps, period_ns=period)
+    record.start_ns = start
+    arrivals = {0: 300, 1: 1_500, 3: 900, 4: 2_500}  # ns after the tick of their state
+    for k, late in arrivals.items():
+        record.arrived(k, start + k * period + late)
+    record.arrived(steps, start)  # beyond the run: not kept
+    tick_late = [0, 40, 10, 3_000, 5, 20, 7]  # tick j (1..6) ran this late
+    for j in range(1, steps + 1):
+        record.ticked(j, start + j * period, start + j * period + tick_late[j])
+    record.misses = 3
+    report = record.report(steps, {"policy": "other", "priority": 0})
+    late = np.array([arrivals.get(k, math.nan) for k in range(steps)])
+    assert report["ticks"] == steps and report["misses"] == 3 and report["period_ns"] == period
+    assert report["commands_missing"] == int(np.isnan(late).sum()) == 2
+    assert report["commands_late"] == int(np.sum(late > period)) == 2
+    assert report["command_late_us"] == deadlines.lateness_stats(late)
+    assert report["tick_late_us"] == deadlines.lateness_stats(tick_late[1:])
+    assert report["timer_rate"] == deadlines.timer_rate(
+        steps, period, start, start + steps * period + tick_late[steps]
+    )
+    assert report["scheduling"] == {"policy": "other", "priority": 0}
+
+
+def test_a_drive_applies_the_command_on_time_else_holds_the_newest() -> None:
+    """The sequence of test_realtime_plant_holds_the_newest_command_and_counts_misses,
+    without a plant: the deadline of step k's tick is 1000 (k + 1)."""
+    drive = HeldSetPoint()
+
+    def deadline(step: int) -> int:
+        return 1_000 * (step + 1)
+
+    applied, on_time = [], []
+
+    def tick(step: int) -> None:
+        current, ok = drive.take(deadline(step), step)
+        applied.append(current)
+        on_time.append(ok)
+
+    drive.check(0, 0)
+    drive.arrived(0, 1.0, 500, 0)  # on time
+    tick(0)
+    tick(1)  # nothing came: the held 1.0
+    drive.check(1, 2)
+    drive.arrived(1, 2.0, 2_500, 2)  # after tick 1 ran, newer than the held: held from now
+    tick(2)
+    drive.check(3, 3)
+    drive.arrived(3, 3.0, 3_500, 3)
+    tick(3)
+    with pytest.raises(SignalError, match=r"stale stamp \(step 2, expected 4\)"):
+        drive.check(2, 4)  # older than the held one
+    with pytest.raises(SignalError, match=r"future stamp \(step 5, expected 4\)"):
+        drive.check(5, 4)
+    tick(4)
+    drive.check(5, 5)
+    drive.arrived(5, 4.0, 5_900, 5)
+    with pytest.raises(SignalError, match="a second command for step 5"):
+        drive.check(5, 5)
+    tick(5)
+    assert applied == [1.0, 1.0, 2.0, 3.0, 3.0, 4.0]
+    assert on_time == [True, False, False, True, False, True]
+
+
+def test_a_command_that_came_before_the_tick_but_after_its_deadline_is_a_miss_yet_held() -> None:
+    drive = HeldSetPoint()
+    drive.arrived(0, 5.0, 1_200, 0)  # due at 1000: late, but the tick had not run
+    current, ok = drive.take(1_000, 0)
+    assert (current, ok) == (0.0, False)  # the miss applies the held value ...
+    assert drive.held == 5.0 and drive.held_step == 0  # ... and the late one is held on
+
+
+def test_catching_up_skips_exactly_what_answer_useful_says() -> None:
+    """After a stall the node answers only what can still be used, at least every
+    ``gap`` steps and always the last: the same decisions as the core's rule."""
+    period, gap, last = 1_000_000, 5, 60
+    catch_up = CatchUp(period_ns=period, last_step=last, gap=gap)
+    start = 10_000_000
+    rng = np.random.default_rng(3)
+    answered, expected = [], []
+    estimate, last_answered = None, -1
+    for k in range(last + 1):
+        # Steps 20-40 arrive in one burst after a stall of 25 periods.
+        arrival = start + (45 if 20 <= k <= 40 else k) * period + int(rng.integers(0, 300_000))
+        now = arrival + 50_000
+        catch_up.arrived(k, arrival)
+        estimate = deadlines.start_estimate_ns(estimate, arrival, k, period)
+        if catch_up.answer(k, now):
+            answered.append(k)
+        useful = (
+            k >= last
+            or estimate is None  # state[0]: nothing is known of the clock yet
+            or deadlines.answer_useful(now, estimate, period, k, last_answered, gap)
+        )
+        if useful:
+            expected.append(k)
+            last_answered = k
+    assert answered == expected
+    assert catch_up.skipped == last + 1 - len(answered) > 0
+    assert last in answered and max(np.diff(answered)) <= gap
