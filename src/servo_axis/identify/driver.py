@@ -318,26 +318,62 @@ def _tilting(record: Record, exc: Excitation, ident: Identification, template: d
     )
 
 
-def _friction_ball_screw(rec: Record, ident: Identification, template: dict[str, Any]) -> None:
+def _friction_data(
+    runs: list[Record], inertia_kgm2: float, damping_Nms_per_rad: float
+) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
+    """Angle, direction and friction torque ``K_T i - J a_r - D v_r`` of each slow-reversal run.
+
+    The estimate of :func:`servo_axis.friction_id.estimate_friction_torque`
+    (the friction identification of ``friction-table`` and ``gms-fit``),
+    with the identified ``J, D`` instead of the run's nominal ones.
+    """
     from servo_axis.friction_id import estimate_friction_torque
 
-    values = rec.plant_values()
-    ff = _ff_values(rec)
-    r = rec.lead_m_per_rad
-    torque = estimate_friction_torque(
-        reference_rad=rec.reference_rad,
-        motor_torque_Nm=rec.command_Nm,
-        period_s=rec.period_s,
-        inertia_kgm2=ident.plant.get("inertia_kgm2", ff["nominal.inertia_kgm2"]),
-        damping_Nms_per_rad=ident.plant.get("damping_Nms_per_rad", ff["nominal.damping_Nms_per_rad"]),
+    angles, directions, torques = [], [], []
+    for rec in runs:
+        if rec.excitation() is not None:
+            raise IdentifyError(f"--friction {rec.source}: an excitation run, expected a slow reversal")
+        torques.append(
+            estimate_friction_torque(
+                reference_rad=rec.reference_rad,
+                motor_torque_Nm=rec.command_Nm,
+                period_s=rec.period_s,
+                inertia_kgm2=inertia_kgm2,
+                damping_Nms_per_rad=damping_Nms_per_rad,
+            )
+        )
+        angles.append(rec.encoder_rad)
+        directions.append(np.sign(np.gradient(rec.reference_rad)))
+    return angles, directions, torques
+
+
+def _friction_curve(
+    ident: Identification, runs: list[Record], angles: list[np.ndarray], directions: list[np.ndarray],
+    torques: list[np.ndarray], fit: sysfit.Fit, elements: int,
+) -> None:
+    r = runs[0].lead_m_per_rad
+    model = sysfit.maxwell_slip_torque(
+        angles[0],
+        directions[0],
+        rolling_coulomb_Nm=fit.value("rolling_coulomb_Nm"),
+        presliding_width_m=fit.value("presliding_width_m"),
+        coulomb_Nm=fit.value("coulomb_Nm"),
+        lead_m_per_rad=r,
+        elements=elements,
     )
-    direction = np.sign(np.gradient(rec.reference_rad))
+    ident.friction = (runs[0].reference_rad * r, torques[0], model)
+
+
+def _friction_ball_screw(runs: list[Record], ident: Identification, template: dict[str, Any]) -> None:
+    r = runs[0].lead_m_per_rad
+    angles, directions, torques = _friction_data(
+        runs, ident.plant["inertia_kgm2"], ident.plant["damping_Nms_per_rad"]
+    )
     elements = int(template["friction.elements"])
     fit = sysfit.fit_maxwell_slip(
-        angle_rad=rec.encoder_rad, direction=direction, torque_Nm=torque, lead_m_per_rad=r, elements=elements
+        angle_rad=angles, direction=directions, torque_Nm=torques, lead_m_per_rad=r, elements=elements
     )
-    del values
-    source = f"slow reversal {rec.source} (Maxwell-slip + Coulomb law along the measured angle)"
+    source = f"{len(runs)} slow-reversal run(s) (Maxwell-slip + Coulomb law along the measured angle)"
     names = {
         "rolling_coulomb_Nm": "friction.rolling_coulomb_Nm",
         "presliding_width_m": "friction.presliding_width_m",
@@ -348,57 +384,48 @@ def _friction_ball_screw(rec: Record, ident: Identification, template: dict[str,
         ident.plant[key] = fit.value(name)
     ident.plant["friction.elements"] = elements
     ident.plant["friction.viscous_Nms_per_rad"] = 0.0
-    model = sysfit.maxwell_slip_torque(
-        rec.encoder_rad,
-        direction,
-        rolling_coulomb_Nm=fit.value("rolling_coulomb_Nm"),
-        presliding_width_m=fit.value("presliding_width_m"),
-        coulomb_Nm=fit.value("coulomb_Nm"),
-        lead_m_per_rad=r,
-        elements=elements,
+    ident.notes.append(
+        "friction.viscous_Nms_per_rad: viscous friction and the damping D are one term in the "
+        "data; D holds both, the viscous key is written 0"
     )
-    ident.friction = (rec.reference_rad * r, torque, model)
+    _friction_curve(ident, runs, angles, directions, torques, fit, elements)
 
 
-def _friction_elastic(rec: Record, ident: Identification, template: dict[str, Any]) -> None:
+def _friction_elastic(runs: list[Record], ident: Identification, template: dict[str, Any]) -> None:
     """Nut and guide friction: the total from the motor torque, the guide's share from the deformation."""
-    from servo_axis.friction_id import estimate_friction_torque
-
-    _require_scale(rec, "elastic_ball_screw")
-    r = rec.lead_m_per_rad
+    for rec in runs:
+        _require_scale(rec, "elastic_ball_screw")
+    r = runs[0].lead_m_per_rad
     jn = ident.plant["motor_inertia_kgm2"] + ident.plant["table_mass_kg"] * r * r
     bn = ident.plant["motor_damping_Nms_per_rad"] + ident.plant["table_damping_Ns_per_m"] * r * r
-    torque = estimate_friction_torque(
-        reference_rad=rec.reference_rad,
-        motor_torque_Nm=rec.command_Nm,
-        period_s=rec.period_s,
-        inertia_kgm2=jn,
-        damping_Nms_per_rad=bn,
-    )
-    direction = np.sign(np.gradient(rec.reference_rad))
+    angles, directions, torques = _friction_data(runs, jn, bn)
     elements = int(template["friction_elements"])
     fit = sysfit.fit_maxwell_slip(
-        angle_rad=rec.encoder_rad, direction=direction, torque_Nm=torque, lead_m_per_rad=r, elements=elements
+        angle_rad=angles, direction=directions, torque_Nm=torques, lead_m_per_rad=r, elements=elements
     )
-    total, width = fit.value("rolling_coulomb_Nm") + fit.value("coulomb_Nm"), fit.value("presliding_width_m")
-    # The guide's friction loads the screw: F_s = k_h (R th - x) = f_g + C_t v at a slow motion.
-    kh = next(k.value for k in ident.keys if k.key == "series_stiffness_N_per_m")
-    force = kh * (r * rec.encoder_rad - rec.scale_m) - ident.plant["table_damping_Ns_per_m"] * np.gradient(
-        rec.scale_m, rec.period_s
-    )
-    sliding = np.abs(np.gradient(rec.reference_rad)) > 0.5 * np.max(np.abs(np.gradient(rec.reference_rad)))
-    if sliding.sum() < 10:
-        raise IdentifyError(f"{rec.source}: expected a slow reversal with sliding stretches, got none")
-    # The deformation's offset (quantisation, initial) drops out of the difference of the branches.
-    up = sliding & (direction > 0)
-    down = sliding & (direction < 0)
-    if not up.any() or not down.any():
-        raise IdentifyError(f"{rec.source}: expected motion in both directions for the friction")
-    guide = 0.5 * float(np.mean(force[up]) - np.mean(force[down]))
-    guide_std = 0.5 * math.sqrt(np.var(force[up]) / up.sum() + np.var(force[down]) / down.sum())
-    guide = max(guide, 0.0)
+    total = fit.value("rolling_coulomb_Nm") + fit.value("coulomb_Nm")
+    width = fit.value("presliding_width_m")
+    # The guide's friction loads the screw: F_s = k_h (R th - x) = f_g + C_t v on a slow move;
+    # the deformation's offset (quantisation, the start) drops out of the branches' difference.
+    kh = ident.key("series_stiffness_N_per_m").value
+    ct = ident.plant["table_damping_Ns_per_m"]
+    up_force, down_force = [], []
+    for rec, sgn in zip(runs, directions, strict=True):
+        force = kh * (r * rec.encoder_rad - rec.scale_m) - ct * np.gradient(rec.scale_m, rec.period_s)
+        speed = np.abs(np.gradient(rec.reference_rad))
+        sliding = speed > 0.5 * speed.max()
+        up_force.append(force[sliding & (sgn > 0)])
+        down_force.append(force[sliding & (sgn < 0)])
+    up, down = np.concatenate(up_force), np.concatenate(down_force)
+    if up.size < 10 or down.size < 10:
+        raise IdentifyError(
+            f"--friction {runs[0].source}: expected sliding in both directions, got "
+            f"{up.size} and {down.size} samples"
+        )
+    guide = max(0.5 * float(np.mean(up) - np.mean(down)), 0.0)
+    guide_std = 0.5 * math.sqrt(np.var(up) / up.size + np.var(down) / down.size)
     nut = max(total - r * guide, 0.0)
-    source = f"slow reversal {rec.source}"
+    source = f"{len(runs)} slow-reversal run(s)"
     ident.plant.update(
         nut_friction_Nm=nut,
         nut_presliding_m=width,
@@ -416,16 +443,7 @@ def _friction_elastic(rec: Record, ident: Identification, template: dict[str, An
         "nut_presliding_m, guide_presliding_m: a slow reversal moves nut and table together, so "
         "only one pre-sliding width is in the data: both are written with it"
     )
-    model = sysfit.maxwell_slip_torque(
-        rec.encoder_rad,
-        direction,
-        rolling_coulomb_Nm=fit.value("rolling_coulomb_Nm"),
-        presliding_width_m=width,
-        coulomb_Nm=fit.value("coulomb_Nm"),
-        lead_m_per_rad=r,
-        elements=elements,
-    )
-    ident.friction = (rec.reference_rad * r, torque, model)
+    _friction_curve(ident, runs, angles, directions, torques, fit, elements)
 
 
 def _ff_values(rec: Record) -> dict[str, Any]:
@@ -438,7 +456,7 @@ def identify(
     model: str,
     runs: list[Record],
     *,
-    friction: Record | None = None,
+    friction: list[Record] | None = None,
     validation: Record | None = None,
 ) -> Identification:
     """Identify ``model``'s keys from the excitation run, the friction run and validate.
@@ -473,18 +491,16 @@ def identify(
         "torque_constant_Nm_per_A: the data relate the commanded torque to the motion, not "
         f"the current: written as the run's nominal K_T ({kt:g} N m/A)"
     )
-    if friction is not None:
-        if friction.excitation() is not None:
-            raise IdentifyError(f"--friction {friction.source}: an excitation run, expected a slow reversal")
+    if friction:
         try:
             if model == "ball_screw":
                 _friction_ball_screw(friction, ident, template)
             elif model == "elastic_ball_screw":
                 _friction_elastic(friction, ident, template)
             else:
-                ident.notes.append("--friction: the tilting table's C comes from its own fit; run not used")
+                ident.notes.append("--friction: the tilting table's C comes from its own fit; runs not used")
         except sysfit.IdentificationError as err:
-            raise IdentifyError(f"--friction {friction.source}: {err}") from None
+            raise IdentifyError(f"--friction {friction[0].source}: {err}") from None
     elif model != "tilting_table":
         ident.notes.append("friction: no slow-reversal run given (--friction): the template's keys written")
     if validation is not None:

@@ -535,72 +535,90 @@ def maxwell_slip_torque(
 
 def fit_maxwell_slip(
     *,
-    angle_rad: ArrayLike,
-    direction: ArrayLike,
-    torque_Nm: ArrayLike,
+    angle_rad: Sequence[ArrayLike],
+    direction: Sequence[ArrayLike],
+    torque_Nm: Sequence[ArrayLike],
     lead_m_per_rad: float,
     elements: int = 8,
 ) -> Fit:
-    """Fit rolling level, pre-sliding width and Coulomb level to a slow-reversal torque.
+    """Fit rolling level, pre-sliding width and Coulomb level to slow-reversal torques.
+
+    Each run is a segment of its own, the law starting from its virgin
+    state in each (a run starts at rest).
 
     Parameters
     ----------
-    angle_rad : array_like
-        The measured motor angle per sample, rad.
-    direction : array_like
+    angle_rad : sequence of array_like
+        The measured motor angle per sample of each run, rad.
+    direction : sequence of array_like
         The motion's direction per sample (+1, -1; 0 at rest).
-    torque_Nm : array_like
+    torque_Nm : sequence of array_like
         The friction torque estimate (:func:`servo_axis.friction_id.estimate_friction_torque`), N m.
     lead_m_per_rad : float
         ``R``, m/rad (the width is at the table).
     elements : int
         Maxwell-slip elements of the model.
     """
-    th = np.asarray(angle_rad, dtype=float)
-    sgn = np.asarray(direction, dtype=float)
-    tau = np.asarray(torque_Nm, dtype=float)
+    # The law is rate independent: a monotone stretch ends where it ends whatever the
+    # samples on the way, so every ``stride``-th sample (about 2000 a run) is enough.
+    th, sgn, taus = [], [], []
+    for a, d, t in zip(angle_rad, direction, torque_Nm, strict=True):
+        a, d, t = (np.asarray(v, dtype=float) for v in (a, d, t))
+        stride = max(1, a.size // 2000)
+        th.append(a[::stride])
+        sgn.append(d[::stride])
+        taus.append(t[::stride])
+    tau = np.concatenate(taus)
     level = float(np.percentile(np.abs(tau), 90))
-    travel = float(np.ptp(th)) * lead_m_per_rad
+    travel = max(float(np.ptp(a)) for a in th) * lead_m_per_rad
     if level <= 0.0 or travel <= 0.0:
         raise IdentificationError(
             "friction: expected a slow-reversal run with motion and friction torque, got none"
         )
+    scale = np.array([level, travel, level])
 
-    def model(x: FloatArray) -> FloatArray:
-        return maxwell_slip_torque(
-            th,
-            sgn,
-            rolling_coulomb_Nm=x[0],
-            presliding_width_m=x[1],
-            coulomb_Nm=x[2],
-            lead_m_per_rad=lead_m_per_rad,
-            elements=elements,
+    def model(z: FloatArray) -> FloatArray:
+        x = z * scale
+        return np.concatenate(
+            [
+                maxwell_slip_torque(
+                    a,
+                    s,
+                    rolling_coulomb_Nm=x[0],
+                    presliding_width_m=x[1],
+                    coulomb_Nm=x[2],
+                    lead_m_per_rad=lead_m_per_rad,
+                    elements=elements,
+                )
+                for a, s in zip(th, sgn, strict=True)
+            ]
         )
 
-    starts = [0.1, 0.3]
     best = None
-    for frac in starts:
-        x0 = np.array([0.8 * level, frac * travel, 0.1 * level])
+    for frac in (0.1, 0.3):
         sol = least_squares(
-            lambda x: model(x) - tau,
-            x0,
-            bounds=([0.0, 1e-3 * travel, 0.0], [5 * level, travel, 5 * level]),
-            x_scale=np.array([level, travel, level]),
-            diff_step=1e-3,
+            lambda z: model(z) - tau,
+            np.array([0.8, frac, 0.1]),
+            bounds=([0.0, 1e-3, 0.0], [5.0, 1.0, 5.0]),
+            diff_step=1e-4,
         )
         if best is None or sol.cost < best.cost:
             best = sol
     assert best is not None
     dof = max(tau.size - 3, 1)
     s2 = 2.0 * best.cost / dof
+    # A key on its bound (a Coulomb level of 0) is held there: the errors of the others.
+    free = best.active_mask == 0
+    std = np.zeros(3)
+    jac = best.jac[:, free]
     try:
-        cov = np.linalg.inv(best.jac.T @ best.jac) * s2
-        std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        std[free] = np.sqrt(np.clip(np.diag(np.linalg.inv(jac.T @ jac) * s2), 0.0, None))
     except np.linalg.LinAlgError:
-        std = np.full(3, np.inf)
+        std[free] = np.inf
+    std = std * scale
     return Fit(
         names=FRICTION_KEYS,
-        values=np.asarray(best.x, dtype=float),
+        values=np.asarray(best.x * scale, dtype=float),
         std=np.asarray(std, dtype=float),
         rms_residual=math.sqrt(s2),
         points=int(tau.size),
