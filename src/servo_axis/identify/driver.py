@@ -149,9 +149,24 @@ def _require_scale(record: Record, model: str) -> None:
         )
 
 
-def bode_errors(frf: FrequencyResponse, model: np.ndarray, up_to_hz: float) -> tuple[float, float, float]:
+#: The Bode comparison takes the lines measured to this relative standard deviation.
+BODE_MAX_STD = 0.02
+
+
+def well_measured(frf: FrequencyResponse) -> np.ndarray:
+    """Lines of coherence >= :data:`~servo_axis.core.sysid.fit.MIN_COHERENCE` and relative
+    standard deviation <= :data:`BODE_MAX_STD` (a coherence from a few periods is biased
+    high; the spread of the periods is the measurement's own error)."""
+    rel = frf.std / np.abs(frf.response)
+    ok = np.where(np.isfinite(rel), rel <= BODE_MAX_STD, True)
+    return np.asarray((frf.coherence >= sysfit.MIN_COHERENCE) & ok)
+
+
+def bode_errors(
+    frf: FrequencyResponse, model: np.ndarray, up_to_hz: float, from_hz: float = 0.0
+) -> tuple[float, float, float]:
     """``(max |dB|, max |deg|, up to Hz)`` of model against measurement on well-measured lines."""
-    keep = (frf.coherence >= sysfit.MIN_COHERENCE) & (frf.frequency_hz <= up_to_hz)
+    keep = well_measured(frf) & (frf.frequency_hz <= up_to_hz) & (frf.frequency_hz >= from_hz)
     if not keep.any():
         return math.nan, math.nan, up_to_hz
     ratio = model[keep] / frf.response[keep]
@@ -310,11 +325,19 @@ def _tilting(record: Record, exc: Excitation, ident: Identification, template: d
     c = np.array([[1.0, 0.0]])
     ident.fitted["encoder"] = sampled_response(a, b, c, frequency_hz=frf.frequency_hz, control_period_s=t)[0]
     del s
-    ident.bode["encoder"] = bode_errors(frf, ident.fitted["encoder"], exc.max_frequency_hz)
+    # The swing's own harmonics are periodic in the excitation's period too when the
+    # two periods are commensurate: the lowest lines carry them. Compared from its
+    # fourth harmonic on.
+    ref = _ff_values(record)
+    swing_hz = ref["reference.frequency_hz"] if ref["reference.kind"] == "sine" else 0.0
+    ident.bode["encoder"] = bode_errors(
+        frf, ident.fitted["encoder"], exc.max_frequency_hz, from_hz=4.0 * swing_hz
+    )
     ident.notes.append(
         "tilting table: the keys come from the time-domain fit (the model is nonlinear in the "
         "angle); the Bode comparison is the model linearised about the run's mean cos(angle) "
-        f"= {cos_mean:.3f}, with the Coulomb friction left out"
+        f"= {cos_mean:.3f}, with the Coulomb friction left out, from {4.0 * swing_hz:g} Hz "
+        "(4 times the swing's frequency) on"
     )
 
 
@@ -400,11 +423,6 @@ def _friction_elastic(runs: list[Record], ident: Identification, template: dict[
     bn = ident.plant["motor_damping_Nms_per_rad"] + ident.plant["table_damping_Ns_per_m"] * r * r
     angles, directions, torques = _friction_data(runs, jn, bn)
     elements = int(template["friction_elements"])
-    fit = sysfit.fit_maxwell_slip(
-        angle_rad=angles, direction=directions, torque_Nm=torques, lead_m_per_rad=r, elements=elements
-    )
-    total = fit.value("rolling_coulomb_Nm") + fit.value("coulomb_Nm")
-    width = fit.value("presliding_width_m")
     # The guide's friction loads the screw: F_s = k_h (R th - x) = f_g + C_t v on a slow move;
     # the deformation's offset (quantisation, the start) drops out of the branches' difference.
     kh = ident.key("series_stiffness_N_per_m").value
@@ -413,7 +431,7 @@ def _friction_elastic(runs: list[Record], ident: Identification, template: dict[
     for rec, sgn in zip(runs, directions, strict=True):
         force = kh * (r * rec.encoder_rad - rec.scale_m) - ct * np.gradient(rec.scale_m, rec.period_s)
         speed = np.abs(np.gradient(rec.reference_rad))
-        sliding = speed > 0.5 * speed.max()
+        sliding = speed > 0.85 * speed.max()  # past the pre-sliding of a 2 A stroke
         up_force.append(force[sliding & (sgn > 0)])
         down_force.append(force[sliding & (sgn < 0)])
     up, down = np.concatenate(up_force), np.concatenate(down_force)
@@ -424,7 +442,15 @@ def _friction_elastic(runs: list[Record], ident: Identification, template: dict[
         )
     guide = max(0.5 * float(np.mean(up) - np.mean(down)), 0.0)
     guide_std = 0.5 * math.sqrt(np.var(up) / up.size + np.var(down) / down.size)
-    nut = max(total - r * guide, 0.0)
+    fit = sysfit.fit_nut_and_guide(
+        angle_rad=angles,
+        table_m=[rec.scale_m for rec in runs],
+        torque_Nm=torques,
+        guide_friction_N=guide,
+        lead_m_per_rad=r,
+        elements=elements,
+    )
+    nut, width = fit.value("nut_friction_Nm"), fit.value("presliding_width_m")
     source = f"{len(runs)} slow-reversal run(s)"
     ident.plant.update(
         nut_friction_Nm=nut,
@@ -434,16 +460,24 @@ def _friction_elastic(runs: list[Record], ident: Identification, template: dict[
         friction_elements=elements,
     )
     ident.keys += [
-        KeyResult("nut_friction_Nm", nut, math.hypot(fit.error("rolling_coulomb_Nm"), r * guide_std), source),
+        KeyResult("nut_friction_Nm", nut, fit.error("nut_friction_Nm"), source),
         KeyResult("guide_friction_N", guide, guide_std, source + " (deformation k_h (R th - x))"),
         KeyResult("nut_presliding_m", width, fit.error("presliding_width_m"), source),
         KeyResult("guide_presliding_m", width, fit.error("presliding_width_m"), source),
     ]
     ident.notes.append(
-        "nut_presliding_m, guide_presliding_m: a slow reversal moves nut and table together, so "
-        "only one pre-sliding width is in the data: both are written with it"
+        "nut_presliding_m, guide_presliding_m: a slow reversal moves nut and table nearly "
+        "together, so one pre-sliding width is fitted for both (the nut's set on the motor "
+        "angle, the guide's on the table position)"
     )
-    _friction_curve(ident, runs, angles, directions, torques, fit, elements)
+    model = sysfit.maxwell_slip_torque(
+        angles[0], np.zeros(angles[0].size), rolling_coulomb_Nm=nut, presliding_width_m=width,
+        coulomb_Nm=0.0, lead_m_per_rad=r, elements=elements,
+    ) + sysfit.maxwell_slip_torque(
+        runs[0].scale_m / r, np.zeros(angles[0].size), rolling_coulomb_Nm=r * guide,
+        presliding_width_m=width, coulomb_Nm=0.0, lead_m_per_rad=r, elements=elements,
+    )
+    ident.friction = (runs[0].reference_rad * r, torques[0], model)
 
 
 def _ff_values(rec: Record) -> dict[str, Any]:

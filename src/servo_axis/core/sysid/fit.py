@@ -440,20 +440,28 @@ def fit_tilting_table(
     th_f = _lowpass(th, cutoff_hz, t)
     vel = np.gradient(th_f, t)
     acc = np.gradient(vel, t)
+    # The friction's sign follows the true velocity, excitation included: its sign
+    # from a wider low-pass (5 times the cut-off) than the one every regressor passes.
+    fast = np.gradient(_lowpass(th, min(5.0 * cutoff_hz, 0.4 / t), t), t)
     reg = np.column_stack(
         [
             acc,
             vel,
             _lowpass(np.sin(th), cutoff_hz, t),
-            _lowpass(np.sign(vel), cutoff_hz, t),
+            _lowpass(np.sign(fast), cutoff_hz, t),
         ]
     )
-    y = _lowpass(tau, cutoff_hz, t)
+    # The torque is held over each period (zero-order hold): the motion at k T follows
+    # the held torque of about (k - 1/2) T, half a sample before tau[k]; without the
+    # shift the inertia term carries a phase lead that reads as a damping of
+    # -J w^2 T / 2 (at 20 Hz and 003's J, as large as D itself).
+    half = np.concatenate([tau[:1], 0.5 * (tau[1:] + tau[:-1])])
+    y = _lowpass(half, cutoff_hz, t)
     edge = int(2.0 / (cutoff_hz * t))
     keep = np.zeros(th.size, dtype=bool)
     keep[edge:-edge] = True
     # A sign change nearby smears the filtered sgn: keep the samples well away from it.
-    moving = np.abs(vel) >= min_velocity_rad_s
+    moving = np.abs(fast) >= min_velocity_rad_s
     near = np.convolve(~moving, np.ones(2 * edge + 1), mode="same") > 0
     keep &= ~near
     rows = np.flatnonzero(keep)
@@ -469,7 +477,7 @@ def fit_tilting_table(
             f"unbalance_Nm: expected an angle range whose sin varies by >= 0.05, got {span:.3g}: "
             "move the table through a wider range"
         )
-    if np.all(a[:, 3] > 0) or np.all(a[:, 3] < 0):
+    if np.all(fast[rows] > 0) or np.all(fast[rows] < 0):
         raise IdentificationError(
             "coulomb_Nm: expected motion in both directions, got one: C and the offset of U "
             "cannot be told apart"
@@ -620,6 +628,90 @@ def fit_maxwell_slip(
         names=FRICTION_KEYS,
         values=np.asarray(best.x * scale, dtype=float),
         std=np.asarray(std, dtype=float),
+        rms_residual=math.sqrt(s2),
+        points=int(tau.size),
+    )
+
+
+def fit_nut_and_guide(
+    *,
+    angle_rad: Sequence[ArrayLike],
+    table_m: Sequence[ArrayLike],
+    torque_Nm: Sequence[ArrayLike],
+    guide_friction_N: float,
+    lead_m_per_rad: float,
+    elements: int = 8,
+) -> Fit:
+    """Nut level and the pre-sliding width of the elastic screw's two friction sets (004).
+
+    The motor torque of a slow reversal is the nut's set on the motor angle
+    plus ``R`` times the guide's on the table position (the table lags the
+    motor by the screw's deformation, which stretches the guide's curve
+    against the angle); the guide's level is given (from the deformation),
+    the nut's level and one width for both are fitted.
+
+    Parameters
+    ----------
+    angle_rad, table_m, torque_Nm : sequence of array_like
+        Per run: motor angle (rad), table position (m), friction torque (N m).
+    guide_friction_N : float
+        The guide's level, N.
+    lead_m_per_rad : float
+        ``R``, m/rad.
+    elements : int
+        Maxwell-slip elements of each set.
+    """
+    r = lead_m_per_rad
+    runs = []
+    for a, x, t in zip(angle_rad, table_m, torque_Nm, strict=True):
+        a, x, t = (np.asarray(v, dtype=float) for v in (a, x, t))
+        stride = max(1, a.size // 2000)
+        runs.append((a[::stride], x[::stride], t[::stride]))
+    tau = np.concatenate([t for _, _, t in runs])
+    level = float(np.percentile(np.abs(tau), 90))
+    travel = max(float(np.ptp(a)) for a, _, _ in runs) * r
+    if level <= 0.0 or travel <= 0.0:
+        raise IdentificationError(
+            "friction: expected a slow-reversal run with motion and friction torque, got none"
+        )
+    scale = np.array([level, travel])
+
+    def model(z: FloatArray) -> FloatArray:
+        nut, width = z * scale
+        out = []
+        for a, x, _ in runs:
+            still = np.zeros(a.size)
+            t_nut = maxwell_slip_torque(
+                a, still, rolling_coulomb_Nm=nut, presliding_width_m=width, coulomb_Nm=0.0,
+                lead_m_per_rad=r, elements=elements,
+            )
+            t_guide = maxwell_slip_torque(
+                x / r, still, rolling_coulomb_Nm=r * guide_friction_N, presliding_width_m=width,
+                coulomb_Nm=0.0, lead_m_per_rad=r, elements=elements,
+            )
+            out.append(t_nut + t_guide)
+        return np.concatenate(out)
+
+    best = None
+    for frac in (0.1, 0.3):
+        sol = least_squares(
+            lambda z: model(z) - tau,
+            np.array([0.5, frac]),
+            bounds=([0.0, 1e-3], [5.0, 1.0]),
+            diff_step=1e-4,
+        )
+        if best is None or sol.cost < best.cost:
+            best = sol
+    assert best is not None
+    s2 = 2.0 * best.cost / max(tau.size - 2, 1)
+    try:
+        std = np.sqrt(np.clip(np.diag(np.linalg.inv(best.jac.T @ best.jac) * s2), 0.0, None))
+    except np.linalg.LinAlgError:
+        std = np.full(2, np.inf)
+    return Fit(
+        names=("nut_friction_Nm", "presliding_width_m"),
+        values=np.asarray(best.x * scale, dtype=float),
+        std=np.asarray(std * scale, dtype=float),
         rms_residual=math.sqrt(s2),
         points=int(tau.size),
     )
