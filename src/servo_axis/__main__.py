@@ -12,6 +12,8 @@
 ``python -m servo_axis sweep STUDY.yaml [--out DIR] [--scheduler tcp://HOST:PORT] [--workers N]``
     a parameter sweep (a study) on dask.distributed: results.parquet/.csv,
     manifest.json (an interrupted study resumes), a PNG per figure and parameter;
+``python -m servo_axis identify RUN_DIR --model NAME --out SCENARIO.yaml [--friction RUN_DIR] [--validate RUN_DIR]``
+    an axis identified from a measure_frf_* run, written as a scenario (docs/identification.md);
 ``python -m servo_axis bag recover BAG_DIR``
     make a bag whose recorder died readable again (a complete bag is left as it is).
 
@@ -544,6 +546,9 @@ def build_parser(prog: str = "python -m servo_axis") -> argparse.ArgumentParser:
     )
     sw.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     sw.set_defaults(func=_sweep)
+    from servo_axis.identify import cli as identify_cli
+
+    identify_cli.add_parser(sub)
     sm = sub.add_parser("summary", help="print the summary of a run directory")
     sm.add_argument("run_dir", help="run directory (holds summary.json)")
     sm.set_defaults(func=_summary)

@@ -26,6 +26,8 @@ from servo_axis.params.registry import PLANT_MODELS
 
 #: The plant models identify fits.
 MODELS = ("ball_screw", "elastic_ball_screw", "tilting_table")
+#: A key whose standard error exceeds this fraction of its value is not determined.
+UNDETERMINED = 0.5
 #: The Bode comparison runs up to this multiple of the first mode.
 BODE_SPAN = 2.0
 
@@ -519,6 +521,13 @@ def identify(
             _tilting(record, exc, ident, template)
     except sysfit.IdentificationError as err:
         raise IdentifyError(f"{record.source}: model {model!r}: {err}") from None
+    for k in ident.keys:
+        if not (math.isfinite(k.std) and k.std <= UNDETERMINED * abs(k.value)):
+            raise IdentifyError(
+                f"{record.source}: model {model!r}: the data do not determine {k.key} "
+                f"({k.value:.4g} +- {k.std:.2g}): the run does not show what the model's keys "
+                "need (another --model, a wider band, more amplitude)"
+            )
     kt = float(_ff_values(record)["nominal.torque_constant_Nm_per_A"])
     ident.plant["torque_constant_Nm_per_A"] = kt
     ident.notes.append(
