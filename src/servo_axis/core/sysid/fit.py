@@ -103,7 +103,8 @@ def _weights(frf: FrequencyResponse, min_coherence: float) -> tuple[NDArray[np.b
     keep = frf.coherence >= min_coherence
     rel = frf.std / np.abs(frf.response)
     rel = np.where(np.isfinite(rel), rel, 0.05)
-    return keep, 1.0 / np.maximum(rel, SIGMA_FLOOR)
+    # std is that of the complex value: each of log-magnitude and phase has std / sqrt(2).
+    return keep, math.sqrt(2.0) / np.maximum(rel, SIGMA_FLOOR)
 
 
 def fit_response(
