@@ -34,8 +34,15 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         "a scenario that `run` takes as it is and, with --report, the figures. "
         "See docs/identification.md.",
     )
-    p.add_argument("run_dirs", nargs="+", metavar="RUN_DIR", help="the excitation run (measure_frf_*, measure_tilting_table)")
-    p.add_argument("--model", required=True, choices=MODELS, help="the plant model whose keys are fitted")
+    p.add_argument(
+        "run_dirs",
+        nargs="+",
+        metavar="RUN_DIR",
+        help="the excitation run (measure_frf_*, measure_tilting_table)",
+    )
+    p.add_argument(
+        "--model", required=True, choices=MODELS, help="the plant model whose keys are fitted"
+    )
     p.add_argument("--out", required=True, type=_output_file, help="scenario file to write (YAML)")
     p.add_argument(
         "--friction",
@@ -44,7 +51,11 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         metavar="RUN_DIR",
         help="a slow-reversal run (measure_reversal_*, measure_small_reversals_*, friction_id); repeatable",
     )
-    p.add_argument("--validate", metavar="RUN_DIR", help="a held-out run: its scenario on the fitted plant, compared")
+    p.add_argument(
+        "--validate",
+        metavar="RUN_DIR",
+        help="a held-out run: its scenario on the fitted plant, compared",
+    )
     p.add_argument("--report", metavar="DIR", help="folder for report.md and the figures")
     p.set_defaults(func=run)
     return p

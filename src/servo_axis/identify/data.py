@@ -74,8 +74,10 @@ class Record:
         """The samples of control steps ``first .. stop - 1``; SignalError if the run lacks any."""
         start = int(self.step[0]) if self.step.size else 0
         lo, hi = first - start, stop - start
-        if lo < 0 or hi > self.step.size or not np.array_equal(
-            self.step[lo:hi], np.arange(first, stop)
+        if (
+            lo < 0
+            or hi > self.step.size
+            or not np.array_equal(self.step[lo:hi], np.arange(first, stop))
         ):
             raise SignalError(
                 f"{self.source}: expected every control step {first} .. {stop - 1} of the "
@@ -100,7 +102,9 @@ def from_run(run_dir: Path) -> Record:
     period = float(resolve.node_values(scenario, "plant")["control_period_s"])
     sig = load_signals(run_dir / "bag", period, scenario=scenario)
     if sig.step.size < 3:
-        raise SignalError(f"{run_dir / 'bag'}: expected a recorded run, got {sig.step.size} samples")
+        raise SignalError(
+            f"{run_dir / 'bag'}: expected a recorded run, got {sig.step.size} samples"
+        )
     command = sig.command_Nm
     if np.isnan(command).any():
         # A missing command sample: the torque held, as the plant does.

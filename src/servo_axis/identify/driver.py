@@ -111,7 +111,9 @@ def _excited(records: list[Record]) -> tuple[Record, Excitation]:
     return record, exc
 
 
-def responses(record: Record, exc: Excitation, sensors: tuple[str, ...]) -> dict[str, FrequencyResponse]:
+def responses(
+    record: Record, exc: Excitation, sensors: tuple[str, ...]
+) -> dict[str, FrequencyResponse]:
     """The closed-loop responses from the command torque to each sensor over the averaged periods.
 
     The responses are those of the sensor less the reference (at the motor,
@@ -188,7 +190,9 @@ def _template(record: Record, model: str) -> dict[str, Any]:
     return {k: p.default for k, p in schema.items()}
 
 
-def _ball_screw(record: Record, exc: Excitation, ident: Identification, template: dict[str, Any]) -> None:
+def _ball_screw(
+    record: Record, exc: Excitation, ident: Identification, template: dict[str, Any]
+) -> None:
     t = exc.control_period_s
     frf = responses(record, exc, ("encoder",))["encoder"]
     ident.responses["encoder"] = frf
@@ -244,13 +248,17 @@ def _ball_screw(record: Record, exc: Excitation, ident: Identification, template
     ident.bode["encoder"] = bode_errors(frf, model_resp, BODE_SPAN * first_mode)
 
 
-def _elastic(record: Record, exc: Excitation, ident: Identification, template: dict[str, Any]) -> None:
+def _elastic(
+    record: Record, exc: Excitation, ident: Identification, template: dict[str, Any]
+) -> None:
     _require_scale(record, "elastic_ball_screw")
     t = exc.control_period_s
     r = record.lead_m_per_rad
     both = responses(record, exc, ("encoder", "scale"))
     ident.responses.update(both)
-    fit = sysfit.fit_two_inertia(both["encoder"], both["scale"], lead_m_per_rad=r, control_period_s=t)
+    fit = sysfit.fit_two_inertia(
+        both["encoder"], both["scale"], lead_m_per_rad=r, control_period_s=t
+    )
     source = f"frequency responses of encoder and scale ({both['encoder'].periods} periods)"
     for name in sysfit.TWO_INERTIA_KEYS:
         if name == "stiffness_N_per_m":
@@ -284,7 +292,10 @@ def _elastic(record: Record, exc: Excitation, ident: Identification, template: d
             "contact keys are the template's"
         )
     model = sysfit.two_inertia_response(
-        {n: fit.value(n) for n in fit.names}, both["encoder"].frequency_hz, lead_m_per_rad=r, control_period_s=t
+        {n: fit.value(n) for n in fit.names},
+        both["encoder"].frequency_hz,
+        lead_m_per_rad=r,
+        control_period_s=t,
     )
     ident.fitted["encoder"], ident.fitted["scale"] = model[0], model[1]
     from servo_axis.core.sysid.models import axial_mode_hz
@@ -299,7 +310,9 @@ def _elastic(record: Record, exc: Excitation, ident: Identification, template: d
         ident.bode[sensor] = bode_errors(both[sensor], ident.fitted[sensor], BODE_SPAN * mode)
 
 
-def _tilting(record: Record, exc: Excitation, ident: Identification, template: dict[str, Any]) -> None:
+def _tilting(
+    record: Record, exc: Excitation, ident: Identification, template: dict[str, Any]
+) -> None:
     t = exc.control_period_s
     fit = sysfit.fit_tilting_table(
         angle_rad=record.encoder_rad, torque_Nm=record.command_Nm, control_period_s=t
@@ -325,7 +338,9 @@ def _tilting(record: Record, exc: Excitation, ident: Identification, template: d
     a = np.array([[0.0, 1.0], [-u * cos_mean / j, -d / j]])
     b = np.array([[0.0], [1.0 / j]])
     c = np.array([[1.0, 0.0]])
-    ident.fitted["encoder"] = sampled_response(a, b, c, frequency_hz=frf.frequency_hz, control_period_s=t)[0]
+    ident.fitted["encoder"] = sampled_response(
+        a, b, c, frequency_hz=frf.frequency_hz, control_period_s=t
+    )[0]
     del s
     # The swing's own harmonics are periodic in the excitation's period too when the
     # two periods are commensurate: the lowest lines carry them. Compared from its
@@ -357,7 +372,9 @@ def _friction_data(
     angles, directions, torques = [], [], []
     for rec in runs:
         if rec.excitation() is not None:
-            raise IdentifyError(f"--friction {rec.source}: an excitation run, expected a slow reversal")
+            raise IdentifyError(
+                f"--friction {rec.source}: an excitation run, expected a slow reversal"
+            )
         torques.append(
             estimate_friction_torque(
                 reference_rad=rec.reference_rad,
@@ -373,8 +390,13 @@ def _friction_data(
 
 
 def _friction_curve(
-    ident: Identification, runs: list[Record], angles: list[np.ndarray], directions: list[np.ndarray],
-    torques: list[np.ndarray], fit: sysfit.Fit, elements: int,
+    ident: Identification,
+    runs: list[Record],
+    angles: list[np.ndarray],
+    directions: list[np.ndarray],
+    torques: list[np.ndarray],
+    fit: sysfit.Fit,
+    elements: int,
 ) -> None:
     r = runs[0].lead_m_per_rad
     model = sysfit.maxwell_slip_torque(
@@ -389,16 +411,24 @@ def _friction_curve(
     ident.friction = (runs[0].reference_rad * r, torques[0], model)
 
 
-def _friction_ball_screw(runs: list[Record], ident: Identification, template: dict[str, Any]) -> None:
+def _friction_ball_screw(
+    runs: list[Record], ident: Identification, template: dict[str, Any]
+) -> None:
     r = runs[0].lead_m_per_rad
     angles, directions, torques = _friction_data(
         runs, ident.plant["inertia_kgm2"], ident.plant["damping_Nms_per_rad"]
     )
     elements = int(template["friction.elements"])
     fit = sysfit.fit_maxwell_slip(
-        angle_rad=angles, direction=directions, torque_Nm=torques, lead_m_per_rad=r, elements=elements
+        angle_rad=angles,
+        direction=directions,
+        torque_Nm=torques,
+        lead_m_per_rad=r,
+        elements=elements,
     )
-    source = f"{len(runs)} slow-reversal run(s) (Maxwell-slip + Coulomb law along the measured angle)"
+    source = (
+        f"{len(runs)} slow-reversal run(s) (Maxwell-slip + Coulomb law along the measured angle)"
+    )
     names = {
         "rolling_coulomb_Nm": "friction.rolling_coulomb_Nm",
         "presliding_width_m": "friction.presliding_width_m",
@@ -431,7 +461,9 @@ def _friction_elastic(runs: list[Record], ident: Identification, template: dict[
     ct = ident.plant["table_damping_Ns_per_m"]
     up_force, down_force = [], []
     for rec, sgn in zip(runs, directions, strict=True):
-        force = kh * (r * rec.encoder_rad - rec.scale_m) - ct * np.gradient(rec.scale_m, rec.period_s)
+        force = kh * (r * rec.encoder_rad - rec.scale_m) - ct * np.gradient(
+            rec.scale_m, rec.period_s
+        )
         speed = np.abs(np.gradient(rec.reference_rad))
         sliding = speed > 0.85 * speed.max()  # past the pre-sliding of a 2 A stroke
         up_force.append(force[sliding & (sgn > 0)])
@@ -473,11 +505,21 @@ def _friction_elastic(runs: list[Record], ident: Identification, template: dict[
         "angle, the guide's on the table position)"
     )
     model = sysfit.maxwell_slip_torque(
-        angles[0], np.zeros(angles[0].size), rolling_coulomb_Nm=nut, presliding_width_m=width,
-        coulomb_Nm=0.0, lead_m_per_rad=r, elements=elements,
+        angles[0],
+        np.zeros(angles[0].size),
+        rolling_coulomb_Nm=nut,
+        presliding_width_m=width,
+        coulomb_Nm=0.0,
+        lead_m_per_rad=r,
+        elements=elements,
     ) + sysfit.maxwell_slip_torque(
-        runs[0].scale_m / r, np.zeros(angles[0].size), rolling_coulomb_Nm=r * guide,
-        presliding_width_m=width, coulomb_Nm=0.0, lead_m_per_rad=r, elements=elements,
+        runs[0].scale_m / r,
+        np.zeros(angles[0].size),
+        rolling_coulomb_Nm=r * guide,
+        presliding_width_m=width,
+        coulomb_Nm=0.0,
+        lead_m_per_rad=r,
+        elements=elements,
     )
     ident.friction = (runs[0].reference_rad * r, torques[0], model)
 
@@ -541,11 +583,15 @@ def identify(
             elif model == "elastic_ball_screw":
                 _friction_elastic(friction, ident, template)
             else:
-                ident.notes.append("--friction: the tilting table's C comes from its own fit; runs not used")
+                ident.notes.append(
+                    "--friction: the tilting table's C comes from its own fit; runs not used"
+                )
         except sysfit.IdentificationError as err:
             raise IdentifyError(f"--friction {friction[0].source}: {err}") from None
     elif model != "tilting_table":
-        ident.notes.append("friction: no slow-reversal run given (--friction): the template's keys written")
+        ident.notes.append(
+            "friction: no slow-reversal run given (--friction): the template's keys written"
+        )
     if validation is not None:
         ident.validation = validate(ident, validation)
     return ident
@@ -596,12 +642,18 @@ def validate(ident: Identification, held_out: Record) -> Validation:
     from servo_axis.simulate import simulate
 
     if held_out.excitation() is not None:
-        raise IdentifyError(f"--validate {held_out.source}: an excitation run, expected a held-out one")
+        raise IdentifyError(
+            f"--validate {held_out.source}: an excitation run, expected a held-out one"
+        )
     scenario = fitted_scenario(ident, held_out)
     with tempfile.TemporaryDirectory(prefix="servo_axis_identify_") as tmp:
         path = Path(tmp) / "fitted.yaml"
         # Relative data files of the held-out scenario stay relative to its folder.
-        path = held_out.scenario_path.parent / f".identify_validation_{id(ident)}.yaml" if _relative_files(scenario) else path
+        path = (
+            held_out.scenario_path.parent / f".identify_validation_{id(ident)}.yaml"
+            if _relative_files(scenario)
+            else path
+        )
         try:
             path.write_text(yaml.safe_dump(scenario, sort_keys=False))
             traj = simulate(path, steps=int(held_out.step[-1]) + 1)
@@ -641,6 +693,10 @@ def _relative_files(scenario: dict[str, Any]) -> bool:
     ff = scenario.get("feedforward", {}).get("ros__parameters", {})
     for term in ("friction_table", "gms"):
         sec = ff.get(term, {})
-        if isinstance(sec, dict) and sec.get("enabled") and not Path(str(sec.get("file", ""))).is_absolute():
+        if (
+            isinstance(sec, dict)
+            and sec.get("enabled")
+            and not Path(str(sec.get("file", ""))).is_absolute()
+        ):
             return True
     return False

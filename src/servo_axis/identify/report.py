@@ -56,7 +56,9 @@ def write_report(folder: Path, ident: Identification) -> list[Path]:
         f = frf.frequency_hz
         good = well_measured(frf)
         ax[0].loglog(f, np.abs(frf.response), ".", ms=3, color="0.6", label="measured")
-        ax[0].loglog(f[good], np.abs(frf.response[good]), ".", ms=3, color="C0", label="measured (compared)")
+        ax[0].loglog(
+            f[good], np.abs(frf.response[good]), ".", ms=3, color="C0", label="measured (compared)"
+        )
         ph = np.degrees(np.unwrap(np.angle(frf.response)))
         ax[1].semilogx(f, ph, ".", ms=3, color="0.6")
         ax[1].semilogx(f[good], ph[good], ".", ms=3, color="C0")

@@ -24,7 +24,9 @@ def scenario_of(ident: Identification, base: Record, *, name: str) -> dict[str, 
     shared = scenario.setdefault("/**", {}).setdefault("ros__parameters", {})
     meta = shared.setdefault("scenario", {})
     meta["name"] = name
-    meta["description"] = f"{ident.model} identified from {base.source} (python -m servo_axis identify)"
+    meta["description"] = (
+        f"{ident.model} identified from {base.source} (python -m servo_axis identify)"
+    )
     ff = scenario.get("feedforward", {}).get("ros__parameters", {})
     if isinstance(ff.get("excitation"), dict):
         ff["excitation"]["enabled"] = False
@@ -50,7 +52,9 @@ def header(ident: Identification, command: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_scenario(path: Path, ident: Identification, base: Record, *, command: str) -> dict[str, Any]:
+def write_scenario(
+    path: Path, ident: Identification, base: Record, *, command: str
+) -> dict[str, Any]:
     """Write the scenario file (header and YAML) and return the scenario."""
     scenario = scenario_of(ident, base, name=Path(path).stem)
     text = yaml.safe_dump(scenario, sort_keys=False, default_flow_style=False, width=100)

@@ -79,7 +79,7 @@ def _samples(values: Values, key: str) -> int:
             f"parameter '{key}': expected a whole number of control periods "
             f"({t!r} s), got {values[key]!r}"
         )
-    return int(round(n))
+    return int(np.rint(n))
 
 
 def excitation_of(values: Values) -> Excitation | None:

@@ -131,8 +131,12 @@ def _true(f: np.ndarray) -> np.ndarray:
 def test_closed_loop_estimate_is_the_plant_and_the_direct_one_is_not() -> None:
     exc, d, u, y = _loop(noise_std=0.3)
     frf = closed_loop_frf(
-        excitation=d, plant_input=u, output=y, period_samples=exc.period_samples,
-        lines=exc.lines, control_period_s=T,
+        excitation=d,
+        plant_input=u,
+        output=y,
+        period_samples=exc.period_samples,
+        lines=exc.lines,
+        control_period_s=T,
     )
     p = _true(frf.frequency_hz)
     err = np.abs(frf.response - p)
@@ -144,8 +148,12 @@ def test_closed_loop_estimate_is_the_plant_and_the_direct_one_is_not() -> None:
         e2, d2, u2, y2 = _loop(noise_std=0.3, seed=seed)
         reps.append(
             closed_loop_frf(
-                excitation=d2, plant_input=u2, output=y2, period_samples=e2.period_samples,
-                lines=e2.lines, control_period_s=T,
+                excitation=d2,
+                plant_input=u2,
+                output=y2,
+                period_samples=e2.period_samples,
+                lines=e2.lines,
+                control_period_s=T,
             ).response
         )
     spread = np.sqrt(np.mean(np.abs(np.array(reps) - p) ** 2, axis=0))
@@ -160,8 +168,12 @@ def test_closed_loop_estimate_is_the_plant_and_the_direct_one_is_not() -> None:
 def test_noise_free_loop_gives_the_plant_exactly_with_coherence_one() -> None:
     exc, d, u, y = _loop(noise_std=0.0)
     frf = closed_loop_frf(
-        excitation=d, plant_input=u, output=y, period_samples=exc.period_samples,
-        lines=exc.lines, control_period_s=T,
+        excitation=d,
+        plant_input=u,
+        output=y,
+        period_samples=exc.period_samples,
+        lines=exc.lines,
+        control_period_s=T,
     )
     assert_allclose(frf.response, _true(frf.frequency_hz), rtol=1e-9)
     assert_allclose(frf.coherence, 1.0, atol=1e-9)
@@ -194,7 +206,9 @@ def test_rigid_modes_fit_recovers_keys_from_a_noisy_response() -> None:
     p = sysfit.rigid_modes_response(true, f, modes=1, control_period_s=t)
     rng = np.random.default_rng(5)
     rel = 0.01
-    noisy = p * (1 + rel * (rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size)) / math.sqrt(2))
+    noisy = p * (
+        1 + rel * (rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size)) / math.sqrt(2)
+    )
     from servo_axis.core.sysid.frf import FrequencyResponse
 
     frf = FrequencyResponse(f, noisy, np.ones(f.size), rel * np.abs(p), np.ones(f.size, complex), 4)
@@ -223,7 +237,9 @@ def test_two_inertia_fit_recovers_keys() -> None:
     from servo_axis.core.sysid.frf import FrequencyResponse
 
     data = [
-        FrequencyResponse(f, both[i], np.ones(f.size), 1e-3 * np.abs(both[i]), np.ones(f.size, complex), 4)
+        FrequencyResponse(
+            f, both[i], np.ones(f.size), 1e-3 * np.abs(both[i]), np.ones(f.size, complex), 4
+        )
         for i in range(2)
     ]
     fit = sysfit.fit_two_inertia(data[0], data[1], lead_m_per_rad=r, control_period_s=t)
@@ -234,16 +250,28 @@ def test_two_inertia_fit_recovers_keys() -> None:
 def test_two_inertia_without_a_mode_in_the_band_is_refused() -> None:
     r, t = 1.91e-3, 5e-4
     a, b, c = two_inertia(
-        motor_inertia_kgm2=1.7e-3, motor_damping_Nms_per_rad=0.03, table_mass_kg=250.0,
-        table_damping_Ns_per_m=9e3, stiffness_N_per_m=1.4e8, screw_damping_Ns_per_m=1.5e4,
-        lead_m_per_rad=r, current_bandwidth_hz=0.0,
+        motor_inertia_kgm2=1.7e-3,
+        motor_damping_Nms_per_rad=0.03,
+        table_mass_kg=250.0,
+        table_damping_Ns_per_m=9e3,
+        stiffness_N_per_m=1.4e8,
+        screw_damping_Ns_per_m=1.5e4,
+        lead_m_per_rad=r,
+        current_bandwidth_hz=0.0,
     )
     f = np.arange(2.0, 60.0)
     resp = sampled_response(a, b, c, frequency_hz=f, control_period_s=t)
     from servo_axis.core.sysid.frf import FrequencyResponse
 
-    data = [FrequencyResponse(f, resp[i], np.ones(f.size), 1e-3 * np.abs(resp[i]), np.ones(f.size, complex), 4) for i in range(2)]
-    with pytest.raises(sysfit.IdentificationError, match="stiffness_N_per_m: expected the axial mode"):
+    data = [
+        FrequencyResponse(
+            f, resp[i], np.ones(f.size), 1e-3 * np.abs(resp[i]), np.ones(f.size, complex), 4
+        )
+        for i in range(2)
+    ]
+    with pytest.raises(
+        sysfit.IdentificationError, match="stiffness_N_per_m: expected the axial mode"
+    ):
         sysfit.fit_two_inertia(data[0], data[1], lead_m_per_rad=r, control_period_s=t)
 
 

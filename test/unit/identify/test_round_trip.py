@@ -47,7 +47,9 @@ def _rms_error(scenario: dict[str, Any], tmp: Path, name: str) -> float:
     return float(np.sqrt(np.mean((traj.reference_rad - traj.encoder_rad) ** 2)))
 
 
-def _controllers(base: dict[str, Any], kinds: dict[str, dict[str, Any]]) -> dict[str, dict[str, Any]]:
+def _controllers(
+    base: dict[str, Any], kinds: dict[str, dict[str, Any]]
+) -> dict[str, dict[str, Any]]:
     """``base`` with each controller's feedback and feedforward keys set."""
     out = {}
     for name, keys in kinds.items():
@@ -113,10 +115,14 @@ def test_ball_screw_keys_round_trip(ball_screw: tuple[Any, dict[str, Record]]) -
     for key, value in expect.items():
         assert_allclose(ident.key(key).value, value, rtol=KEY_RTOL, err_msg=key)
     # The plant's Coulomb level is 0: found so, to a small fraction of the rolling level.
-    assert abs(ident.key("friction.coulomb_Nm").value) < 0.01 * expect["friction.rolling_coulomb_Nm"]
+    assert (
+        abs(ident.key("friction.coulomb_Nm").value) < 0.01 * expect["friction.rolling_coulomb_Nm"]
+    )
 
 
-def test_ball_screw_response_within_1_db_and_5_deg(ball_screw: tuple[Any, dict[str, Record]]) -> None:
+def test_ball_screw_response_within_1_db_and_5_deg(
+    ball_screw: tuple[Any, dict[str, Record]],
+) -> None:
     ident, _ = ball_screw
     true = _plant("measure_frf_ball_screw")
     frf = ident.responses["encoder"]
@@ -128,7 +134,9 @@ def test_ball_screw_response_within_1_db_and_5_deg(ball_screw: tuple[Any, dict[s
     modes = list(zip(*(true["modes"][k] for k in ("frequency_hz", "zeta", "a")), strict=True))
     for i, (f, z, a) in enumerate(modes):
         values.update({f"modes.frequency_hz[{i}]": f, f"modes.zeta[{i}]": z, f"modes.a[{i}]": a})
-    exact = sysfit.rigid_modes_response(values, frf.frequency_hz, modes=len(modes), control_period_s=5e-4)
+    exact = sysfit.rigid_modes_response(
+        values, frf.frequency_hz, modes=len(modes), control_period_s=5e-4
+    )
     upto = frf.frequency_hz <= 2.0 * modes[0][0]
     ratio = ident.fitted["encoder"][upto] / exact[upto]
     # Against the true response: far inside the 1 dB / 5 deg of the issue.
@@ -162,7 +170,11 @@ def test_modes_beyond_the_band_are_named_not_hidden(tmp_path: Path) -> None:
     """The preset's three modes at T_u = 0.5 ms, band to 450 Hz: 520 and 1100 Hz cannot be had."""
     scenario = load_scenario(find_scenario("measure_frf_ball_screw"))
     plant = scenario["plant"]["ros__parameters"]
-    plant["modes"] = {"frequency_hz": [180.0, 520.0, 1100.0], "zeta": [0.05, 0.03, 0.02], "a": [0.3, -0.2, 0.1]}
+    plant["modes"] = {
+        "frequency_hz": [180.0, 520.0, 1100.0],
+        "zeta": [0.05, 0.03, 0.02],
+        "a": [0.3, -0.2, 0.1],
+    }
     path = tmp_path / "preset_modes.yaml"
     path.write_text(yaml.safe_dump(scenario, sort_keys=False))
     ident = identify("ball_screw", [from_simulation(path)])
@@ -200,7 +212,9 @@ def test_elastic_keys_round_trip(elastic: tuple[Any, dict[str, Record]]) -> None
     ident, _ = elastic
     true = _plant("measure_frf_elastic_ball_screw")
     r = 0.00191
-    series = 1.0 / (1.0 / true["axial_stiffness_N_per_m"] + r * r / true["torsional_stiffness_Nm_per_rad"])
+    series = 1.0 / (
+        1.0 / true["axial_stiffness_N_per_m"] + r * r / true["torsional_stiffness_Nm_per_rad"]
+    )
     expect = {
         k: true[k]
         for k in (
@@ -224,7 +238,9 @@ def test_elastic_keys_round_trip(elastic: tuple[Any, dict[str, Record]]) -> None
     assert any(n.startswith("axial_stiffness_N_per_m, torsional") for n in ident.notes)
 
 
-def test_elastic_responses_and_validation(elastic: tuple[Any, dict[str, Record]], tmp_path: Path) -> None:
+def test_elastic_responses_and_validation(
+    elastic: tuple[Any, dict[str, Record]], tmp_path: Path
+) -> None:
     ident, runs = elastic
     true = _plant("measure_frf_elastic_ball_screw")
     r = 0.00191
@@ -253,7 +269,9 @@ def test_elastic_responses_and_validation(elastic: tuple[Any, dict[str, Record]]
     fitted = scenario_of(ident, held_out, name="fitted")
     kinds = {
         "pid_ptc": {},
-        "pid_ptc_dob": {"feedback": {"dob": {"enabled": True, "cutoff_hz": 80.0, "sensor": "encoder"}}},
+        "pid_ptc_dob": {
+            "feedback": {"dob": {"enabled": True, "cutoff_hz": 80.0, "sensor": "encoder"}}
+        },
     }
     _check_controllers(fitted, held_out.scenario, kinds, tmp_path)
 
@@ -265,7 +283,9 @@ def test_elastic_responses_and_validation(elastic: tuple[Any, dict[str, Record]]
 def tilting() -> tuple[Any, dict[str, Record]]:
     runs = {n: _record(n) for n in ("measure_tilting_table", "measure_sine_tilting_table")}
     ident = identify(
-        "tilting_table", [runs["measure_tilting_table"]], validation=runs["measure_sine_tilting_table"]
+        "tilting_table",
+        [runs["measure_tilting_table"]],
+        validation=runs["measure_sine_tilting_table"],
     )
     return ident, runs
 
@@ -297,13 +317,15 @@ def test_bad_input_is_one_clear_error(
 ) -> None:
     _, bs = ball_screw
     _, tt = tilting
-    with pytest.raises(IdentifyError, match=r"no excitation \(feedforward excitation.enabled is false\)"):
+    with pytest.raises(
+        IdentifyError, match=r"no excitation \(feedforward excitation.enabled is false\)"
+    ):
         identify("ball_screw", [bs["measure_sine_ball_screw"]])
     with pytest.raises(IdentifyError, match="no linear scale in the data"):
         identify("elastic_ball_screw", [tt["measure_tilting_table"]])
     with pytest.raises(IdentifyError, match="the data do not determine"):
         identify("elastic_ball_screw", [bs["measure_frf_ball_screw"]])
-    with pytest.raises(IdentifyError, match="--friction .*: an excitation run"):
+    with pytest.raises(IdentifyError, match=r"--friction .*: an excitation run"):
         identify(
             "ball_screw", [bs["measure_frf_ball_screw"]], friction=[bs["measure_frf_ball_screw"]]
         )

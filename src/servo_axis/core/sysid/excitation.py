@@ -124,7 +124,7 @@ class Excitation:
     @property
     def frequency_hz(self) -> NDArray[np.float64]:
         """The band's line frequencies, Hz."""
-        return self.lines * self.resolution_hz
+        return np.asarray(self.lines * self.resolution_hz, dtype=np.float64)
 
     @property
     def window(self) -> tuple[int, int]:

@@ -218,7 +218,7 @@ def rigid_modes_response(
         control_period_s=control_period_s,
         dead_time_s=values.get("dead_time_s", 0.0),
     )
-    return out[0]
+    return np.asarray(out[0], dtype=np.complex128)
 
 
 def rigid_start(frf: FrequencyResponse, *, below_hz: float) -> tuple[float, float]:
@@ -240,7 +240,11 @@ def rigid_start(frf: FrequencyResponse, *, below_hz: float) -> tuple[float, floa
 
 
 def find_modes(
-    frf: FrequencyResponse, *, inertia_kgm2: float, damping_Nms_per_rad: float, min_ratio: float = 1.5
+    frf: FrequencyResponse,
+    *,
+    inertia_kgm2: float,
+    damping_Nms_per_rad: float,
+    min_ratio: float = 1.5,
 ) -> list[tuple[float, float, float]]:
     """Resonances of the measured response against the rigid body: start values of the modes.
 
@@ -302,7 +306,13 @@ def fit_rigid_modes(
         ]
     if dead_time:
         params.append(
-            Parameter("dead_time_s", 0.1 * control_period_s, log=False, lower=0.0, upper=5 * control_period_s)
+            Parameter(
+                "dead_time_s",
+                0.1 * control_period_s,
+                log=False,
+                lower=0.0,
+                upper=5 * control_period_s,
+            )
         )
     n = len(modes)
     f_lines = frf.frequency_hz
@@ -328,7 +338,11 @@ TWO_INERTIA_KEYS = (
 
 
 def two_inertia_response(
-    values: dict[str, float], frequency_hz: ArrayLike, *, lead_m_per_rad: float, control_period_s: float
+    values: dict[str, float],
+    frequency_hz: ArrayLike,
+    *,
+    lead_m_per_rad: float,
+    control_period_s: float,
 ) -> NDArray[np.complex128]:
     """Sampled responses (motor angle, table position) of the two-inertia model from fit values."""
     a, b, c = two_inertia(**{k: values[k] for k in TWO_INERTIA_KEYS}, lead_m_per_rad=lead_m_per_rad)
@@ -378,7 +392,12 @@ def fit_two_inertia(
         Parameter("table_damping_Ns_per_m", 0.5 * bn / (r * r)),
         Parameter("stiffness_N_per_m", k0),
         Parameter("screw_damping_Ns_per_m", 2.0 * 0.05 * math.sqrt(k0 * meff)),
-        Parameter("current_bandwidth_hz", 0.5 / control_period_s, lower=0.01 / control_period_s, upper=100.0 / control_period_s),
+        Parameter(
+            "current_bandwidth_hz",
+            0.5 / control_period_s,
+            lower=0.01 / control_period_s,
+            upper=100.0 / control_period_s,
+        ),
     ]
     f_lines = encoder.frequency_hz
     if not np.array_equal(f_lines, scale.frequency_hz):
@@ -720,12 +739,22 @@ def fit_nut_and_guide(
         for a, x, _ in runs:
             still = np.zeros(a.size)
             t_nut = maxwell_slip_torque(
-                a, still, rolling_coulomb_Nm=nut, presliding_width_m=width, coulomb_Nm=0.0,
-                lead_m_per_rad=r, elements=elements,
+                a,
+                still,
+                rolling_coulomb_Nm=nut,
+                presliding_width_m=width,
+                coulomb_Nm=0.0,
+                lead_m_per_rad=r,
+                elements=elements,
             )
             t_guide = maxwell_slip_torque(
-                x / r, still, rolling_coulomb_Nm=r * guide_friction_N, presliding_width_m=width,
-                coulomb_Nm=0.0, lead_m_per_rad=r, elements=elements,
+                x / r,
+                still,
+                rolling_coulomb_Nm=r * guide_friction_N,
+                presliding_width_m=width,
+                coulomb_Nm=0.0,
+                lead_m_per_rad=r,
+                elements=elements,
             )
             out.append(t_nut + t_guide)
         return np.concatenate(out)

@@ -110,7 +110,7 @@ def remove_trend(x: FloatArray, period: int, count: int, degree: int) -> FloatAr
 
     def aperiodic(a: NDArray[np.float64]) -> NDArray[np.float64]:
         shaped = a.reshape(count, period, *a.shape[1:])
-        return (shaped - shaped.mean(axis=0, keepdims=True)).reshape(a.shape)
+        return np.asarray((shaped - shaped.mean(axis=0, keepdims=True)).reshape(a.shape))
 
     coef, *_ = np.linalg.lstsq(aperiodic(v), aperiodic(x), rcond=None)
     return np.asarray(x - v @ coef, dtype=np.float64)

@@ -185,7 +185,11 @@ def two_inertia(
 
 
 def axial_mode_hz(
-    *, motor_inertia_kgm2: float, table_mass_kg: float, stiffness_N_per_m: float, lead_m_per_rad: float
+    *,
+    motor_inertia_kgm2: float,
+    table_mass_kg: float,
+    stiffness_N_per_m: float,
+    lead_m_per_rad: float,
 ) -> float:
     """The undamped two-inertia mode ``sqrt(k_h (1/M + R^2/J_m)) / 2 pi``, Hz."""
     return math.sqrt(

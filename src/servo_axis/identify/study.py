@@ -1,0 +1,89 @@
+"""The identification's errors for a study point (``sweep`` with the plain backend).
+
+A point whose scenario has the ``excitation`` term on is identified from its
+own trajectory (the plant model of its plant section, no friction run) and
+each fitted key compared with the point's plant value: the ``sysid`` block of
+the point's summary, so that a study sweeps the excitation and the noise
+against the identification error (docs/identification.md, the study
+``identification_excitation``).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from servo_axis.identify.data import Record
+from servo_axis.identify.driver import IdentifyError, identify
+
+
+def _true_value(plant: dict[str, Any], key: str) -> float | None:
+    """The plant's value of a fitted key (``modes.a[1]``, ``series_stiffness_N_per_m``), or None."""
+    m = re.fullmatch(r"(modes\.\w+)\[(\d+)\]", key)
+    if m:
+        listed = plant[m.group(1)]
+        i = int(m.group(2))
+        return float(listed[i]) if i < len(listed) else None
+    if key == "series_stiffness_N_per_m":
+        r = plant["lead_m_per_rad"]
+        return 1.0 / (
+            1.0 / plant["axial_stiffness_N_per_m"] + r * r / plant["torsional_stiffness_Nm_per_rad"]
+        )
+    value = plant.get(key)
+    return float(value) if isinstance(value, (int, float)) else None
+
+
+def _name(key: str) -> str:
+    return re.sub(r"\W+", "_", key).strip("_")
+
+
+def sysid_block(scenario: dict[str, Any], scenario_path: Path, traj: Any) -> dict[str, Any] | None:
+    """``{"identified", "error", "max_key_error", "keys": {key: relative error}, "bode_db", "bode_deg"}``.
+
+    None when the scenario has no excitation. A point whose data cannot be
+    identified has ``identified`` false, the reason in ``error`` and NaN
+    figures (a result, not a failure of the point).
+    """
+    record = Record(
+        source=f"plain:{scenario_path}",
+        scenario=scenario,
+        scenario_path=Path(scenario_path),
+        step=np.arange(traj.encoder_rad.size),
+        encoder_rad=traj.encoder_rad,
+        scale_m=traj.scale_m,
+        reference_rad=traj.reference_rad,
+        feedforward_Nm=traj.feedforward_Nm,
+        command_Nm=traj.command_Nm,
+    )
+    if record.excitation() is None:
+        return None
+    plant = record.plant_values()
+    keys: dict[str, float] = {}
+    try:
+        ident = identify(plant["model"], [record])
+    except IdentifyError as err:
+        return {
+            "identified": False,
+            "error": str(err),
+            "max_key_error": math.nan,
+            "keys": keys,
+            "bode_db": math.nan,
+            "bode_deg": math.nan,
+        }
+    for k in ident.keys:
+        true = _true_value(plant, k.key)
+        if true is not None and true != 0.0:
+            keys[_name(k.key)] = abs(k.value / true - 1.0)
+    bode = list(ident.bode.values())
+    return {
+        "identified": True,
+        "error": "",
+        "max_key_error": max(keys.values()) if keys else math.nan,
+        "keys": keys,
+        "bode_db": max(b[0] for b in bode) if bode else math.nan,
+        "bode_deg": max(b[1] for b in bode) if bode else math.nan,
+    }
