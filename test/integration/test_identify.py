@@ -19,6 +19,7 @@ import yaml
 from numpy.testing import assert_allclose
 from run_support import CONFIG
 
+from servo_axis.__main__ import main
 from servo_axis.identify.data import from_simulation
 from servo_axis.identify.driver import identify
 from servo_axis.params.scenario import load_scenario
@@ -38,7 +39,9 @@ def _cli(domain: int, tmp_path: Path, *args: str) -> subprocess.CompletedProcess
     )
 
 
-def test_identify_a_node_graph_run(ros_env: int, tmp_path: Path) -> None:
+def test_identify_a_node_graph_run(
+    ros_env: int, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     data = load_scenario(CONFIG / "measure_frf_ball_screw.yaml")
     data["/**"]["ros__parameters"]["duration_s"] = 3.0
     data["feedforward"]["ros__parameters"]["excitation"].update(
@@ -61,19 +64,19 @@ def test_identify_a_node_graph_run(ros_env: int, tmp_path: Path) -> None:
     assert done.returncode == 0, done.stderr[-3000:]
 
     out = tmp_path / "fitted.yaml"
-    done = _cli(
-        ros_env,
-        tmp_path,
-        "identify",
-        str(run),
-        "--model",
-        "ball_screw",
-        "--out",
-        str(out),
-        "--report",
-        str(tmp_path / "report"),
+    code = main(
+        [
+            "identify",
+            str(run),
+            "--model",
+            "ball_screw",
+            "--out",
+            str(out),
+            "--report",
+            str(tmp_path / "report"),
+        ]
     )
-    assert done.returncode == 0, done.stderr[-3000:]
+    assert code == 0, capsys.readouterr().err
     # The fit of the recorded run is the fit of the plain-call loop, key for key.
     plain = identify("ball_screw", [from_simulation(scenario)])
     written = yaml.safe_load(out.read_text())["plant"]["ros__parameters"]
@@ -108,18 +111,11 @@ def test_identify_a_node_graph_run(ros_env: int, tmp_path: Path) -> None:
         "the data do not determine": (str(run), "elastic_ball_screw"),
         "not a run directory": (str(tmp_path / "missing"), "ball_screw"),
     }
+    capsys.readouterr()
     for words, (run_dir, model) in bad.items():
-        done = _cli(
-            ros_env,
-            tmp_path,
-            "identify",
-            run_dir,
-            "--model",
-            model,
-            "--out",
-            str(tmp_path / "x.yaml"),
-        )
-        assert done.returncode == 2, (words, done.stderr)
-        lines = done.stderr.strip().splitlines()
-        assert len(lines) == 1 and words in lines[0], (words, done.stderr)
+        code = main(["identify", run_dir, "--model", model, "--out", str(tmp_path / "x.yaml")])
+        err = capsys.readouterr().err
+        assert code == 2, (words, err)
+        lines = err.strip().splitlines()
+        assert len(lines) == 1 and words in lines[0], (words, err)
     assert not (tmp_path / "x.yaml").exists()
