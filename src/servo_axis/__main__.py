@@ -316,6 +316,7 @@ examples:
   python -m servo_axis compare runs/pid runs/lpf2 --rmsd --bar-chart rmsd.png
   python -m servo_axis friction-table runs/friction_id --out table.csv
   python -m servo_axis gms-fit runs/friction_id_elastic --out gms.txt --plot fit.png
+  python -m servo_axis identify runs/frf --model ball_screw --out my_axis.yaml
   python -m servo_axis bag recover runs/ptc/bag
 (`servo-axis` is the same command as `python -m servo_axis`.)
 
