@@ -66,6 +66,12 @@ def sysid_block(scenario: dict[str, Any], scenario_path: Path, traj: Any) -> dic
     try:
         ident = identify(plant["model"], [record])
     except IdentifyError as err:
+        # Every key the plant has, NaN: the study's figures exist at every point.
+        for key, value in plant.items():
+            if isinstance(value, list):
+                keys.update({_name(f"{key}[{i}]"): math.nan for i in range(len(value))})
+            elif isinstance(value, (int, float)) and not isinstance(value, bool):
+                keys[_name(key)] = math.nan
         return {
             "identified": False,
             "error": str(err),

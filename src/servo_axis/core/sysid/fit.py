@@ -50,6 +50,10 @@ FloatArray = NDArray[np.float64]
 MIN_COHERENCE = 0.9
 #: Floor of the relative uncertainty of a line in the weights.
 SIGMA_FLOOR = 2e-3
+#: A resonance is looked for at lines measured to this relative standard deviation.
+MODE_MAX_STD = 0.1
+#: At most this many modes are fitted (the highest peaks).
+MAX_MODES = 6
 
 
 class IdentificationError(ConfigError):
@@ -249,13 +253,19 @@ def find_modes(
     """Resonances of the measured response against the rigid body: start values of the modes.
 
     A mode shows as a peak of ``|P / P_rigid|`` (``1 + j a / (2 zeta)`` at its
-    frequency); peaks above ``min_ratio`` at lines of good coherence are
-    taken, with ``zeta`` from the half-power width and ``a`` from the peak.
+    frequency); peaks above ``min_ratio`` at lines of good coherence and a
+    relative standard deviation of at most :data:`MODE_MAX_STD` are taken
+    (the :data:`MAX_MODES` highest), with ``zeta`` from the half-power width
+    and ``a`` from the peak.
     """
     s = 2j * math.pi * frf.frequency_hz
     ratio = frf.response * (inertia_kgm2 * s * s + damping_Nms_per_rad * s)
-    mag = np.where(frf.coherence >= MIN_COHERENCE, np.abs(ratio), 0.0)
+    # Only lines measured well enough that a peak is the plant's, not the noise's.
+    rel = frf.std / np.abs(frf.response)
+    good = (frf.coherence >= MIN_COHERENCE) & np.where(np.isfinite(rel), rel <= MODE_MAX_STD, True)
+    mag = np.where(good, np.abs(ratio), 0.0)
     peaks, _ = find_peaks(mag, height=min_ratio, prominence=0.3 * min_ratio)
+    peaks = sorted(sorted(peaks, key=lambda p: -mag[p])[:MAX_MODES])
     modes = []
     for p in peaks:
         f0 = float(frf.frequency_hz[p])

@@ -91,12 +91,13 @@ def sampled_response(
     f = np.asarray(frequency_hz, dtype=float)
     z = np.exp(2j * math.pi * f * t)
     n = am.shape[0]
-    out = np.empty((cm.shape[0], f.size), dtype=np.complex128)
-    eye = np.eye(n)
-    for i, zi in enumerate(z):
-        rhs = (g0 * zi**-whole + g1 * zi ** (-whole - 1)).astype(np.complex128)
-        out[:, i] = (cm @ np.linalg.solve(zi * eye - phi, rhs))[:, 0]
-    return out
+    # Every frequency at once: a stack of (z I - Phi) x = G0 z^-m + G1 z^-(m+1).
+    lhs = z[:, None, None] * np.eye(n) - phi
+    rhs = g0[None, :, :] * (z ** -whole)[:, None, None] + g1[None, :, :] * (z ** (-whole - 1))[
+        :, None, None
+    ]
+    x = np.linalg.solve(lhs, rhs)[:, :, 0]
+    return np.asarray((cm @ x.T).astype(np.complex128))
 
 
 def rigid_modes(
