@@ -27,7 +27,7 @@ from servo_axis.params.registry import PLANT_MODELS
 #: The plant models identify fits.
 MODELS = ("ball_screw", "elastic_ball_screw", "tilting_table")
 #: A key whose standard error exceeds this fraction of its value is not determined.
-UNDETERMINED = 0.5
+UNDETERMINED = sysfit.UNDETERMINED
 #: The Bode comparison runs up to this multiple of the first mode.
 BODE_SPAN = 2.0
 
@@ -227,6 +227,13 @@ def _ball_screw(
             + (f", Nyquist {nyquist:g} Hz" if any(f > nyquist for f in beyond) else "")
             + "): not identified and not written; measure with a shorter control period and a "
             "wider band to get them"
+        )
+    if fit.dropped:
+        ident.notes.append(
+            "modes.*: peaks at "
+            + ", ".join(f"{f:.4g}" for f in sorted(fit.dropped))
+            + " Hz looked like modes but the data do not determine them (standard error above "
+            "half the value): left out; more amplitude or periods to resolve them"
         )
     if n == 0:
         ident.notes.append(

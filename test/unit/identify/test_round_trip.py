@@ -329,3 +329,42 @@ def test_bad_input_is_one_clear_error(
         identify(
             "ball_screw", [bs["measure_frf_ball_screw"]], friction=[bs["measure_frf_ball_screw"]]
         )
+
+
+def test_steps_are_another_held_out_run(ball_screw: tuple[Any, dict[str, Record]]) -> None:
+    ident, _ = ball_screw
+    from servo_axis.identify.driver import validate
+
+    v = validate(ident, _record("measure_steps_ball_screw"))
+    assert v.nrmse_error < 0.05
+    assert_allclose(v.rms_error_fitted, v.rms_error_measured, rtol=0.05)
+
+
+def test_the_recorded_feedforward_is_the_excitation(
+    ball_screw: tuple[Any, dict[str, Record]],
+) -> None:
+    """With PTC off the feedforward torque (the bag's `reference` effort) is the test torque."""
+    _, runs = ball_screw
+    rec = runs["measure_frf_ball_screw"]
+    exc = rec.excitation()
+    assert exc is not None
+    assert_allclose(rec.feedforward_Nm, exc.torque_Nm(rec.step), rtol=1e-12, atol=1e-15)
+    first, stop = exc.window
+    assert np.abs(rec.feedforward_Nm[first:stop]).max() == pytest.approx(1.5, rel=1e-12)
+
+
+@pytest.mark.parametrize("signal", ["chirp", "prbs"])
+def test_chirp_and_prbs_identify_the_rigid_body_and_the_first_mode(
+    signal: str, tmp_path: Path
+) -> None:
+    scenario = load_scenario(find_scenario("measure_frf_ball_screw"))
+    scenario["feedforward"]["ros__parameters"]["excitation"]["signal"] = signal
+    path = tmp_path / f"{signal}.yaml"
+    path.write_text(yaml.safe_dump(scenario, sort_keys=False))
+    ident = identify("ball_screw", [from_simulation(path)])
+    true = scenario["plant"]["ros__parameters"]
+    assert_allclose(ident.key("inertia_kgm2").value, true["inertia_kgm2"], rtol=KEY_RTOL)
+    assert_allclose(ident.key("damping_Nms_per_rad").value, true["damping_Nms_per_rad"], rtol=0.1)
+    assert_allclose(
+        ident.key("modes.frequency_hz[0]").value, true["modes"]["frequency_hz"][0], rtol=KEY_RTOL
+    )

@@ -36,6 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.ndimage import median_filter
 from scipy.optimize import least_squares
 from scipy.signal import butter, find_peaks, sosfiltfilt
 
@@ -54,6 +55,8 @@ SIGMA_FLOOR = 2e-3
 MODE_MAX_STD = 0.1
 #: At most this many modes are fitted (the highest peaks).
 MAX_MODES = 6
+#: A key whose standard error exceeds this fraction of its value is not determined.
+UNDETERMINED = 0.5
 
 
 class IdentificationError(ConfigError):
@@ -75,6 +78,9 @@ class Fit:
         data to its noise).
     points : int
         Residuals fitted (two per line and response).
+    dropped : tuple of float
+        Frequencies (Hz) of peaks tried as modes and left out: the data did
+        not determine them (:func:`fit_rigid_modes`).
     """
 
     names: tuple[str, ...]
@@ -82,6 +88,7 @@ class Fit:
     std: FloatArray
     rms_residual: float
     points: int
+    dropped: tuple[float, ...] = ()
 
     def value(self, name: str) -> float:
         """The fitted value of ``name``."""
@@ -263,7 +270,9 @@ def find_modes(
     # Only lines measured well enough that a peak is the plant's, not the noise's.
     rel = frf.std / np.abs(frf.response)
     good = (frf.coherence >= MIN_COHERENCE) & np.where(np.isfinite(rel), rel <= MODE_MAX_STD, True)
-    mag = np.where(good, np.abs(ratio), 0.0)
+    # A resonance spans lines (its half-power width 2 zeta f); a spike of one line is
+    # the noise's: the peaks are looked for in the median of 5 lines.
+    mag = median_filter(np.where(good, np.abs(ratio), 0.0), size=5, mode="nearest")
     peaks, _ = find_peaks(mag, height=min_ratio, prominence=0.3 * min_ratio)
     peaks = sorted(sorted(peaks, key=lambda p: -mag[p])[:MAX_MODES])
     modes = []
@@ -293,7 +302,10 @@ def fit_rigid_modes(
     """Fit ``J, D``, the modes ``(f_i, zeta_i, a_i)`` and the dead time of 000 eq. (30).
 
     ``modes`` are start values (None: :func:`find_modes` finds them in the
-    measured response).
+    measured response). A mode whose keys come out with a standard error
+    above half their value is left out and the rest fitted again (its
+    frequency in :attr:`Fit.dropped`): a peak of the noise, or a mode the
+    data cannot pin.
     """
     first = frf.frequency_hz[0]
     j0, d0 = rigid_start(frf, below_hz=max(5.0 * first, 0.3 * frf.frequency_hz[-1] / 3))
@@ -330,7 +342,35 @@ def fit_rigid_modes(
     def model(values: dict[str, float]) -> list[NDArray[np.complex128]]:
         return [rigid_modes_response(values, f_lines, modes=n, control_period_s=control_period_s)]
 
-    return fit_response(model, params, [frf], max_frequency_hz=max_frequency_hz)
+    fit = fit_response(model, params, [frf], max_frequency_hz=max_frequency_hz)
+    loose = [
+        i
+        for i in range(n)
+        if any(not fit.error(k) <= UNDETERMINED * abs(fit.value(k)) for k in _mode_keys(i))
+    ]
+    if not loose:
+        return fit
+    # The loosest first (its largest relative error), one at a time.
+    worst = max(
+        loose,
+        key=lambda i: max(fit.error(k) / max(abs(fit.value(k)), 1e-300) for k in _mode_keys(i)),
+    )
+    kept = [tuple(fit.value(k) for k in _mode_keys(i)) for i in range(n) if i != worst]
+    again = fit_rigid_modes(
+        frf,
+        control_period_s=control_period_s,
+        modes=kept,  # type: ignore[arg-type]
+        dead_time=dead_time,
+        max_frequency_hz=max_frequency_hz,
+    )
+    return Fit(
+        names=again.names,
+        values=again.values,
+        std=again.std,
+        rms_residual=again.rms_residual,
+        points=again.points,
+        dropped=(*again.dropped, fit.value(_mode_keys(worst)[0])),
+    )
 
 
 # ----------------------------------------------------------------------- two-inertia (004)
