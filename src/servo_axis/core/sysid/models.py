@@ -93,9 +93,10 @@ def sampled_response(
     n = am.shape[0]
     # Every frequency at once: a stack of (z I - Phi) x = G0 z^-m + G1 z^-(m+1).
     lhs = z[:, None, None] * np.eye(n) - phi
-    rhs = g0[None, :, :] * (z ** -whole)[:, None, None] + g1[None, :, :] * (z ** (-whole - 1))[
-        :, None, None
-    ]
+    rhs = (
+        g0[None, :, :] * (z**-whole)[:, None, None]
+        + g1[None, :, :] * (z ** (-whole - 1))[:, None, None]
+    )
     x = np.linalg.solve(lhs, rhs)[:, :, 0]
     return np.asarray((cm @ x.T).astype(np.complex128))
 
