@@ -338,7 +338,6 @@ def _tilting(
     # The linearised table about the run's angles: 1 / (J s^2 + D s + U cos th).
     first, stop = exc.window
     cos_mean = float(np.mean(np.cos(record.encoder_rad[record.window(first, stop)])))
-    s = 2j * math.pi * frf.frequency_hz
     from servo_axis.core.sysid.models import sampled_response
 
     j, d, u = fit.value("inertia_kgm2"), fit.value("damping_Nms_per_rad"), fit.value("unbalance_Nm")
@@ -348,7 +347,6 @@ def _tilting(
     ident.fitted["encoder"] = sampled_response(
         a, b, c, frequency_hz=frf.frequency_hz, control_period_s=t
     )[0]
-    del s
     # The swing's own harmonics are periodic in the excitation's period too when the
     # two periods are commensurate: the lowest lines carry them. Compared from its
     # fourth harmonic on.
@@ -653,20 +651,11 @@ def validate(ident: Identification, held_out: Record) -> Validation:
             f"--validate {held_out.source}: an excitation run, expected a held-out one"
         )
     scenario = fitted_scenario(ident, held_out)
+    absolute_files(scenario, held_out.scenario_path.parent)
     with tempfile.TemporaryDirectory(prefix="servo_axis_identify_") as tmp:
         path = Path(tmp) / "fitted.yaml"
-        # Relative data files of the held-out scenario stay relative to its folder.
-        path = (
-            held_out.scenario_path.parent / f".identify_validation_{id(ident)}.yaml"
-            if _relative_files(scenario)
-            else path
-        )
-        try:
-            path.write_text(yaml.safe_dump(scenario, sort_keys=False))
-            traj = simulate(path, steps=int(held_out.step[-1]) + 1)
-        finally:
-            if path.name.startswith(".identify_validation_"):
-                path.unlink(missing_ok=True)
+        path.write_text(yaml.safe_dump(scenario, sort_keys=False))
+        traj = simulate(path, steps=int(held_out.step[-1]) + 1)
 
     class _Sig:
         def __init__(self, enc: np.ndarray, scale: np.ndarray, ref: np.ndarray) -> None:
@@ -696,14 +685,13 @@ def validate(ident: Identification, held_out: Record) -> Validation:
     )
 
 
-def _relative_files(scenario: dict[str, Any]) -> bool:
-    ff = scenario.get("feedforward", {}).get("ros__parameters", {})
-    for term in ("friction_table", "gms"):
-        sec = ff.get(term, {})
-        if (
-            isinstance(sec, dict)
-            and sec.get("enabled")
-            and not Path(str(sec.get("file", ""))).is_absolute()
-        ):
-            return True
-    return False
+def absolute_files(node: Any, directory: Path) -> None:
+    """Make every ``file`` key absolute (relative to ``directory``): the copy runs elsewhere."""
+    from servo_axis.params.scenario import resolve_table
+
+    if isinstance(node, dict):
+        for key, value in node.items():
+            if key == "file" and isinstance(value, str):
+                node[key] = resolve_table(value, directory)
+            else:
+                absolute_files(value, directory)

@@ -37,12 +37,29 @@ def _true_value(plant: dict[str, Any], key: str) -> float | None:
     return float(value) if isinstance(value, (int, float)) else None
 
 
+def _unknown(plant: dict[str, Any]) -> dict[str, float]:
+    """Every numeric key of the plant (each element of a list its own), NaN.
+
+    So that the study's figures exist at every point, identified or not.
+    """
+    keys: dict[str, float] = {}
+    for key, value in plant.items():
+        if isinstance(value, list):
+            keys.update({_name(f"{key}[{i}]"): math.nan for i in range(len(value))})
+        elif isinstance(value, (int, float)) and not isinstance(value, bool):
+            keys[_name(key)] = math.nan
+    return keys
+
+
 def _name(key: str) -> str:
     return re.sub(r"\W+", "_", key).strip("_")
 
 
 def sysid_block(scenario: dict[str, Any], scenario_path: Path, traj: Any) -> dict[str, Any] | None:
-    """``{"identified", "error", "max_key_error", "keys": {key: relative error}, "bode_db", "bode_deg"}``.
+    """``{"identified", "error", "max_key_error", "missing", "keys": {key: relative error}, "bode_db", "bode_deg"}``.
+
+    ``max_key_error`` is over the keys the fit gave; ``missing`` names the
+    plant's mode keys it did not (a mode not found).
 
     None when the scenario has no excitation. A point whose data cannot be
     identified has ``identified`` false, the reason in ``error`` and NaN
@@ -66,17 +83,12 @@ def sysid_block(scenario: dict[str, Any], scenario_path: Path, traj: Any) -> dic
     try:
         ident = identify(plant["model"], [record])
     except IdentifyError as err:
-        # Every key the plant has, NaN: the study's figures exist at every point.
-        for key, value in plant.items():
-            if isinstance(value, list):
-                keys.update({_name(f"{key}[{i}]"): math.nan for i in range(len(value))})
-            elif isinstance(value, (int, float)) and not isinstance(value, bool):
-                keys[_name(key)] = math.nan
         return {
             "identified": False,
             "error": str(err),
             "max_key_error": math.nan,
-            "keys": keys,
+            "missing": [],
+            "keys": _unknown(plant),
             "bode_db": math.nan,
             "bode_deg": math.nan,
         }
@@ -84,12 +96,15 @@ def sysid_block(scenario: dict[str, Any], scenario_path: Path, traj: Any) -> dic
         true = _true_value(plant, k.key)
         if true is not None and true != 0.0:
             keys[_name(k.key)] = abs(k.value / true - 1.0)
+    # A mode the plant has and the fit did not give: NaN, and named.
+    missing = sorted(k for k in _unknown(plant) if k.startswith("modes_") and k not in keys)
     bode = list(ident.bode.values())
     return {
         "identified": True,
         "error": "",
         "max_key_error": max(keys.values()) if keys else math.nan,
-        "keys": keys,
+        "missing": missing,
+        "keys": {**_unknown(plant), **keys},
         "bode_db": max(b[0] for b in bode) if bode else math.nan,
         "bode_deg": max(b[1] for b in bode) if bode else math.nan,
     }

@@ -9,7 +9,7 @@ from typing import Any
 import yaml
 
 from servo_axis.identify.data import Record
-from servo_axis.identify.driver import Identification, fitted_scenario
+from servo_axis.identify.driver import Identification, absolute_files, fitted_scenario
 
 
 def scenario_of(ident: Identification, base: Record, *, name: str) -> dict[str, Any]:
@@ -21,6 +21,8 @@ def scenario_of(ident: Identification, base: Record, *, name: str) -> dict[str, 
     file's header for a ``nominal`` section of one's own.
     """
     scenario = copy.deepcopy(fitted_scenario(ident, base))
+    # The file is written elsewhere: data files the base names by a relative path, absolute.
+    absolute_files(scenario, base.scenario_path.parent)
     shared = scenario.setdefault("/**", {}).setdefault("ros__parameters", {})
     meta = shared.setdefault("scenario", {})
     meta["name"] = name

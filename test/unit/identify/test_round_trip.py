@@ -368,3 +368,20 @@ def test_chirp_and_prbs_identify_the_rigid_body_and_the_first_mode(
     assert_allclose(
         ident.key("modes.frequency_hz[0]").value, true["modes"]["frequency_hz"][0], rtol=KEY_RTOL
     )
+
+
+def test_a_study_point_gets_the_identification_errors(
+    ball_screw: tuple[Any, dict[str, Record]],
+) -> None:
+    from servo_axis.identify.study import sysid_block
+
+    _, runs = ball_screw
+    rec = runs["measure_frf_ball_screw"]
+    block = sysid_block(rec.scenario, rec.scenario_path, rec)
+    assert block is not None and block["identified"] and block["missing"] == []
+    assert block["max_key_error"] < KEY_RTOL
+    assert block["keys"]["inertia_kgm2"] < 1e-3
+    assert block["keys"]["modes_frequency_hz_0"] < 1e-3
+    assert block["bode_db"] < 1.0 and block["bode_deg"] < 5.0
+    held_out = runs["measure_sine_ball_screw"]
+    assert sysid_block(held_out.scenario, held_out.scenario_path, held_out) is None
