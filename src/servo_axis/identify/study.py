@@ -58,8 +58,10 @@ def _name(key: str) -> str:
 def sysid_block(scenario: dict[str, Any], scenario_path: Path, traj: Any) -> dict[str, Any] | None:
     """``{"identified", "error", "max_key_error", "missing", "keys": {key: relative error}, "bode_db", "bode_deg"}``.
 
-    ``max_key_error`` is over the keys the fit gave; ``missing`` names the
-    plant's mode keys it did not (a mode not found).
+    The fitted modes are matched to the plant's by frequency (the nearest,
+    within 20 %); ``max_key_error`` is over the keys matched, ``missing``
+    names the plant's mode keys the fit did not give, ``spurious_hz`` the
+    fitted modes that match none.
 
     None when the scenario has no excitation. A point whose data cannot be
     identified has ``identified`` false, the reason in ``error`` and NaN
@@ -88,14 +90,37 @@ def sysid_block(scenario: dict[str, Any], scenario_path: Path, traj: Any) -> dic
             "error": str(err),
             "max_key_error": math.nan,
             "missing": [],
+            "spurious_hz": [],
             "keys": _unknown(plant),
             "bode_db": math.nan,
             "bode_deg": math.nan,
         }
+    # The fitted modes matched to the plant's by frequency (the nearest within 20 %).
+    fitted_f = {
+        int(m.group(1)): k.value
+        for k in ident.keys
+        if (m := re.fullmatch(r"modes\.frequency_hz\[(\d+)\]", k.key))
+    }
+    true_f = [f for f in plant.get("modes.frequency_hz", []) if f > 0.0]
+    match: dict[int, int] = {}
+    for i, f in sorted(fitted_f.items(), key=lambda item: item[1]):
+        free = [j for j in range(len(true_f)) if j not in match.values()]
+        if free:
+            j = min(free, key=lambda j: abs(true_f[j] - f))
+            if abs(true_f[j] - f) <= 0.2 * true_f[j]:
+                match[i] = j
+    spurious = sorted(fitted_f[i] for i in fitted_f if i not in match)
     for k in ident.keys:
-        true = _true_value(plant, k.key)
+        m = re.fullmatch(r"(modes\.\w+)\[(\d+)\]", k.key)
+        if m:
+            if int(m.group(2)) not in match:
+                continue
+            key = f"{m.group(1)}[{match[int(m.group(2))]}]"
+        else:
+            key = k.key
+        true = _true_value(plant, key)
         if true is not None and true != 0.0:
-            keys[_name(k.key)] = abs(k.value / true - 1.0)
+            keys[_name(key)] = abs(k.value / true - 1.0)
     # A mode the plant has and the fit did not give: NaN, and named.
     missing = sorted(k for k in _unknown(plant) if k.startswith("modes_") and k not in keys)
     bode = list(ident.bode.values())
@@ -104,6 +129,7 @@ def sysid_block(scenario: dict[str, Any], scenario_path: Path, traj: Any) -> dic
         "error": "",
         "max_key_error": max(keys.values()) if keys else math.nan,
         "missing": missing,
+        "spurious_hz": spurious,
         "keys": {**_unknown(plant), **keys},
         "bode_db": max(b[0] for b in bode) if bode else math.nan,
         "bode_deg": max(b[1] for b in bode) if bode else math.nan,
