@@ -114,6 +114,11 @@ def _weights(frf: FrequencyResponse, min_coherence: float) -> tuple[NDArray[np.b
     keep = frf.coherence >= min_coherence
     rel = frf.std / np.abs(frf.response)
     rel = np.where(np.isfinite(rel), rel, 0.05)
+    # A spread from a few periods is itself noisy (with 4, a line's variance is
+    # chi-square with 6 degrees of freedom): the noise's spectrum is smooth, so the
+    # weights take the median of 9 neighbouring lines, and no single line with a
+    # small spread by chance dominates the fit.
+    rel = median_filter(rel, size=9, mode="nearest")
     # std is that of the complex value: each of log-magnitude and phase has std / sqrt(2).
     return keep, math.sqrt(2.0) / np.maximum(rel, SIGMA_FLOOR)
 
