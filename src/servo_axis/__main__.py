@@ -16,6 +16,8 @@ is one line on stderr and exit 2.
 ``python -m servo_axis sweep STUDY.yaml [--out DIR] [--scheduler tcp://HOST:PORT] [--workers N]``
     a parameter sweep (a study) on dask.distributed: results.parquet/.csv,
     manifest.json (an interrupted study resumes), a PNG per figure and parameter;
+``python -m servo_axis identify RUN_DIR --model NAME --out SCENARIO.yaml [--friction RUN_DIR] [--validate RUN_DIR]``
+    an axis identified from a measure_frf_* run, written as a scenario (docs/how-to/identify-your-axis.md);
 ``python -m servo_axis bag recover BAG_DIR``
     make a bag whose recorder died readable again (a complete bag is left as it is).
 
@@ -36,6 +38,7 @@ from servo_axis.cli import (
     compare_command,
     friction_table_command,
     gms_fit_command,
+    identify_command,
     list_command,
     run_command,
     summary_command,
@@ -51,6 +54,7 @@ COMMANDS = (
     friction_table_command,
     gms_fit_command,
     sweep_command,
+    identify_command,
     summary_command,
     list_command,
     compare_command,
@@ -77,6 +81,7 @@ examples:
   python -m servo_axis compare runs/pid runs/lpf2 --rmsd --bar-chart rmsd.png
   python -m servo_axis friction-table runs/friction_id --out table.csv
   python -m servo_axis gms-fit runs/friction_id_elastic --out gms.txt --plot fit.png
+  python -m servo_axis identify runs/frf --model ball_screw --out my_axis.yaml
   python -m servo_axis bag recover runs/ptc/bag
 (`servo-axis` is the same command as `python -m servo_axis`.)
 

@@ -7,6 +7,7 @@ for one with a learning section, :func:`~servo_axis.simulate.simulate` otherwise
 its summary is computed by the same functions as a run's ``summary.json``
 (:func:`servo_axis.analysis.signals.tracking`,
 :func:`servo_axis.analysis.metrics.error_statistics`,
+:func:`servo_axis.identify.study.sysid_block` for a scenario with an excitation,
 :func:`servo_axis.analysis.summary.summarise_estimates`,
 :func:`servo_axis.analysis.summary.ilc_convergence`), so its fields have the
 same paths. ``nodes`` runs ``python -m servo_axis run`` in a ROS domain of
@@ -103,6 +104,11 @@ def plain_summary(scenario: dict[str, Any], scenario_path: Path) -> dict[str, An
         summary["ilc_convergence"] = convergence
     if identification is not None:
         summary["identification"] = identification
+    from servo_axis.identify.study import sysid_block
+
+    sysid = sysid_block(scenario, scenario_path, traj)
+    if sysid is not None:
+        summary["sysid"] = sysid
     return summary
 
 

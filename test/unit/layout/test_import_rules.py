@@ -15,8 +15,8 @@ hidden inside a function is still a circle.
 * ``analysis`` and ``simulate`` import nothing of ``run`` (the resolver is ``params.resolve``);
 * nothing outside ``servo_axis.plugins`` imports a module of it: the suite
   finds its own extensions by entry point, as it finds an outside package's;
-* ``simulate``, ``analysis``, ``friction_id``, ``gms_fit``, ``params``, ``plugins``,
-  ``study``, ``wire.topics``, ``wire.layouts``, ``wire.checks``, ``wire.streams``,
+* ``simulate``, ``analysis``, ``friction_id``, ``gms_fit``, ``identify``, ``params``,
+  ``plugins``, ``sweep``, ``wire.topics``, ``wire.layouts``, ``wire.checks``, ``wire.streams``,
   ``wire.cdr``, ``wire.sample_cdr``, ``recording.reader``, ``nodes.lockstep`` and
   ``nodes.realtime`` reach no rclpy and no ROS message
   package, directly or through other modules of the project.
@@ -236,7 +236,13 @@ ROS_FREE = [
         m
         for m in MODULES
         if m.startswith(
-            ("servo_axis.analysis", "servo_axis.params", "servo_axis.plugins", "servo_axis.sweep")
+            (
+                "servo_axis.analysis",
+                "servo_axis.identify",
+                "servo_axis.params",
+                "servo_axis.plugins",
+                "servo_axis.sweep",
+            )
         )
     ),
 ]
