@@ -145,13 +145,9 @@ def test_killed_learning_unit_resumes_from_its_memory(ros_env: int, tmp_path: Pa
 
     from servo_axis.nodes.runtime import STREAM_QOS
     from servo_axis.params.scenario import load_scenario
+    from servo_axis.run.fastdds import clean_stale_shm
     from servo_axis.run.plan import handshake_overrides, write_run_params
-    from servo_axis.run.processes import (
-        clean_stale_shm,
-        ros_environment,
-        start_nodes,
-        stop_nodes,
-    )
+    from servo_axis.run.processes import ros_environment, start_nodes, stop_nodes
     from servo_axis.run.progress import ProgressWatcher
 
     data = load_scenario(CONFIG / "rptc_detailed.yaml")

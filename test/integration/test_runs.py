@@ -25,8 +25,9 @@ from run_support import shm_left_behind, shm_names
 from servo_axis.__main__ import main as cli
 from servo_axis.friction_id import table_from_run
 from servo_axis.params.scenario import load_scenario
+from servo_axis.run.fastdds import clean_stale_shm
 from servo_axis.run.plan import handshake_overrides, write_run_params
-from servo_axis.run.processes import clean_stale_shm, ros_environment, start_nodes, stop_nodes
+from servo_axis.run.processes import ros_environment, start_nodes, stop_nodes
 from servo_axis.run.progress import ProgressWatcher
 from servo_axis.run.runner import run_scenario
 from servo_axis.storage import load_friction_table

@@ -59,6 +59,7 @@ from servo_axis.params.scenario import (
     roles_of,
     shared,
 )
+from servo_axis.run.fastdds import clean_stale_shm, free_participant_id, with_participant_id
 from servo_axis.run.live import LiveAxis, check_live, live_axis, module_args, wait_ready
 from servo_axis.run.plan import (
     REQUIRED_INPUTS,
@@ -69,17 +70,14 @@ from servo_axis.run.plan import (
 )
 from servo_axis.run.processes import (
     Proc,
-    clean_stale_shm,
     default_domain_id,
     discovery_settings,
-    free_participant_id,
     ros_environment,
     run_header,
     start_node,
     start_nodes,
     start_process,
     stop_nodes,
-    with_participant_id,
 )
 from servo_axis.run.progress import ProgressLine, ProgressWatcher
 from servo_axis.stop_signals import catch_stop_signals, restore_handlers
