@@ -135,55 +135,54 @@ class Proc:
         return "\n".join(text[-lines:])
 
 
-def start_nodes(
-    params_path: Path,
-    roles: list[str],
-    extra_args: list[str],
-    env: dict[str, str],
-    log_dir: Path,
-    composed: bool,
-    *,
-    realtime: bool = False,
-) -> list[Proc]:
-    """Start the node processes (or one composed process), each logging to ``log_dir/<role>.log``.
+@dataclass(frozen=True)
+class Launch:
+    """How the node processes of one axis are started.
 
-    ``realtime``: the run's time mode is realtime (the cores are shared out
-    differently, :func:`cpu_set`).
+    Attributes
+    ----------
+    params_path : Path
+        The run's parameter file (``--params-file``).
+    args : tuple of str
+        ROS arguments after it (the namespace remaps, ``-p`` overrides).
+    env : mapping
+        The processes' environment (:func:`ros_environment`).
+    log_dir : Path
+        Where each process logs (``<log_dir>/<role>.log``).
+    realtime : bool
+        The run's time mode is realtime (the cores are shared out
+        differently, :func:`cpu_set`).
     """
+
+    params_path: Path
+    args: tuple[str, ...]
+    env: Mapping[str, str]
+    log_dir: Path
+    realtime: bool = False
+
+
+def start_nodes(launch: Launch, roles: list[str], composed: bool = False) -> list[Proc]:
+    """Start the node processes of ``roles`` (or one composed process), each logging to its own file."""
     if composed:
-        return [
-            start_node(
-                params_path, "composed", extra_args, env, log_dir, roles=roles, realtime=realtime
-            )
-        ]
-    return [
-        start_node(params_path, role, extra_args, env, log_dir, realtime=realtime) for role in roles
-    ]
+        return [start_node(launch, "composed", roles=roles)]
+    return [start_node(launch, role) for role in roles]
 
 
 def start_node(
-    params_path: Path,
-    role: str,
-    extra_args: list[str],
-    env: dict[str, str],
-    log_dir: Path,
-    *,
-    roles: list[str] | None = None,
-    log_name: str | None = None,
-    realtime: bool = False,
+    launch: Launch, role: str, *, roles: list[str] | None = None, log_name: str | None = None
 ) -> Proc:
     """Start one node process (``role`` = ``composed``: the nodes of ``roles`` in one).
 
-    Its output goes to ``log_dir/<log_name or role>.log``; ``realtime`` as
-    for :func:`start_nodes`.
+    Its output goes to ``<launch.log_dir>/<log_name or role>.log``.
     """
     cmd = (
         ["-m", "servo_axis.nodes.composed", *(roles or [])]
         if role == "composed"
         else ["-m", f"servo_axis.nodes.{role}"]
     )
-    args = [*cmd, "--ros-args", "--params-file", str(params_path), *extra_args]
-    return start_process(role, args, env, log_dir / f"{log_name or role}.log", realtime=realtime)
+    args = [*cmd, "--ros-args", "--params-file", str(launch.params_path), *launch.args]
+    log_path = launch.log_dir / f"{log_name or role}.log"
+    return start_process(role, args, dict(launch.env), log_path, realtime=launch.realtime)
 
 
 def pids_of(run_dir: Path, role: str) -> list[int]:
