@@ -63,6 +63,7 @@ from collections.abc import Callable
 from typing import Any
 
 from servo_axis.core.errors import SignalError
+from servo_axis.core.feedback.output import controlled_output
 from servo_axis.run.live_channels import (
     DEFAULT_PORT,
     DIAGNOSTICS_SCHEMA,
@@ -228,8 +229,6 @@ class _AxisStreams:
         self.error_ch.log(out, log_time=ns)
 
     def _on_state(self, sample: Any) -> None:
-        from servo_axis.core.feedback.output import controlled_output
-
         bridge = self.bridge
         ns = sample.step * self.period
         if ns > bridge.sim_ns:
