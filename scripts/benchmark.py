@@ -416,7 +416,7 @@ def alternate(
     cases: list[tuple[str, Path]], repeat: int, tmp: Path, domain: int
 ) -> tuple[dict[str, float], dict[str, list[float]], Any]:
     """Median steps/s of each case, run alternately ``repeat`` times (the host is noisy)."""
-    from servo_axis.run.runner import run_scenario
+    from servo_axis.run.runner import RunOptions, run_scenario
 
     samples: dict[str, list[float]] = {name: [] for name, _ in cases}
     last = None
@@ -424,7 +424,9 @@ def alternate(
         for name, path in cases:
             print(f"{name}, run {rep + 1} of {repeat} ...", flush=True)
             out_dir = tmp / f"{name.replace(' ', '_').replace(',', '')}_{rep}"
-            last = run_scenario(path, out_dir=out_dir, domain_id=domain, progress=None, plots=False)
+            last = run_scenario(
+                path, RunOptions(out_dir=out_dir, domain_id=domain, progress=None, plots=False)
+            )
             samples[name].append(last.summary.steps_per_s)
     rates = {name: float(sorted(v)[len(v) // 2]) for name, v in samples.items()}
     return rates, samples, last
@@ -580,13 +582,13 @@ def read_floor(path: Path) -> dict[int, dict]:
 
 def one_run(scenario: Path, out_dir: Path, domain: int, composed: bool = False) -> Any:
     """A run's summary, or the first line of why it failed (a string)."""
-    from servo_axis.run.runner import run_scenario
+    from servo_axis.run.runner import RunOptions, run_scenario
 
     try:
-        r = run_scenario(
-            scenario, out_dir=out_dir, composed=composed, domain_id=domain, progress=None,
-            plots=False,
-        )  # fmt: skip
+        options = RunOptions(
+            out_dir=out_dir, composed=composed, domain_id=domain, progress=None, plots=False
+        )
+        r = run_scenario(scenario, options)
     except Exception as err:  # a row of the table says why
         return f"{type(err).__name__}: {str(err).splitlines()[0] if str(err) else ''}"[:90]
     return r.summary
@@ -854,7 +856,7 @@ def budget_of(prof: Path, steps: int) -> dict[str, float]:
 
 def budget(args: argparse.Namespace) -> int:
     """``--budget``: a lockstep run (separate processes) under cProfile; us per step per node."""
-    from servo_axis.run.runner import run_scenario
+    from servo_axis.run.runner import RunOptions, run_scenario
 
     tmp = Path(tempfile.mkdtemp(prefix="servo_axis_budget_"))
     scenario, data = prepared(Path(args.scenario), tmp, args.duration)
@@ -864,12 +866,12 @@ def budget(args: argparse.Namespace) -> int:
     prof_dir.mkdir()
     domain = 60 + os.getpid() % 30
     plain = run_scenario(
-        scenario, out_dir=tmp / "plain", domain_id=domain, progress=None, plots=False
+        scenario, RunOptions(out_dir=tmp / "plain", domain_id=domain, progress=None, plots=False)
     )
     os.environ["SERVO_AXIS_PROFILE"] = str(prof_dir)
     try:
         r = run_scenario(
-            scenario, out_dir=tmp / "prof", domain_id=domain, progress=None, plots=False
+            scenario, RunOptions(out_dir=tmp / "prof", domain_id=domain, progress=None, plots=False)
         )
     finally:
         del os.environ["SERVO_AXIS_PROFILE"]
@@ -1061,7 +1063,7 @@ def main() -> int:
 
     from servo_axis.params.scenario import load_scenario
     from servo_axis.run.processes import ros_environment
-    from servo_axis.run.runner import run_scenario
+    from servo_axis.run.runner import RunOptions, run_scenario
     from servo_axis.simulate import simulate
 
     tmp = Path(tempfile.mkdtemp(prefix="servo_axis_bench_"))
@@ -1091,11 +1093,13 @@ def main() -> int:
         print(f"{name} ...", flush=True)
         r = run_scenario(
             scenario,
-            out_dir=tmp / name.split()[0],
-            composed=composed,
-            domain_id=domain,
-            progress=None,
-            plots=False,
+            RunOptions(
+                out_dir=tmp / name.split()[0],
+                composed=composed,
+                domain_id=domain,
+                progress=None,
+                plots=False,
+            ),
         )
         counts = r.summary.message_counts
         expected = {"/state": steps, "/command": steps, "/reference": steps, "/clock": steps // 10}

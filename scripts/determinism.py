@@ -88,7 +88,7 @@ def one_run(scenario: str, out: Path, domain: int, composed: bool, stranger: boo
                 # leaves its shared-memory files (and its peers') behind.
                 extra.kill()
                 extra.wait()
-                from servo_axis.run.processes import clean_stale_shm
+                from servo_axis.run.fastdds import clean_stale_shm
 
                 clean_stale_shm(since=started)
 

@@ -80,8 +80,8 @@ def scenario_lines(scenario: Path, work: Path, domain_id: int, composed: bool) -
 
 def single_axis_ns(scenario: Path) -> str:
     """The namespace a single-axis run of ``scenario`` puts its nodes in (``/<axis>``)."""
+    from servo_axis.params.run_params import single_axis_namespace
     from servo_axis.params.scenario import load_scenario
-    from servo_axis.run.runner import single_axis_namespace
 
     return single_axis_namespace(load_scenario(scenario))
 

@@ -74,7 +74,7 @@ def ros_env(
     # What a test started must not outlive it, shared memory included: a
     # participant killed by a test (or by a timeout) leaves its Fast DDS
     # files behind. They are removed here and named, so a leak is seen.
-    from servo_axis.run.processes import clean_stale_shm
+    from servo_axis.run.fastdds import clean_stale_shm
 
     left = clean_stale_shm(since=started)
     if left:

@@ -27,7 +27,7 @@ from servo_axis.params.factories import build_reference
 from servo_axis.params.resolve import node_values
 from servo_axis.params.scenario import load_scenario
 from servo_axis.recording.reader import read_raw
-from servo_axis.run.runner import run_scenario
+from servo_axis.run.runner import RunOptions, run_scenario
 from servo_axis.simulate import simulate_identification
 from servo_axis.wire import cdr
 
@@ -85,7 +85,9 @@ def test_the_four_schemes_are_their_plain_call_loops(ros_env: int, tmp_path: Pat
     figures = {}
     for scheme in SCHEMES:
         path = short(scheme, tmp_path / f"{scheme}.yaml")
-        result = run_scenario(path, out_dir=tmp_path / scheme, domain_id=ros_env, progress=None)
+        result = run_scenario(
+            path, RunOptions(out_dir=tmp_path / scheme, domain_id=ros_env, progress=None)
+        )
         assert result.exit_code == 0, scheme
         summary = result.summary
         core = simulate_identification(path)
@@ -125,7 +127,10 @@ def test_identical_bags_run_after_run_and_composed(
     bags = []
     for name, composed in (("a", False), ("b", False), ("composed", True)):
         result = run_scenario(
-            path, out_dir=tmp_path / name, domain_id=ros_env, composed=composed, progress=None
+            path,
+            RunOptions(
+                out_dir=tmp_path / name, domain_id=ros_env, composed=composed, progress=None
+            ),
         )
         assert result.exit_code == 0, name
         bags.append(raw_payloads(result.run_dir / "bag"))

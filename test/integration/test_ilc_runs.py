@@ -20,7 +20,7 @@ from run_support import SWITCH, TRIAL_S, TRIALS, pids_of, run_and_kill, short_tr
 
 from servo_axis.analysis.health import EXIT_NOT_DETERMINISTIC
 from servo_axis.analysis.summary import RunSummary
-from servo_axis.run.runner import run_scenario
+from servo_axis.run.runner import RunOptions, run_scenario
 from servo_axis.simulate import simulate_learning
 
 pytestmark = pytest.mark.integration
@@ -46,7 +46,9 @@ def test_projection_ilc_carries_over_to_a_new_reference(
     runs = {}
     for law in ("silc", "bf", "bfft"):
         path = short_trials(law, tmp_path / f"{law}.yaml")
-        runs[law] = run_scenario(path, out_dir=tmp_path / law, domain_id=ros_env, progress=None)
+        runs[law] = run_scenario(
+            path, RunOptions(out_dir=tmp_path / law, domain_id=ros_env, progress=None)
+        )
         summary = runs[law].summary
         assert summary.period_name == "trial" and not summary.faults
         assert runs[law].exit_code == 0
@@ -79,10 +81,9 @@ def test_projection_ilc_carries_over_to_a_new_reference(
     # Separate processes and composed: identical payloads on every topic.
     again = run_scenario(
         tmp_path / "bfft.yaml",
-        out_dir=tmp_path / "bfft_composed",
-        domain_id=ros_env,
-        composed=True,
-        progress=None,
+        RunOptions(
+            out_dir=tmp_path / "bfft_composed", domain_id=ros_env, composed=True, progress=None
+        ),
     )
     a, b = raw_payloads(runs["bfft"].run_dir / "bag"), raw_payloads(again.run_dir / "bag")
     assert set(a) == set(b) and "/x/learning/friction_table" in a

@@ -12,7 +12,7 @@ import pytest
 
 from servo_axis.analysis.summary import RunSummary
 from servo_axis.recording.reader import read_raw
-from servo_axis.run.runner import run_scenario
+from servo_axis.run.runner import RunOptions, run_scenario
 from servo_axis.simulate import simulate_learning
 from servo_axis.wire import cdr
 
@@ -30,10 +30,12 @@ def test_n_times_filter_learns_n_times_faster_through_the_node_graph(
     ros_env: int, tmp_path: Path
 ) -> None:
     q3 = run_scenario(
-        CONFIG / "rptc_ideal.yaml", out_dir=tmp_path / "q3", domain_id=ros_env, progress=None
+        CONFIG / "rptc_ideal.yaml",
+        RunOptions(out_dir=tmp_path / "q3", domain_id=ros_env, progress=None),
     )
     q1 = run_scenario(
-        CONFIG / "rptc_ideal_q.yaml", out_dir=tmp_path / "q1", domain_id=ros_env, progress=None
+        CONFIG / "rptc_ideal_q.yaml",
+        RunOptions(out_dir=tmp_path / "q1", domain_id=ros_env, progress=None),
     )
     for run in (q3, q1):
         counts = run.summary.message_counts
@@ -76,17 +78,16 @@ def test_detailed_axis_learns_and_is_deterministic(
     ros_env: int, tmp_path: Path, raw_payloads: Any
 ) -> None:
     q5 = run_scenario(
-        CONFIG / "rptc_detailed.yaml", out_dir=tmp_path / "q5", domain_id=ros_env, progress=None
+        CONFIG / "rptc_detailed.yaml",
+        RunOptions(out_dir=tmp_path / "q5", domain_id=ros_env, progress=None),
     )
     q1 = run_scenario(
-        CONFIG / "rptc_detailed_q.yaml", out_dir=tmp_path / "q1", domain_id=ros_env, progress=None
+        CONFIG / "rptc_detailed_q.yaml",
+        RunOptions(out_dir=tmp_path / "q1", domain_id=ros_env, progress=None),
     )
     again = run_scenario(
         CONFIG / "rptc_detailed.yaml",
-        out_dir=tmp_path / "again",
-        domain_id=ros_env,
-        composed=True,
-        progress=None,
+        RunOptions(out_dir=tmp_path / "again", domain_id=ros_env, composed=True, progress=None),
     )
     # 000 Fig. 15: the max error falls cycle after cycle (6 cycles here), and
     # faster with Q~5 than with Q despite modes, dead time and friction.
@@ -121,10 +122,7 @@ def test_detailed_axis_learns_and_is_deterministic(
     # there to below what RPTC alone reaches.
     table = run_scenario(
         CONFIG / "rptc_friction_table.yaml",
-        out_dir=tmp_path / "table",
-        domain_id=ros_env,
-        composed=True,
-        progress=None,
+        RunOptions(out_dir=tmp_path / "table", domain_id=ros_env, composed=True, progress=None),
     )
     with_table = max_per_cycle(table.summary)
     assert with_table[0] < 0.5 * max_per_cycle(q5.summary)[0]
@@ -144,14 +142,10 @@ def test_killed_learning_unit_resumes_from_its_memory(ros_env: int, tmp_path: Pa
     from std_msgs.msg import Float64MultiArray
 
     from servo_axis.nodes.runtime import STREAM_QOS
+    from servo_axis.params.run_params import handshake_overrides, write_run_params
     from servo_axis.params.scenario import load_scenario
-    from servo_axis.run.plan import handshake_overrides, write_run_params
-    from servo_axis.run.processes import (
-        clean_stale_shm,
-        ros_environment,
-        start_nodes,
-        stop_nodes,
-    )
+    from servo_axis.run.fastdds import clean_stale_shm
+    from servo_axis.run.processes import Launch, ros_environment, start_nodes, stop_nodes
     from servo_axis.run.progress import ProgressWatcher
 
     data = load_scenario(CONFIG / "rptc_detailed.yaml")
@@ -166,7 +160,7 @@ def test_killed_learning_unit_resumes_from_its_memory(ros_env: int, tmp_path: Pa
         data, handshake_overrides(data, roles, tmp_path / "bag", tmp_path), tmp_path / "params.yaml"
     )
     started = time.time()
-    procs = start_nodes(params, roles, [], env, log_dir, False)
+    procs = start_nodes(Launch(params, (), env, log_dir), roles)
     watcher = ProgressWatcher("/")
     ctx = Context()
     rclpy.init(args=[], context=ctx)
@@ -200,9 +194,8 @@ def test_killed_learning_unit_resumes_from_its_memory(ros_env: int, tmp_path: Pa
         count_before_restart = len(stats)
         (log_dir / "restart").mkdir()
         clean_stale_shm(since=started, dead_owners_only=True)  # as the runner does
-        restarted = start_nodes(
-            params, ["learning"], ["-p", "late_join:=true"], env, log_dir / "restart", False
-        )
+        late = Launch(params, ("-p", "late_join:=true"), env, log_dir / "restart")
+        restarted = start_nodes(late, ["learning"])
         spin_until(lambda: len(stats) >= count_before_restart + 3, 90)
     finally:
         ex.shutdown()

@@ -250,7 +250,8 @@ def test_diagnostics_are_forwarded_at_the_simulation_time_the_bridge_has_seen(
     from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
     from servo_axis.nodes.runtime import STREAM_QOS
-    from servo_axis.run.live import LiveAxis, module_args
+    from servo_axis.run.live_channels import LiveAxis
+    from servo_axis.run.live_view import module_args
     from servo_axis.wire.messages import state_to_msg
 
     axis = LiveAxis("/x", "x", 1e-3, "encoder", 0.00191, True)

@@ -30,7 +30,7 @@ from run_support import pids_of, shm_left_behind, shm_names
 from servo_axis.analysis.health import EXIT_FAILED, EXIT_FAULT, EXIT_NOT_DETERMINISTIC
 from servo_axis.nodes.runtime import LIVELINESS_LEASE_S
 from servo_axis.recording.deserialize import read_messages
-from servo_axis.run.processes import RESTART_PARTICIPANT_IDS
+from servo_axis.run.fastdds import RESTART_PARTICIPANT_IDS
 
 pytestmark = pytest.mark.integration
 

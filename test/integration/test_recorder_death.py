@@ -35,7 +35,7 @@ import yaml
 from run_support import shm_left_behind, shm_names
 
 from servo_axis.params.scenario import load_scenario
-from servo_axis.run.processes import clean_stale_shm
+from servo_axis.run.fastdds import clean_stale_shm
 from servo_axis.run.progress import ProgressWatcher
 
 pytestmark = pytest.mark.integration

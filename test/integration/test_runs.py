@@ -24,11 +24,12 @@ from run_support import shm_left_behind, shm_names
 
 from servo_axis.__main__ import main as cli
 from servo_axis.friction_id import table_from_run
+from servo_axis.params.run_params import handshake_overrides, write_run_params
 from servo_axis.params.scenario import load_scenario
-from servo_axis.run.plan import handshake_overrides, write_run_params
-from servo_axis.run.processes import clean_stale_shm, ros_environment, start_nodes, stop_nodes
+from servo_axis.run.fastdds import clean_stale_shm
+from servo_axis.run.processes import Launch, ros_environment, start_nodes, stop_nodes
 from servo_axis.run.progress import ProgressWatcher
-from servo_axis.run.runner import run_scenario
+from servo_axis.run.runner import RunOptions, run_scenario
 from servo_axis.storage import load_friction_table
 
 pytestmark = pytest.mark.integration
@@ -68,11 +69,13 @@ def processes_mentioning(text: str) -> list[int]:
 def test_ptc_tracks_the_nominal_plant_and_pid_alone_does_not(ros_env: int, tmp_path: Path) -> None:
     started = time.monotonic()
     ptc = run_scenario(
-        CONFIG / "ptc_nominal.yaml", out_dir=tmp_path / "ptc", domain_id=ros_env, progress=None
+        CONFIG / "ptc_nominal.yaml",
+        RunOptions(out_dir=tmp_path / "ptc", domain_id=ros_env, progress=None),
     )
     elapsed = time.monotonic() - started
     pid = run_scenario(
-        CONFIG / "pid_nominal.yaml", out_dir=tmp_path / "pid", domain_id=ros_env, progress=None
+        CONFIG / "pid_nominal.yaml",
+        RunOptions(out_dir=tmp_path / "pid", domain_id=ros_env, progress=None),
     )
     steps = 2000
     for result in (ptc, pid):
@@ -108,7 +111,8 @@ def test_bag_reads_back_with_independent_readers(ros_env: int, tmp_path: Path) -
 
     scenario = scenario_copy(CONFIG / "ptc_nominal.yaml", tmp_path, duration_s=0.3)
     result = run_scenario(
-        scenario, out_dir=tmp_path / "run", domain_id=ros_env, progress=None, plots=False
+        scenario,
+        RunOptions(out_dir=tmp_path / "run", domain_id=ros_env, progress=None, plots=False),
     )
     bag = result.run_dir / "bag"
     with AnyReader([bag]) as reader:
@@ -149,11 +153,13 @@ def test_lockstep_runs_are_identical_separate_and_composed(
     runs = [
         run_scenario(
             scenario,
-            out_dir=tmp_path / name,
-            domain_id=ros_env,
-            composed=composed,
-            progress=None,
-            plots=False,
+            RunOptions(
+                out_dir=tmp_path / name,
+                domain_id=ros_env,
+                composed=composed,
+                progress=None,
+                plots=False,
+            ),
         )
         for name, composed in (("a", False), ("b", False), ("c", True))
     ]
@@ -169,11 +175,9 @@ def test_lockstep_runs_are_identical_separate_and_composed(
 def test_friction_table_halves_the_quadrant_glitches(ros_env: int, tmp_path: Path) -> None:
     ident = run_scenario(
         CONFIG / "friction_id.yaml",
-        out_dir=tmp_path / "id",
-        domain_id=ros_env,
-        composed=True,
-        progress=None,
-        plots=False,
+        RunOptions(
+            out_dir=tmp_path / "id", domain_id=ros_env, composed=True, progress=None, plots=False
+        ),
     )
     table_path = tmp_path / "table.csv"
     # Through the command a user runs; it writes what table_from_run builds.
@@ -190,10 +194,11 @@ def test_friction_table_halves_the_quadrant_glitches(ros_env: int, tmp_path: Pat
     wt_path = tmp_path / "wt" / "ptc_friction_table.yaml"
     wt_path.write_text(yaml.safe_dump(with_table))
     a = run_scenario(
-        plain, out_dir=tmp_path / "plain", domain_id=ros_env, progress=None, plots=False
+        plain, RunOptions(out_dir=tmp_path / "plain", domain_id=ros_env, progress=None, plots=False)
     )
     b = run_scenario(
-        wt_path, out_dir=tmp_path / "table", domain_id=ros_env, progress=None, plots=False
+        wt_path,
+        RunOptions(out_dir=tmp_path / "table", domain_id=ros_env, progress=None, plots=False),
     )
     peak_plain = a.summary.tracking_error.after_first_cycle.all_samples.max_m
     peak_table = b.summary.tracking_error.after_first_cycle.all_samples.max_m
@@ -220,16 +225,10 @@ def test_killed_feedforward_trips_the_feedback_and_the_bag_survives(
     log_dir.mkdir()
     bag = tmp_path / "bag"
     env = ros_environment(ros_env, log_dir)
-    procs = start_nodes(
-        write_run_params(
-            scenario, handshake_overrides(scenario, roles, bag, tmp_path), tmp_path / "params.yaml"
-        ),
-        roles,
-        [],
-        env,
-        log_dir,
-        False,
+    params = write_run_params(
+        scenario, handshake_overrides(scenario, roles, bag, tmp_path), tmp_path / "params.yaml"
     )
+    procs = start_nodes(Launch(params, (), env, log_dir), roles)
     watcher = ProgressWatcher("/")
     ctx = Context()
     rclpy.init(args=[], context=ctx)
@@ -351,10 +350,13 @@ def test_bad_parameter_file_stops_the_node_with_its_name(ros_env: int, tmp_path:
 def test_realtime_mode_keeps_wall_time_and_counts_misses(ros_env: int, tmp_path: Path) -> None:
     scenario = scenario_copy(CONFIG / "ptc_nominal.yaml", tmp_path, duration_s=1.0, mode="realtime")
     result = run_scenario(
-        scenario, out_dir=tmp_path / "rt", domain_id=ros_env, progress=None, plots=False
+        scenario, RunOptions(out_dir=tmp_path / "rt", domain_id=ros_env, progress=None)
     )
     s = result.summary.to_dict()
     assert s["message_counts"]["/x/state"] == 1000
+    # With plots, as the command line makes them (a realtime run's summary
+    # once hid the plots module behind its realtime counts and crashed here).
+    assert (result.run_dir / "error.png").is_file()
     # From state 0 to the last tick the clock keeps wall time (start-up and
     # end are apart: with them a 1 s run was 0.6-0.8x).
     assert 0.95 < s["realtime_factor"] < 1.01
@@ -403,24 +405,28 @@ def test_namespaced_composed_run_leaves_nothing_behind(ros_env: int, tmp_path: P
     scenario = scenario_copy(CONFIG / "ptc_nominal.yaml", tmp_path, duration_s=0.3)
     result = run_scenario(
         scenario,
-        out_dir=tmp_path / "ns",
-        domain_id=ros_env,
-        composed=True,
-        namespace="/bench",  # instead of the default /<axis>
-        progress=None,
-        plots=False,
+        RunOptions(
+            out_dir=tmp_path / "ns",
+            domain_id=ros_env,
+            composed=True,
+            namespace="/bench",
+            progress=None,
+            plots=False,
+        ),
     )
     counts = result.summary.message_counts
     assert counts["/bench/state"] == counts["/bench/command"] == counts["/bench/reference"] == 300
     assert counts["/clock"] == 30  # the clock stays global
     root = run_scenario(
         scenario,
-        out_dir=tmp_path / "root",
-        domain_id=ros_env,
-        composed=True,
-        namespace="/",  # the root
-        progress=None,
-        plots=False,
+        RunOptions(
+            out_dir=tmp_path / "root",
+            domain_id=ros_env,
+            composed=True,
+            namespace="/",
+            progress=None,
+            plots=False,
+        ),
     )
     counts = root.summary.message_counts
     assert counts["/state"] == counts["/command"] == counts["/reference"] == 300
@@ -560,10 +566,7 @@ def test_disturbance_observer_leaves_what_the_loop_transfer_functions_predict(
     for name in ("pid_disturbance", "dob_disturbance"):
         run = run_scenario(
             CONFIG / f"{name}.yaml",
-            out_dir=tmp_path / name,
-            domain_id=ros_env,
-            progress=None,
-            plots=False,
+            RunOptions(out_dir=tmp_path / name, domain_id=ros_env, progress=None, plots=False),
         )
         assert not run.summary.faults
         with AnyReader([run.run_dir / "bag"]) as reader:

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from servo_axis.run.runner import run_scenario
+from servo_axis.run.runner import RunOptions, run_scenario
 
 pytestmark = pytest.mark.integration
 
@@ -21,7 +21,8 @@ def test_xy_circle_runs_two_namespaced_axes_and_circularity_falls(
     from rosbags.highlevel import AnyReader
 
     result = run_scenario(
-        CONFIG / "xy_circle.yaml", out_dir=tmp_path / "xy", domain_id=ros_env, progress=None
+        CONFIG / "xy_circle.yaml",
+        RunOptions(out_dir=tmp_path / "xy", domain_id=ros_env, progress=None),
     )
     s = result.summary.to_dict()
     assert sorted(s["axes"]) == ["x", "y"]

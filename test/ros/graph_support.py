@@ -18,8 +18,8 @@ from servo_axis.nodes.identifier import IdentifierNode
 from servo_axis.nodes.learning import LearningNode
 from servo_axis.nodes.plant import PlantNode
 from servo_axis.nodes.recorder import RecorderNode
+from servo_axis.params.run_params import handshake_overrides
 from servo_axis.params.scenario import node_params, roles_of
-from servo_axis.run.plan import handshake_overrides
 
 NODE_CLASSES: dict[str, Callable[..., Node]] = {
     "plant": PlantNode,

@@ -37,8 +37,8 @@ from servo_axis.nodes.runtime import (
     STREAM_QOS,
     matching_reader_qos,
 )
+from servo_axis.params.run_params import handshake_overrides
 from servo_axis.params.scenario import load_scenario, node_params, roles_of
-from servo_axis.run.plan import handshake_overrides
 from servo_axis.wire import topics
 
 pytestmark = pytest.mark.ros

@@ -28,6 +28,7 @@ from servo_axis.nodes.learning import LearningNode
 from servo_axis.nodes.plant import PlantNode
 from servo_axis.nodes.recorder import RecorderNode
 from servo_axis.nodes.runtime import LATCHED_QOS, LIVELINESS_LEASE_S, STREAM_QOS
+from servo_axis.params.run_params import handshake_overrides
 from servo_axis.params.scenario import (
     axes_of,
     axis_view,
@@ -37,7 +38,6 @@ from servo_axis.params.scenario import (
     shared,
 )
 from servo_axis.recording.deserialize import read_messages
-from servo_axis.run.plan import handshake_overrides
 from servo_axis.simulate import simulate
 from servo_axis.wire import messages as msgs
 

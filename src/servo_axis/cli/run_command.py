@@ -106,8 +106,8 @@ def handle(args: argparse.Namespace) -> int:
     from servo_axis.analysis.health import EXIT_FAILED, EXIT_FAULT, EXIT_OK
     from servo_axis.analysis.summary import AxesSummary
     from servo_axis.analysis.text import format_any_summary
-    from servo_axis.run.live import DEFAULT_PORT
-    from servo_axis.run.runner import RunError, RunInterruptedError, run_scenario
+    from servo_axis.run.live_channels import DEFAULT_PORT
+    from servo_axis.run.runner import RunError, RunInterruptedError, RunOptions, run_scenario
 
     floor = None
     if args.floor:
@@ -116,8 +116,7 @@ def handle(args: argparse.Namespace) -> int:
     if live_port is None and args.live:
         live_port = DEFAULT_PORT
     try:
-        result = run_scenario(
-            args.scenario,
+        options = RunOptions(
             out_dir=Path(args.out) if args.out else None,
             composed=args.composed,
             domain_id=args.domain_id,
@@ -129,6 +128,7 @@ def handle(args: argparse.Namespace) -> int:
             live_port=live_port,
             floor=floor,
         )
+        result = run_scenario(args.scenario, options)
     except RunInterruptedError as err:
         print(f"\nrun {err}", file=sys.stderr)
         return 128 + err.signum

@@ -8,7 +8,7 @@ the feedback's ``dob.*`` and what each installed term takes
 ``reference.*`` and cycle and the feedback's ``sensor`` and, for a trial
 law, its bandwidth (:func:`learning_overrides`). :func:`copied` gathers them
 for a node, :func:`node_values` checks a node's section with them. The
-runner (:mod:`servo_axis.run.plan`) adds only what a run knows (handshakes,
+runner (:mod:`servo_axis.params.run_params`) adds only what a run knows (handshakes,
 paths in the run directory) on top of :func:`copied`; ``simulate`` and
 ``analysis`` use :func:`node_values`. Nothing here imports rclpy.
 """

@@ -4,17 +4,16 @@ Each node is its own process started with this interpreter (the venv's),
 in its own process group, with a private ROS domain, localhost discovery
 and a fast discovery profile. rmw_fastrtps adds the shared-memory transport
 for localhost discovery whatever the profile says; what a SIGKILLed node
-leaves in ``/dev/shm`` is removed by :func:`clean_stale_shm`. On a machine with two or more cores the plant and the
+leaves in ``/dev/shm`` is removed by
+:func:`~servo_axis.run.fastdds.clean_stale_shm`. On a machine with two or more cores the plant and the
 feedback share one core (in lockstep they take turns) and the other nodes
 get the rest (``SERVO_AXIS_PIN=0`` turns this off).
 """
 
 from __future__ import annotations
 
-import fcntl
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -25,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from servo_axis.params.names import check_domain_id
+from servo_axis.run.fastdds import clean_stale_shm
 
 #: Seconds between SIGINT and SIGKILL when the nodes are stopped.
 STOP_TIMEOUT_S = 5.0
@@ -135,55 +135,54 @@ class Proc:
         return "\n".join(text[-lines:])
 
 
-def start_nodes(
-    params_path: Path,
-    roles: list[str],
-    extra_args: list[str],
-    env: dict[str, str],
-    log_dir: Path,
-    composed: bool,
-    *,
-    realtime: bool = False,
-) -> list[Proc]:
-    """Start the node processes (or one composed process), each logging to ``log_dir/<role>.log``.
+@dataclass(frozen=True)
+class Launch:
+    """How the node processes of one axis are started.
 
-    ``realtime``: the run's time mode is realtime (the cores are shared out
-    differently, :func:`cpu_set`).
+    Attributes
+    ----------
+    params_path : Path
+        The run's parameter file (``--params-file``).
+    args : tuple of str
+        ROS arguments after it (the namespace remaps, ``-p`` overrides).
+    env : mapping
+        The processes' environment (:func:`ros_environment`).
+    log_dir : Path
+        Where each process logs (``<log_dir>/<role>.log``).
+    realtime : bool
+        The run's time mode is realtime (the cores are shared out
+        differently, :func:`cpu_set`).
     """
+
+    params_path: Path
+    args: tuple[str, ...]
+    env: Mapping[str, str]
+    log_dir: Path
+    realtime: bool = False
+
+
+def start_nodes(launch: Launch, roles: list[str], composed: bool = False) -> list[Proc]:
+    """Start the node processes of ``roles`` (or one composed process), each logging to its own file."""
     if composed:
-        return [
-            start_node(
-                params_path, "composed", extra_args, env, log_dir, roles=roles, realtime=realtime
-            )
-        ]
-    return [
-        start_node(params_path, role, extra_args, env, log_dir, realtime=realtime) for role in roles
-    ]
+        return [start_node(launch, "composed", roles=roles)]
+    return [start_node(launch, role) for role in roles]
 
 
 def start_node(
-    params_path: Path,
-    role: str,
-    extra_args: list[str],
-    env: dict[str, str],
-    log_dir: Path,
-    *,
-    roles: list[str] | None = None,
-    log_name: str | None = None,
-    realtime: bool = False,
+    launch: Launch, role: str, *, roles: list[str] | None = None, log_name: str | None = None
 ) -> Proc:
     """Start one node process (``role`` = ``composed``: the nodes of ``roles`` in one).
 
-    Its output goes to ``log_dir/<log_name or role>.log``; ``realtime`` as
-    for :func:`start_nodes`.
+    Its output goes to ``<launch.log_dir>/<log_name or role>.log``.
     """
     cmd = (
         ["-m", "servo_axis.nodes.composed", *(roles or [])]
         if role == "composed"
         else ["-m", f"servo_axis.nodes.{role}"]
     )
-    args = [*cmd, "--ros-args", "--params-file", str(params_path), *extra_args]
-    return start_process(role, args, env, log_dir / f"{log_name or role}.log", realtime=realtime)
+    args = [*cmd, "--ros-args", "--params-file", str(launch.params_path), *launch.args]
+    log_path = launch.log_dir / f"{log_name or role}.log"
+    return start_process(role, args, dict(launch.env), log_path, realtime=launch.realtime)
 
 
 def pids_of(run_dir: Path, role: str) -> list[int]:
@@ -291,129 +290,3 @@ def _signal_group(popen: subprocess.Popen[bytes], sig: int) -> None:
         os.killpg(popen.pid, sig)
     except (ProcessLookupError, PermissionError):
         pass
-
-
-def _lock_held(path: Path) -> bool:
-    """Whether a live process holds the ``flock`` on ``path``."""
-    try:
-        fd = os.open(path, os.O_RDWR)
-    except OSError:
-        return False
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError:
-        return True
-    finally:
-        os.close(fd)  # closing releases a lock we took
-    return False
-
-
-def clean_stale_shm(
-    *, since: float, shm_dir: Path = Path("/dev/shm"), dead_owners_only: bool = False
-) -> list[str]:
-    """Remove Fast DDS shared-memory files a SIGKILLed node left behind.
-
-    With localhost discovery rmw_fastrtps uses shared memory; a clean exit
-    removes its files, SIGKILL does not, and the port segments a killed
-    participant had opened stay behind after their last user exits too. A segment is stale when nobody holds
-    the lock on its ``_el`` file (live owners hold it; the kernel releases it
-    when the owner dies) or, for a port segment, when it has no ``_el`` at
-    all. Only files touched since ``since`` (epoch seconds: the start of the
-    run) are considered, so other users' files are left alone.
-
-    With ``dead_owners_only`` only segments whose lock file exists and is
-    free (their owner died) go, which is safe while other participants run:
-    a port segment without a lock file may be a live sender's. A restarted
-    node gets a participant id of its own (:func:`free_participant_id`), so
-    it never opens the dead one's receive port; what the dead one left is
-    removed here all the same, before the restart.
-    """
-    removed = []
-    # A lock file whose segment is gone counts too: Fast DDS may remove a
-    # dead owner's port segment when another participant reopens the port,
-    # and leave the lock file behind.
-    names = {p.name.removesuffix("_el") for p in shm_dir.glob("fastrtps_*")}
-    for name in sorted(names):
-        seg, lock = shm_dir / name, shm_dir / f"{name}_el"
-        try:
-            touched = max(p.stat().st_mtime for p in (seg, lock) if p.exists())
-        except (OSError, ValueError):
-            continue
-        if touched < since or (lock.exists() and _lock_held(lock)):
-            continue
-        if dead_owners_only and not lock.exists():
-            continue
-        for path in (seg, lock, shm_dir / f"sem.{name}_mutex"):
-            path.unlink(missing_ok=True)
-        removed.append(name)
-    return removed
-
-
-#: The RTPS port mapping (spec 9.6.1.1): base, domain gain, participant gain,
-#: and the offsets of a participant's discovery and user-data unicast ports.
-RTPS_PORT_BASE, RTPS_DOMAIN_GAIN, RTPS_PARTICIPANT_GAIN = 7400, 250, 2
-RTPS_DISCOVERY_OFFSET, RTPS_USER_OFFSET = 10, 11
-#: Participant ids a restarted node may take, highest first: within the 32
-#: every participant of the profile announces itself to, and above the ids
-#: Fast DDS hands out from 0 to the run's own nodes and to outside ones.
-RESTART_PARTICIPANT_IDS = range(31, 11, -1)
-
-
-def participant_ports(domain_id: int, participant_id: int) -> tuple[int, int]:
-    """The discovery and user-data unicast ports of ``participant_id`` in ``domain_id``."""
-    base = RTPS_PORT_BASE + RTPS_DOMAIN_GAIN * domain_id + RTPS_PARTICIPANT_GAIN * participant_id
-    return base + RTPS_DISCOVERY_OFFSET, base + RTPS_USER_OFFSET
-
-
-def _port_free(port: int) -> bool:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
-        try:
-            sock.bind(("127.0.0.1", port))
-        except OSError:
-            return False
-    return True
-
-
-def free_participant_id(
-    domain_id: int, *, taken: set[int], shm_dir: Path = Path("/dev/shm")
-) -> int:
-    """A participant id for a restarted node that no participant of the run has had.
-
-    Fast DDS gives a node the lowest free id, i.e. a restarted node the id of
-    the one it replaces, and with it the same shared-memory receive port
-    (``fastrtps_port<user port>``). The run's other participants keep the
-    dead one's segment open under that name and go on writing into it: the
-    restarted node matched every topic and received nothing (1 restart in 3
-    to 6, seen as a learning unit that never learned again). An id that is
-    not in ``taken`` (the ids this run gave before), whose UDP ports are free
-    and whose port segment does not exist cannot be one of them.
-
-    Raises
-    ------
-    RuntimeError
-        If none of :data:`RESTART_PARTICIPANT_IDS` is free.
-    """
-    for pid in RESTART_PARTICIPANT_IDS:
-        if pid in taken:
-            continue
-        ports = participant_ports(domain_id, pid)
-        if (shm_dir / f"fastrtps_port{ports[1]}").exists():
-            continue
-        if all(_port_free(port) for port in ports):
-            return pid
-    raise RuntimeError(
-        f"no free Fast DDS participant id in {RESTART_PARTICIPANT_IDS.stop + 1}.."
-        f"{RESTART_PARTICIPANT_IDS.start} for a restarted node in domain {domain_id}"
-    )
-
-
-def with_participant_id(env: Mapping[str, str], participant_id: int, path: Path) -> dict[str, str]:
-    """``env`` whose Fast DDS profile (written to ``path``) fixes the participant id."""
-    base = Path(env["FASTRTPS_DEFAULT_PROFILES_FILE"]).read_text()
-    marker = "<rtps>"
-    if base.count(marker) != 1:
-        raise RuntimeError(f"{env['FASTRTPS_DEFAULT_PROFILES_FILE']}: expected one {marker}")
-    path.write_text(
-        base.replace(marker, f"{marker}\n      <participantID>{participant_id}</participantID>")
-    )
-    return {**env, "FASTRTPS_DEFAULT_PROFILES_FILE": str(path)}

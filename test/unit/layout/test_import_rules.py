@@ -13,6 +13,7 @@ hidden inside a function is still a circle.
   import nothing of the project but ``core.kernels``, and no other module
   imports one at its top (numba is loaded only where a kernel is used);
 * ``analysis`` and ``simulate`` import nothing of ``run`` (the resolver is ``params.resolve``);
+* ``run`` imports none of the scenario's queries: it reads the plan (``params.run_plan``);
 * nothing outside ``servo_axis.plugins`` imports a module of it: the suite
   finds its own extensions by entry point, as it finds an outside package's;
 * ``simulate``, ``analysis``, ``friction_id``, ``gms_fit``, ``identify``, ``params``,
@@ -262,6 +263,33 @@ def test_simulate_and_analysis_resolve_a_scenario_without_the_runner() -> None:
     ):
         runner = sorted(m for m in GRAPH[name] if m.startswith("servo_axis.run"))
         assert not runner, f"{name} imports {runner}"
+
+
+#: What asks a scenario (a raw mapping) a question: the plan asks them once, the runner not at all.
+SCENARIO_QUERIES = {
+    "node_params",
+    "node_values",
+    "shared",
+    "axis_view",
+    "axes_of",
+    "roles_of",
+    "copied",
+    "checked_values",
+    "handshake_overrides",
+    "role_topics",
+    "presence_topic",
+    "recorder_topics",
+}
+
+
+def test_the_runner_reads_the_plan_not_the_scenario() -> None:
+    runner = sorted(m for m in MODULES if m.startswith("servo_axis.run"))
+    assert "servo_axis.run.prepare" in runner
+    for name in runner:
+        for node in ast.walk(ast.parse(MODULES[name].read_text())):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("servo_axis."):
+                asked = sorted({a.name for a in node.names} & SCENARIO_QUERIES)
+                assert not asked, f"{name} imports {asked} from {node.module}"
 
 
 @pytest.mark.parametrize("name", ROS_FREE)

@@ -108,16 +108,20 @@ def test_an_unknown_shared_key_is_named_with_its_section(
 def test_a_multi_axis_scenario_refuses_composed_and_namespace_before_starting(
     tmp_path: Path,
 ) -> None:
-    from servo_axis.run.runner import run_scenario
+    from servo_axis.run.runner import RunOptions, run_scenario
 
     for options in ({"composed": True}, {"namespace": "/a"}):
         out = tmp_path / "run"
         with pytest.raises(ConfigError, match="multi-axis scenario runs as separate processes"):
-            run_scenario(CONFIG / "xy_circle.yaml", out_dir=out, progress=None, **options)
+            run_scenario(
+                CONFIG / "xy_circle.yaml", RunOptions(out_dir=out, progress=None, **options)
+            )
         assert not out.exists()  # nothing was started or written
     # The same by name.
     with pytest.raises(ConfigError, match="multi-axis scenario runs as separate processes"):
-        run_scenario("xy_circle", out_dir=tmp_path / "by_name", progress=None, composed=True)
+        run_scenario(
+            "xy_circle", RunOptions(out_dir=tmp_path / "by_name", progress=None, composed=True)
+        )
     assert not (tmp_path / "by_name").exists()
 
 

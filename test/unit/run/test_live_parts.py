@@ -13,38 +13,43 @@ import pytest
 from numpy.testing import assert_allclose
 
 from servo_axis.core.errors import ConfigError
+from servo_axis.params.run_plan import AxisPlan, plan_run
 from servo_axis.params.scenario import load_scenario
-from servo_axis.run.live import (
+from servo_axis.run.live_channels import (
     HOLD_LOCKSTEP_SAMPLES,
     HOLD_SAMPLES,
     ErrorPairs,
     InOrder,
     LiveAxis,
-    check_live,
     error_schema,
-    live_axis,
-    module_args,
     sample_schema,
-    wait_ready,
 )
+from servo_axis.run.live_view import check_live, live_axis, module_args, wait_ready
 from servo_axis.wire.messages import StateSample
 
 CONFIG = Path(__file__).resolve().parents[3] / "config"
 
 
-def test_the_axis_of_a_run_names_its_topics_sensor_and_units() -> None:
-    nominal = live_axis(load_scenario(CONFIG / "ptc_nominal.yaml"), "")
+def axis_plan(name: str, out: Path, namespace: str = "", *, realtime: bool = False) -> AxisPlan:
+    """The plan of a shipped single-axis scenario's run in ``namespace`` (``/``: the root)."""
+    path = CONFIG / f"{name}.yaml"
+    data = load_scenario(path)
+    if realtime:
+        data["/**"]["ros__parameters"]["mode"] = "realtime"
+    return plan_run(data, path, out_dir=out, namespace=namespace).axes[0]
+
+
+def test_the_axis_of_a_run_names_its_topics_sensor_and_units(tmp_path: Path) -> None:
+    nominal = live_axis(axis_plan("ptc_nominal", tmp_path, "/"))
     assert (nominal.sensor, nominal.linear, nominal.axis) == ("encoder", True, "x")
     assert_allclose(nominal.control_period_s, 1e-3, rtol=0, atol=0)
     assert nominal.topic("state") == "/state"
-    full_closed = live_axis(load_scenario(CONFIG / "fast_reversal_sigmoid.yaml"), "/x")
+    full_closed = live_axis(axis_plan("fast_reversal_sigmoid", tmp_path))
     assert full_closed.sensor == "scale"
     assert full_closed.topic("tracking_error") == "/x/tracking_error"
     assert nominal.lockstep
-    realtime = load_scenario(CONFIG / "ptc_nominal.yaml")
-    realtime["/**"]["ros__parameters"]["mode"] = "realtime"
-    assert not live_axis(realtime, "").lockstep
-    tilt = live_axis(load_scenario(CONFIG / "dlpid_tilt_pid.yaml"), "")
+    assert not live_axis(axis_plan("ptc_nominal", tmp_path, realtime=True)).lockstep
+    tilt = live_axis(axis_plan("dlpid_tilt_pid", tmp_path))
     assert not tilt.linear  # a rotary table: the error in rad only
     assert "error_m" not in error_schema(tilt)["properties"]
     assert "error_m" in error_schema(nominal)["properties"]

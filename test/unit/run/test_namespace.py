@@ -7,9 +7,9 @@ from pathlib import Path
 import pytest
 
 from servo_axis.core.errors import ParameterFileError
+from servo_axis.params.run_params import single_axis_namespace
 from servo_axis.params.scenario import load_scenario
 from servo_axis.run.processes import discovery_settings, run_header
-from servo_axis.run.runner import single_axis_namespace
 
 CONFIG = Path(__file__).resolve().parents[3] / "config"
 

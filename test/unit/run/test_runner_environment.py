@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 from servo_axis.params.scenario import load_scenario
-from servo_axis.run.runner import run_scenario
+from servo_axis.run.runner import RunOptions, run_scenario
 
 pytestmark = pytest.mark.integration
 
@@ -31,7 +31,8 @@ def test_os_environ_is_the_same_before_and_after_a_run(
     scenario.write_text(yaml.safe_dump(data))
     before = dict(os.environ)
     result = run_scenario(
-        scenario, out_dir=tmp_path / "run", domain_id=ros_env, progress=None, plots=False
+        scenario,
+        RunOptions(out_dir=tmp_path / "run", domain_id=ros_env, progress=None, plots=False),
     )
     assert dict(os.environ) == before
     assert result.summary.message_counts["/x/state"] == 300

@@ -11,14 +11,14 @@ from xml.etree import ElementTree
 
 import pytest
 
-from servo_axis.run.processes import (
+from servo_axis.run.fastdds import (
     RESTART_PARTICIPANT_IDS,
     clean_stale_shm,
-    discovery_settings,
     free_participant_id,
     participant_ports,
     with_participant_id,
 )
+from servo_axis.run.processes import discovery_settings
 
 
 def test_only_stale_files_of_this_run_are_removed(tmp_path: Path) -> None:

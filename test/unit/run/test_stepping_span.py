@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from servo_axis.run.runner import stepping_span
+from servo_axis.run.summarise import stepping_span
 from servo_axis.wire.node_report import NodeHealth
 
 

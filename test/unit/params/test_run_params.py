@@ -11,14 +11,14 @@ import pytest
 import yaml
 
 from servo_axis.nodes.lockstep import FlowControl
-from servo_axis.params.scenario import axis_view, load_scenario, roles_of
-from servo_axis.run.plan import (
+from servo_axis.params.run_params import (
     OUTSIDE_PUBLISHER_DEPTH,
     handshake_overrides,
     outside_flow_control,
-    recorder_topics,
     write_run_params,
 )
+from servo_axis.params.run_topics import recorder_topics
+from servo_axis.params.scenario import axis_view, load_scenario, roles_of
 from servo_axis.run.processes import discovery_settings, ros_environment
 from servo_axis.run.progress import temporary_environ
 from servo_axis.wire.topics import TOPICS

@@ -12,8 +12,9 @@ import pytest
 from servo_axis.core.errors import ParameterFileError
 from servo_axis.params.factories import build_terms, plant_model
 from servo_axis.params.resolve import feedforward_values, node_values, plant_fingerprint
+from servo_axis.params.run_params import handshake_overrides
+from servo_axis.params.run_topics import recorder_topics
 from servo_axis.params.scenario import load_scenario, roles_of
-from servo_axis.run.plan import handshake_overrides, recorder_topics
 
 CONFIG = Path(__file__).resolve().parents[3] / "config"
 BAG = Path("/tmp/run/bag")

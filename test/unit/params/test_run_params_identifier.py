@@ -10,9 +10,10 @@ import pytest
 
 from servo_axis.params import schemas
 from servo_axis.params.factories import IDENTIFIERS
+from servo_axis.params.run_params import handshake_overrides
+from servo_axis.params.run_topics import recorder_topics
 from servo_axis.params.scenario import flatten, load_scenario, roles_of
 from servo_axis.plugins.dlpid import DLPID_FRICTION
-from servo_axis.run.plan import handshake_overrides, recorder_topics
 from servo_axis.wire.topics import FLOAT64_MULTI_ARRAY, TOPICS
 
 CONFIG = Path(__file__).resolve().parents[3] / "config"

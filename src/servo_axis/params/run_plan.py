@@ -1,0 +1,411 @@
+"""A scenario resolved once for a run: per axis, who plays each role, with what, over which topics.
+
+:func:`plan_run` turns a loaded scenario and the run's choices (output
+directory, namespace, outside roles, composed) into a frozen
+:class:`RunPlan`: per axis an :class:`AxisPlan` (namespace, directory and
+files, time mode, steps, the start handshakes, the parameter file the nodes
+get) with one :class:`RolePlan` per role (started by the suite or played by
+an outside node, its checked values, the topics it publishes and takes and
+which of them it must serve). Making the plan checks everything a run can
+refuse before anything is written or started (each node's section as the
+node will, the files the terms name, the outside roles); the runner
+(:mod:`servo_axis.run`) then asks only the plan. The analysis resolves the
+scenario it is handed itself (:mod:`servo_axis.params.resolve`); the plan
+carries it unchanged. Nothing here imports rclpy or writes a file.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+from servo_axis.core.errors import ConfigError, ParameterFileError
+from servo_axis.params.factories import EXTERNAL_ROLES, checked_values, plant_model, run_steps
+from servo_axis.params.registry import term_files
+from servo_axis.params.resolve import node_values
+from servo_axis.params.run_params import (
+    HANDSHAKES,
+    Handshake,
+    external_roles_of,
+    handshake_overrides,
+    run_params,
+    single_axis_namespace,
+)
+from servo_axis.params.run_topics import REQUIRED_INPUTS, law_outputs, presence_topic, role_topics
+from servo_axis.params.scenario import axes_of, axis_view, node_params, roles_of, shared
+from servo_axis.wire.topics import Topic
+
+
+@dataclass(frozen=True)
+class RolePlan:
+    """One role of an axis: who plays it, with which values, over which topics.
+
+    Attributes
+    ----------
+    role : str
+        ``plant``, ``feedback``, ``feedforward``, ``learning``, ``identifier``
+        or ``recorder``.
+    outside : bool
+        A node from outside the suite plays it (``--external``,
+        ``external_roles``); the runner does not start it.
+    values : mapping
+        The checked values of its section with what it copies and what the
+        run adds (what the suite's node of the role checks and runs with).
+    publishes, subscribes : tuple of Topic
+        What a node playing it publishes and takes in this run
+        (:func:`~servo_axis.params.run_topics.role_topics`).
+    must_publish, must_take : tuple of str
+        Of those, what a node playing it must serve: the output whose
+        publisher shows it is there, and the inputs publishers wait for it on
+        (:data:`~servo_axis.params.run_topics.REQUIRED_INPUTS`). The rest is
+        optional.
+    """
+
+    role: str
+    outside: bool
+    values: Mapping[str, Any]
+    publishes: tuple[Topic, ...]
+    subscribes: tuple[Topic, ...]
+    must_publish: tuple[str, ...]
+    must_take: tuple[str, ...]
+
+    @property
+    def presence(self) -> str | None:
+        """The topic whose publisher shows that a node playing the role is there (None: recorder)."""
+        return self.must_publish[0] if self.must_publish else None
+
+    def required(self, name: str) -> bool:
+        """Whether a node playing the role must publish or take ``name`` (else it is optional)."""
+        return name in self.must_publish or name in self.must_take
+
+
+@dataclass(frozen=True)
+class AxisPlan:
+    """One axis of a run: its nodes, namespace, files, time mode and handshakes.
+
+    Attributes
+    ----------
+    axis : str
+        The axis's sections (``/<axis>/<node>``) in a multi-axis scenario;
+        ``""`` for a single-axis one.
+    namespace : str
+        Its ROS namespace (``""``: the root).
+    dir : Path
+        Its directory (the run directory for a single axis): ``bag/``,
+        ``logs/``, ``params.yaml``.
+    scenario : dict
+        The single-axis scenario it runs (for the analysis, which resolves
+        it itself; the runner does not query it).
+    scenario_path : Path
+        Its file: the scenario's, or for one axis of several the copy in
+        :attr:`dir` (``scenario.yaml``).
+    remaps : tuple of str
+        The ROS arguments that put its nodes in :attr:`namespace`.
+    roles : tuple of RolePlan
+        Every role of its scenario, in start order, outside ones included.
+    handshakes : tuple of Handshake
+        Whom each publisher waits for before its first message.
+    params_file : mapping
+        The parameter file its nodes get (:func:`~servo_axis.params.run_params.run_params`).
+    mode : str
+        ``lockstep`` or ``realtime`` (the plant's ``mode``).
+    steps : int
+        Control samples of the run.
+    control_period_s : float
+        ``T_u``, s.
+    joint_axis : str
+        The shared key ``axis``: the joints are ``<joint_axis>_motor``, ...
+    sensor : str
+        The feedback's controlled output: ``encoder`` or ``scale``.
+    lead_m_per_rad : float
+        ``R``, m/rad.
+    linear : bool
+        The table moves along a line (False: it turns).
+    """
+
+    axis: str
+    namespace: str
+    dir: Path
+    scenario: dict[str, Any]
+    scenario_path: Path
+    remaps: tuple[str, ...]
+    roles: tuple[RolePlan, ...]
+    handshakes: tuple[Handshake, ...]
+    params_file: Mapping[str, Any]
+    mode: str
+    steps: int
+    control_period_s: float
+    joint_axis: str
+    sensor: str
+    lead_m_per_rad: float
+    linear: bool
+
+    @property
+    def logs(self) -> Path:
+        """Its nodes' logs and health reports."""
+        return self.dir / "logs"
+
+    @property
+    def bag(self) -> Path:
+        """The bag its recorder creates."""
+        return self.dir / "bag"
+
+    @property
+    def params_path(self) -> Path:
+        """Where :attr:`params_file` is written."""
+        return self.dir / "params.yaml"
+
+    @property
+    def realtime(self) -> bool:
+        """The axis runs in realtime."""
+        return self.mode == "realtime"
+
+    @property
+    def role_names(self) -> list[str]:
+        """Every role, in start order."""
+        return [r.role for r in self.roles]
+
+    @property
+    def started(self) -> list[str]:
+        """The roles the runner starts (those outside nodes play left out)."""
+        return [r.role for r in self.roles if not r.outside]
+
+    @property
+    def outside(self) -> tuple[str, ...]:
+        """The roles outside nodes play."""
+        return tuple(r.role for r in self.roles if r.outside)
+
+    @property
+    def recorded(self) -> tuple[str, ...]:
+        """The topics its recorder records (none without a recorder)."""
+        rec = self.role("recorder")
+        return tuple(rec.values["topics"]) if rec is not None else ()
+
+    @property
+    def counted(self) -> tuple[str, ...]:
+        """Of :attr:`recorded`, those whose every sample the recorder acknowledges."""
+        rec = self.role("recorder")
+        return tuple(rec.values["counted_topics"]) if rec is not None else ()
+
+    @property
+    def followed(self) -> bool:
+        """The runner follows the axis's ``recorder/progress`` (a recorder or an outside node runs)."""
+        return self.role("recorder") is not None or bool(self.outside)
+
+    def role(self, name: str) -> RolePlan | None:
+        """The plan of role ``name``, None if the axis has no such role."""
+        return next((r for r in self.roles if r.role == name), None)
+
+    def presence(self, role: str) -> str:
+        """The topic whose publisher shows that a node playing ``role`` is there.
+
+        Raises
+        ------
+        KeyError
+            For a role the axis does not have or that has no such topic
+            (the recorder).
+        """
+        plan = self.role(role)
+        if plan is None or plan.presence is None:
+            raise KeyError(role)
+        return plan.presence
+
+    def where(self, role: str) -> str:
+        """``<axis>/<role>`` in a multi-axis run, else ``role``."""
+        return f"{self.axis}/{role}" if self.axis else role
+
+
+@dataclass(frozen=True)
+class RunPlan:
+    """A run of a scenario: its name, directory and axes.
+
+    Attributes
+    ----------
+    name : str
+        The scenario's ``scenario.name`` (its file's stem if it has none).
+    scenario : dict
+        The scenario as loaded (for the analysis of a multi-axis run).
+    scenario_path : Path
+        Its file.
+    run_dir : Path
+        The run directory (not created yet).
+    steps : int
+        Control samples of the run (of its common plant section).
+    composed : bool
+        All roles of the axis in one process.
+    axes : tuple of AxisPlan
+        One per axis, sorted by axis; one (``axis == ""``) for a
+        single-axis scenario.
+    """
+
+    name: str
+    scenario: dict[str, Any]
+    scenario_path: Path
+    run_dir: Path
+    steps: int
+    composed: bool
+    axes: tuple[AxisPlan, ...]
+
+    @property
+    def multi_axis(self) -> bool:
+        """The scenario has per-axis sections."""
+        return self.axes[0].axis != ""
+
+    @property
+    def namespaces(self) -> list[str]:
+        """Each axis's namespace."""
+        return [a.namespace for a in self.axes]
+
+
+def plan_run(
+    scenario: dict[str, Any],
+    scenario_path: Path,
+    *,
+    out_dir: Path | None = None,
+    namespace: str = "",
+    external: Sequence[str] = (),
+    composed: bool = False,
+) -> RunPlan:
+    """Resolve ``scenario`` (loaded from ``scenario_path``) for a run, checking all of it.
+
+    ``out_dir`` is the run directory (default ``runs/<name>-<time>``),
+    ``namespace`` a checked ``--namespace`` (``""``: the axis's,
+    :func:`single_axis_namespace`), ``external`` the roles of ``--external``
+    (with the scenario's ``external_roles``).
+
+    Raises
+    ------
+    ConfigError
+        For an ``out_dir`` that exists and is not an empty directory, a role
+        outside nodes cannot play or that the scenario does not have, a
+        multi-axis scenario with ``composed`` or ``namespace``, outside
+        roles with ``composed``.
+    ParameterFileError
+        For a key of a node's section the node would refuse (naming the
+        key), a term's file that does not exist, an ``axis`` that cannot
+        name a namespace.
+    """
+    name = shared(scenario).get("scenario", {}).get("name") or scenario_path.stem
+    steps = run_steps(node_values(scenario, "plant"))
+    run_dir = run_directory(out_dir, name)
+    outside = external_roles_of(scenario, tuple(external))
+    axes = axes_of(scenario)
+    if axes and (composed or namespace):
+        raise ConfigError(
+            f"scenario {scenario_path}: a multi-axis scenario runs as separate processes, "
+            "each axis in its own namespace (no --composed, no --namespace)"
+        )
+    if outside and composed:
+        raise ConfigError("--external: a run with outside nodes runs as separate processes")
+    places = [(axis, f"/{axis}", run_dir / axis) for axis in axes] or [("", namespace, run_dir)]
+    plans = tuple(
+        _axis_plan(
+            axis_view(scenario, axis, scenario_path.parent) if axis else scenario,
+            scenario_path,
+            axis=axis,
+            namespace=ns,
+            axis_dir=axis_dir,
+            outside=outside,
+        )
+        for axis, ns, axis_dir in places
+    )
+    return RunPlan(name, scenario, scenario_path, run_dir, steps, composed, plans)
+
+
+def _axis_plan(
+    view: dict[str, Any],
+    scenario_path: Path,
+    *,
+    axis: str,
+    namespace: str,
+    axis_dir: Path,
+    outside: tuple[str, ...],
+) -> AxisPlan:
+    """The plan of one axis (``view``: its single-axis scenario); its sections checked first."""
+    roles = roles_of(view)
+    for role in outside:
+        if role not in roles:
+            raise ConfigError(
+                f"--external {role}: the scenario has no {role} section (its roles: "
+                f"{', '.join(roles)})"
+            )
+    overrides = handshake_overrides(view, roles, axis_dir / "bag", scenario_path.parent, outside)
+    plans = tuple(_role_plan(view, roles, role, overrides, outside) for role in roles)
+    if axis:
+        remaps: tuple[str, ...] = ("-r", f"__ns:={namespace}", "-r", f"/clock:={namespace}/clock")
+    else:
+        namespace = single_axis_namespace(view, namespace)
+        remaps = ("-r", f"__ns:={namespace}") if namespace else ()
+    values = {r.role: r.values for r in plans}
+    shakes = tuple(
+        Handshake(role, key, name or law_outputs(view)[0], values[role][key])
+        for role, key, name in HANDSHAKES
+        if role in values
+    )
+    plant = node_values(view, "plant")
+    feedback = node_values(view, "feedback")
+    return AxisPlan(
+        axis=axis,
+        namespace=namespace,
+        dir=axis_dir,
+        scenario=view,
+        scenario_path=axis_dir / "scenario.yaml" if axis else scenario_path,
+        remaps=remaps,
+        roles=plans,
+        handshakes=shakes,
+        params_file=MappingProxyType(run_params(view, overrides)),
+        mode=plant["mode"],
+        steps=run_steps(plant),
+        control_period_s=plant["control_period_s"],
+        joint_axis=plant["axis"],
+        sensor=feedback["sensor"],
+        lead_m_per_rad=feedback["lead_m_per_rad"],
+        linear=not plant_model(plant["model"], "plant.model").rotary,
+    )
+
+
+def _role_plan(
+    view: dict[str, Any],
+    roles: list[str],
+    role: str,
+    overrides: dict[str, dict[str, Any]],
+    outside: tuple[str, ...],
+) -> RolePlan:
+    """One role's plan: its section checked as its node will check it (ParameterFileError naming the key)."""
+    values = checked_values(role, {**node_params(view, role), **overrides.get(role, {})})
+    for key in term_files() if role == "feedforward" else ():
+        table = values[key] if values.get(f"{key.rpartition('.')[0]}.enabled", True) else None
+        if table and not Path(table).is_file():
+            raise ParameterFileError(f"parameter '{key}': no such file {table}")
+    publishes, subscribes = role_topics(view, roles, role)
+    return RolePlan(
+        role=role,
+        outside=role in outside,
+        values=MappingProxyType(values),
+        publishes=tuple(publishes),
+        subscribes=tuple(subscribes),
+        must_publish=(presence_topic(view, role),) if role in EXTERNAL_ROLES else (),
+        must_take=REQUIRED_INPUTS.get(role, ()),
+    )
+
+
+def run_directory(out_dir: Path | None, name: str) -> Path:
+    """The run directory (``runs/<name>-<time>`` by default); it must not hold anything yet.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``--out`` for a path that exists and is not an empty directory.
+    """
+    if out_dir is None:
+        out_dir = Path("runs") / f"{name}-{time.strftime('%Y%m%d-%H%M%S')}"
+    out_dir = out_dir.resolve()
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ConfigError(f"--out {out_dir}: exists and is not a directory")
+    if out_dir.exists() and any(out_dir.iterdir()):
+        raise ConfigError(f"--out {out_dir}: exists and is not empty")
+    return out_dir

@@ -1,0 +1,150 @@
+"""Watching a run: its progress, its nodes, its outside nodes, its stalls, until it ends.
+
+:meth:`Watch.run` spins each axis's progress watcher for a short while
+(:data:`POLL_S` per pass, shared by the axes), shows the progress, then asks
+in turn: the node-death policy (:class:`~servo_axis.run.deaths.NodeDeaths`);
+whether every plant is done; the wait for the outside nodes
+(:class:`OutsideWait`: before the first step, with its own timeout); and
+the checks of a running run (:attr:`Watch.checks`: the stall check
+:class:`StallCheck` first). The first answer that is not None is why the
+run stops (:attr:`~servo_axis.run.state.RunState.failure`); a SIGINT or
+SIGTERM stops it too. A check is anything with ``failure(state) -> str |
+None``: a realtime supervisor (a watchdog on the plant's clock, on the
+loop's commands) joins the run as one more.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Protocol, TextIO
+
+from servo_axis.run.deaths import NodeDeaths
+from servo_axis.run.progress import ProgressLine
+from servo_axis.run.state import AxisNodes, RunState
+
+#: Seconds the watch loop waits per pass (shared by the axes).
+POLL_S = 0.05
+
+
+class Check(Protocol):
+    """Something the watch asks on every pass whether the run must stop."""
+
+    def failure(self, state: RunState) -> str | None:
+        """Why the run must stop now, or None."""
+        ...
+
+
+class StallCheck:
+    """The run stops when the recorded steps do not move for ``timeout_s``."""
+
+    def __init__(self, timeout_s: float, run_dir: Path) -> None:
+        self.timeout_s = timeout_s
+        self.run_dir = run_dir
+        self.last_change = time.monotonic()
+
+    def moved(self) -> None:
+        """The run moved (or may not move yet): the wait starts again."""
+        self.last_change = time.monotonic()
+
+    def failure(self, state: RunState) -> str | None:
+        """``no progress for N s`` once the steps stood still that long."""
+        if time.monotonic() - self.last_change > self.timeout_s:
+            return f"no progress for {self.timeout_s:.0f} s (see {self.run_dir})"
+        return None
+
+
+class OutsideWait:
+    """The wait for the nodes of the roles outside nodes play, before the first step."""
+
+    def __init__(self, axes: list[AxisNodes], timeout_s: float, out: TextIO | None) -> None:
+        self.missing = [(axis, role) for axis in axes for role in axis.plan.outside]
+        self.timeout_s = timeout_s
+        self.out = out
+        self.t0 = time.monotonic()
+        self.told = 0.0
+
+    @staticmethod
+    def _present(axis: AxisNodes, role: str) -> bool:
+        assert axis.watcher is not None
+        publishers, _ = axis.watcher.endpoints(axis.plan.presence(role))
+        return publishers > 0
+
+    def arrived(self) -> bool:
+        """Whether every outside node is there (its main output has a publisher)."""
+        self.missing = [(a, role) for a, role in self.missing if not self._present(a, role)]
+        if self.missing and self.out is not None and time.monotonic() - self.told >= 5.0:
+            self.told = time.monotonic()
+            waited = self.told - self.t0
+            for axis, role in self.missing:
+                self.out.write(
+                    f"waiting for the outside {axis.where(role)} ({waited:.0f} s of "
+                    f"{self.timeout_s:.0f} s): no publisher on {axis.plan.presence(role)} yet\n"
+                )
+            self.out.flush()
+        return not self.missing
+
+    def failure(self) -> str | None:
+        """Why the run stops (the timeout passed), or None."""
+        if time.monotonic() - self.t0 <= self.timeout_s:
+            return None
+        names = ", ".join(
+            f"{axis.where(role)} (no publisher on {axis.plan.presence(role)})"
+            for axis, role in self.missing
+        )
+        return (
+            f"the outside node did not come within --external-timeout {self.timeout_s:g} s: {names}"
+        )
+
+
+@dataclass
+class Watch:
+    """The watch of a run's axes: what it asks, in order, on every pass."""
+
+    axes: list[AxisNodes]
+    state: RunState
+    line: ProgressLine | None
+    deaths: NodeDeaths
+    outside: OutsideWait
+    stall: StallCheck
+    checks: list[Check] = field(default_factory=list)  # after the stall check
+
+    def run(self) -> None:
+        """Follow the run until the plants are done, a check fails, or a signal came."""
+        state = self.state
+        self.stall.moved()
+        while not state.signals:
+            self._spin()
+            if self.line is not None and state.t_first is not None:
+                self.line.show(state.steps, time.monotonic() - state.t_first)
+            state.failure = self.deaths.failure(state)
+            if state.failure is not None or all(axis.plant_done for axis in self.axes):
+                return
+            if not self.outside.arrived():
+                # The wait for an outside node has its own timeout, not the stall's.
+                state.failure = self.outside.failure()
+                if state.failure is not None:
+                    return
+                self.stall.moved()
+                continue
+            for check in [self.stall, *self.checks]:
+                state.failure = check.failure(state)
+                if state.failure is not None:
+                    return
+
+    def _spin(self) -> None:
+        """Take what arrived for each axis's watcher; the slowest axis's steps."""
+        state = self.state
+        for axis in self.axes:
+            if axis.watcher is not None:
+                axis.watcher.spin(POLL_S / len(self.axes))
+            else:
+                time.sleep(POLL_S / len(self.axes))
+        watched = [axis.watcher.steps for axis in self.axes if axis.watcher is not None]
+        slowest = min(watched) if watched else -1
+        if slowest != state.steps:
+            state.steps = slowest
+            self.stall.moved()
+            if slowest >= 0 and state.t_first is None:
+                state.t_first = time.monotonic()
