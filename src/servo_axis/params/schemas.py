@@ -285,6 +285,21 @@ FEEDBACK: dict[str, Param] = {
         "this many subscribers of `command` (the plant, the recorder) have matched: no "
         "command is published unheard",
     ),
+    "wait_for_state_readers": Param(
+        0,
+        minimum=0,
+        meaning="an outside plant (which publishes state[0] once `command` has a publisher): "
+        "make the `command` publisher only once `state` has a publisher and this many "
+        "subscribers (the run's readers), held 0.5 s; 0: the suite's plant, no wait",
+    ),
+    "recorder_lag_steps": Param(
+        0,
+        unit="steps",
+        minimum=0,
+        meaning="an outside plant in lockstep: answer state[k] only once the recorder has "
+        "acknowledged step k + 1 - recorder_lag_steps (recorder/progress), so that a plant "
+        "with a keep-last 10 `state` writer never overruns it; 0: no such wait",
+    ),
 }
 
 #: The reference trajectory (at the table), read by the feedforward and the learning unit.
@@ -402,6 +417,11 @@ FEEDFORWARD: dict[str, Param] = {
         0,
         minimum=0,
         meaning="start publishing only once this many subscribers of `reference` have matched",
+    ),
+    "progress_from_state": Param(
+        False,
+        meaning="take the plant's progress from the stamps of `state` instead of "
+        "`plant/status` (an outside plant need publish `state` only)",
     ),
     "learning.enabled": Param(
         False,

@@ -98,6 +98,36 @@ class OutsideWait:
         )
 
 
+class OutsidePlantGone:
+    """The run stops when an outside plant that was there has left the graph before the end.
+
+    Nothing can stand in for the plant: without it no step comes (an outside
+    feedback that goes is the plant's fallback instead). A crashed node
+    leaves the graph when its participant's lease ends (5 s with the run's
+    Fast DDS profile, 20 s with Fast DDS's default); the bag holds every
+    step it had sent.
+    """
+
+    def __init__(self, axes: list[AxisNodes]) -> None:
+        self.axes = [axis for axis in axes if "plant" in axis.plan.outside]
+        self.seen: set[int] = set()
+
+    def failure(self, state: RunState) -> str | None:
+        """``the outside plant is gone ...`` once its ``state`` publisher left, else None."""
+        for i, axis in enumerate(self.axes):
+            if axis.watcher is None or axis.plant_done:
+                continue
+            present = axis.watcher.endpoints(axis.plan.presence("plant"))[0] > 0
+            if present:
+                self.seen.add(i)
+            elif i in self.seen:
+                return (
+                    f"the outside {axis.where('plant')} is gone (no publisher on "
+                    f"{axis.plan.presence('plant')}) at step {max(state.steps, 0)}"
+                )
+        return None
+
+
 @dataclass
 class Watch:
     """The watch of a run's axes: what it asks, in order, on every pass."""
