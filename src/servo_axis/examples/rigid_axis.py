@@ -17,6 +17,7 @@ import math
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
+from rclpy.time import Time
 from sensor_msgs.msg import JointState
 
 
@@ -37,7 +38,7 @@ class RigidAxis(Node):
     def start_once_commanded(self) -> None:
         if self.sub.get_publisher_count() > 0:  # the start rule: `command` has a publisher
             self.start.cancel()
-            self.publish(self.get_clock().now().to_msg() if self.realtime else None)
+            self.publish(self.get_clock().now() if self.realtime else None)
             if self.realtime:
                 self.create_timer(self.T, self.tick)
 
@@ -54,19 +55,22 @@ class RigidAxis(Node):
     def tick(self) -> None:
         if self.k + 1 >= self.steps:
             return
-        a, w_inf = math.exp(-self.B * self.T / self.J), self.torque / self.B
-        self.angle += w_inf * self.T + (self.speed - w_inf) * (1 - a) * self.J / self.B
+        dt, self.last = self.T, self.get_clock().now()  # realtime: the time since the last state
+        if self.realtime:
+            dt = (self.last - self.stamp).nanoseconds * 1e-9
+        a, w_inf = math.exp(-self.B * dt / self.J), self.torque / self.B
+        self.angle += w_inf * dt + (self.speed - w_inf) * (1 - a) * self.J / self.B
         self.speed = w_inf + (self.speed - w_inf) * a
         self.k += 1
-        self.publish(self.get_clock().now().to_msg() if self.realtime else None)
+        self.publish(self.last if self.realtime else None)
 
-    def publish(self, stamp: object) -> None:
+    def publish(self, stamp: Time | None) -> None:
         msg = JointState(name=self.names, position=[self.angle, self.lead * self.angle])
         msg.velocity, msg.effort = [self.speed, self.lead * self.speed], [self.torque, 0.0]
         ns = self.k * round(self.T * 1e9)
         msg.header.stamp.sec, msg.header.stamp.nanosec = ns // 10**9, ns % 10**9
         if stamp is not None:
-            msg.header.stamp = stamp
+            self.stamp, msg.header.stamp = stamp, stamp.to_msg()
         self.pub.publish(msg)
 
 

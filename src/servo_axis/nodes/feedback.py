@@ -61,6 +61,7 @@ Run: ``python -m servo_axis.nodes.feedback --ros-args --params-file config/<scen
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from typing import Any
 
@@ -79,7 +80,7 @@ from servo_axis.nodes.realtime import CatchUp
 from servo_axis.nodes.runtime import run_main, steady_clock
 from servo_axis.params.factories import build_deformation, build_loop, run_steps
 from servo_axis.wire import messages as msgs
-from servo_axis.wire.streams import StreamGate
+from servo_axis.wire.streams import StampOrigin, StreamGate
 
 #: Realtime: the most steps between two answered states (half the realtime
 #: window, so the readers of ``command`` take every jump).
@@ -125,7 +126,20 @@ class FeedbackNode(ServoNode):
             self._deformation_pub = self.publisher("deformation")
 
         self._references: SampleBuffer[msgs.ReferenceSample] = SampleBuffer()
-        self._states = stream_gate(self._lockstep, first=0)
+        # A plant that owns its clock (issue 31): steps from its stamps, and
+        # each command echoes its state's stamp.
+        self._origin = (
+            StampOrigin(self._period_ns)
+            if values["state_stamps"] == "plant_clock" and not self._lockstep
+            else None
+        )
+        self._stamps: dict[int, int] = {}  # step -> the plant's stamp, ns, until answered
+        if self._origin is None:
+            self._states = stream_gate(self._lockstep, first=0)
+        else:
+            self._command_codec = msgs.joint_codec("command", axis=self._axis, period_ns_=1)
+            # Its timer may skip samples; junk ahead is the origin's to refuse.
+            self._states = StreamGate(window=run_steps(values), first=0)
         # Exactly in order: the generator publishes it so.
         self._refs = StreamGate(window=1, first=0)
         self._held: msgs.ReferenceSample | None = None
@@ -133,9 +147,11 @@ class FeedbackNode(ServoNode):
         self._pending_since = 0.0
         self._feedforward = PeerWatch()
         self.missed_references = 0
+        # A plant that owns its clock: every state is answered (its deadlines
+        # are the plant's; a jittering timer's states would look late).
         self.catch_up = (
             None
-            if self._lockstep
+            if self._lockstep or self._origin is not None
             else CatchUp(period_ns=self._period_ns, last_step=run_steps(values) - 1, gap=ANSWER_GAP)
         )
         self.inputs_subscribed = False
@@ -203,7 +219,7 @@ class FeedbackNode(ServoNode):
         self.destroy_timer(self._reference_wait)
         self.inputs.subscribe(
             "state",
-            msgs.joint_codec("state", axis=self._axis, period_ns_=self._period_ns).decode,
+            self._state_decoder(),
             self._on_state,
             raw=True,
             gate=self._states,
@@ -213,6 +229,22 @@ class FeedbackNode(ServoNode):
             self._readers_wait = self.create_timer(
                 0.01, self._publish_command_once_read, clock=steady_clock()
             )
+
+    def _state_decoder(self) -> Any:
+        """The decoder of ``state``: on the grid, or by the plant's own clock."""
+        origin = self._origin
+        if origin is None:
+            return msgs.joint_codec("state", axis=self._axis, period_ns_=self._period_ns).decode
+        by_ns = msgs.joint_codec("state", axis=self._axis, period_ns_=1)
+
+        def decode(data: Any) -> msgs.StateSample:
+            sample = by_ns.decode(data)  # its step is its stamp, ns
+            step = origin.state_step(sample.step, time.monotonic_ns())
+            self._states.check(step)
+            self._stamps[step] = sample.step
+            return dataclasses.replace(sample, step=step)
+
+        return decode
 
     def _publish_command_once_read(self) -> None:
         """An outside plant: make ``command`` once the run's readers of ``state`` are in.
@@ -229,6 +261,11 @@ class FeedbackNode(ServoNode):
         self._readers_wait.cancel()
         self.destroy_timer(self._readers_wait)
         self._command_pub = self.publisher("command")
+        if not self._lockstep:
+            # Its clock runs from state[0]: a command lost to a reader still
+            # matching is a miss, a wait for the match would be hundreds.
+            self._start_answering()
+            return
         self.graph.after_consumers_matched(
             [(self._command_pub, "command", self._v["wait_for_command_subscribers"])],
             self._start_answering,
@@ -290,6 +327,8 @@ class FeedbackNode(ServoNode):
         else:
             self._held = ref
         self._pending = None
+        # The command's stamp: its state's (a plant's own clock: by ns).
+        stamp = state.step if self._origin is None else self._stamps.pop(state.step)
         if state.step % 1000 == 0:  # drop references of samples that never came
             self._references.drop_before(state.step)
         if ref is None:
@@ -312,7 +351,7 @@ class FeedbackNode(ServoNode):
         self._command_pub.publish(
             self._command_codec.encode(
                 msgs.CommandSample(
-                    step=state.step,
+                    step=stamp,
                     torque_Nm=torque_from_current(out.current_A, torque_constant_Nm_per_A=self._kt),
                 )
             )

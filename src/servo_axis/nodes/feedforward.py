@@ -35,7 +35,8 @@ Run: ``python -m servo_axis.nodes.feedforward --ros-args --params-file config/<s
 
 from __future__ import annotations
 
-from typing import Any
+import time
+from typing import Any, NamedTuple
 
 from servo_axis.core.drive import torque_from_current
 from servo_axis.core.errors import SignalError
@@ -46,6 +47,13 @@ from servo_axis.nodes.lockstep import stream_gate
 from servo_axis.nodes.runtime import run_main, steady_clock
 from servo_axis.params.factories import build_generator, run_steps
 from servo_axis.wire import messages as msgs
+from servo_axis.wire.streams import StampOrigin, StreamGate
+
+
+class Step(NamedTuple):
+    """A state's step, all the generator takes of it."""
+
+    step: int
 
 
 class FeedforwardNode(ServoNode):
@@ -82,15 +90,30 @@ class FeedforwardNode(ServoNode):
         )
         if values["progress_from_state"]:
             # An outside plant need publish `state` only: each state's stamp is its step.
-            state = msgs.joint_codec(
-                "state", axis=values["axis"], period_ns_=msgs.period_ns(values["control_period_s"])
-            )
+            period = msgs.period_ns(values["control_period_s"])
+            if values["state_stamps"] == "plant_clock" and not self._lockstep:
+                # A plant that owns its clock: steps from its stamps (StampOrigin).
+                origin, by_ns = (
+                    StampOrigin(period),
+                    msgs.joint_codec("state", axis=values["axis"], period_ns_=1),
+                )
+
+                def decode(data: Any) -> Any:
+                    sample = by_ns.decode(data)
+                    return Step(origin.state_step(sample.step, time.monotonic_ns()))
+
+                # Such a plant goes on after the run's last step (a driver).
+                gate = StreamGate(window=self._steps, first=0)
+            else:
+                codec = msgs.joint_codec("state", axis=values["axis"], period_ns_=period)
+                decode = codec.decode
+                gate = stream_gate(self._lockstep, first=0, limit=self._steps)
             self.inputs.subscribe(
                 "state",
-                lambda data: state.decode(data),
-                lambda sample: self._on_status(sample.step),
+                decode,
+                lambda sample: self._on_status(min(sample.step, self._steps)),
                 raw=True,
-                gate=stream_gate(self._lockstep, first=0, limit=self._steps),
+                gate=gate,
             )
         else:
             self.inputs.subscribe(
