@@ -257,6 +257,13 @@ class FeedbackNode(ServoNode):
         """
         wanted = self._v["wait_for_state_readers"]
         if not (self.inputs.matched("state") and self.graph.readers_settled("state", wanted)):
+            # Say what the wait is for (a user's plant waits for `command` meanwhile).
+            self.get_logger().info(
+                f"waiting for {wanted} readers of state before publishing command (the "
+                f"outside plant's start sign): {len(self.graph.subscriptions('state'))} "
+                "subscribed",
+                throttle_duration_sec=5.0,
+            )
             return
         self._readers_wait.cancel()
         self.destroy_timer(self._readers_wait)
