@@ -37,14 +37,6 @@ SHARED: dict[str, Param] = {
         meaning="time mode: lockstep = the plant owns /clock and waits for every input "
         "(deterministic); realtime = wall-clock steps, late inputs are deadline misses",
     ),
-    "state_stamps": Param(
-        "grid",
-        choices=("grid", "plant_clock"),
-        meaning="how `state` is stamped: grid = sample k at k T_u; plant_clock (realtime, "
-        "an outside plant that owns its clock, e.g. a driver's ROS time) = any monotonic "
-        "clock at the nominal T_u: sample k is the state stamped nearest to t_0 + k T_u, "
-        "t_0 the first state's stamp, and each command echoes its state's stamp",
-    ),
     "control_period_s": Param(
         _BALL_SCREW["control_period_s"],
         unit="s",
@@ -93,6 +85,14 @@ SHARED: dict[str, Param] = {
         meaning="scenario name (summary, plots; a learning memory file must carry the same)",
     ),
     "scenario.description": Param("", meaning="one-line description of the scenario"),
+    "state_stamps": Param(
+        "grid",
+        choices=("grid", "plant_clock"),
+        meaning="how `state` is stamped: grid = sample k at k T_u; plant_clock (realtime, "
+        "an outside plant that owns its clock, e.g. a driver's ROS time) = any monotonic "
+        "clock at the nominal T_u: sample k is the state stamped nearest to t_0 + k T_u, "
+        "t_0 the first state's stamp, and each command echoes its state's stamp",
+    ),
     "external_roles": Param(
         [""],
         meaning="roles played by nodes from outside the suite (any node name; `--external` of "
