@@ -246,6 +246,10 @@ def _outside_plant(
     if "feedforward" in roles:
         out["feedforward"]["progress_from_state"] = True
         readers += 1
+        # ... and does not read plant/status: a plant that publishes it (the
+        # suite's node started by hand) must not wait for the feedforward there.
+        status = out["plant"].get("wait_for_status_subscribers", 0)
+        out["plant"]["wait_for_status_subscribers"] = max(0, status - 1)
     if "feedback" in roles and "feedback" not in external:
         out["feedback"]["wait_for_state_readers"] = readers
         lockstep = checked_values("plant", node_params(scenario, "plant"))["mode"] == "lockstep"

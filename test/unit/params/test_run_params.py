@@ -207,6 +207,9 @@ def test_an_outside_plant_needs_only_state_and_command() -> None:
     assert readers == 2  # the feedback, the recorder
     assert theirs["feedback"]["wait_for_state_readers"] == readers + 1  # + the feedforward
     assert theirs["feedforward"]["progress_from_state"] is True
+    # plant/status: the recorder's only (a suite's plant started by hand waits for it)
+    assert ours["plant"]["wait_for_status_subscribers"] == 2
+    assert theirs["plant"]["wait_for_status_subscribers"] == 1
     assert theirs["feedback"]["recorder_lag_steps"] == OUTSIDE_PUBLISHER_DEPTH - 2
     assert theirs["recorder"]["ack_every_steps"] == OUTSIDE_PUBLISHER_DEPTH - 2
     assert "final_topics" not in theirs["recorder"]
