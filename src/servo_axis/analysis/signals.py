@@ -51,6 +51,7 @@ defaults of the schema. Every other topic is only counted.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -80,7 +81,13 @@ from servo_axis.recording.reader import RawMessage, read_raw
 from servo_axis.wire import cdr, layouts, topics
 from servo_axis.wire.checks import step_of_stamp_ns
 from servo_axis.wire.layouts import ArrayLayout, EstimateData
-from servo_axis.wire.streams import StreamGate, decode_array_stream, decode_joint_stream
+from servo_axis.wire.streams import (
+    StampOrigin,
+    StreamGate,
+    decode_array_stream,
+    decode_joint_stream,
+    joint_codec,
+)
 
 #: The scenario's section of the parameter identifier (paper 003), present
 #: only when one runs.
@@ -217,6 +224,12 @@ class StreamRules:
     estimate_period_steps: int = 1
     estimate_latency_steps: int = 0
     deformation: bool = False
+    state_stamps: str = "grid"
+
+    @property
+    def plant_clock(self) -> bool:
+        """``state`` and ``command`` are stamped by the plant's own clock (realtime, issue 31)."""
+        return self.state_stamps == "plant_clock" and self.mode != "lockstep"
 
     @property
     def window(self) -> int:
@@ -261,6 +274,7 @@ class StreamRules:
             estimate_period_steps=period,
             estimate_latency_steps=latency,
             deformation=bool(node_values(scenario, "feedback")["deformation.enabled"]),
+            state_stamps=plant["state_stamps"],
         )
 
     @classmethod
@@ -368,6 +382,10 @@ class Repeated(Exception):  # noqa: N818 - an outcome, not an error
     """A message that repeats one already kept, value for value: skipped, not junk."""
 
 
+class AfterTheEnd(Exception):  # noqa: N818 - an outcome, not an error
+    """A sample of a plant that owns its clock stamped after the run's last step."""
+
+
 class _Stream:
     """One recorded topic's rules: payload checks, then its gate (if any)."""
 
@@ -388,6 +406,34 @@ def _values(layout: ArrayLayout[Any], data: bytes) -> list[float]:
     """The values of a recorded Float64MultiArray of ``layout``, checked by its layout."""
     msg = cdr.decode_float64_multi_array(data)
     return layout.values(msg.labels, msg.sizes, msg.data, msg.strides)
+
+
+def _plant_clock_stream(rules: StreamRules, name: str, origin: StampOrigin) -> _Check:
+    """``state``/``command`` stamped by the plant's clock: the step each state got in
+    arrival order (:class:`StampOrigin`, one step per state), a command its state's."""
+    steps = origin.steps_by_stamp
+
+    def check(data: bytes) -> tuple[int, Any, None]:
+        sample = joint_codec(name, rules.axis, 1).decode(data)  # its step is its stamp, ns
+        step = steps.get(sample.step)
+        if step is None:
+            raise SignalError(f"stamp {sample.step} ns is not that of a state taken")
+        if rules.steps is not None and step >= rules.steps:
+            raise AfterTheEnd  # such a plant (a driver) goes on after the run
+        return step, dataclasses.replace(sample, step=step), None
+
+    return check
+
+
+def plant_clock_steps(messages: list[Any], rules: StreamRules) -> StampOrigin:
+    """The steps of the recorded states of a plant that owns its clock, in arrival order."""
+    origin = StampOrigin(rules.period_ns, remember=2**62)
+    for m in messages:
+        try:
+            origin.state_step(joint_codec("state", rules.axis, 1).decode(m.data).step)
+        except SignalError:
+            continue
+    return origin
 
 
 def _joint_stream(rules: StreamRules, name: str) -> _Check:
@@ -512,9 +558,20 @@ def _estimate_stream(rules: StreamRules) -> _Check:
     return check
 
 
-def stream_for(name: str, rules: StreamRules) -> _Stream | None:
-    """The rules of table topic ``name`` (a fresh gate), None for a topic without rules."""
+def stream_for(name: str, rules: StreamRules, origin: StampOrigin | None = None) -> _Stream | None:
+    """The rules of table topic ``name`` (a fresh gate), None for a topic without rules.
+
+    ``origin``: the steps of the states of a plant that owns its clock
+    (:func:`plant_clock_steps`), for its ``state`` and ``command``.
+    """
     w, limit = rules.window, rules.steps
+    if name in ("state", "command") and rules.plant_clock and origin is not None:
+        # The plant's timer may skip samples: any step ahead within the run.
+        window = 2**62 if limit is None else max(limit, 1)
+        return _Stream(
+            _plant_clock_stream(rules, name, origin),
+            StreamGate(window=window, first=0, limit=limit),
+        )
     if name in ("state", "command", "reference"):
         return _Stream(_joint_stream(rules, name), StreamGate(window=w, first=0, limit=limit))
     if name == "deformation":
@@ -598,10 +655,15 @@ def read_streams(bag_dir: Path, rules: StreamRules) -> BagStreams:
     repeated: dict[str, int] = {}
     reasons: dict[str, str] = {}
     counts: dict[str, int] = {}
-    for topic, messages in recorded_by_topic(Path(bag_dir)).items():
+    recorded = recorded_by_topic(Path(bag_dir))
+    origin = None
+    if rules.plant_clock:
+        states = [m for t, ms in recorded.items() if table_name(t) == "state" for m in ms]
+        origin = plant_clock_steps(states, rules)
+    for topic, messages in recorded.items():
         counts[topic] = len(messages)
         name = table_name(topic)
-        stream = stream_for(name, rules) if name is not None else None
+        stream = stream_for(name, rules, origin) if name is not None else None
         if stream is None or name is None:
             continue
         kept[topic], dropped[topic] = [], 0
@@ -611,6 +673,8 @@ def read_streams(bag_dir: Path, rules: StreamRules) -> BagStreams:
                 if m.type_name and m.type_name != expected:
                     raise SignalError(f"type: expected {expected}, got {m.type_name}")
                 step, msg = stream.take(m.data)
+            except AfterTheEnd:
+                continue
             except Repeated:
                 repeated[topic] = repeated.get(topic, 0) + 1
                 continue

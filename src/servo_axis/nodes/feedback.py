@@ -61,6 +61,7 @@ Run: ``python -m servo_axis.nodes.feedback --ros-args --params-file config/<scen
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from typing import Any
 
@@ -68,16 +69,30 @@ from servo_axis.core.drive import current_from_torque, torque_from_current
 from servo_axis.core.errors import SignalError
 from servo_axis.core.feedback.loop import Fault, LoopOutput
 from servo_axis.nodes.base import ServoNode
-from servo_axis.nodes.lockstep import REALTIME_WINDOW, PeerWatch, SampleBuffer, stream_gate
+from servo_axis.nodes.lockstep import (
+    REALTIME_WINDOW,
+    FlowControl,
+    PeerWatch,
+    SampleBuffer,
+    stream_gate,
+)
 from servo_axis.nodes.realtime import CatchUp
 from servo_axis.nodes.runtime import run_main, steady_clock
 from servo_axis.params.factories import build_deformation, build_loop, run_steps
 from servo_axis.wire import messages as msgs
-from servo_axis.wire.streams import StreamGate
+from servo_axis.wire.streams import StampOrigin, StreamGate
 
 #: Realtime: the most steps between two answered states (half the realtime
 #: window, so the readers of ``command`` take every jump).
 ANSWER_GAP = REALTIME_WINDOW // 2
+
+
+#: Seconds an outside plant's flow control waits for a recorder whose
+#: liveliness lapsed before it lets the commands go: a stopped recorder
+#: (SIGSTOP, a loaded machine) lapses its 1 s lease as a dead one does, and
+#: a dead one is the runner's to handle (measured: a 2 s SIGSTOP lost 783
+#: states of a keep-last 10 plant with the 0.5 s input timeout here).
+RECORDER_TIMEOUT_S = 10.0
 
 
 class FeedbackNode(ServoNode):
@@ -99,7 +114,11 @@ class FeedbackNode(ServoNode):
         self._command_codec = msgs.joint_codec(
             "command", axis=self._axis, period_ns_=self._period_ns
         )
-        self._command_pub = self.publisher("command")
+        self._outside_plant = values["wait_for_state_readers"] > 0
+        # An outside plant publishes state[0] once `command` has a publisher:
+        # with one, the publisher comes last (_publish_command_once_read).
+        self._command_pub = None if self._outside_plant else self.publisher("command")
+        self._answering = not self._outside_plant
         self._fault_pub = self.publisher("fault")
         self._deformation = build_deformation(values)
         if self._deformation is not None:
@@ -107,7 +126,20 @@ class FeedbackNode(ServoNode):
             self._deformation_pub = self.publisher("deformation")
 
         self._references: SampleBuffer[msgs.ReferenceSample] = SampleBuffer()
-        self._states = stream_gate(self._lockstep, first=0)
+        # A plant that owns its clock (issue 31): steps from its stamps, and
+        # each command echoes its state's stamp.
+        self._origin = (
+            StampOrigin(self._period_ns)
+            if values["state_stamps"] == "plant_clock" and not self._lockstep
+            else None
+        )
+        self._stamps: dict[int, int] = {}  # step -> the plant's stamp, ns, until answered
+        if self._origin is None:
+            self._states = stream_gate(self._lockstep, first=0)
+        else:
+            self._command_codec = msgs.joint_codec("command", axis=self._axis, period_ns_=1)
+            # Its timer may skip samples; junk ahead is the origin's to refuse.
+            self._states = StreamGate(window=run_steps(values), first=0)
         # Exactly in order: the generator publishes it so.
         self._refs = StreamGate(window=1, first=0)
         self._held: msgs.ReferenceSample | None = None
@@ -115,19 +147,38 @@ class FeedbackNode(ServoNode):
         self._pending_since = 0.0
         self._feedforward = PeerWatch()
         self.missed_references = 0
+        # A plant that owns its clock: every state is answered (its deadlines
+        # are the plant's; a jittering timer's states would look late).
         self.catch_up = (
             None
-            if self._lockstep
+            if self._lockstep or self._origin is not None
             else CatchUp(period_ns=self._period_ns, last_step=run_steps(values) - 1, gap=ANSWER_GAP)
         )
         self.inputs_subscribed = False
-        # The plant starts only once this node subscribes to `state`; doing so
-        # only after `command` is matched with its consumers means that no
-        # command is lost to a reader still being discovered.
-        self.graph.after_consumers_matched(
-            [(self._command_pub, "command", values["wait_for_command_subscribers"])],
-            self._subscribe_inputs,
+        self._flow = FlowControl(
+            enabled=values["recorder_lag_steps"] > 0,
+            max_lag_steps=max(1, values["recorder_lag_steps"]),
+            steps=run_steps(values),
         )
+        self._recorder = PeerWatch()
+        if self._flow.enabled:
+            self.inputs.subscribe(
+                "recorder/progress",
+                lambda m: self._plausible_progress(
+                    msgs.labelled_array_values(m, msgs.PROGRESS_LABELS)[0]
+                ),
+                self._on_progress,
+            )
+        if self._command_pub is None:
+            self._subscribe_inputs()
+        else:
+            # The plant starts only once this node subscribes to `state`; doing so
+            # only after `command` is matched with its consumers means that no
+            # command is lost to a reader still being discovered.
+            self.graph.after_consumers_matched(
+                [(self._command_pub, "command", values["wait_for_command_subscribers"])],
+                self._subscribe_inputs,
+            )
         self.create_timer(values["input_timeout_s"] / 10.0, self._watchdog, clock=steady_clock())
 
     def diagnostic_values(self) -> list[tuple[str, Any]]:
@@ -168,12 +219,85 @@ class FeedbackNode(ServoNode):
         self.destroy_timer(self._reference_wait)
         self.inputs.subscribe(
             "state",
-            msgs.joint_codec("state", axis=self._axis, period_ns_=self._period_ns).decode,
+            self._state_decoder(),
             self._on_state,
             raw=True,
             gate=self._states,
         )
         self.inputs_subscribed = True
+        if self._command_pub is None:
+            self._readers_wait = self.create_timer(
+                0.01, self._publish_command_once_read, clock=steady_clock()
+            )
+
+    def _state_decoder(self) -> Any:
+        """The decoder of ``state``: on the grid, or by the plant's own clock."""
+        origin = self._origin
+        if origin is None:
+            return msgs.joint_codec("state", axis=self._axis, period_ns_=self._period_ns).decode
+        by_ns = msgs.joint_codec("state", axis=self._axis, period_ns_=1)
+
+        def decode(data: Any) -> msgs.StateSample:
+            sample = by_ns.decode(data)  # its step is its stamp, ns
+            step = origin.state_step(sample.step, time.monotonic_ns())
+            self._states.check(step)
+            self._stamps[step] = sample.step
+            return dataclasses.replace(sample, step=step)
+
+        return decode
+
+    def _publish_command_once_read(self) -> None:
+        """An outside plant: make ``command`` once the run's readers of ``state`` are in.
+
+        The plant publishes ``state[0]`` once ``command`` has a publisher, so
+        every reader of ``state`` must be subscribed first (held
+        :data:`~servo_axis.nodes.graph.MATCH_SETTLE_S`: the plant's volatile
+        writer must have matched them on its side). The first answer waits
+        until ``command`` has its own consumers matched too.
+        """
+        wanted = self._v["wait_for_state_readers"]
+        if not (self.inputs.matched("state") and self.graph.readers_settled("state", wanted)):
+            # Say what the wait is for (a user's plant waits for `command` meanwhile).
+            self.get_logger().info(
+                f"waiting for {wanted} readers of state before publishing command (the "
+                f"outside plant's start sign): {len(self.graph.subscriptions('state'))} "
+                "subscribed",
+                throttle_duration_sec=5.0,
+            )
+            return
+        self._readers_wait.cancel()
+        self.destroy_timer(self._readers_wait)
+        self._command_pub = self.publisher("command")
+        if not self._lockstep:
+            # Its clock runs from state[0]: a command lost to a reader still
+            # matching is a miss, a wait for the match would be hundreds.
+            self._start_answering()
+            return
+        self.graph.after_consumers_matched(
+            [(self._command_pub, "command", self._v["wait_for_command_subscribers"])],
+            self._start_answering,
+        )
+
+    def _start_answering(self) -> None:
+        self._answering = True
+        self._try_answer()
+
+    def _plausible_progress(self, value: float) -> int:
+        """A recorder acknowledgement: a whole number of steps, not below the last one,
+        not beyond the states taken."""
+        if value != int(value):
+            raise SignalError(f"steps_recorded: expected a whole number, got {value!r}")
+        recorded = int(value)
+        if recorded < self._flow.recorded:
+            raise SignalError(f"steps_recorded {recorded} below the last one {self._flow.recorded}")
+        taken = 0 if self._states.last is None else self._states.last + 1
+        if recorded > taken:
+            raise SignalError(f"steps_recorded {recorded} beyond the {taken} states taken")
+        return recorded
+
+    def _on_progress(self, recorded: int) -> None:
+        self._flow.acknowledge(recorded)
+        self._try_answer()
 
     def _within_preview(self, ref: msgs.ReferenceSample) -> msgs.ReferenceSample:
         last_state = self._states.last if self._states.last is not None else 0
@@ -195,7 +319,11 @@ class FeedbackNode(ServoNode):
 
     def _try_answer(self) -> None:
         state = self._pending
-        if state is None:
+        if state is None or not self._answering:
+            return
+        # An outside plant answers command[k] with state[k + 1]: hold the
+        # command until the recorder keeps up (issue 31; a no-op otherwise).
+        if not self._flow.may_step_to(state.step + 1):
             return
         ref = self._references.take(state.step)
         if ref is None:
@@ -206,6 +334,8 @@ class FeedbackNode(ServoNode):
         else:
             self._held = ref
         self._pending = None
+        # The command's stamp: its state's (a plant's own clock: by ns).
+        stamp = state.step if self._origin is None else self._stamps.pop(state.step)
         if state.step % 1000 == 0:  # drop references of samples that never came
             self._references.drop_before(state.step)
         if ref is None:
@@ -224,10 +354,11 @@ class FeedbackNode(ServoNode):
         if self.catch_up is not None and not self.catch_up.answer(state.step, time.monotonic_ns()):
             return
         # The command first: it is what the plant waits for.
+        assert self._command_pub is not None  # answering
         self._command_pub.publish(
             self._command_codec.encode(
                 msgs.CommandSample(
-                    step=state.step,
+                    step=stamp,
                     torque_Nm=torque_from_current(out.current_A, torque_constant_Nm_per_A=self._kt),
                 )
             )
@@ -248,6 +379,8 @@ class FeedbackNode(ServoNode):
     def _watchdog(self) -> None:
         now = time.monotonic()
         self._feedforward.look(self.inputs.peer_alive("reference"), now)
+        if self._flow.enabled:
+            self._watch_recorder(now)
         if self._pending is None or self.loop.tripped:
             return
         timeout = self._v["input_timeout_s"]
@@ -269,6 +402,21 @@ class FeedbackNode(ServoNode):
                 "input_timeout", step, f"{detail}: tripped, zero current from here"
             )
             self._try_answer()
+
+    def _watch_recorder(self, now: float) -> None:
+        """Flow control off (a fallback) once the recorder has been gone for :data:`RECORDER_TIMEOUT_S`."""
+        self._recorder.look(self.inputs.peer_alive("recorder/progress"), now)
+        gone = self._recorder.gone_for(now)
+        if self._flow.recorded < 0 or gone <= RECORDER_TIMEOUT_S:
+            return
+        self._flow.enabled = False
+        self.report.fallback(
+            "recorder_gone",
+            self._flow.recorded,
+            f"the recorder (recorder/progress) has been gone for {gone:.3g} s: "
+            "commands no longer wait for it",
+        )
+        self._try_answer()
 
     def _publish_fault(self, step: int, fault: Fault, value: float) -> None:
         self.get_logger().error(

@@ -35,16 +35,25 @@ Run: ``python -m servo_axis.nodes.feedforward --ros-args --params-file config/<s
 
 from __future__ import annotations
 
-from typing import Any
+import time
+from typing import Any, NamedTuple
 
 from servo_axis.core.drive import torque_from_current
 from servo_axis.core.errors import SignalError
 from servo_axis.nodes.base import ServoNode
 from servo_axis.nodes.feedforward_corrections import LearningCorrections
 from servo_axis.nodes.feedforward_estimates import Estimates, estimates_part
+from servo_axis.nodes.lockstep import stream_gate
 from servo_axis.nodes.runtime import run_main, steady_clock
 from servo_axis.params.factories import build_generator, run_steps
 from servo_axis.wire import messages as msgs
+from servo_axis.wire.streams import StampOrigin, StreamGate
+
+
+class Step(NamedTuple):
+    """A state's step, all the generator takes of it."""
+
+    step: int
 
 
 class FeedforwardNode(ServoNode):
@@ -79,11 +88,41 @@ class FeedforwardNode(ServoNode):
         self.estimates: Estimates | None = (
             estimates_part(self, self.generator, **parts) if values["adaptive.enabled"] else None
         )
-        self.inputs.subscribe(
-            "plant/status",
-            lambda m: self._plausible_status(msgs.labelled_array_values(m, msgs.STATUS_LABELS)[0]),
-            self._on_status,
-        )
+        if values["progress_from_state"]:
+            # An outside plant need publish `state` only: each state's stamp is its step.
+            period = msgs.period_ns(values["control_period_s"])
+            if values["state_stamps"] == "plant_clock" and not self._lockstep:
+                # A plant that owns its clock: steps from its stamps (StampOrigin).
+                origin, by_ns = (
+                    StampOrigin(period),
+                    msgs.joint_codec("state", axis=values["axis"], period_ns_=1),
+                )
+
+                def decode(data: Any) -> Any:
+                    sample = by_ns.decode(data)
+                    return Step(origin.state_step(sample.step, time.monotonic_ns()))
+
+                # Such a plant goes on after the run's last step (a driver).
+                gate = StreamGate(window=self._steps, first=0)
+            else:
+                codec = msgs.joint_codec("state", axis=values["axis"], period_ns_=period)
+                decode = codec.decode
+                gate = stream_gate(self._lockstep, first=0, limit=self._steps)
+            self.inputs.subscribe(
+                "state",
+                decode,
+                lambda sample: self._on_status(min(sample.step, self._steps)),
+                raw=True,
+                gate=gate,
+            )
+        else:
+            self.inputs.subscribe(
+                "plant/status",
+                lambda m: self._plausible_status(
+                    msgs.labelled_array_values(m, msgs.STATUS_LABELS)[0]
+                ),
+                self._on_status,
+            )
         self._start_timer = self.create_timer(0.01, self._try_start, clock=steady_clock())
 
     def diagnostic_values(self) -> list[tuple[str, Any]]:
@@ -105,13 +144,31 @@ class FeedforwardNode(ServoNode):
         }
 
     def _try_start(self) -> None:
-        if not self.graph.consumers_matched(
-            self._pub, "reference", self.values["wait_for_reference_subscribers"]
+        extra = self._outside_feedback_reads()
+        if extra is None or not self.graph.consumers_matched(
+            self._pub, "reference", self.values["wait_for_reference_subscribers"] + extra
         ):
             return
         self._start_timer.cancel()
         self.started = True
         self._fill(self._window)
+
+    def _outside_feedback_reads(self) -> int | None:
+        """Readers of ``reference`` an outside feedback adds: 1 if it subscribes, None while unknown.
+
+        Nobody waits for an outside node on an input its role need not take:
+        a regulator with its own set-point reads ``state`` only. Once
+        ``command`` has had a publisher for
+        :data:`~servo_axis.nodes.graph.MATCH_SETTLE_S` (its node's
+        subscriptions are in the graph by then), the node that publishes it
+        either subscribes to ``reference`` (then the first window waits for it:
+        a volatile reader gets nothing sent before it matched) or does not.
+        """
+        if not self.graph.is_outside("feedback"):
+            return 0
+        if not self.graph.readers_settled("command", 0):
+            return None
+        return 1 if self.graph.answerer_listens("command", "reference") else 0
 
     def _plausible_status(self, value: float) -> int:
         """The plant's step: whole, not below the last one, not beyond what the

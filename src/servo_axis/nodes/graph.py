@@ -284,6 +284,22 @@ class GraphWatch:
             return True
         return self._settle.held(name, (len(infos), matched))
 
+    def readers_settled(self, name: str, count: int) -> bool:
+        """Whether topic ``name`` has a publisher and ``count`` subscriptions, held a while.
+
+        For a publisher of another process that starts on a sign (an
+        outside plant: ``state[0]`` once ``command`` has a publisher): its
+        readers must all be in, and the counts must have held for
+        :data:`MATCH_SETTLE_S`, so that its volatile writer has matched them
+        on its side too.
+        """
+        key = f"readers:{name}"
+        infos, publishers = self.subscriptions(name), self.publishers(name)
+        if not publishers or len(infos) < count:
+            self._settle.forget(key)
+            return False
+        return self._settle.held(key, (len(infos), len(publishers)))
+
     def after_consumers_matched(
         self, outputs: Sequence[tuple[Publisher, str, int]], then: Callable[[], None]
     ) -> None:

@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import functools
 import re
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -56,10 +57,15 @@ from servo_axis.wire.cdr import clock_ns_from_cdr
 from servo_axis.wire.streams import (
     ARRAY_STREAMS,
     STEP_STREAMS,
+    StampOrigin,
     StreamGate,
     decode_array_stream,
     decode_step_stream,
 )
+
+#: The streams a plant that owns its clock stamps (``state_stamps: plant_clock``):
+#: its states, and the commands that echo their stamps.
+PLANT_CLOCK_STREAMS = ("state", "command")
 
 #: Wall-time period (s) of the flush of the bag: half the 0.5 s a killed
 #: recorder may lose, so that a tick delayed by a long callback still keeps
@@ -139,6 +145,13 @@ class RecorderNode(ServoNode):
         self._gone: set[str] = set()
         self._period_ns = msgs.period_ns(values["control_period_s"])
         self._axis = values["axis"]
+        # A plant that owns its clock (realtime): state and command are
+        # stamped by it; their steps count from the first state's stamp.
+        self._origin = (
+            StampOrigin(self._period_ns)
+            if values["state_stamps"] == "plant_clock" and values["mode"] != "lockstep"
+            else None
+        )
         self._subs: dict[str, Any] = {}
         self._leaseless: set[str] = set()
         self._topics = list(topics)
@@ -172,6 +185,8 @@ class RecorderNode(ServoNode):
                     f"(one of {sorted(STEP_STREAMS)})"
                 )
             window = 1 if values["mode"] == "lockstep" else 100
+            if self._origin is not None and topic in PLANT_CLOCK_STREAMS:
+                window = self._steps  # its timer may skip; the origin refuses junk ahead
             self._gates[name] = (topic, StreamGate(window=window, first=0, limit=self._steps))
         qos = LATCHED_READ_QOS if latched else STREAM_QOS
         stamp = stamp_reader(type_name)
@@ -187,6 +202,8 @@ class RecorderNode(ServoNode):
         )
         # Made once the topic has a publisher, with the profile that matches
         # it (an outside node's default QoS too: Inputs.when_published).
+        if self._origin is not None and topic in PLANT_CLOCK_STREAMS and stamp is not None:
+            stamp = self._from_origin(topic, stamp)
         callback = self._callback(name, stamp, clock=clock)
         self.inputs.when_published(
             topic, qos, functools.partial(self._subscribe_raw, topic, cls, callback, events)
@@ -221,9 +238,14 @@ class RecorderNode(ServoNode):
                 # behind may move the gate.
                 topic, gate = self._gates[name]
                 try:
-                    step, _ = decode_step_stream(
-                        topic, data, axis=self._axis, period_ns=self._period_ns
-                    )
+                    step = self._step_of(topic, data)
+                    if self._origin is not None and topic in PLANT_CLOCK_STREAMS:
+                        # The first sample stamped at or past the run's last
+                        # step ends the stream; a plant that owns its clock (a
+                        # driver) goes on publishing after it.
+                        if step >= self._steps - 1 and gate.last == self._steps - 1:
+                            return
+                        step = min(step, self._steps - 1)
                     gate.accept(step)
                 except SignalError as err:
                     self.report.reject(topic, f"{topic} recorded but not counted: {err}")
@@ -231,6 +253,28 @@ class RecorderNode(ServoNode):
                 self._update_progress()
 
         return on_message
+
+    def _from_origin(self, topic: str, stamp: Callable[[bytes], int]) -> Callable[[bytes], int]:
+        """The log stamp of a stream stamped by the plant's clock: since the first state's."""
+        origin = self._origin
+        assert origin is not None
+
+        def since_origin(data: bytes) -> int:
+            ns = stamp(data)
+            if origin.origin_ns is None:
+                raise SignalError("no state yet")  # the first: logged at the present (0)
+            return ns - origin.origin_ns
+
+        return since_origin
+
+    def _step_of(self, topic: str, data: bytes) -> int:
+        """The step of a counted stream's sample, after the subscribers' checks."""
+        if self._origin is None or topic not in PLANT_CLOCK_STREAMS:
+            return decode_step_stream(topic, data, axis=self._axis, period_ns=self._period_ns)[0]
+        sample = msgs.joint_codec(topic, axis=self._axis, period_ns_=1).decode(data)
+        if topic == "command":  # it echoes its state's stamp
+            return self._origin.command_step(sample.step)
+        return self._origin.state_step(sample.step, time.monotonic_ns())
 
     def _subscribe_raw(
         self, topic: str, cls: Any, callback: Any, events: Any, profile: Any

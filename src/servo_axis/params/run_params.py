@@ -206,6 +206,8 @@ def handshake_overrides(
             **copied(scenario, "feedforward", roles),
         }
     _for_every_node(out, roles, bag_dir, external)
+    if "plant" in external:
+        _outside_plant(out, scenario, roles, recorded, external)
     if external and "recorder" in roles and _outside_counted(scenario, recorded, external):
         out["plant"].update(outside_flow_control(scenario))
         out["recorder"]["ack_every_steps"] = min(
@@ -215,6 +217,51 @@ def handshake_overrides(
             ),
         )
     return out
+
+
+def _outside_plant(
+    out: dict[str, dict[str, Any]],
+    scenario: dict[str, Any],
+    roles: list[str],
+    recorded: list[str],
+    external: tuple[str, ...],
+) -> None:
+    """What the suite's nodes do for an outside plant, which needs only ``state`` and ``command``.
+
+    Such a plant meets one start rule: it publishes ``state[0]`` once
+    ``command`` has a publisher. So the suite's feedback makes its
+    ``command`` publisher only once the run's readers of ``state`` are all
+    subscribed (``wait_for_state_readers``: the plant's own count, the
+    feedforward's reader included). The feedforward tops its preview up on
+    the stamps of ``state`` (``progress_from_state``), not on
+    ``plant/status``; the recorder's progress counts the steps of the
+    streams, not ``/clock`` or ``plant/status`` messages
+    (:func:`scheduled_topics` leaves them out). In lockstep with a recorder,
+    the feedback answers ``state[k]`` only once the recorder has step
+    ``k + 1 - lag`` (``recorder_lag_steps``, :func:`outside_flow_control`):
+    a plant that answers ``command[k]`` with ``state[k + 1]`` then never has
+    more than ``lag + 1`` states unrecorded, within a keep-last 10 writer.
+    """
+    readers = out["plant"].get("wait_for_state_subscribers", 0)
+    if "feedforward" in roles:
+        out["feedforward"]["progress_from_state"] = True
+        readers += 1
+        # ... and does not read plant/status: a plant that publishes it (the
+        # suite's node started by hand) must not wait for the feedforward there.
+        status = out["plant"].get("wait_for_status_subscribers", 0)
+        out["plant"]["wait_for_status_subscribers"] = max(0, status - 1)
+    if "feedback" in roles and "feedback" not in external:
+        out["feedback"]["wait_for_state_readers"] = readers
+        lockstep = checked_values("plant", node_params(scenario, "plant"))["mode"] == "lockstep"
+        if lockstep and "recorder" in roles:
+            lag = outside_flow_control(scenario)["max_recorder_lag_steps"]
+            out["feedback"]["recorder_lag_steps"] = lag
+            out["recorder"]["ack_every_steps"] = min(
+                lag,
+                node_params(scenario, "recorder").get(
+                    "ack_every_steps", schemas.RECORDER["ack_every_steps"].default
+                ),
+            )
 
 
 def _counted(scenario: dict[str, Any], name: str, external: tuple[str, ...]) -> bool:
@@ -242,7 +289,8 @@ def _recorder_overrides(
             counted_topics=[name for name in recorded if _counted(scenario, name, external)],
         )
     rec["output_dir"] = str(bag_dir)
-    rec.update(scheduled_topics(scenario, recorded))
+    if "plant" not in external:  # an outside plant need publish neither
+        rec.update(scheduled_topics(scenario, recorded))
     return rec
 
 

@@ -70,14 +70,16 @@ def law_outputs(scenario: dict[str, Any]) -> tuple[str, ...]:
 
 
 #: What a node playing each role must subscribe to (their publishers wait for
-#: it there): the samples it answers or learns from, and the reference a
-#: feedback node follows (published ahead: a volatile reader that matched
-#: late would never get the first samples). Its other inputs (``/clock`` for
-#: a node without ``use_sim_time``) are its choice, and no publisher waits
-#: for them.
+#: it there): the samples it answers or learns from. Its other inputs are its
+#: choice, and no publisher waits for them: ``/clock``, ``plant/status``, and
+#: for a feedback ``reference`` (a regulator with its own set-point reads
+#: ``state`` only; one that does subscribe to ``reference`` is waited for
+#: there once its ``command`` is in the graph, as the reference is published
+#: ahead and a volatile reader that matched late would miss the first samples:
+#: :meth:`servo_axis.nodes.feedforward.FeedforwardNode._outside_feedback_reads`).
 REQUIRED_INPUTS: dict[str, tuple[str, ...]] = {
     "plant": ("command",),
-    "feedback": ("state", "reference"),
+    "feedback": ("state",),
     "feedforward": (),
     "learning": ("state",),
     "identifier": ("state", "command"),

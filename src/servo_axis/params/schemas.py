@@ -85,6 +85,14 @@ SHARED: dict[str, Param] = {
         meaning="scenario name (summary, plots; a learning memory file must carry the same)",
     ),
     "scenario.description": Param("", meaning="one-line description of the scenario"),
+    "state_stamps": Param(
+        "grid",
+        choices=("grid", "plant_clock"),
+        meaning="how `state` is stamped: grid = sample k at k T_u; plant_clock (realtime, "
+        "an outside plant that owns its clock, e.g. a driver's ROS time) = any monotonic "
+        "clock at the nominal T_u: sample k is the state stamped nearest to t_0 + k T_u, "
+        "t_0 the first state's stamp, and each command echoes its state's stamp",
+    ),
     "external_roles": Param(
         [""],
         meaning="roles played by nodes from outside the suite (any node name; `--external` of "
@@ -285,6 +293,21 @@ FEEDBACK: dict[str, Param] = {
         "this many subscribers of `command` (the plant, the recorder) have matched: no "
         "command is published unheard",
     ),
+    "wait_for_state_readers": Param(
+        0,
+        minimum=0,
+        meaning="an outside plant (which publishes state[0] once `command` has a publisher): "
+        "make the `command` publisher only once `state` has a publisher and this many "
+        "subscribers (the run's readers), held 0.5 s; 0: the suite's plant, no wait",
+    ),
+    "recorder_lag_steps": Param(
+        0,
+        unit="steps",
+        minimum=0,
+        meaning="an outside plant in lockstep: answer state[k] only once the recorder has "
+        "acknowledged step k + 1 - recorder_lag_steps (recorder/progress), so that a plant "
+        "with a keep-last 10 `state` writer never overruns it; 0: no such wait",
+    ),
 }
 
 #: The reference trajectory (at the table), read by the feedforward and the learning unit.
@@ -402,6 +425,11 @@ FEEDFORWARD: dict[str, Param] = {
         0,
         minimum=0,
         meaning="start publishing only once this many subscribers of `reference` have matched",
+    ),
+    "progress_from_state": Param(
+        False,
+        meaning="take the plant's progress from the stamps of `state` instead of "
+        "`plant/status` (an outside plant need publish `state` only)",
     ),
     "learning.enabled": Param(
         False,

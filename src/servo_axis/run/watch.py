@@ -98,6 +98,49 @@ class OutsideWait:
         )
 
 
+#: Seconds an outside plant's ``state`` publisher may be gone before the run
+#: stops (the recorder's last acknowledgement of a plant that exited at the end).
+OUTSIDE_PLANT_GRACE_S = 2.0
+
+
+class OutsidePlantGone:
+    """The run stops when an outside plant that was there has left the graph before the end.
+
+    Nothing can stand in for the plant: without it no step comes (an outside
+    feedback that goes is the plant's fallback instead). A crashed node
+    leaves the graph when its participant's lease ends (5 s with the run's
+    Fast DDS profile, 20 s with Fast DDS's default); the bag holds every
+    step it had sent.
+    """
+
+    def __init__(self, axes: list[AxisNodes], grace_s: float = OUTSIDE_PLANT_GRACE_S) -> None:
+        self.axes = [axis for axis in axes if "plant" in axis.plan.outside]
+        self.grace_s = grace_s
+        self.seen: set[int] = set()
+        self.gone_since: dict[int, float] = {}
+
+    def failure(self, state: RunState) -> str | None:
+        """``the outside plant is gone ...`` once its ``state`` publisher left, else None.
+
+        Only after :attr:`grace_s`: a plant that exits right after its last
+        state leaves before the recorder has acknowledged it.
+        """
+        now = time.monotonic()
+        for i, axis in enumerate(self.axes):
+            if axis.watcher is None or axis.plant_done:
+                continue
+            present = axis.watcher.endpoints(axis.plan.presence("plant"))[0] > 0
+            if present:
+                self.seen.add(i)
+                self.gone_since.pop(i, None)
+            elif i in self.seen and now - self.gone_since.setdefault(i, now) > self.grace_s:
+                return (
+                    f"the outside {axis.where('plant')} is gone (no publisher on "
+                    f"{axis.plan.presence('plant')}) at step {max(state.steps, 0)}"
+                )
+        return None
+
+
 @dataclass
 class Watch:
     """The watch of a run's axes: what it asks, in order, on every pass."""

@@ -97,6 +97,94 @@ class StreamGate:
         return None if self.last is None else self.last + self.stride
 
 
+class StampOrigin:
+    """The steps of a stream stamped by a plant's own clock (``state_stamps: plant_clock``).
+
+    Such a plant (a driver stamping with its ROS time) is not on the ``k T_u``
+    grid and does not start at 0. Each state is a step of its own: the first
+    is step 0 (its stamp is ``t_0``), each later one the step nearest
+    ``(t - t_0) / T_u`` but at least one after the previous state's
+    (:meth:`state_step`): a timer that jitters by up to a period keeps one
+    step per state, and one that skipped ticks leaves steps out. The
+    commands echo their state's stamp: :meth:`command_step` is the step of
+    the state of that stamp. A stamp not after the previous state's is
+    refused; with arrival times, so is one further ahead than the time since
+    the first arrival allows (plus ``slack`` samples): junk stamped ``+1000``
+    steps never displaces the real stream.
+
+    Parameters
+    ----------
+    period_ns : int
+        The nominal period ``T_u``, ns, > 0.
+    slack : int
+        Samples a stamp may lead the arrival clock by, >= 0 (200: a reader's
+        latency spikes of tens of ms under load are not junk).
+    remember : int
+        States whose stamps are kept for their commands, >= 1.
+    """
+
+    def __init__(self, period_ns: int, *, slack: int = 200, remember: int = 4096) -> None:
+        if period_ns <= 0:
+            raise ValueError(f"period_ns: expected > 0, got {period_ns!r}")
+        self.period_ns = period_ns
+        self.slack = slack
+        self.remember = remember
+        self.origin_ns: int | None = None
+        self._first_arrival_ns: int | None = None
+        self._last: tuple[int, int] | None = None  # (stamp ns, step) of the last state
+        self._steps: dict[int, int] = {}  # stamp ns -> step, the last `remember` states
+
+    def state_step(self, stamp_ns: int, arrival_ns: int | None = None) -> int:
+        """The step of the next state, stamped ``stamp_ns`` (the first one sets ``t_0``).
+
+        Raises
+        ------
+        SignalError
+            For a stamp not after the previous state's, or ahead of what the
+            arrival clock allows.
+        """
+        if self.origin_ns is None or self._last is None:
+            self.origin_ns, self._first_arrival_ns = stamp_ns, arrival_ns
+            return self._take(stamp_ns, 0)
+        last_ns, last_step = self._last
+        if stamp_ns <= last_ns:
+            raise SignalError(f"stamp {stamp_ns} ns not after the last state's {last_ns} ns")
+        nearest = (stamp_ns - self.origin_ns + self.period_ns // 2) // self.period_ns
+        step = max(last_step + 1, nearest)
+        if arrival_ns is not None and self._first_arrival_ns is not None:
+            bound = (arrival_ns - self._first_arrival_ns) // self.period_ns + self.slack
+            if step > bound:
+                raise SignalError(
+                    f"stamp ahead of the plant's clock (step {step}, at most {bound} by now)"
+                )
+        return self._take(stamp_ns, step)
+
+    def _take(self, stamp_ns: int, step: int) -> int:
+        self._last = (stamp_ns, step)
+        self._steps[stamp_ns] = step
+        if len(self._steps) > self.remember:
+            del self._steps[next(iter(self._steps))]
+        return step
+
+    @property
+    def steps_by_stamp(self) -> dict[int, int]:
+        """The step of each remembered state, by its stamp (ns)."""
+        return self._steps
+
+    def command_step(self, stamp_ns: int) -> int:
+        """The step of the state stamped ``stamp_ns`` (a command echoes it).
+
+        Raises
+        ------
+        SignalError
+            For a stamp that is not one of the last states' taken.
+        """
+        step = self._steps.get(stamp_ns)
+        if step is None:
+            raise SignalError(f"stamp {stamp_ns} ns is not that of a state taken")
+        return step
+
+
 def gated(items: Iterable[tuple[int, T]], gate: StreamGate) -> Iterator[tuple[int, T]]:
     """The ``(step, item)`` pairs of ``items`` (in arrival order) that ``gate`` takes."""
     for step, item in items:

@@ -177,7 +177,6 @@ def test_environment_helpers_leave_os_environ_alone(monkeypatch: pytest.MonkeyPa
         (("feedback",), True),  # command: counted, from a default-profile publisher
         (("feedforward",), True),  # reference
         (("learning",), False),  # its streams are not counted by the flow control
-        (("plant",), False),  # an outside plant has no flow control of ours
         ((), False),
     ],
 )
@@ -195,6 +194,33 @@ def test_an_outside_publisher_of_a_counted_stream_caps_the_plants_lead(
     # A scenario's smaller lead stays.
     data["plant"]["ros__parameters"]["max_recorder_lag_steps"] = 3
     assert outside_flow_control(data) == {"max_recorder_lag_steps": 3}
+
+
+def test_an_outside_plant_needs_only_state_and_command() -> None:
+    """Issue 31: the feedback makes `command` (the plant's start sign) once every reader of
+    `state` is in and holds its answers for the recorder; the feedforward tops up on
+    `state`; the recorder's progress does not wait for `/clock` or `plant/status`."""
+    data = scenario("ptc_nominal")
+    ours = handshake_overrides(data, roles_of(data), BAG, CONFIG)
+    theirs = handshake_overrides(data, roles_of(data), BAG, CONFIG, external=("plant",))
+    readers = ours["plant"]["wait_for_state_subscribers"]
+    assert readers == 2  # the feedback, the recorder
+    assert theirs["feedback"]["wait_for_state_readers"] == readers + 1  # + the feedforward
+    assert theirs["feedforward"]["progress_from_state"] is True
+    # plant/status: the recorder's only (a suite's plant started by hand waits for it)
+    assert ours["plant"]["wait_for_status_subscribers"] == 2
+    assert theirs["plant"]["wait_for_status_subscribers"] == 1
+    assert theirs["feedback"]["recorder_lag_steps"] == OUTSIDE_PUBLISHER_DEPTH - 2
+    assert theirs["recorder"]["ack_every_steps"] == OUTSIDE_PUBLISHER_DEPTH - 2
+    assert "final_topics" not in theirs["recorder"]
+    assert ours["recorder"]["final_topics"] == ["/clock", "plant/status"]
+    for key in ("wait_for_state_readers", "recorder_lag_steps"):
+        assert key not in ours["feedback"]
+    assert "progress_from_state" not in ours["feedforward"]
+    realtime = scenario("ptc_nominal")
+    realtime["plant"]["ros__parameters"]["mode"] = "realtime"
+    rt = handshake_overrides(realtime, roles_of(realtime), BAG, CONFIG, external=("plant",))
+    assert "recorder_lag_steps" not in rt["feedback"]  # lockstep only
 
 
 def lost_by_a_keep_last_writer(lag: int, ack_every: int, depth: int = 10) -> int:

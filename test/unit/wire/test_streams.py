@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from servo_axis.core.errors import SignalError
-from servo_axis.wire.streams import StreamGate, gated
+from servo_axis.wire.streams import StampOrigin, StreamGate, gated
 
 
 def refused(gate: StreamGate, step: int, text: str) -> None:
@@ -104,3 +104,32 @@ def test_check_changes_nothing_and_parameters_are_checked() -> None:
 def test_gated_keeps_what_the_gate_takes_in_arrival_order() -> None:
     items = [(0, "a"), (1000, "junk"), (1, "b"), (1, "replay"), (3, "gap"), (2, "c")]
     assert list(gated(items, StreamGate())) == [(0, "a"), (1, "b"), (2, "c")]
+
+
+# -- a plant that owns its clock (issue 31) ------------------------------------------
+
+T_NS = 1_000_000
+
+
+def test_a_plant_clock_gives_one_step_per_state_from_the_first_stamp() -> None:
+    """t_0 is the first stamp; a jitter of up to a period keeps one step per state; a stall
+    leaves steps out; commands take their state's step by its stamp."""
+    origin = StampOrigin(T_NS)
+    t0 = 1_795_000_000_123_456_789  # a driver's ROS time, neither on the grid nor 0
+    stamps = [t0, t0 + 1_400_000, t0 + 1_600_000, t0 + 3_000_000, t0 + 9_100_000]
+    assert [origin.state_step(t) for t in stamps] == [0, 1, 2, 3, 9]
+    assert origin.command_step(t0 + 1_600_000) == 2
+    with pytest.raises(SignalError, match="not that of a state"):
+        origin.command_step(t0 + 2_000_000)
+
+
+def test_a_plant_clock_refuses_a_stamp_behind_or_ahead_of_its_arrival() -> None:
+    origin = StampOrigin(T_NS, slack=10)
+    origin.state_step(5 * T_NS, arrival_ns=0)
+    assert origin.state_step(6 * T_NS, arrival_ns=T_NS) == 1
+    with pytest.raises(SignalError, match="not after the last state's"):
+        origin.state_step(6 * T_NS, arrival_ns=T_NS)
+    with pytest.raises(SignalError, match="ahead of the plant's clock"):
+        origin.state_step(5 * T_NS + 1000 * T_NS, arrival_ns=2 * T_NS)
+    # the junk moved nothing: the real next state is taken
+    assert origin.state_step(7 * T_NS, arrival_ns=2 * T_NS) == 2

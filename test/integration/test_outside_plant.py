@@ -1,0 +1,336 @@
+"""An outside plant that publishes `state` only, through `python -m servo_axis run --external plant` (issue 31).
+
+The plant is the shipped example ``examples/rigid_axis.py`` (plain rclpy, default QoS,
+keep-last 10, nothing imported from servo_axis): it publishes ``state[0]`` once
+``command`` has a publisher and answers each ``command[k]`` with ``state[k + 1]``; it
+publishes no ``/clock``, no ``plant/status`` and reads no ``recorder/progress``. Its
+states are checked against an independent replay of the recorded commands through the
+exact zero-order-hold solution of ``J w' = tau - B w``, and its tracking error against
+the same scenario run with the suite's own plant.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import signal
+import subprocess
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+from numpy.testing import assert_allclose
+from test_external import (
+    EXAMPLES,
+    NS,
+    RUN_TIMEOUT_S,
+    finish,
+    short,
+    start_outside,
+    start_run,
+    tails,
+)
+from test_external import stop as stop_node
+
+from conftest import next_domain_id, read_raw_payloads
+from servo_axis.recording.deserialize import read_messages
+from servo_axis.run.processes import pids_of
+
+pytestmark = pytest.mark.integration
+
+STEPS = 1000
+#: The scenario's axis (ptc_nominal's plant section), in the example's parameters.
+INERTIA, DAMPING, LEAD, PERIOD = 0.01, 0.1, 0.00191, 0.001
+TORQUE_LIMIT = 0.715 * 30.0  # K_T (N m/A) x current limit (A)
+
+
+def rigid_axis(*extra: str) -> list[str]:
+    """The example plant's command line for the scenario's axis."""
+    args = [str(EXAMPLES / "rigid_axis.py"), "--ros-args", "-r", f"__ns:={NS}"]
+    params = {"inertia_kgm2": INERTIA, "damping_Nms_per_rad": DAMPING, "lead_m_per_rad": LEAD,
+              "control_period_s": PERIOD, "torque_limit_Nm": TORQUE_LIMIT, "steps": STEPS}  # fmt: skip
+    for key, value in params.items():
+        args += ["-p", f"{key}:={value}"]
+    return args + list(extra)
+
+
+def scenario(dst: Path) -> Path:
+    """ptc_nominal for 1 s with the PID alone (no feedforward torque): a tracking error of
+    micrometres that depends on the plant's dynamics, not rounding."""
+    path = short("ptc_nominal", dst, duration_s=STEPS * PERIOD)
+    data = yaml.safe_load(path.read_text())
+    data["feedback"]["ros__parameters"]["use_feedforward"] = False
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def process_of(role: str, out: Path) -> int:
+    """The pid of the run's node ``role``, once it is started."""
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        pids = pids_of(out, role)
+        if pids:
+            return pids[0]
+        time.sleep(0.05)
+    raise AssertionError(f"no {role} process for {out}")
+
+
+def wait_for_bag_growth(out: Path, proc: subprocess.Popen[bytes]) -> None:
+    """Until the recorder has flushed messages of the run (the bag file grew)."""
+    deadline, first = time.monotonic() + 90, None
+    while time.monotonic() < deadline and proc.poll() is None:
+        files = list((out / "bag").glob("*.mcap")) if (out / "bag").is_dir() else []
+        size = files[0].stat().st_size if files else 0
+        if size and first is None:
+            first = size
+        elif first is not None and size > first + 20_000:
+            return
+        time.sleep(0.01)
+    raise AssertionError(tails(out))
+
+
+@dataclass
+class Run:
+    code: int | None
+    out: Path
+
+
+def run_outside(path: Path, out: Path, *, pause_recorder_s: float = 0.0) -> Run:
+    proc = start_run(path, out, "--external", "plant")
+    plant = start_outside(rigid_axis(), out.parent / f"{out.name}.plant.log")
+    try:
+        if pause_recorder_s:
+            recorder = process_of("recorder", out)
+            wait_for_bag_growth(out, proc)
+            os.kill(recorder, signal.SIGSTOP)
+            time.sleep(pause_recorder_s)
+            os.kill(recorder, signal.SIGCONT)
+        code = finish(proc, RUN_TIMEOUT_S)
+    finally:
+        stop_node(plant)
+    return Run(code, out)
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, Run]]:
+    """The scenario with the suite's plant, with the example plant, and with the example
+    plant while the recorder is stopped (SIGSTOP) for 2 s mid-run: one domain, in turn."""
+    tmp = tmp_path_factory.mktemp("outside_plant")
+    domain = next_domain_id()
+    from servo_axis.run.processes import ros_environment
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("ROS_DOMAIN_ID", str(domain))
+        mp.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        mp.setenv("FASTDDS_BUILTIN_TRANSPORTS", "UDPv4")
+        (tmp / "ros_log").mkdir()
+        mp.setenv("ROS_LOG_DIR", str(tmp / "ros_log"))
+        env = ros_environment(domain, tmp / "ros_log")
+        mp.setenv("FASTRTPS_DEFAULT_PROFILES_FILE", env["FASTRTPS_DEFAULT_PROFILES_FILE"])
+        path = scenario(tmp)
+        alone = tmp / "alone"
+        done = {"alone": Run(finish(start_run(path, alone), RUN_TIMEOUT_S), alone)}
+        done["outside"] = run_outside(path, tmp / "outside")
+        done["paused"] = run_outside(path, tmp / "paused", pause_recorder_s=2.0)
+        yield done
+
+
+def joint_arrays(bag: Path, topic: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Stamps (ns), positions, velocities, efforts of a JointState topic, in stamp order."""
+    rows = sorted(
+        (m.message.header.stamp.sec * 10**9 + m.message.header.stamp.nanosec, m.message)
+        for m in read_messages(bag, topics=[topic])
+    )
+    return (
+        np.array([s for s, _ in rows]),
+        np.array([list(m.position) for _, m in rows]),
+        np.array([list(m.velocity) for _, m in rows]),
+        np.array([list(m.effort) for _, m in rows]),
+    )
+
+
+def replay(torques: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Angle and speed of the rigid axis under ``torques`` held over each period (exact ZOH)."""
+    a = math.exp(-DAMPING * PERIOD / INERTIA)
+    angle, speed = [0.0], [0.0]
+    for tau in np.clip(torques, -TORQUE_LIMIT, TORQUE_LIMIT)[:-1]:
+        w_inf = tau / DAMPING
+        angle.append(
+            angle[-1] + (w_inf * PERIOD + (speed[-1] - w_inf) * (1 - a) * INERTIA / DAMPING)
+        )
+        speed.append(w_inf + (speed[-1] - w_inf) * a)
+    return np.array(angle), np.array(speed)
+
+
+def summary(run: Run) -> dict[str, Any]:
+    return dict(yaml.safe_load((run.out / "summary.json").read_text()))
+
+
+def test_the_example_plant_closes_the_loop_in_lockstep_as_the_suites_plant(
+    runs: dict[str, Run],
+) -> None:
+    """Every state and command of 1000 steps is recorded, exit 0; the states are the
+    exact replay of the recorded commands; the tracking error is the suite's plant's within 1e-6
+    (the suite integrates the same ODE in 50 us sub-steps, the example exactly)."""
+    alone, outside = runs["alone"], runs["outside"]
+    assert alone.code == 0, tails(alone.out)
+    assert outside.code == 0, tails(outside.out)
+    bag = outside.out / "bag"
+    stamps, position, velocity, _ = joint_arrays(bag, f"{NS}/state")
+    assert_allclose(stamps, np.arange(STEPS) * 1_000_000, rtol=0, atol=0)
+    cmd_stamps, _, _, torque = joint_arrays(bag, f"{NS}/command")
+    assert_allclose(cmd_stamps, stamps, rtol=0, atol=0)
+    angle, speed = replay(torque[:, 0])
+    assert_allclose(position[:, 0], angle, rtol=0, atol=0)  # the same operations, exactly
+    assert_allclose(velocity[:, 0], speed, rtol=0, atol=0)
+    assert_allclose(position[:, 1], LEAD * angle, rtol=0, atol=0)
+    mine, theirs = summary(outside), summary(alone)
+    assert mine["health"]["exit_code"] == 0 and mine["health"]["deterministic"]
+    err, ref = mine["tracking_error"]["all_samples"], theirs["tracking_error"]["all_samples"]
+    assert ref["rms_m"] > 1e-6  # the PID alone: micrometres, not rounding
+    assert_allclose(err["rms_m"], ref["rms_m"], rtol=1e-6)
+    assert_allclose(err["max_m"], ref["max_m"], rtol=1e-6)
+
+
+def test_a_stopped_recorder_loses_nothing_of_a_keep_last_10_plant(
+    runs: dict[str, Run],
+) -> None:
+    """With the recorder stopped for 2 s mid-run, the feedback holds its commands until the
+    recorder has caught up, so the example's keep-last 10 `state` writer never overruns: the
+    bag is the same, byte for byte, as the run without the pause (and so lockstep runs of an
+    outside plant are deterministic)."""
+    paused, outside = runs["paused"], runs["outside"]
+    assert paused.code == 0, tails(paused.out)
+    rejected = summary(paused)["health"]["nodes"]
+    assert not any(node.get("rejected") for node in rejected.values()), rejected
+    assert read_raw_payloads(paused.out / "bag") == read_raw_payloads(outside.out / "bag")
+
+
+def test_a_killed_outside_plant_ends_the_run_with_a_readable_bag(
+    ros_env: int, tmp_path: Path
+) -> None:
+    """SIGKILL of the example plant mid-run (with the run's Fast DDS profile: seen gone after
+    its 5 s participant lease): the runner stops the run, exit 1, says why, and the bag is
+    readable with the states sent before the kill."""
+    path = scenario(tmp_path)
+    out = tmp_path / "run"
+    proc = start_run(path, out, "--external", "plant")
+    plant = start_outside(rigid_axis(), tmp_path / "plant.log", run_profile=True)
+    try:
+        wait_for_bag_growth(out, proc)
+        os.killpg(plant.pid, signal.SIGKILL)
+        code = finish(proc, RUN_TIMEOUT_S)
+    finally:
+        stop_node(plant)
+    text = (tmp_path / "run.out").read_text()
+    assert code == 1, tails(out)
+    assert "the outside plant is gone (no publisher on state)" in text
+    done = summary(Run(code, out))
+    assert 0 < done["message_counts"][f"{NS}/state"] < STEPS
+    assert done["health"]["outcome"] == "failed"
+    from rosbags.rosbag2 import Reader
+
+    with Reader(out / "bag") as reader:
+        assert reader.message_count == sum(1 for _ in reader.messages())
+
+
+#: A set-point regulator of the user's: plain rclpy, default QoS, reads `state` only
+#: (no `reference`), answers each state with a PD torque towards a fixed angle.
+REGULATOR = """
+import rclpy
+from sensor_msgs.msg import JointState
+rclpy.init()
+node = rclpy.create_node("my_regulator", namespace="{ns}")
+pub = node.create_publisher(JointState, "command", 10)
+def on_state(state):
+    torque = {kp} * ({target} - state.position[0]) - {kd} * state.velocity[0]
+    pub.publish(JointState(header=state.header, name=[state.name[0]], effort=[torque]))
+node.create_subscription(JointState, "state", on_state, 10)
+rclpy.spin(node)
+"""
+
+
+def test_a_regulator_that_reads_only_state_is_not_waited_for_on_reference(
+    ros_env: int, tmp_path: Path
+) -> None:
+    """An outside feedback that never subscribes to `reference`, started before the run:
+    the feedforward does not wait for it there, the run completes (exit 0), and every
+    command is the regulator's PD law on the recorded state (an independent computation)."""
+    kp, kd, target = 4.0, 0.2, 1.0
+    path = short("ptc_nominal", tmp_path, duration_s=0.5)
+    code = ["-c", REGULATOR.format(ns=NS, kp=kp, kd=kd, target=target)]
+    regulator = start_outside(code, tmp_path / "regulator.log")
+    try:
+        time.sleep(1.0)
+        out = tmp_path / "run"
+        result = finish(start_run(path, out, "--external", "feedback"), RUN_TIMEOUT_S)
+    finally:
+        stop_node(regulator)
+    assert result == 0, tails(out)
+    _, position, velocity, _ = joint_arrays(out / "bag", f"{NS}/state")
+    _, _, _, torque = joint_arrays(out / "bag", f"{NS}/command")
+    assert len(torque) == 500
+    assert_allclose(
+        torque[:, 0], kp * (target - position[:, 0]) - kd * velocity[:, 0], rtol=0, atol=0
+    )
+    assert position[-1, 0] > 0.5 * target  # it moved towards its own set-point
+
+
+def plant_clock_steps(stamps: np.ndarray) -> np.ndarray:
+    """The documented rule, written again: state 0 is step 0, each later one the step nearest
+    ``(t - t_0) / T_u`` but at least one after the previous state's."""
+    period_ns = round(PERIOD * 1e9)
+    steps = [0]
+    for t in stamps[1:]:
+        nearest = (int(t) - int(stamps[0]) + period_ns // 2) // period_ns
+        steps.append(max(steps[-1] + 1, nearest))
+    return np.array(steps)
+
+
+def test_in_realtime_a_plant_that_owns_its_clock_is_answered_with_its_own_stamps(
+    ros_env: int, tmp_path: Path
+) -> None:
+    """The example plant steps on its own 1 ms timer, stamps each state with its ROS time
+    (not on the k T_u grid, not from 0) and integrates the time that really passed
+    (`state_stamps: plant_clock`). Every command the suite sends carries the stamp of a
+    state it answers; the analysis indexes the states by the plant's clock (the rule of
+    `StampOrigin`, computed again here) and its tracking error is that of the bag's
+    states against the references of those steps. The exit code may be 4: a Python
+    timer on a loaded 2-core machine stalls for 10-35 ms (measured), and the PID's
+    derivative of the error a stall leaves may trip the loop on current; the run still
+    completes and is indexed and answered as above."""
+    path = scenario(tmp_path)
+    data = yaml.safe_load(path.read_text())
+    data["/**"]["ros__parameters"].update(mode="realtime", state_stamps="plant_clock")
+    data["feedback"]["ros__parameters"]["bandwidth_hz"] = 10.0
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    out = tmp_path / "run"
+    proc = start_run(path, out, "--external", "plant")
+    plant = start_outside(rigid_axis("-p", "realtime:=true"), tmp_path / "plant.log")
+    try:
+        code = finish(proc, RUN_TIMEOUT_S)
+    finally:
+        stop_node(plant)
+    done = summary(Run(code, out))
+    assert done["health"]["outcome"] == "complete", tails(out)
+    assert code in (0, 3, 4), tails(out)  # a stall of the plant's timer may trip the loop
+    bag = out / "bag"
+    stamps, position, _, _ = joint_arrays(bag, f"{NS}/state")
+    assert stamps[0] > 10**9 * 1000  # the plant's ROS time, not the grid's 0
+    steps = plant_clock_steps(stamps)
+    assert steps[-1] >= STEPS - 1  # the run ended on the plant's clock
+    command_stamps, _, _, _ = joint_arrays(bag, f"{NS}/command")
+    assert set(command_stamps.tolist()) <= set(stamps.tolist())
+    answered = np.isin(stamps[steps < STEPS], command_stamps)
+    assert answered.mean() > 0.9, answered.mean()
+    ref_stamps, reference, _, _ = joint_arrays(bag, f"{NS}/reference")
+    ref_of = dict(zip((ref_stamps // 1_000_000).tolist(), reference[:, 0], strict=True))
+    within = steps < STEPS
+    error = np.array([ref_of[k] for k in steps[within]]) - position[within, 0]
+    rms = float(np.sqrt(np.mean((LEAD * error) ** 2)))
+    assert_allclose(done["tracking_error"]["all_samples"]["rms_m"], rms, rtol=1e-9)
