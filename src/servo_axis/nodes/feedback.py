@@ -107,7 +107,7 @@ class FeedbackNode(ServoNode):
             self._deformation_pub = self.publisher("deformation")
 
         self._references: SampleBuffer[msgs.ReferenceSample] = SampleBuffer()
-        self._states = stream_gate(self._lockstep, first=0)
+        self._states = stream_gate(self._lockstep, first=0, period_ns=self._period_ns)
         # Exactly in order: the generator publishes it so.
         self._refs = StreamGate(window=1, first=0)
         self._held: msgs.ReferenceSample | None = None
@@ -137,6 +137,7 @@ class FeedbackNode(ServoNode):
             ("fault", "none" if fault is None else fault.name.lower()),
             ("missed_references", self.missed_references),
             ("skipped_answers", 0 if self.catch_up is None else self.catch_up.skipped),
+            ("states_skipped", self._states.skipped),
             ("scheduling", "fifo" if self.realtime.fifo else "other"),
         ]
 
@@ -243,7 +244,11 @@ class FeedbackNode(ServoNode):
             self._deformation_pub.publish(self._deformation_codec.encode(sample))
 
     def realtime_counts(self) -> dict[str, int]:
-        return {"references_held": self.missed_references}
+        return {
+            "references_held": self.missed_references,
+            "states_skipped": self._states.skipped,
+            "answers_skipped": 0 if self.catch_up is None else self.catch_up.skipped,
+        }
 
     def _watchdog(self) -> None:
         now = time.monotonic()

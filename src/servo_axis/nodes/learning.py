@@ -121,6 +121,7 @@ class LearningNode(ServoNode):
             first=None if values["late_join"] else 0,
             limit=self._steps,
             stride=self._stride,
+            period_ns=self._period_ns,
         )
         self._error = PeriodCollector(nd)
         self._target = np.zeros(nd)

@@ -74,7 +74,7 @@ def test_the_clock_thread_ticks_in_order_never_before_a_deadline() -> None:
     clock = ClockThread(period_ns=period_ns, tick=tick, name="test-clock")
     assert not clock.started
     start = time.monotonic_ns()
-    clock.start(start, fifo=False)
+    clock.start(start)
     assert last.wait(5.0)
     time.sleep(5 * period_ns * 1e-9)  # no tick after the last one
     clock.stop(timeout_s=5.0)
@@ -89,7 +89,7 @@ def test_a_tick_that_raises_ends_the_clock_and_is_kept() -> None:
         raise ZeroDivisionError("model blew up")
 
     clock = ClockThread(period_ns=1_000_000, tick=tick, name="test-clock")
-    clock.start(time.monotonic_ns(), fifo=True)
+    clock.start(time.monotonic_ns(), priority=0)
     deadline = time.monotonic() + 5.0
     while clock.error is None and time.monotonic() < deadline:
         time.sleep(0.001)
@@ -105,7 +105,7 @@ def test_stop_ends_a_running_clock() -> None:
         return False  # never the last one
 
     clock = ClockThread(period_ns=1_000_000, tick=tick, name="test-clock")
-    clock.start(time.monotonic_ns(), fifo=False)
+    clock.start(time.monotonic_ns())
     assert ticks.wait(5.0)
     t0 = time.monotonic()
     clock.stop(timeout_s=5.0)
