@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import functools
 import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from typing import Any, TypeVar
 
 from servo_axis.core import deadlines
@@ -59,6 +59,11 @@ class StreamGate:
         reader's history that overflowed) takes the newest sample and goes
         on, while a stranger's ``step + 1000`` or ``1e9 s`` stamp is still
         refused. None: no wall clock (lockstep, a bag's analysis).
+    plausible : callable or None
+        ``plausible(step)``: whether a step further ahead than ``window`` is
+        taken, in place of the wall clock of ``period_ns`` (a stream that
+        runs ahead of the clock, as the references do, is bounded by the
+        clock of another stream); None: as ``period_ns`` says.
     """
 
     def __init__(
@@ -69,6 +74,7 @@ class StreamGate:
         limit: int | None = None,
         stride: int = 1,
         period_ns: int | None = None,
+        plausible: Callable[[int], bool] | None = None,
     ) -> None:
         if window < 1:
             raise ValueError(f"window: expected >= 1, got {window!r}")
@@ -79,18 +85,26 @@ class StreamGate:
         self.limit = limit
         self.last: int | None = None if first is None else first - stride
         self.period_ns = period_ns
+        self.plausible = plausible
         self._start_ns: int | None = None  # the stream clock's d_0, from the arrivals
         #: Samples of the stream passed over (gaps within the window, and jumps).
         self.skipped = 0
         #: Jumps further than the window taken because the wall clock allowed them.
         self.jumps = 0
 
-    def _plausible(self, step: int) -> bool:
-        """Realtime: ``step`` is not ahead of where the stream's clock is now (plus the window)."""
+    def now_step(self) -> int | None:
+        """Realtime: the step the stream's clock is at now, as the arrivals show it (None: not known)."""
         if self.period_ns is None or self._start_ns is None:
-            return False
-        now_step = (time.monotonic_ns() - self._start_ns) // self.period_ns
-        return step <= now_step + self.window * self.stride
+            return None
+        return (time.monotonic_ns() - self._start_ns) // self.period_ns
+
+    def _plausible(self, step: int) -> bool:
+        """Realtime: ``step`` is not ahead of where the stream's clock is now (plus the window),
+        or ``plausible`` says it may be taken."""
+        if self.plausible is not None:
+            return self.plausible(step)
+        now = self.now_step()
+        return now is not None and step <= now + self.window * self.stride
 
     def check(self, step: int) -> None:
         """Raise :class:`SignalError` unless ``step`` is one the gate takes now (nothing changes)."""

@@ -3,6 +3,7 @@ set-point, catching up."""
 
 from __future__ import annotations
 
+import itertools
 import math
 import threading
 import time
@@ -212,3 +213,36 @@ def test_catching_up_skips_exactly_what_answer_useful_says() -> None:
     assert answered == expected
     assert catch_up.skipped == last + 1 - len(answered) > 0
     assert last in answered and max(np.diff(answered)) <= gap
+
+
+def test_a_clock_far_behind_slips_to_the_next_deadline_instead_of_running_the_missed_ticks() -> (
+    None
+):
+    """A tick that returns 60 periods late (the process was stopped) does not cause 60
+    ticks back to back: the deadlines are re-based to the first one after now (issue 30)."""
+    period_ns = 1_000_000
+    seen: list[tuple[int, int, int]] = []
+    last = threading.Event()
+
+    def tick(j: int, deadline_ns: int) -> bool:
+        seen.append((j, deadline_ns, time.monotonic_ns()))
+        if j == 3:
+            time.sleep(0.06)  # 60 periods: more than SLIP_PERIODS and SLIP_MIN_NS
+        if j == 10:
+            last.set()
+        return j == 10
+
+    clock = ClockThread(period_ns=period_ns, tick=tick, name="test-clock")
+    start = time.monotonic_ns()
+    clock.start(start)
+    assert last.wait(5.0)
+    clock.stop(timeout_s=5.0)
+    assert [j for j, _, _ in seen] == list(range(1, 11))
+    assert clock.slips == 1 and clock.slipped_periods >= 55
+    # Tick 4 is due on the grid, after the stall: no earlier than when tick 3 returned.
+    (_, d3, t3), (_, d4, _) = seen[2], seen[3]
+    assert (d4 - start) % period_ns == 0 and d4 >= t3 + 60_000_000 - period_ns
+    assert d4 - d3 == (clock.slipped_periods + 1) * period_ns
+    # After it the ticks follow one period apart again.
+    assert [b[1] - a[1] for a, b in itertools.pairwise(seen[3:])] == [period_ns] * 6
+    assert all(now >= d for _, d, now in seen)
