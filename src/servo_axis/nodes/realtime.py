@@ -105,6 +105,36 @@ def fifo_this_thread(priority: int) -> dict[str, object]:
     return {"policy": "fifo", "priority": priority}
 
 
+#: The nice value given to the middleware's threads (``dds.*``) of a node whose
+#: executor thread runs under ``SCHED_FIFO``: they stay ``SCHED_OTHER`` (a
+#: spinning one cannot take a core from everything else), but with more
+#: weight than the host's default jobs, since every sample the executor
+#: takes passes through them first.
+MIDDLEWARE_NICE = -10
+
+
+def favour_middleware_threads(nice: int = MIDDLEWARE_NICE) -> int:
+    """Give this process's ``dds.*`` threads the nice value ``nice`` (best effort).
+
+    Returns how many threads got it (0 where the system refuses or there is no ``/proc``).
+    """
+    done = 0
+    try:
+        tids = os.listdir("/proc/self/task")
+    except OSError:
+        return 0
+    for tid in tids:
+        try:
+            with open(f"/proc/self/task/{tid}/comm") as f:
+                if not f.read().startswith("dds."):
+                    continue
+            os.setpriority(os.PRIO_PROCESS, int(tid), nice)
+            done += 1
+        except (OSError, AttributeError):
+            continue
+    return done
+
+
 #: Scheduling policies by their number in ``/proc/<pid>/task/<tid>/stat``.
 POLICY_NAMES = {0: "other", 1: "fifo", 2: "rr", 3: "batch", 5: "idle", 6: "deadline"}
 
@@ -158,6 +188,9 @@ class RealtimeScheduling:
         Where a refusal is said (one line).
     apply : callable
         What applies a priority to the calling thread (:func:`fifo_this_thread`).
+    favour : callable
+        What gives the middleware's threads more weight at the default
+        policy once ``apply`` got ``SCHED_FIFO`` (:func:`favour_middleware_threads`).
     """
 
     def __init__(
@@ -166,12 +199,14 @@ class RealtimeScheduling:
         *,
         warn: Callable[[str], Any],
         apply: Callable[[int], dict[str, object]] = fifo_this_thread,
+        favour: Callable[[], int] = favour_middleware_threads,
     ) -> None:
         self._pending = priority
         #: The priority asked for (None: none).
         self.asked = priority
         self._warn = warn
         self._apply = apply
+        self._favour = favour
         #: What :meth:`start` got (``fifo_this_thread``'s answer); None before, or never asked.
         self.applied: dict[str, object] | None = None
 
@@ -187,6 +222,8 @@ class RealtimeScheduling:
             return
         self._pending = None
         got = self._apply(priority)
+        if got["policy"] == "fifo":
+            got = {**got, "middleware_nice": MIDDLEWARE_NICE, "middleware_threads": self._favour()}
         self.applied = got
         if "refused" in got:
             self._warn(

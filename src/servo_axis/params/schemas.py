@@ -101,6 +101,14 @@ SHARED: dict[str, Param] = {
         "step 0 before the producer's; the runner sets it true. false: once the topic has "
         "any publisher (a node started by hand, beside a probe)",
     ),
+    "realtime.max_miss_fraction": Param(
+        0.05,
+        minimum=0.0,
+        maximum=1.0,
+        meaning="realtime mode: the largest fraction of the plant's ticks whose command missed "
+        "its deadline for which the loop counts as closed; above it the run ends with exit 5 "
+        "(the loop was not closed) and the summary says why; ignored in lockstep",
+    ),
     "thread_priority": Param(
         50,
         minimum=0,

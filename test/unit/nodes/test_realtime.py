@@ -38,20 +38,24 @@ def test_the_priority_is_applied_once_when_the_run_starts() -> None:
 
     def apply(priority: int) -> dict[str, object]:
         asked.append(priority)
-        return {"policy": "fifo", "priority": priority, "threads": 3}
+        return {"policy": "fifo", "priority": priority}
 
-    scheduling = RealtimeScheduling(49, warn=warnings.append, apply=apply)
+    scheduling = RealtimeScheduling(49, warn=warnings.append, apply=apply, favour=lambda: 7)
     assert scheduling.applied is None and not scheduling.fifo and asked == []
     scheduling.start()
     scheduling.start()
-    assert asked == [49] and scheduling.fifo and scheduling.applied == apply(49)
+    assert asked == [49] and scheduling.fifo
+    # Under SCHED_FIFO the middleware's threads get more weight (at the default policy).
+    assert scheduling.applied == {**apply(49), "middleware_nice": -10, "middleware_threads": 7}
     assert warnings == []
 
 
 def test_a_refused_priority_leaves_the_default_scheduler_and_says_why() -> None:
     warnings: list[str] = []
     refused = {"policy": "other", "priority": 0, "refused": "PermissionError: no"}
-    scheduling = RealtimeScheduling(50, warn=warnings.append, apply=lambda p: refused)
+    scheduling = RealtimeScheduling(
+        50, warn=warnings.append, apply=lambda p: refused, favour=lambda: 1 / 0
+    )
     scheduling.start()
     assert not scheduling.fifo and scheduling.applied == refused
     assert warnings == ["thread_priority 50: refused (PermissionError: no); the default scheduler"]
