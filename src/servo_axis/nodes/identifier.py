@@ -55,9 +55,11 @@ from servo_axis.wire import messages as msgs
 class IdentifierNode(ServoNode):
     """Online identifier; see the module docstring for its protocol."""
 
-    # Realtime: what it sends the generator is on the reference path, so it
-    # preempts other work, below the generator and the pair.
-    realtime_below = 2
+    # Realtime: the default scheduler. Only the per-sample pair's executor
+    # threads and the plant's clock run under SCHED_FIFO: a node of the
+    # reference path at FIFO (as before, one or two below the pair) starved
+    # the pair's middleware threads, which stay SCHED_OTHER (issue 30).
+    realtime_below = None
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("identifier", **kwargs)

@@ -44,15 +44,16 @@ SWITCH_INTERVAL_S = 5e-5
 #: deadline is at least half a period away.
 GC_EVERY_TICKS = 256
 #: States per window of :meth:`CatchUp.arrived`'s estimate of the clock's
-#: start (longer than a stall's backlog: 1 s at 0.4 ms is 2,500).
-START_WINDOW = 4096
+#: start: the estimate follows a clock that slipped within two windows
+#: (0.4-0.8 s at 0.4 ms), and is never made of a stall's backlog alone.
+START_WINDOW = 1024
 #: A clock that wakes later than this many periods after a deadline (and at
 #: least :data:`SLIP_MIN_NS`) does not run the ticks it missed back to back
 #: at its realtime priority: it slips, as ros2_control's controller manager
 #: skips the periods it overran: the deadlines are re-based to the first
 #: one after now, and the slip is counted (:attr:`ClockThread.slips`).
-SLIP_PERIODS = 20
-SLIP_MIN_NS = 10_000_000
+SLIP_PERIODS = 100
+SLIP_MIN_NS = 50_000_000
 
 
 # -- scheduling -------------------------------------------------------------------------
@@ -110,7 +111,7 @@ def fifo_this_thread(priority: int) -> dict[str, object]:
 #: spinning one cannot take a core from everything else), but with more
 #: weight than the host's default jobs, since every sample the executor
 #: takes passes through them first.
-MIDDLEWARE_NICE = -10
+MIDDLEWARE_NICE = -20
 
 
 def favour_middleware_threads(nice: int = MIDDLEWARE_NICE) -> int:

@@ -113,11 +113,10 @@ SHARED: dict[str, Param] = {
         50,
         minimum=0,
         maximum=99,
-        meaning="realtime mode: SCHED_FIFO priority of every thread of the plant and the "
-        "feedback (the per-sample pair), as ros2_control's thread_priority; one below it for "
-        "the feedforward generator, two below for the learning unit and the identifier (on "
-        "the reference path); the recorder keeps the default scheduler (its CPU would count "
-        "against the kernel's realtime budget, 95 % of each second). 0: the default scheduler "
+        meaning="realtime mode: SCHED_FIFO priority of the threads that do the per-sample "
+        "work: the plant's clock thread and the executor thread of the plant and the feedback "
+        "(the per-sample pair), as ros2_control's thread_priority; the middleware's threads "
+        "stay SCHED_OTHER (nice -10), and so do the other nodes. 0: the default scheduler "
         "for all. Where the system refuses (no CAP_SYS_NICE or rtprio limit), a warning and "
         "the default scheduler; ignored in lockstep",
     ),
