@@ -111,7 +111,7 @@ def fifo_this_thread(priority: int) -> dict[str, object]:
 #: spinning one cannot take a core from everything else), but with more
 #: weight than the host's default jobs, since every sample the executor
 #: takes passes through them first.
-MIDDLEWARE_NICE = -20
+MIDDLEWARE_NICE = -10
 
 
 def favour_middleware_threads(nice: int = MIDDLEWARE_NICE) -> int:

@@ -14,6 +14,8 @@ import pytest
 from servo_axis.core import deadlines
 from servo_axis.core.errors import SignalError
 from servo_axis.nodes.realtime import (
+    SLIP_MIN_NS,
+    SLIP_PERIODS,
     CatchUp,
     ClockRecord,
     ClockThread,
@@ -222,16 +224,18 @@ def test_catching_up_skips_exactly_what_answer_useful_says() -> None:
 def test_a_clock_far_behind_slips_to_the_next_deadline_instead_of_running_the_missed_ticks() -> (
     None
 ):
-    """A tick that returns 60 periods late (the process was stopped) does not cause 60
+    """A tick that returns 150 periods late (the process was stopped) does not cause 150
     ticks back to back: the deadlines are re-based to the first one after now (issue 30)."""
     period_ns = 1_000_000
+    stall_ns = 150 * period_ns  # beyond SLIP_PERIODS periods and SLIP_MIN_NS
+    assert stall_ns > max(SLIP_PERIODS * period_ns, SLIP_MIN_NS)
     seen: list[tuple[int, int, int]] = []
     last = threading.Event()
 
     def tick(j: int, deadline_ns: int) -> bool:
         seen.append((j, deadline_ns, time.monotonic_ns()))
         if j == 3:
-            time.sleep(0.06)  # 60 periods: more than SLIP_PERIODS and SLIP_MIN_NS
+            time.sleep(stall_ns * 1e-9)
         if j == 10:
             last.set()
         return j == 10
@@ -242,10 +246,10 @@ def test_a_clock_far_behind_slips_to_the_next_deadline_instead_of_running_the_mi
     assert last.wait(5.0)
     clock.stop(timeout_s=5.0)
     assert [j for j, _, _ in seen] == list(range(1, 11))
-    assert clock.slips == 1 and clock.slipped_periods >= 55
+    assert clock.slips == 1 and clock.slipped_periods >= 145
     # Tick 4 is due on the grid, after the stall: no earlier than when tick 3 returned.
     (_, d3, t3), (_, d4, _) = seen[2], seen[3]
-    assert (d4 - start) % period_ns == 0 and d4 >= t3 + 60_000_000 - period_ns
+    assert (d4 - start) % period_ns == 0 and d4 >= t3 + stall_ns - period_ns
     assert d4 - d3 == (clock.slipped_periods + 1) * period_ns
     # After it the ticks follow one period apart again.
     assert [b[1] - a[1] for a, b in itertools.pairwise(seen[3:])] == [period_ns] * 6
