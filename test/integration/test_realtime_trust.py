@@ -137,8 +137,15 @@ def test_only_the_clock_and_the_executor_threads_run_at_a_realtime_priority(
 
 def test_after_a_stall_of_the_feedback_the_loop_closes_again(stalled_run: dict[str, Any]) -> None:
     assert 0.25 < stalled_run["stall_s"] < 1.0
-    assert stalled_run["code"] in (0, 3, 4), stalled_run["stderr"][-3000:]
     summary = stalled_run["summary"]
+    # A 0.3 s stall of a 3 s run is 10 % of its ticks missed: more than
+    # realtime.max_miss_fraction (5 %), so exit 5 for that reason (or 4: the
+    # loop tripped on a loaded host); the stall never ends the run (loop_open).
+    assert stalled_run["code"] in (4, 5), stalled_run["stderr"][-3000:]
+    reasons = summary["health"]["reasons"]
+    assert not any("loop_open" in r or "clock_stalled" in r for r in reasons), reasons
+    if stalled_run["code"] == 5:
+        assert reasons[0].startswith("the loop was not closed: ") and "missed" in reasons[0]
     rt = summary["realtime"]
     assert rt["ticks"] == summary["steps"]
     # The stall cost at least its own length in missed deadlines ...

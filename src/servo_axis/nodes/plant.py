@@ -83,6 +83,9 @@ CLOCK_STALL_S = 2.0
 #: the fault ``loop_open``, s: far beyond a 0.3 s stall of the feedback,
 #: after which the loop closes again.
 LOOP_OPEN_S = 2.0
+#: Wall time the plant waits at the end of a realtime run it ended itself
+#: (``clock_stalled``, ``loop_open``) for the recorder, s.
+FAULT_FINISH_S = 1.0
 
 
 def state_sample(out: PlantOutput) -> msgs.StateSample:
@@ -159,6 +162,7 @@ class PlantNode(ServoNode):
         self._finish_started = 0.0
         self._first_step_s = 0.0  # time.monotonic() when state 0 went out
         self._last_command_ns = 0  # realtime: monotonic ns of the newest command's arrival
+        self._finish_timeout_s = FINISH_TIMEOUT_S
         self.inputs.subscribe(
             "command",
             lambda data: self._awaited_command(command_codec.decode(data)),
@@ -357,6 +361,8 @@ class PlantNode(ServoNode):
             self.report.fallback(kind, step, f"{detail}; the run ends at step {step}")
             self._realtime_report()
             self._flow.steps = self._published  # the recorder has all there will be
+            # The recorder counts commands too, and they stopped: no long wait.
+            self._finish_timeout_s = FAULT_FINISH_S
             self._finish()
 
     def _recorder_gone(self, now: float) -> bool:
@@ -387,11 +393,12 @@ class PlantNode(ServoNode):
                 self._finish_started = now
             return
         # Realtime, or a run that already went on by a fallback (whose
-        # commands the recorder may never get): stop after FINISH_TIMEOUT_S.
-        if now - self._finish_started > FINISH_TIMEOUT_S:
+        # commands the recorder may never get): stop after FINISH_TIMEOUT_S
+        # (a realtime run the plant ended early: FAULT_FINISH_S).
+        if now - self._finish_started > self._finish_timeout_s:
             self.get_logger().error(
-                f"recorder acknowledged {self._flow.recorded} of {self._steps} steps within "
-                f"{FINISH_TIMEOUT_S} s; stopping anyway"
+                f"recorder acknowledged {self._flow.recorded} of {self._flow.steps} steps "
+                f"within {self._finish_timeout_s} s; stopping anyway"
             )
             self.done = True
 
