@@ -114,8 +114,9 @@ def fifo_this_thread(priority: int) -> dict[str, object]:
 MIDDLEWARE_NICE = -10
 
 
-def favour_middleware_threads(nice: int = MIDDLEWARE_NICE) -> int:
-    """Give this process's ``dds.*`` threads the nice value ``nice`` (best effort).
+def favour_middleware_threads(nice: int = MIDDLEWARE_NICE, fifo_priority: int = 0) -> int:
+    """Give this process's ``dds.*`` threads the nice value ``nice`` (best effort), or with
+    ``fifo_priority`` > 0 ``SCHED_FIFO`` at that priority (``realtime.middleware_priority``).
 
     Returns how many threads got it (0 where the system refuses or there is no ``/proc``).
     """
@@ -129,7 +130,11 @@ def favour_middleware_threads(nice: int = MIDDLEWARE_NICE) -> int:
             with open(f"/proc/self/task/{tid}/comm") as f:
                 if not f.read().startswith("dds."):
                     continue
-            os.setpriority(os.PRIO_PROCESS, int(tid), nice)
+            if fifo_priority > 0:
+                policy = os.SCHED_FIFO | os.SCHED_RESET_ON_FORK
+                os.sched_setscheduler(int(tid), policy, os.sched_param(fifo_priority))
+            else:
+                os.setpriority(os.PRIO_PROCESS, int(tid), nice)
             done += 1
         except (OSError, AttributeError):
             continue
@@ -189,9 +194,13 @@ class RealtimeScheduling:
         Where a refusal is said (one line).
     apply : callable
         What applies a priority to the calling thread (:func:`fifo_this_thread`).
-    favour : callable
-        What gives the middleware's threads more weight at the default
-        policy once ``apply`` got ``SCHED_FIFO`` (:func:`favour_middleware_threads`).
+    favour : callable or None
+        What gives the middleware's threads more weight once ``apply`` got
+        ``SCHED_FIFO`` (None: :func:`favour_middleware_threads`).
+    middleware_priority : int
+        ``realtime.middleware_priority``: 0, the middleware's threads stay
+        ``SCHED_OTHER`` (nice :data:`MIDDLEWARE_NICE`); > 0, ``SCHED_FIFO``
+        at it (below the executor's).
     """
 
     def __init__(
@@ -200,14 +209,18 @@ class RealtimeScheduling:
         *,
         warn: Callable[[str], Any],
         apply: Callable[[int], dict[str, object]] = fifo_this_thread,
-        favour: Callable[[], int] = favour_middleware_threads,
+        favour: Callable[[], int] | None = None,
+        middleware_priority: int = 0,
     ) -> None:
         self._pending = priority
         #: The priority asked for (None: none).
         self.asked = priority
         self._warn = warn
         self._apply = apply
-        self._favour = favour
+        self.middleware_priority = middleware_priority
+        self._favour = favour or (
+            lambda: favour_middleware_threads(fifo_priority=middleware_priority)
+        )
         #: What :meth:`start` got (``fifo_this_thread``'s answer); None before, or never asked.
         self.applied: dict[str, object] | None = None
 
@@ -224,7 +237,12 @@ class RealtimeScheduling:
         self._pending = None
         got = self._apply(priority)
         if got["policy"] == "fifo":
-            got = {**got, "middleware_nice": MIDDLEWARE_NICE, "middleware_threads": self._favour()}
+            middleware = (
+                {"middleware_priority": self.middleware_priority}
+                if self.middleware_priority > 0
+                else {"middleware_nice": MIDDLEWARE_NICE}
+            )
+            got = {**got, **middleware, "middleware_threads": self._favour()}
         self.applied = got
         if "refused" in got:
             self._warn(

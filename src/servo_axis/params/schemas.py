@@ -109,6 +109,16 @@ SHARED: dict[str, Param] = {
         "its deadline for which the loop counts as closed; above it the run ends with exit 5 "
         "(the loop was not closed) and the summary says why; ignored in lockstep",
     ),
+    "realtime.middleware_priority": Param(
+        0,
+        minimum=0,
+        maximum=99,
+        meaning="realtime mode: 0 = the middleware's threads (dds.*) of the plant and the "
+        "feedback stay SCHED_OTHER, at nice -10 (a spinning one cannot take a core from "
+        "everything else); N > 0 = SCHED_FIFO at priority N for them, below thread_priority "
+        "(on a loaded host their wake-up latency is then the realtime one; a spinning one "
+        "starves the default jobs on its core until the run's watchdogs end it)",
+    ),
     "thread_priority": Param(
         50,
         minimum=0,
