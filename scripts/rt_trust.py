@@ -197,7 +197,7 @@ def loop_closed_again(run_dir: Path, summary: dict[str, Any]) -> str:
         for m in read_messages(run_dir / "bag", topics=topics)
     )
     gaps = max((b - a for a, b in itertools.pairwise(steps)), default=0)
-    last_ok = steps and steps[-1] == summary["steps"] - 1
+    last_ok = bool(steps) and steps[-1] == rt["ticks"] - 1
     return f"{'yes' if last_ok else 'NO'} (last {steps[-1] if steps else '-'}, max gap {gaps})"
 
 
@@ -242,8 +242,9 @@ def main() -> int:
                 print(rows[-1], flush=True)
             if args.no_extra:
                 continue
-            stall_copy, _ = prepared(REPO / "config" / "ptc_nominal.yaml", tmp, 3.0,
-                                     mode="realtime")  # fmt: skip
+            (tmp / "stall").mkdir(exist_ok=True)
+            stall_copy, _ = prepared(REPO / "config" / "ptc_nominal.yaml", tmp / "stall", 3.0,
+                                     mode="realtime", duration_s=3.0)  # fmt: skip
             r = run(stall_copy, tmp / f"stall_{hogs_n}", args.domain_id, 3.0, None, stall_during)
             rt = r["summary"].get("realtime", {})
             extra.append(
@@ -253,8 +254,9 @@ def main() -> int:
                 f"| {loop_closed_again(tmp / f'stall_{hogs_n}', r['summary'])} | - |"
             )
             print(extra[-1], flush=True)
-            long_copy, _ = prepared(REPO / "config" / "ptc_nominal.yaml", tmp, 30.0,
-                                    mode="realtime")  # fmt: skip
+            (tmp / "term").mkdir(exist_ok=True)
+            long_copy, _ = prepared(REPO / "config" / "ptc_nominal.yaml", tmp / "term", 30.0,
+                                    mode="realtime", duration_s=30.0)  # fmt: skip
             r = run(long_copy, tmp / f"term_{hogs_n}", args.domain_id, 30.0, None, sigterm_during)
             gone = "NOT within 30 s" if r["gone_s"] is None else f"{r['gone_s']:.2f} s"
             extra.append(f"| SIGTERM to the runner | {load} | {r['code']} | - | - | - | {gone} |")
