@@ -94,7 +94,9 @@ def test_a_node_that_ignores_sigint_delays_the_recorder_by_the_timeout_only(
     assert codes["plant"] < 0  # killed
     assert codes["recorder"] == 0
     got = events(notes)
-    assert 0.45 <= got[("recorder", "sigint")] - started < 3.0
+    # The others get 60 % of the timeout, the recorder the rest (at least 1 s),
+    # so that every process is gone within the timeout.
+    assert 0.6 * 0.5 - 0.05 <= got[("recorder", "sigint")] - started < 3.0
 
 
 @pytest.mark.parametrize("cores", [[0, 1], [2, 5, 7]])
