@@ -117,7 +117,8 @@ SHARED: dict[str, Param] = {
         "feedback stay SCHED_OTHER, at nice -10 (a spinning one cannot take a core from "
         "everything else); N > 0 = SCHED_FIFO at priority N for them, below thread_priority "
         "(on a loaded host their wake-up latency is then the realtime one; a spinning one "
-        "starves the default jobs on its core until the run's watchdogs end it)",
+        "starves the default jobs on its core, and once hung a plant after its last tick, "
+        "until the run's watchdogs end the run: see docs/explanation/realtime.md)",
     ),
     "thread_priority": Param(
         50,
