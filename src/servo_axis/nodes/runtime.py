@@ -167,9 +167,10 @@ def matching_reader_qos(wanted: QoSProfile, offered: Sequence[QoSProfile]) -> Qo
 
 #: Seconds after SIGINT or SIGTERM after which a node process ends whatever
 #: it is doing (``os._exit``): its spin loop normally ends within a callback,
-#: and its end (acknowledgements, a recorder's drain) takes at most
-#: ``ACK_TIMEOUT_S + DRAIN_MAX_S``; the runner SIGKILLs it later still.
-STOP_DEADLINE_S = 3.5
+#: and its end (acknowledgements, a recorder's drain and its bag's close)
+#: takes at most a few seconds; the runner stops an interrupted run's
+#: processes sooner (``SIGNAL_STOP_S``).
+STOP_DEADLINE_S = 8.0
 
 #: Exit code of a node that refused its configuration.
 EXIT_BAD_CONFIG = 2

@@ -26,10 +26,13 @@ from typing import Any
 from servo_axis.params.names import check_domain_id
 from servo_axis.run.fastdds import clean_stale_shm
 
-#: Seconds from SIGINT to SIGKILL of the last process when the nodes are
-#: stopped (:func:`stop_nodes`; a bit under the 5 s in which a stopped run's
-#: processes must all be gone).
-STOP_TIMEOUT_S = 4.5
+#: Seconds between SIGINT and SIGKILL when the nodes are stopped at a run's
+#: end (each stage of :func:`stop_nodes`).
+STOP_TIMEOUT_S = 5.0
+#: Seconds from SIGINT to SIGKILL of the last process when a signal stopped
+#: the run (:func:`stop_nodes` with ``total_s``: a bit under the 5 s in which
+#: every process of an interrupted run must be gone).
+SIGNAL_STOP_S = 4.5
 #: Roles stopped after the others (:func:`stop_nodes`).
 STOPPED_LAST = ("recorder",)
 #: The roles that take turns on the per-sample path in lockstep.
@@ -275,13 +278,18 @@ def cpu_set(
 
 
 def stop_nodes(
-    procs: list[Proc], timeout_s: float = STOP_TIMEOUT_S, *, last: tuple[str, ...] = STOPPED_LAST
+    procs: list[Proc],
+    timeout_s: float = STOP_TIMEOUT_S,
+    *,
+    last: tuple[str, ...] = STOPPED_LAST,
+    total_s: float | None = None,
 ) -> dict[str, int]:
-    """SIGINT every live process group, SIGKILL what is left; all gone within ``timeout_s``.
+    """SIGINT every live process group, SIGKILL what is left after ``timeout_s``; reap all.
 
-    The roles in ``last`` (the recorder) are stopped once the others have
-    exited (they get 60 % of ``timeout_s``, the last ones the rest, at least
-    a second): each node waits at its end until its last samples are
+    With ``total_s`` (a run a signal stopped) every process is gone within
+    it: the others get 60 % of it, the last ones the rest (at least a
+    second). The roles in ``last`` (the recorder) are stopped once the
+    others have exited: each node waits at its end until its last samples are
     acknowledged, and the recorder then writes what is still on its way
     (:func:`~servo_axis.nodes.runtime.finish`), so that nothing a node sent
     before it stopped is missing from the bag.
@@ -291,8 +299,10 @@ def stop_nodes(
     removed (:func:`clean_stale_shm`).
     """
     t0 = time.monotonic()
-    _interrupt([p for p in procs if p.role not in last], 0.6 * timeout_s)
-    _interrupt([p for p in procs if p.role in last], max(1.0, timeout_s - (time.monotonic() - t0)))
+    first = timeout_s if total_s is None else 0.6 * total_s
+    _interrupt([p for p in procs if p.role not in last], first)
+    rest = timeout_s if total_s is None else max(1.0, total_s - (time.monotonic() - t0))
+    _interrupt([p for p in procs if p.role in last], rest)
     for p in procs:
         _signal_group(p.popen, signal.SIGKILL)  # stray children of the group, if any
         p.log.close()
