@@ -88,7 +88,9 @@ examples:
 Exit codes of run: 0 complete and deterministic (realtime: complete, never
 deterministic), 1 failed, 2 bad option or configuration (nothing started or
 written), 3 not the deterministic result, 4 the feedback loop tripped,
-130/143 interrupted by SIGINT/SIGTERM.
+5 realtime: the loop was not closed (misses over realtime.max_miss_fraction,
+commands that never came, the plant's clock stalled), 130/143 interrupted by
+SIGINT/SIGTERM.
 """
 
 

@@ -197,10 +197,17 @@ def test_in_realtime_nothing_waits_for_the_identifier_and_it_tracks_as_in_lockst
         timeout=300,
         env={**os.environ, "ROS_DOMAIN_ID": str(ros_env)},
     )  # fmt: skip
-    assert proc.returncode == 0, proc.stderr
+    assert proc.returncode in (0, 5), proc.stderr
     summary = RunSummary.from_json(run_dir / "summary.json")
     rt = summary.realtime
     assert rt is not None and rt.ticks >= summary.steps - 1
+    if proc.returncode == 5:
+        # A host that cannot close a 0.4 ms loop (two CPU-bound jobs beside it
+        # on 2 cores, a loaded CI runner) says so: exit 5 and why, never 0.
+        assert summary.health is not None
+        assert summary.health.reasons[0].startswith("the loop was not closed"), proc.stderr
+        assert rt.miss_fraction > 0.05 or "ended the run" in summary.health.reasons[0]
+        pytest.skip(f"this host did not close the realtime loop: {summary.health.reasons[0]}")
     assert summary.health is not None and summary.health.reasons == (), summary.health.reasons
     # The feedback's and the generator's counts are reported (how many, the host decides).
     assert rt.references_held is not None and rt.late_estimates is not None

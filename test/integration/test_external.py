@@ -567,6 +567,41 @@ def test_an_outside_controller_that_stops_answering_is_a_reported_fallback(
     assert 0 < summary["message_counts"][f"{NS}/command"] < 1500
 
 
+def test_in_realtime_an_outside_controller_that_stops_answering_ends_the_run_with_exit_5(
+    ros_env: int, tmp_path: Path
+) -> None:
+    """Realtime, the example controller (plain rclpy, default QoS) SIGKILLed mid-run of
+    a 30 s run: the plant's clock goes on holding the last current, and 2 s without a
+    command end the run (``loop_open``) long before its 30 s: exit 5, the reason
+    first, a readable bag (issue 30: such a run once ended "complete, exit 0")."""
+    path = short("ptc_nominal", tmp_path, duration_s=30.0, mode="realtime")
+    out = tmp_path / "run"
+    watcher = OutsideNode(ros_env, junk=False)
+    try:
+        proc = start_run(path, out, "--external", "feedback")
+        ctrl = start_outside(pd_controller(20.0, 0.01), tmp_path / "ctrl.log")
+        try:
+            watcher.spin_while(lambda: watcher.step < 300 and proc.poll() is None, 60.0)
+            os.killpg(ctrl.pid, signal.SIGKILL)
+            killed_at = time.monotonic()
+            code = finish(proc, RUN_TIMEOUT_S)
+            ended_s = time.monotonic() - killed_at
+        finally:
+            stop(ctrl)
+    finally:
+        watcher.close()
+    assert code == 5, tails(out)
+    assert ended_s < 15.0  # 2 s of loop_open, 1 s for the recorder, the stop
+    summary = yaml.safe_load((out / "summary.json").read_text())
+    reasons = summary["health"]["reasons"]
+    assert reasons[0].startswith("the loop was not closed: plant ended the run (loop_open)")
+    (fallback,) = summary["health"]["nodes"]["plant"]["fallbacks"]
+    assert fallback["kind"] == "loop_open" and 300 <= fallback["step"] < 30_000
+    states = summary["message_counts"][f"{NS}/state"]
+    assert fallback["step"] - 10 <= states <= fallback["step"] + 1
+    assert summary["realtime"]["ticks"] == fallback["step"]
+
+
 # -- the runner's own checks -------------------------------------------------------------
 
 

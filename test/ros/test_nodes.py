@@ -354,7 +354,11 @@ def test_realtime_plant_holds_the_newest_command_and_counts_misses(context: Cont
     # Step 1 came late, steps 2 (rejected) and 4 never: the misses of ticks 2, 3, 5.
     assert report["commands_late"] == 1 and report["commands_missing"] == 2
     assert report["command_late_us"]["max"] > 100_000.0  # step 1's, after its tick
-    assert report["scheduling"] is None  # thread_priority 0: the default scheduler
+    # thread_priority 0: the default scheduler, for the executor and the clock thread.
+    assert report["scheduling"]["policy"] == "other"
+    assert report["scheduling"]["clock"] == {"policy": "other", "priority": 0}
+    assert "fifo" not in report["scheduling"]["threads"]
+    assert report["clock_slips"] == 0 and report["slipped_periods"] == 0
     assert os.sched_getscheduler(0) == os.SCHED_OTHER
     plant.destroy_node()
     probe.destroy_node()

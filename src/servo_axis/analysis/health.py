@@ -18,6 +18,10 @@ code  meaning
       gone), a node died and was restarted, or a stranger published on the
       run's topics
 4     complete with a fault: the feedback loop tripped
+5     realtime: the loop was not closed: more deadline misses than
+      ``realtime.max_miss_fraction`` of the ticks (commands late or never
+      sent), or the plant ended the run because its clock stalled
+      (``clock_stalled``) or no command came (``loop_open``); never success
 130   interrupted by SIGINT (143: SIGTERM); the nodes were stopped, the bag
       closed and the summary of what was recorded written (``interrupted``)
 ====  ==========================================================================
@@ -38,6 +42,44 @@ EXIT_FAILED = 1
 EXIT_BAD_CONFIG = 2
 EXIT_NOT_DETERMINISTIC = 3
 EXIT_FAULT = 4
+EXIT_LOOP_NOT_CLOSED = 5
+
+#: A plant's fallbacks that end a realtime run whose loop is not closed.
+LOOP_ENDS = ("loop_open", "clock_stalled")
+
+
+def loop_not_closed(
+    realtime: Any, max_miss_fraction: float, reports: dict[str, NodeHealth]
+) -> str | None:
+    """Why a realtime loop was not closed (exit 5), or None.
+
+    Parameters
+    ----------
+    realtime : Realtime or None
+        The summary's ``realtime`` block (None: not a realtime run, or no
+        report of the plant's clock).
+    max_miss_fraction : float
+        ``realtime.max_miss_fraction``, 0-1.
+    reports : dict
+        The nodes' reports (a plant's ``loop_open`` or ``clock_stalled``
+        fallback ends the run so).
+    """
+    for role, report in sorted(reports.items()):
+        for fb in report.fallbacks:
+            if fb.kind in LOOP_ENDS:
+                return (
+                    f"the loop was not closed: {role} ended the run ({fb.kind}) at step {fb.step}"
+                )
+    if realtime is None or not realtime.ticks:
+        return None
+    fraction = realtime.miss_fraction
+    if fraction > max_miss_fraction:
+        return (
+            f"the loop was not closed: {realtime.misses} of {realtime.ticks} ticks "
+            f"({100 * fraction:.1f} %) missed their deadline ({realtime.commands_missing} "
+            f"commands never came), over realtime.max_miss_fraction {max_miss_fraction:g}"
+        )
+    return None
 
 
 @dataclass(frozen=True)
@@ -110,6 +152,7 @@ def assess(
     faults: int,
     bag_recovered: bool = False,
     realtime: bool = False,
+    open_loop: str | None = None,
 ) -> RunHealth:
     """The run's health from what the runner saw and the nodes reported.
 
@@ -131,6 +174,8 @@ def assess(
     realtime : bool
         A realtime run: never deterministic; exit code 0 if nothing else
         went wrong.
+    open_loop : str or None
+        Why a realtime loop was not closed (:func:`loop_not_closed`): exit 5.
     """
     reasons: list[str] = []
     for death in deaths:
@@ -152,6 +197,9 @@ def assess(
     elif failure is not None:
         code, outcome = EXIT_FAILED, "failed"
         reasons.insert(0, f"stopped: {failure.splitlines()[0]}")
+    elif open_loop is not None:
+        code, outcome = EXIT_LOOP_NOT_CLOSED, "complete"
+        reasons.insert(0, open_loop)
     elif faults:
         code, outcome = EXIT_FAULT, "complete"
         reasons.append(f"the feedback loop tripped ({faults} fault(s))")

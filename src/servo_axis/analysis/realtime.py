@@ -52,6 +52,19 @@ class Realtime(Serial):
         the samples they were for had gone out: applied from the next sample
         not yet published (the feedforward generator's report); None if not
         reported.
+    clock_slips, slipped_periods : int or None
+        Times the plant's clock woke so late that it re-based its deadlines
+        rather than run the missed ticks back to back, and the periods it
+        skipped so (:class:`~servo_axis.nodes.realtime.ClockThread`).
+    states_skipped : int or None
+        States the feedback never took: its stream jumped after it fell
+        behind (:class:`~servo_axis.wire.streams.StreamGate`).
+    answers_skipped : int or None
+        States the feedback took but did not answer, to catch up with the
+        clock (:class:`~servo_axis.nodes.realtime.CatchUp`).
+    identifier_samples_held : int or None
+        Steps the identifier ran with the last angle or torque held (a
+        sample that never came).
     """
 
     period_ns: int
@@ -67,6 +80,11 @@ class Realtime(Serial):
     references_held: int | None = field(default=None, metadata={"omit_none": True})
     late_estimates: int | None = field(default=None, metadata={"omit_none": True})
     late_corrections: int | None = field(default=None, metadata={"omit_none": True})
+    clock_slips: int | None = field(default=None, metadata={"omit_none": True})
+    slipped_periods: int | None = field(default=None, metadata={"omit_none": True})
+    states_skipped: int | None = field(default=None, metadata={"omit_none": True})
+    answers_skipped: int | None = field(default=None, metadata={"omit_none": True})
+    identifier_samples_held: int | None = field(default=None, metadata={"omit_none": True})
 
     @property
     def miss_fraction(self) -> float:

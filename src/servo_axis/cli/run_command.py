@@ -103,7 +103,12 @@ def _read_floor(path: str) -> dict[int, dict[str, Any]]:
 
 def handle(args: argparse.Namespace) -> int:
     """Run the scenario, print its summary and where it is; the run's exit code."""
-    from servo_axis.analysis.health import EXIT_FAILED, EXIT_FAULT, EXIT_OK
+    from servo_axis.analysis.health import (
+        EXIT_FAILED,
+        EXIT_FAULT,
+        EXIT_LOOP_NOT_CLOSED,
+        EXIT_OK,
+    )
     from servo_axis.analysis.summary import AxesSummary
     from servo_axis.analysis.text import format_any_summary
     from servo_axis.run.live_channels import DEFAULT_PORT
@@ -147,11 +152,10 @@ def handle(args: argparse.Namespace) -> int:
     print(f"run directory: {result.run_dir}  ({contents})")
     health = result.health
     if health.exit_code != EXIT_OK:
-        verdict = (
-            "the feedback loop tripped"
-            if health.exit_code == EXIT_FAULT
-            else "this result is NOT the deterministic one of the scenario"
-        )
+        verdict = {
+            EXIT_FAULT: "the feedback loop tripped",
+            EXIT_LOOP_NOT_CLOSED: "the realtime loop was NOT closed",
+        }.get(health.exit_code, "this result is NOT the deterministic one of the scenario")
         print(f"\nrun complete, but {verdict} (exit {health.exit_code}):", file=sys.stderr)
         for reason in health.reasons:
             print(f"  - {reason}", file=sys.stderr)

@@ -118,6 +118,7 @@ class ServoNode(Node):
                 below=self.realtime_below,
             ),
             warn=self.get_logger().warning,
+            middleware_priority=values["realtime.middleware_priority"],
         )
         self.create_timer(STRANGER_CHECK_S, self._look_for_strangers, clock=steady_clock())
         # Default QoS (reliable, volatile, keep-last 10), as ROS's diagnostics tools use.

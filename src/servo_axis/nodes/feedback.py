@@ -25,9 +25,12 @@ parameter.
 
 Streams: ``state`` is taken exactly in order in lockstep (the next step
 only; realtime: at most :data:`~servo_axis.nodes.lockstep.REALTIME_WINDOW`
-steps ahead), ``reference`` exactly in order (the generator publishes it so)
-and at most ``max_preview_steps`` ahead of the last state: a message stamped
-ahead of the stream is refused and never displaces it.
+steps ahead, or further when the wall clock makes it plausible: a feedback
+that fell behind takes the newest state and goes on), ``reference`` exactly
+in order (the generator publishes it so; realtime: a jump is taken) and at
+most ``max_preview_steps`` ahead of the last state (realtime: of where the
+plant's clock is, as the states' arrivals show it): a message stamped ahead
+of that is refused and never displaces the stream.
 
 Handshake: with ``wait_for_command_subscribers``, the node subscribes to
 ``reference`` only once its ``command`` publisher is matched with the plant
@@ -135,13 +138,20 @@ class FeedbackNode(ServoNode):
         )
         self._stamps: dict[int, int] = {}  # step -> the plant's stamp, ns, until answered
         if self._origin is None:
-            self._states = stream_gate(self._lockstep, first=0)
+            self._states = stream_gate(self._lockstep, first=0, period_ns=self._period_ns)
         else:
             self._command_codec = msgs.joint_codec("command", axis=self._axis, period_ns_=1)
             # Its timer may skip samples; junk ahead is the origin's to refuse.
             self._states = StreamGate(window=run_steps(values), first=0)
-        # Exactly in order: the generator publishes it so.
-        self._refs = StreamGate(window=1, first=0)
+        # Exactly in order: the generator publishes it so. Realtime: a
+        # feedback that fell behind lost references its reader could not hold
+        # and takes the stream again where it is, within the preview of where
+        # the plant's clock is (_within_preview).
+        self._refs = (
+            StreamGate(window=1, first=0)
+            if self._lockstep
+            else StreamGate(window=1, first=0, plausible=lambda step: True)
+        )
         self._held: msgs.ReferenceSample | None = None
         self._pending: msgs.StateSample | None = None
         self._pending_since = 0.0
@@ -188,6 +198,7 @@ class FeedbackNode(ServoNode):
             ("fault", "none" if fault is None else fault.name.lower()),
             ("missed_references", self.missed_references),
             ("skipped_answers", 0 if self.catch_up is None else self.catch_up.skipped),
+            ("states_skipped", self._states.skipped),
             ("scheduling", "fifo" if self.realtime.fifo else "other"),
         ]
 
@@ -301,6 +312,11 @@ class FeedbackNode(ServoNode):
 
     def _within_preview(self, ref: msgs.ReferenceSample) -> msgs.ReferenceSample:
         last_state = self._states.last if self._states.last is not None else 0
+        # Realtime: the plant's clock may be ahead of the states taken (a
+        # backlog after a stall); the preview counts from where it is.
+        now_step = self._states.now_step()
+        if now_step is not None:
+            last_state = max(last_state, now_step)
         if ref.step > max(last_state, 0) + self._v["max_preview_steps"]:
             raise SignalError(f"step {ref.step} is too far in the future")
         return ref
@@ -374,7 +390,11 @@ class FeedbackNode(ServoNode):
             self._deformation_pub.publish(self._deformation_codec.encode(sample))
 
     def realtime_counts(self) -> dict[str, int]:
-        return {"references_held": self.missed_references}
+        return {
+            "references_held": self.missed_references,
+            "states_skipped": self._states.skipped,
+            "answers_skipped": 0 if self.catch_up is None else self.catch_up.skipped,
+        }
 
     def _watchdog(self) -> None:
         now = time.monotonic()

@@ -59,9 +59,11 @@ class Step(NamedTuple):
 class FeedforwardNode(ServoNode):
     """Feedforward generator; see the module docstring for its protocol."""
 
-    # Realtime: the references must be out before the feedback needs them,
-    # so the generator preempts other work too, below the pair.
-    realtime_below = 1
+    # Realtime: the default scheduler. Only the per-sample pair's executor
+    # threads and the plant's clock run under SCHED_FIFO: a node of the
+    # reference path at FIFO (as before, one or two below the pair) starved
+    # the pair's middleware threads, which stay SCHED_OTHER (issue 30).
+    realtime_below = None
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("feedforward", **kwargs)

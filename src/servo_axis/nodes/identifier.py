@@ -55,9 +55,11 @@ from servo_axis.wire import messages as msgs
 class IdentifierNode(ServoNode):
     """Online identifier; see the module docstring for its protocol."""
 
-    # Realtime: what it sends the generator is on the reference path, so it
-    # preempts other work, below the generator and the pair.
-    realtime_below = 2
+    # Realtime: the default scheduler. Only the per-sample pair's executor
+    # threads and the plant's clock run under SCHED_FIFO: a node of the
+    # reference path at FIFO (as before, one or two below the pair) starved
+    # the pair's middleware threads, which stay SCHED_OTHER (issue 30).
+    realtime_below = None
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("identifier", **kwargs)
@@ -83,12 +85,15 @@ class IdentifierNode(ServoNode):
             first = None if resumed is None else resumed + 1
         self._skip_through = -1 if resumed is None else resumed
         self._lockstep = values["mode"] == "lockstep"
-        self._state_gate = stream_gate(self._lockstep, first=first, limit=self._steps)
-        self._command_gate = stream_gate(self._lockstep, first=first, limit=self._steps)
+        gate = {"first": first, "limit": self._steps, "period_ns": self._period_ns}
+        self._state_gate = stream_gate(self._lockstep, **gate)
+        self._command_gate = stream_gate(self._lockstep, **gate)
         self._angles: dict[int, float] = {}
         self._torques: dict[int, float] = {}
         self._last_torque = 0.0
         self.held_torques = 0  # realtime: steps whose command never came
+        self.held_angles = 0  # realtime: steps whose state never came
+        self._last_angle = 0.0
         self.inputs_subscribed = False
         self.graph.after_consumers_matched(
             [(self._pub, "identifier/estimates", values["wait_for_estimate_subscribers"])],
@@ -160,7 +165,15 @@ class IdentifierNode(ServoNode):
                         del buffer[old]
             else:
                 return
-            if nxt not in self._angles:
+            if nxt in self._angles:
+                y = self._angles[nxt]
+            elif not self._lockstep and any(k > nxt for k in self._angles):
+                # Realtime: state[nxt] will not come (the identifier fell
+                # behind and its stream jumped, StreamGate): the last angle
+                # is held, as for a command that never came, and it goes on.
+                y = self._last_angle
+                self.held_angles += 1
+            else:
                 return
             if nxt in self._torques:
                 torque = self._torques.pop(nxt)
@@ -173,10 +186,21 @@ class IdentifierNode(ServoNode):
             else:
                 return
             self._last_torque = torque
-            y = self._angles.pop(nxt)
+            self._angles.pop(nxt, None)
+            self._last_angle = y
             estimate = self.identifier.update(nxt, y, torque)
             if estimate is not None:
                 self._publish(estimate)
+
+    def realtime_counts(self) -> dict[str, int]:
+        return {"identifier_samples_held": self.held_angles + self.held_torques}
+
+    def diagnostic_values(self) -> list[tuple[str, Any]]:
+        return [
+            ("estimates", self.published),
+            ("states_skipped", self._state_gate.skipped),
+            ("samples_held", self.held_angles + self.held_torques),
+        ]
 
     def _publish(self, e: Estimate) -> None:
         applies = e.step + 1 + self._latency

@@ -67,9 +67,11 @@ from servo_axis.wire import messages as msgs
 class LearningNode(ServoNode):
     """Learning unit; see the module docstring."""
 
-    # Realtime: what it sends the generator is on the reference path, so it
-    # preempts other work, below the generator and the pair.
-    realtime_below = 2
+    # Realtime: the default scheduler. Only the per-sample pair's executor
+    # threads and the plant's clock run under SCHED_FIFO: a node of the
+    # reference path at FIFO (as before, one or two below the pair) starved
+    # the pair's middleware threads, which stay SCHED_OTHER (issue 30).
+    realtime_below = None
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("learning", **kwargs)
@@ -121,6 +123,7 @@ class LearningNode(ServoNode):
             first=None if values["late_join"] else 0,
             limit=self._steps,
             stride=self._stride,
+            period_ns=self._period_ns,
         )
         self._error = PeriodCollector(nd)
         self._target = np.zeros(nd)

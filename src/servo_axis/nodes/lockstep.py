@@ -42,16 +42,29 @@ def stream_window(lockstep: bool) -> int:
 
 
 def stream_gate(
-    lockstep: bool, *, first: int | None = 0, limit: int | None = None, stride: int = 1
+    lockstep: bool,
+    *,
+    first: int | None = 0,
+    limit: int | None = None,
+    stride: int = 1,
+    period_ns: int | None = None,
 ) -> StreamGate:
     """The gate through which a node takes a per-sample stream (every node's, in one place).
 
     Exactly the next sample in lockstep; in realtime at most
     :data:`REALTIME_WINDOW` samples ahead of the last one taken (a stamp
-    further ahead is refused as in lockstep). ``first``, ``limit`` and
-    ``stride`` are the :class:`~servo_axis.wire.streams.StreamGate`'s.
+    further ahead is refused unless the wall clock makes it plausible:
+    ``period_ns``, realtime only, a node that fell behind takes the newest
+    sample and goes on). ``first``, ``limit`` and ``stride`` are the
+    :class:`~servo_axis.wire.streams.StreamGate`'s.
     """
-    return StreamGate(window=stream_window(lockstep), first=first, limit=limit, stride=stride)
+    return StreamGate(
+        window=stream_window(lockstep),
+        first=first,
+        limit=limit,
+        stride=stride,
+        period_ns=None if lockstep else period_ns,
+    )
 
 
 class PeerWatch:

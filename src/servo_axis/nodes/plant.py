@@ -62,7 +62,7 @@ from servo_axis.core.errors import ParameterFileError, SignalError
 from servo_axis.core.models.base import Plant, PlantOutput
 from servo_axis.nodes.base import ServoNode
 from servo_axis.nodes.lockstep import FlowControl, PeerWatch
-from servo_axis.nodes.realtime import ClockRecord, ClockThread, HeldSetPoint
+from servo_axis.nodes.realtime import ClockRecord, ClockThread, HeldSetPoint, thread_policies
 from servo_axis.nodes.runtime import run_main, steady_clock
 from servo_axis.params.factories import build_plant, plant_model, run_steps
 from servo_axis.wire import messages as msgs
@@ -75,6 +75,17 @@ FINISH_TIMEOUT_S = 10.0
 #: the feedback is gone: the executor stays free for the recorder and for a
 #: feedback that comes back.
 ZERO_STEPS_PER_LOOK = 100
+#: Realtime: wall time without a tick of the clock after which the run ends
+#: with the fault ``clock_stalled``, s (a clock stopped longer than a few
+#: hundred ms slips and goes on: :data:`~servo_axis.nodes.realtime.SLIP_PERIODS`).
+CLOCK_STALL_S = 2.0
+#: Realtime: wall time without any command after which the run ends with
+#: the fault ``loop_open``, s: far beyond a 0.3 s stall of the feedback,
+#: after which the loop closes again.
+LOOP_OPEN_S = 2.0
+#: Wall time the plant waits at the end of a realtime run it ended itself
+#: (``clock_stalled``, ``loop_open``) for the recorder, s.
+FAULT_FINISH_S = 1.0
 
 
 def state_sample(out: PlantOutput) -> msgs.StateSample:
@@ -150,6 +161,8 @@ class PlantNode(ServoNode):
         self._timeouts = 0
         self._finish_started = 0.0
         self._first_step_s = 0.0  # time.monotonic() when state 0 went out
+        self._last_command_ns = 0  # realtime: monotonic ns of the newest command's arrival
+        self._finish_timeout_s = FINISH_TIMEOUT_S
         self.inputs.subscribe(
             "command",
             lambda data: self._awaited_command(command_codec.decode(data)),
@@ -278,11 +291,12 @@ class PlantNode(ServoNode):
             return
         with self._lock:
             now = time.monotonic_ns()
+            self._last_command_ns = now
             if not self._clock_thread.started:
                 # Command 0, the only one the plant can wait for: d_0 = now.
-                self.realtime.start()  # the clock thread inherits it
+                self.realtime.start()  # this (the executor's) thread only
                 self.clock_record.start_ns = now
-                self._clock_thread.start(now, fifo=self.realtime.fifo)
+                self._clock_thread.start(now, priority=self.realtime.asked or 0)
             self.clock_record.arrived(cmd.step, now)
             self._setpoint.arrived(cmd.step, current, now, self.plant.step_index)
 
@@ -312,6 +326,44 @@ class PlantNode(ServoNode):
             self._watch_the_end(now)
         elif self._lockstep and self._awaiting is not None and self._command is None:
             self._answer_for_a_gone_feedback(now)
+        elif not self._lockstep and self._clock_thread.started:
+            self._watch_the_loop(time.monotonic_ns())
+
+    def _watch_the_loop(self, now_ns: int) -> None:
+        """Realtime: end the run with a fault when the clock stalled or the loop is open.
+
+        A realtime run must end by itself: a clock that has not ticked for
+        :data:`CLOCK_STALL_S` (``clock_stalled``), or a loop from which no
+        command came for :data:`LOOP_OPEN_S` (``loop_open``: the plant would
+        hold the last current for ever), ends it with that reason.
+        """
+        stalled_s = (
+            now_ns - max(self._clock_thread.last_tick_ns, self.clock_record.start_ns)
+        ) * 1e-9
+        open_s = (now_ns - self._last_command_ns) * 1e-9
+        if stalled_s > CLOCK_STALL_S:
+            kind, detail = (
+                "clock_stalled",
+                f"the plant's clock has not ticked for {stalled_s:.3g} s",
+            )
+        elif open_s > LOOP_OPEN_S:
+            kind = "loop_open"
+            detail = (
+                f"no command for {open_s:.3g} s (the newest for step "
+                f"{self._setpoint.held_step}): the loop is open"
+            )
+        else:
+            return
+        with self._lock:
+            if self._finishing:
+                return
+            step = self.plant.step_index
+            self.report.fallback(kind, step, f"{detail}; the run ends at step {step}")
+            self._realtime_report()
+            self._flow.steps = self._published  # the recorder has all there will be
+            # The recorder counts commands too, and they stopped: no long wait.
+            self._finish_timeout_s = FAULT_FINISH_S
+            self._finish()
 
     def _recorder_gone(self, now: float) -> bool:
         """Lockstep: flow control off (a fallback) once the recorder it waits for is gone."""
@@ -341,11 +393,12 @@ class PlantNode(ServoNode):
                 self._finish_started = now
             return
         # Realtime, or a run that already went on by a fallback (whose
-        # commands the recorder may never get): stop after FINISH_TIMEOUT_S.
-        if now - self._finish_started > FINISH_TIMEOUT_S:
+        # commands the recorder may never get): stop after FINISH_TIMEOUT_S
+        # (a realtime run the plant ended early: FAULT_FINISH_S).
+        if now - self._finish_started > self._finish_timeout_s:
             self.get_logger().error(
-                f"recorder acknowledged {self._flow.recorded} of {self._steps} steps within "
-                f"{FINISH_TIMEOUT_S} s; stopping anyway"
+                f"recorder acknowledged {self._flow.recorded} of {self._flow.steps} steps "
+                f"within {self._finish_timeout_s} s; stopping anyway"
             )
             self.done = True
 
@@ -415,17 +468,36 @@ class PlantNode(ServoNode):
                 self.clock_record.misses += 1
             out = self.plant.step(current)
             if out.step >= self._steps:
-                self.report.health.realtime = self.clock_record.report(
-                    self.plant.step_index, self.realtime.applied
-                )
+                self._realtime_report()
                 self._finish()
                 return True
             self._publish(out)
             return False
 
+    def _realtime_report(self) -> None:
+        """The clock's figures into the report (``health.realtime``), with who runs at which policy."""
+        clock = self._clock_thread
+        scheduling = {
+            **(self.realtime.applied or {"policy": "other", "priority": 0}),
+            "clock": clock.scheduling,
+            "threads": thread_policies(),
+        }
+        self.report.health.realtime = self.clock_record.report(
+            self.plant.step_index,
+            scheduling,
+            slips=clock.slips,
+            slipped_periods=clock.slipped_periods,
+        )
+
     def close(self) -> None:
-        """Stop the clock thread (a run stopped from outside), then the base's close."""
+        """Stop the clock thread (a run stopped from outside), then the base's close.
+
+        A realtime run stopped before its last step still reports its clock.
+        """
         self._clock_thread.stop()
+        if self._clock_thread.started and not self.report.health.realtime:
+            with self._lock:
+                self._realtime_report()
         super().close()
 
     def _finish(self) -> None:

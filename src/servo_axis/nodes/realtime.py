@@ -3,7 +3,7 @@
 Nothing here imports rclpy (the numbers are :mod:`servo_axis.core.deadlines`'):
 
 * :class:`RealtimeScheduling`: which threads of a node get a realtime
-  priority, and when (:func:`realtime_priority`, :func:`fifo_every_thread`).
+  priority, and when (:func:`realtime_priority`, :func:`fifo_this_thread`).
 * :class:`ClockThread`: the thread that ticks at absolute deadlines
   ``d_j = start + j T_u`` of the monotonic clock (the plant's clock).
 * :class:`ClockRecord`: a clock's ticks, its misses and the lateness of the
@@ -43,6 +43,17 @@ SWITCH_INTERVAL_S = 5e-5
 #: A young-generation collection every this many ticks, when the next
 #: deadline is at least half a period away.
 GC_EVERY_TICKS = 256
+#: States per window of :meth:`CatchUp.arrived`'s estimate of the clock's
+#: start: the estimate follows a clock that slipped within two windows
+#: (0.4-0.8 s at 0.4 ms), and is never made of a stall's backlog alone.
+START_WINDOW = 1024
+#: A clock that wakes later than this many periods after a deadline (and at
+#: least :data:`SLIP_MIN_NS`) does not run the ticks it missed back to back
+#: at its realtime priority: it slips, as ros2_control's controller manager
+#: skips the periods it overran: the deadlines are re-based to the first
+#: one after now, and the slip is counted (:attr:`ClockThread.slips`).
+SLIP_PERIODS = 100
+SLIP_MIN_NS = 50_000_000
 
 
 # -- scheduling -------------------------------------------------------------------------
@@ -65,38 +76,100 @@ def realtime_priority(*, mode: str, thread_priority: int, below: int | None) -> 
     return max(1, thread_priority - below)
 
 
-def fifo_every_thread(priority: int) -> dict[str, object]:
-    """Put every thread of this process under ``SCHED_FIFO`` at ``priority`` (1-99; 0: leave it).
+def fifo_this_thread(priority: int) -> dict[str, object]:
+    """Put the calling thread (only) under ``SCHED_FIFO`` at ``priority`` (1-99; 0: leave it).
 
-    The realtime per-sample pair (plant and feedback) asks for it, as
-    ros2_control's controller manager does with its ``thread_priority``: the
-    middleware's receive threads, the executor and the plant's clock then
-    preempt everything else on the host (the recorder, the learning unit,
-    other users' work). Threads made later inherit it. Where the system
-    refuses (no ``CAP_SYS_NICE``, an ``RLIMIT_RTPRIO`` below ``priority``, not
+    ``os.sched_setscheduler(0, ...)`` is per thread on Linux. The policy is
+    set with ``SCHED_RESET_ON_FORK``, so that a thread this one creates later
+    (the middleware makes some from the thread that creates an entity)
+    starts at the default policy. The middleware's own threads (``dds.*``,
+    made at start-up) stay ``SCHED_OTHER``: a Fast DDS thread that spins at
+    a realtime priority takes a core from everything below it (issue 30:
+    ``dds.asyn.0.0`` at ``SCHED_FIFO`` 50 used 92 % of a core for minutes,
+    the run never ended and SIGTERM did nothing). Where the system refuses
+    (no ``CAP_SYS_NICE``, an ``RLIMIT_RTPRIO`` below ``priority``, not
     Linux), nothing changes and the reason is returned.
 
     Returns
     -------
     dict
-        ``{"policy": "fifo", "priority": p, "threads": n}``, or
-        ``{"policy": "other", "priority": 0}`` plus ``"refused": reason``.
+        ``{"policy": "fifo", "priority": p}``, or ``{"policy": "other",
+        "priority": 0}`` plus ``"refused": reason``.
     """
     if priority <= 0:
         return {"policy": "other", "priority": 0}
-    done: list[int] = []
     try:
-        for tid in sorted(int(t) for t in os.listdir("/proc/self/task")):
-            os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(priority))
-            done.append(tid)
+        policy = os.SCHED_FIFO | os.SCHED_RESET_ON_FORK
+        os.sched_setscheduler(0, policy, os.sched_param(priority))
     except (OSError, AttributeError) as err:
-        for tid in done:  # all or nothing
-            try:
-                os.sched_setscheduler(tid, os.SCHED_OTHER, os.sched_param(0))
-            except OSError:
-                pass
         return {"policy": "other", "priority": 0, "refused": f"{type(err).__name__}: {err}"}
-    return {"policy": "fifo", "priority": priority, "threads": len(done)}
+    return {"policy": "fifo", "priority": priority}
+
+
+#: The nice value given to the middleware's threads (``dds.*``) of a node whose
+#: executor thread runs under ``SCHED_FIFO``: they stay ``SCHED_OTHER`` (a
+#: spinning one cannot take a core from everything else), but with more
+#: weight than the host's default jobs, since every sample the executor
+#: takes passes through them first.
+MIDDLEWARE_NICE = -10
+
+
+def favour_middleware_threads(nice: int = MIDDLEWARE_NICE, fifo_priority: int = 0) -> int:
+    """Give this process's ``dds.*`` threads the nice value ``nice`` (best effort), or with
+    ``fifo_priority`` > 0 ``SCHED_FIFO`` at that priority (``realtime.middleware_priority``).
+
+    Returns how many threads got it (0 where the system refuses or there is no ``/proc``).
+    """
+    done = 0
+    try:
+        tids = os.listdir("/proc/self/task")
+    except OSError:
+        return 0
+    for tid in tids:
+        try:
+            with open(f"/proc/self/task/{tid}/comm") as f:
+                if not f.read().startswith("dds."):
+                    continue
+            if fifo_priority > 0:
+                policy = os.SCHED_FIFO | os.SCHED_RESET_ON_FORK
+                os.sched_setscheduler(int(tid), policy, os.sched_param(fifo_priority))
+            else:
+                os.setpriority(os.PRIO_PROCESS, int(tid), nice)
+            done += 1
+        except (OSError, AttributeError):
+            continue
+    return done
+
+
+#: Scheduling policies by their number in ``/proc/<pid>/task/<tid>/stat``.
+POLICY_NAMES = {0: "other", 1: "fifo", 2: "rr", 3: "batch", 5: "idle", 6: "deadline"}
+
+
+def thread_policies(pid: int | str = "self") -> dict[str, list[str]]:
+    """The threads of process ``pid`` by scheduling policy: ``{"fifo": [names], "other": [...]}``.
+
+    Read from ``/proc/<pid>/task/*/stat`` (field 41, the policy) and
+    ``comm`` (the thread's name); a thread that ended meanwhile is left out.
+    Empty where there is no ``/proc``.
+    """
+    out: dict[str, list[str]] = {}
+    base = f"/proc/{pid}/task"
+    try:
+        tids = os.listdir(base)
+    except OSError:
+        return out
+    for tid in tids:
+        try:
+            with open(f"{base}/{tid}/stat") as f:
+                stat = f.read()
+            with open(f"{base}/{tid}/comm") as f:
+                name = f.read().strip()
+        except OSError:
+            continue
+        fields = stat[stat.rindex(")") + 2 :].split()
+        policy = int(fields[41 - 3])  # fields 3.. follow "pid (comm) "
+        out.setdefault(POLICY_NAMES.get(policy, str(policy)), []).append(name)
+    return {k: sorted(v) for k, v in sorted(out.items())}
 
 
 class RealtimeScheduling:
@@ -106,8 +179,12 @@ class RealtimeScheduling:
     default scheduler: realtime threads that saturate a small host while the
     others are still being set up can starve them (a run on 2 cores once
     never started). So the node calls :meth:`start` when its first
-    per-sample input arrives (the plant: its first command, just before its
-    clock thread starts, which inherits it).
+    per-sample input arrives, in the executor's thread: that thread (the
+    per-sample callbacks) is the one put under ``SCHED_FIFO``, with
+    ``SCHED_RESET_ON_FORK``; the middleware's threads stay at the default
+    policy (:func:`fifo_this_thread`). The plant's clock thread, started
+    from it, starts at the default policy and asks for its own
+    (:meth:`ClockThread.start`).
 
     Parameters
     ----------
@@ -116,8 +193,14 @@ class RealtimeScheduling:
     warn : callable
         Where a refusal is said (one line).
     apply : callable
-        What applies a priority (:func:`fifo_every_thread`: every thread of
-        the process).
+        What applies a priority to the calling thread (:func:`fifo_this_thread`).
+    favour : callable or None
+        What gives the middleware's threads more weight once ``apply`` got
+        ``SCHED_FIFO`` (None: :func:`favour_middleware_threads`).
+    middleware_priority : int
+        ``realtime.middleware_priority``: 0, the middleware's threads stay
+        ``SCHED_OTHER`` (nice :data:`MIDDLEWARE_NICE`); > 0, ``SCHED_FIFO``
+        at it (below the executor's).
     """
 
     def __init__(
@@ -125,17 +208,25 @@ class RealtimeScheduling:
         priority: int | None,
         *,
         warn: Callable[[str], Any],
-        apply: Callable[[int], dict[str, object]] = fifo_every_thread,
+        apply: Callable[[int], dict[str, object]] = fifo_this_thread,
+        favour: Callable[[], int] | None = None,
+        middleware_priority: int = 0,
     ) -> None:
         self._pending = priority
+        #: The priority asked for (None: none).
+        self.asked = priority
         self._warn = warn
         self._apply = apply
-        #: What :meth:`start` got (``fifo_every_thread``'s answer); None before, or never asked.
+        self.middleware_priority = middleware_priority
+        self._favour = favour or (
+            lambda: favour_middleware_threads(fifo_priority=middleware_priority)
+        )
+        #: What :meth:`start` got (``fifo_this_thread``'s answer); None before, or never asked.
         self.applied: dict[str, object] | None = None
 
     @property
     def fifo(self) -> bool:
-        """Whether the node's threads run under ``SCHED_FIFO``."""
+        """Whether the node's executor thread runs under ``SCHED_FIFO``."""
         return self.applied is not None and self.applied["policy"] == "fifo"
 
     def start(self) -> None:
@@ -145,6 +236,13 @@ class RealtimeScheduling:
             return
         self._pending = None
         got = self._apply(priority)
+        if got["policy"] == "fifo":
+            middleware = (
+                {"middleware_priority": self.middleware_priority}
+                if self.middleware_priority > 0
+                else {"middleware_nice": MIDDLEWARE_NICE}
+            )
+            got = {**got, **middleware, "middleware_threads": self._favour()}
         self.applied = got
         if "refused" in got:
             self._warn(
@@ -153,13 +251,15 @@ class RealtimeScheduling:
 
 
 # -- the clock -------------------------------------------------------------------------
-def _least_timer_slack() -> None:
-    """Linux: the calling thread's sleeps end within 1 us of their time, not 50 us (best effort)."""
+def _least_timer_slack(name: str) -> None:
+    """Linux: the calling thread's sleeps end within 1 us of their time, not 50 us, and the
+    thread's name is ``name`` in ``/proc`` (``ps``, :func:`thread_policies`) (best effort)."""
     try:
         import ctypes
 
         libc = ctypes.CDLL(None, use_errno=True)
         libc.prctl(29, 1000, 0, 0, 0)  # PR_SET_TIMERSLACK, ns
+        libc.prctl(15, ctypes.c_char_p(name.encode()[:15]), 0, 0, 0)  # PR_SET_NAME
     except (OSError, AttributeError):
         pass
 
@@ -169,8 +269,11 @@ class ClockThread:
 
     It sleeps until shortly before each deadline, then spins to it (an rclpy
     timer slips), so the executor's callbacks never delay a tick by more
-    than the interpreter's switch interval (:meth:`prepare`). A tick that
-    wakes more than a period late runs at once with those that are due.
+    than the interpreter's switch interval (:meth:`prepare`); the spin is
+    bounded by the spin time per tick. A tick that wakes more than a period
+    late runs at once with those that are due; one that wakes more than
+    :data:`SLIP_PERIODS` periods late slips: the deadlines are re-based to
+    the next one of the grid after now (counted in :attr:`slips`).
     The garbage collector is off while it runs (start-up objects are
     frozen, :func:`servo_axis.nodes.runtime.run_main`), with a
     young-generation collection every :data:`GC_EVERY_TICKS` ticks where
@@ -196,6 +299,14 @@ class ClockThread:
         self.start_ns = 0
         #: What ``tick`` raised, if it did (the thread then ended).
         self.error: BaseException | None = None
+        #: The clock thread's own scheduling (:func:`fifo_this_thread`'s answer).
+        self.scheduling: dict[str, object] = {"policy": "other", "priority": 0}
+        #: Times the clock slipped (:data:`SLIP_PERIODS`), and the periods it skipped.
+        self.slips = 0
+        self.slipped_periods = 0
+        #: Monotonic ns of the last tick's start (0 before the first): a
+        #: watchdog sees a clock that stalled.
+        self.last_tick_ns = 0
 
     @staticmethod
     def prepare() -> None:
@@ -206,15 +317,16 @@ class ClockThread:
     def started(self) -> bool:
         return self._thread is not None
 
-    def start(self, start_ns: int, *, fifo: bool) -> None:
+    def start(self, start_ns: int, *, priority: int = 0) -> None:
         """Start ticking from ``d_0 = start_ns`` (tick 1 at ``start_ns + period``).
 
-        ``fifo``: the thread runs under ``SCHED_FIFO`` (it spins less).
+        ``priority`` > 0: the clock thread puts itself (only) under
+        ``SCHED_FIFO`` at it (:func:`fifo_this_thread`; :attr:`scheduling`
+        says what it got), and spins less.
         """
         self.start_ns = start_ns
-        spin_ns = SPIN_FIFO_NS if fifo else SPIN_NS
         self._thread = threading.Thread(
-            target=self._run, args=(spin_ns,), name=self._name, daemon=True
+            target=self._run, args=(priority,), name=self._name, daemon=True
         )
         self._thread.start()
 
@@ -224,22 +336,43 @@ class ClockThread:
         if self._thread is not None:
             self._thread.join(timeout=timeout_s)
 
-    def _run(self, spin_ns: int) -> None:
-        period, start = self.period_ns, self.start_ns
+    def _run(self, priority: int) -> None:
+        self.scheduling = fifo_this_thread(priority)
+        spin_ns = SPIN_FIFO_NS if self.scheduling["policy"] == "fifo" else SPIN_NS
+        period = self.period_ns
+        slip_ns = max(SLIP_PERIODS * period, SLIP_MIN_NS)
         clock, sleep = time.monotonic_ns, time.sleep
-        _least_timer_slack()
+        _least_timer_slack(self._name)
         gc.disable()
         try:
             tick = 1
             while not self._stop.is_set():
-                deadline = start + tick * period
+                deadline = self.start_ns + tick * period
                 now = clock()
+                if now - deadline > slip_ns:
+                    # Far behind (the process was stopped, the host starved
+                    # it): tick at the next deadline of the grid, not the
+                    # missed ones at once.
+                    skipped = (now - deadline) // period + 1
+                    self.start_ns += skipped * period
+                    self.slips += 1
+                    self.slipped_periods += skipped
+                    deadline += skipped * period
                 if now < deadline:
                     pause = deadlines.sleep_s(now, deadline, spin_ns)
                     if pause > 0.0:
                         sleep(pause)
-                    while clock() < deadline:
-                        sleep(0)  # spin, but let the executor's thread have the GIL
+                    # The spin is bounded: at most spin_ns past the wake-up
+                    # (a sleep that woke early spins no longer than that).
+                    spin_end = clock() + spin_ns
+                    while True:
+                        t = clock()
+                        if t >= deadline:
+                            break
+                        # Spin, but let the executor's thread have the GIL;
+                        # past the spin's bound, sleep the rest.
+                        sleep(0 if t < spin_end else (deadline - t) * 1e-9)
+                self.last_tick_ns = clock()
                 if self._tick(tick, deadline):
                     break
                 tick += 1
@@ -275,21 +408,39 @@ class ClockRecord:
         self.last_tick_ns = 0
         self._tick_late_ns = np.full(steps + 1, np.nan)  # by tick j (1 .. steps)
         self._arrival_late_ns = np.full(steps, np.nan)  # by step k (0 .. steps - 1)
+        # Tick j's deadline, as the clock had it (a slip re-bases the grid).
+        self._deadline_ns = np.zeros(steps + 1, dtype=np.int64)
 
     def arrived(self, step: int, now_ns: int) -> None:
         """The input of ``step`` arrived at ``now_ns`` (a step outside the run is not kept)."""
         if 0 <= step < self.steps:
-            self._arrival_late_ns[step] = now_ns - (self.start_ns + step * self.period_ns)
+            due = int(self._deadline_ns[step]) if step > 0 else 0
+            if due == 0:
+                due = self.start_ns + step * self.period_ns
+            self._arrival_late_ns[step] = now_ns - due
 
     def ticked(self, tick: int, deadline_ns: int, now_ns: int) -> None:
         """Tick ``tick``, due at ``deadline_ns``, ran at ``now_ns``."""
         self._tick_late_ns[tick] = now_ns - deadline_ns
+        self._deadline_ns[tick] = deadline_ns
         self.last_tick_ns = now_ns
 
-    def report(self, ticks: int, scheduling: dict[str, object] | None) -> dict[str, Any]:
-        """The figures of the first ``ticks`` ticks (the plant's ``health.realtime``)."""
+    def report(
+        self,
+        ticks: int,
+        scheduling: dict[str, object] | None,
+        *,
+        slips: int = 0,
+        slipped_periods: int = 0,
+    ) -> dict[str, Any]:
+        """The figures of the first ``ticks`` ticks (the plant's ``health.realtime``).
+
+        ``slips``, ``slipped_periods``: the clock's (:class:`ClockThread`).
+        """
         late = self._arrival_late_ns[:ticks]
         return {
+            "clock_slips": int(slips),
+            "slipped_periods": int(slipped_periods),
             "period_ns": self.period_ns,
             "ticks": int(ticks),
             "misses": int(self.misses),
@@ -384,13 +535,29 @@ class CatchUp:
         self.last_step = last_step
         self.gap = gap
         self.start_ns: int | None = None  # the plant clock's d_0 as the states show it
+        self._window_ns: int | None = None  # the estimate of this window of states
+        self._previous_ns: int | None = None  # that of the window before
+        self._seen = 0
         self.answered = -1
         #: States not answered.
         self.skipped = 0
 
     def arrived(self, step: int, now_ns: int) -> None:
-        """State ``step`` arrived at ``now_ns``: the estimate of the clock's start follows it."""
-        self.start_ns = deadlines.start_estimate_ns(self.start_ns, now_ns, step, self.period_ns)
+        """State ``step`` arrived at ``now_ns``: the estimate of the clock's start follows it.
+
+        The least of the last one or two windows of :data:`START_WINDOW`
+        states: a clock that slipped (re-based its deadlines later,
+        :class:`ClockThread`) is followed within two windows, rather than
+        every later state looking late for ever (and only every ``gap``-th
+        answered).
+        """
+        cur = deadlines.start_estimate_ns(self._window_ns, now_ns, step, self.period_ns)
+        self._window_ns = cur
+        prev = self._previous_ns
+        self.start_ns = cur if prev is None or cur is None else min(prev, cur)
+        self._seen += 1
+        if self._seen >= START_WINDOW:
+            self._previous_ns, self._window_ns, self._seen = cur, None, 0
 
     def answer(self, step: int, now_ns: int) -> bool:
         """Whether state ``step`` is answered now (else counted in :attr:`skipped`)."""

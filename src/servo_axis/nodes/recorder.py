@@ -184,10 +184,17 @@ class RecorderNode(ServoNode):
                     f"parameter 'counted_topics': {topic!r} is not a per-sample stream "
                     f"(one of {sorted(STEP_STREAMS)})"
                 )
-            window = 1 if values["mode"] == "lockstep" else 100
+            lockstep = values["mode"] == "lockstep"
+            window = 1 if lockstep else 100
             if self._origin is not None and topic in PLANT_CLOCK_STREAMS:
                 window = self._steps  # its timer may skip; the origin refuses junk ahead
-            self._gates[name] = (topic, StreamGate(window=window, first=0, limit=self._steps))
+            # Realtime: a jump the wall clock makes plausible is taken (a
+            # recorder that fell behind goes on; StreamGate).
+            period_ns = None if lockstep else self._period_ns
+            self._gates[name] = (
+                topic,
+                StreamGate(window=window, first=0, limit=self._steps, period_ns=period_ns),
+            )
         qos = LATCHED_READ_QOS if latched else STREAM_QOS
         stamp = stamp_reader(type_name)
         if topic in ARRAY_STREAMS:

@@ -26,7 +26,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 from servo_axis.core.errors import ServoAxisError
-from servo_axis.stop_signals import catch_stop_signals, restore_handlers
+from servo_axis.stop_signals import catch_stop_signals, hard_deadline, restore_handlers
 from servo_axis.wire import topics
 
 #: Seconds after which a publisher whose process stopped asserting its
@@ -164,6 +164,13 @@ def matching_reader_qos(wanted: QoSProfile, offered: Sequence[QoSProfile]) -> Qo
         profile.liveliness_lease_duration = Duration(nanoseconds=round(lease * 1e9))
     return profile
 
+
+#: Seconds after SIGINT or SIGTERM after which a node process ends whatever
+#: it is doing (``os._exit``): its spin loop normally ends within a callback,
+#: and its end (acknowledgements, a recorder's drain and its bag's close)
+#: takes at most a few seconds; the runner stops an interrupted run's
+#: processes sooner (``SIGNAL_STOP_S``).
+STOP_DEADLINE_S = 8.0
 
 #: Exit code of a node that refused its configuration.
 EXIT_BAD_CONFIG = 2
@@ -314,7 +321,7 @@ def run_main(
     if refused is not None:
         return _refuse(name, refused)
     stop_requested: list[int] = []
-    previous = catch_stop_signals(stop_requested)
+    previous = catch_stop_signals(stop_requested, hard_deadline(STOP_DEADLINE_S))
     nodes: list[Node] = []
     code = 0
     try:

@@ -125,6 +125,9 @@ class AxisPlan:
         ``R``, m/rad.
     linear : bool
         The table moves along a line (False: it turns).
+    max_miss_fraction : float
+        The shared key ``realtime.max_miss_fraction``: above it a realtime
+        loop was not closed (:func:`~servo_axis.analysis.health.loop_not_closed`).
     """
 
     axis: str
@@ -143,6 +146,7 @@ class AxisPlan:
     sensor: str
     lead_m_per_rad: float
     linear: bool
+    max_miss_fraction: float = 0.05
 
     @property
     def logs(self) -> Path:
@@ -365,6 +369,7 @@ def _axis_plan(
         sensor=feedback["sensor"],
         lead_m_per_rad=feedback["lead_m_per_rad"],
         linear=not plant_model(plant["model"], "plant.model").rotary,
+        max_miss_fraction=plant["realtime.max_miss_fraction"],
     )
 
 

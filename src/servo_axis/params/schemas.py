@@ -109,15 +109,33 @@ SHARED: dict[str, Param] = {
         "step 0 before the producer's; the runner sets it true. false: once the topic has "
         "any publisher (a node started by hand, beside a probe)",
     ),
+    "realtime.max_miss_fraction": Param(
+        0.05,
+        minimum=0.0,
+        maximum=1.0,
+        meaning="realtime mode: the largest fraction of the plant's ticks whose command missed "
+        "its deadline for which the loop counts as closed; above it the run ends with exit 5 "
+        "(the loop was not closed) and the summary says why; ignored in lockstep",
+    ),
+    "realtime.middleware_priority": Param(
+        0,
+        minimum=0,
+        maximum=99,
+        meaning="realtime mode: 0 = the middleware's threads (dds.*) of the plant and the "
+        "feedback stay SCHED_OTHER, at nice -10 (a spinning one cannot take a core from "
+        "everything else); N > 0 = SCHED_FIFO at priority N for them, below thread_priority "
+        "(on a loaded host their wake-up latency is then the realtime one; a spinning one "
+        "starves the default jobs on its core, and once hung a plant after its last tick, "
+        "until the run's watchdogs end the run: see docs/explanation/realtime.md)",
+    ),
     "thread_priority": Param(
         50,
         minimum=0,
         maximum=99,
-        meaning="realtime mode: SCHED_FIFO priority of every thread of the plant and the "
-        "feedback (the per-sample pair), as ros2_control's thread_priority; one below it for "
-        "the feedforward generator, two below for the learning unit and the identifier (on "
-        "the reference path); the recorder keeps the default scheduler (its CPU would count "
-        "against the kernel's realtime budget, 95 % of each second). 0: the default scheduler "
+        meaning="realtime mode: SCHED_FIFO priority of the threads that do the per-sample "
+        "work: the plant's clock thread and the executor thread of the plant and the feedback "
+        "(the per-sample pair), as ros2_control's thread_priority; the middleware's threads "
+        "stay SCHED_OTHER (nice -10), and so do the other nodes. 0: the default scheduler "
         "for all. Where the system refuses (no CAP_SYS_NICE or rtprio limit), a warning and "
         "the default scheduler; ignored in lockstep",
     ),

@@ -26,8 +26,13 @@ from typing import Any
 from servo_axis.params.names import check_domain_id
 from servo_axis.run.fastdds import clean_stale_shm
 
-#: Seconds between SIGINT and SIGKILL when the nodes are stopped.
+#: Seconds between SIGINT and SIGKILL when the nodes are stopped at a run's
+#: end (each stage of :func:`stop_nodes`).
 STOP_TIMEOUT_S = 5.0
+#: Seconds from SIGINT to SIGKILL of the last process when a signal stopped
+#: the run (:func:`stop_nodes` with ``total_s``: a bit under the 5 s in which
+#: every process of an interrupted run must be gone).
+SIGNAL_STOP_S = 4.5
 #: Roles stopped after the others (:func:`stop_nodes`).
 STOPPED_LAST = ("recorder",)
 #: The roles that take turns on the per-sample path in lockstep.
@@ -201,14 +206,16 @@ def start_process(
 ) -> Proc:
     """Start ``python args...`` (this interpreter) as a process of the run, logging to ``log_path``.
 
-    In its own process group, pinned like ``role`` (:func:`cpu_set`).
+    In its own process group, pinned like ``role`` (:func:`cpu_set`), and
+    ended by the kernel when the runner dies (:func:`_in_child`).
     """
     log = log_path.open("wb")
     pin = os.environ.get("SERVO_AXIS_PIN", "1") == "1"
     cpus = cpu_set(role, realtime=realtime) if pin else None
+    runner = os.getpid()
     popen = subprocess.Popen(
         [sys.executable, *args],
-        preexec_fn=(lambda c=cpus: os.sched_setaffinity(0, c)) if cpus else None,
+        preexec_fn=lambda: _in_child(runner, cpus),
         stdout=log,
         stderr=subprocess.STDOUT,
         stdin=subprocess.DEVNULL,
@@ -216,6 +223,30 @@ def start_process(
         start_new_session=True,
     )
     return Proc(role, popen, log_path, log)
+
+
+#: ``prctl`` option: the signal a process gets when its parent dies.
+PR_SET_PDEATHSIG = 1
+
+
+def _in_child(runner: int, cpus: set[int] | None) -> None:
+    """In a node's process before it runs: its cores, and its end when the runner dies.
+
+    ``PR_SET_PDEATHSIG`` SIGKILLs the node when the thread that started it
+    ends (the runner starts its nodes from its main thread); a runner that
+    died between the fork and here is caught by its pid (a node left
+    running would hold a core at a realtime priority, issue 30).
+    """
+    if cpus:
+        os.sched_setaffinity(0, cpus)
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    except (OSError, AttributeError):
+        pass
+    if os.getppid() != runner:
+        os._exit(1)
 
 
 def cpu_set(
@@ -247,12 +278,18 @@ def cpu_set(
 
 
 def stop_nodes(
-    procs: list[Proc], timeout_s: float = STOP_TIMEOUT_S, *, last: tuple[str, ...] = STOPPED_LAST
+    procs: list[Proc],
+    timeout_s: float = STOP_TIMEOUT_S,
+    *,
+    last: tuple[str, ...] = STOPPED_LAST,
+    total_s: float | None = None,
 ) -> dict[str, int]:
     """SIGINT every live process group, SIGKILL what is left after ``timeout_s``; reap all.
 
-    The roles in ``last`` (the recorder) are stopped once the others have
-    exited: each node waits at its end until its last samples are
+    With ``total_s`` (a run a signal stopped) every process is gone within
+    it: the others get 60 % of it, the last ones the rest (at least a
+    second). The roles in ``last`` (the recorder) are stopped once the
+    others have exited: each node waits at its end until its last samples are
     acknowledged, and the recorder then writes what is still on its way
     (:func:`~servo_axis.nodes.runtime.finish`), so that nothing a node sent
     before it stopped is missing from the bag.
@@ -261,8 +298,11 @@ def stop_nodes(
     After a SIGKILL the shared-memory files of the killed participants are
     removed (:func:`clean_stale_shm`).
     """
-    _interrupt([p for p in procs if p.role not in last], timeout_s)
-    _interrupt([p for p in procs if p.role in last], timeout_s)
+    t0 = time.monotonic()
+    first = timeout_s if total_s is None else 0.6 * total_s
+    _interrupt([p for p in procs if p.role not in last], first)
+    rest = timeout_s if total_s is None else max(1.0, total_s - (time.monotonic() - t0))
+    _interrupt([p for p in procs if p.role in last], rest)
     for p in procs:
         _signal_group(p.popen, signal.SIGKILL)  # stray children of the group, if any
         p.log.close()

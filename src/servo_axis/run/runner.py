@@ -53,7 +53,13 @@ from servo_axis.run.start import open_watchers, start_axes
 from servo_axis.run.state import AxisNodes, RunState
 from servo_axis.run.stop import close_run, recover_bags, stop_axes
 from servo_axis.run.summarise import interruption, summarise_run, summary_of_the_recorded_part
-from servo_axis.run.watch import OutsidePlantGone, OutsideWait, StallCheck, Watch
+from servo_axis.run.watch import (
+    OutsidePlantGone,
+    OutsideWait,
+    OvertimeCheck,
+    StallCheck,
+    Watch,
+)
 from servo_axis.stop_signals import catch_stop_signals, restore_handlers
 
 if TYPE_CHECKING:
@@ -225,5 +231,12 @@ def _watch(
         deaths=NodeDeaths(axes, options.respawn_limit),
         outside=OutsideWait(axes, options.external_timeout_s, options.progress),
         stall=StallCheck(options.stall_timeout_s, run.plan.run_dir),
-        checks=[OutsidePlantGone(axes)],
+        checks=[
+            OutsidePlantGone(axes),
+            *[
+                OvertimeCheck(axis.steps * axis.control_period_s)
+                for axis in run.plan.axes
+                if axis.realtime
+            ][:1],
+        ],
     ).run()

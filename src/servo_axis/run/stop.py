@@ -14,14 +14,16 @@ import time
 
 from servo_axis.run.fastdds import clean_stale_shm
 from servo_axis.run.live_view import LiveView
-from servo_axis.run.processes import stop_nodes
+from servo_axis.run.processes import SIGNAL_STOP_S, stop_nodes
 from servo_axis.run.state import AxisNodes, RunState
 
 
 def stop_axes(axes: list[AxisNodes], state: RunState) -> None:
     """Stop every node of the run; note when, and each node's exit code."""
     state.t_end = time.monotonic()
-    stop_nodes([p for axis in axes for p in axis.procs])
+    # A signal stopped the run: every process gone within SIGNAL_STOP_S.
+    total = SIGNAL_STOP_S if state.signals else None
+    stop_nodes([p for axis in axes for p in axis.procs], total_s=total)
     state.exit_codes = {axis.where(p.role): p.popen.returncode for axis in axes for p in axis.procs}
 
 

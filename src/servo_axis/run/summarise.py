@@ -18,7 +18,7 @@ import sys
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from servo_axis.analysis.health import NodeDeath, assess
+from servo_axis.analysis.health import EXIT_LOOP_NOT_CLOSED, NodeDeath, assess, loop_not_closed
 from servo_axis.params.run_plan import RunPlan
 from servo_axis.run.state import AxisNodes, RunState
 from servo_axis.wire.node_report import NodeHealth, read_health
@@ -119,16 +119,6 @@ def _summarise_axis(
         summary = dataclasses.replace(
             summary, startup_s=span[0] - state.t_start, finish_s=state.t_end - span[1]
         )
-    health = assess(
-        failure=state.failure,
-        interrupted=state.interrupted,
-        deaths=axis.deaths,
-        reports=reports,
-        faults=len(summary.faults),
-        bag_recovered=axis.plan.axis in recovered,
-        realtime=summary.time_mode == "realtime",
-    )
-    summary = dataclasses.replace(summary, health=health)
     plant = reports.get("plant")
     if plant is not None and plant.realtime:
         # The plant's clock, with the feedback's and the generator's counts.
@@ -136,6 +126,20 @@ def _summarise_axis(
         rt = summaries.Realtime.from_dict({**counts, **plant.realtime})
         at = (floor or {}).get(round(rt.period_ns / 1000))
         summary = dataclasses.replace(summary, realtime=dataclasses.replace(rt, floor=at))
+    realtime = summary.time_mode == "realtime"
+    health = assess(
+        failure=state.failure,
+        interrupted=state.interrupted,
+        deaths=axis.deaths,
+        reports=reports,
+        faults=len(summary.faults),
+        bag_recovered=axis.plan.axis in recovered,
+        realtime=realtime,
+        open_loop=loop_not_closed(summary.realtime, axis.plan.max_miss_fraction, reports)
+        if realtime
+        else None,
+    )
+    summary = dataclasses.replace(summary, health=health)
     return summary, reports, span
 
 
@@ -146,6 +150,11 @@ def _summarise_axes(
     from servo_axis.analysis import summary as summaries
 
     per_axis = gathered.summaries
+    open_loops = [
+        s.health.reasons[0]
+        for s in per_axis.values()
+        if s.health is not None and s.health.exit_code == EXIT_LOOP_NOT_CLOSED
+    ]
     health = assess(
         failure=state.failure,
         interrupted=state.interrupted,
@@ -154,6 +163,7 @@ def _summarise_axes(
         faults=sum(len(s.faults) for s in per_axis.values()),
         bag_recovered=recovered,
         realtime=any(s.time_mode == "realtime" for s in per_axis.values()),
+        open_loop=open_loops[0] if open_loops else None,
     )
     spans = gathered.spans
     stepped = max(b for _, b in spans) - min(a for a, _ in spans) if spans else None

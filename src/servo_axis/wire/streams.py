@@ -18,9 +18,11 @@ Nothing here imports rclpy.
 from __future__ import annotations
 
 import functools
-from collections.abc import Iterable, Iterator
+import time
+from collections.abc import Callable, Iterable, Iterator
 from typing import Any, TypeVar
 
+from servo_axis.core import deadlines
 from servo_axis.core.errors import SignalError
 from servo_axis.wire import cdr, layouts
 from servo_axis.wire.layouts import ArrayLayout, JointLayout
@@ -47,6 +49,21 @@ class StreamGate:
     stride : int
         Steps between two samples of the stream (a stream of reference
         instants has stride ``T_r / T_u``), >= 1.
+    period_ns : int or None
+        Realtime, a node's gate: the control period, ns. A step further
+        ahead than ``window`` is then taken too when it is plausible by the
+        wall clock: not beyond where the stream's clock is now, as the
+        arrivals of the steps taken show its start
+        (:func:`~servo_axis.core.deadlines.start_estimate_ns`: never before
+        it), plus ``window`` samples. A node that fell behind (a stall, a
+        reader's history that overflowed) takes the newest sample and goes
+        on, while a stranger's ``step + 1000`` or ``1e9 s`` stamp is still
+        refused. None: no wall clock (lockstep, a bag's analysis).
+    plausible : callable or None
+        ``plausible(step)``: whether a step further ahead than ``window`` is
+        taken, in place of the wall clock of ``period_ns`` (a stream that
+        runs ahead of the clock, as the references do, is bounded by the
+        clock of another stream); None: as ``period_ns`` says.
     """
 
     def __init__(
@@ -56,6 +73,8 @@ class StreamGate:
         first: int | None = 0,
         limit: int | None = None,
         stride: int = 1,
+        period_ns: int | None = None,
+        plausible: Callable[[int], bool] | None = None,
     ) -> None:
         if window < 1:
             raise ValueError(f"window: expected >= 1, got {window!r}")
@@ -65,6 +84,27 @@ class StreamGate:
         self.stride = stride
         self.limit = limit
         self.last: int | None = None if first is None else first - stride
+        self.period_ns = period_ns
+        self.plausible = plausible
+        self._start_ns: int | None = None  # the stream clock's d_0, from the arrivals
+        #: Samples of the stream passed over (gaps within the window, and jumps).
+        self.skipped = 0
+        #: Jumps further than the window taken because the wall clock allowed them.
+        self.jumps = 0
+
+    def now_step(self) -> int | None:
+        """Realtime: the step the stream's clock is at now, as the arrivals show it (None: not known)."""
+        if self.period_ns is None or self._start_ns is None:
+            return None
+        return (time.monotonic_ns() - self._start_ns) // self.period_ns
+
+    def _plausible(self, step: int) -> bool:
+        """Realtime: ``step`` is not ahead of where the stream's clock is now (plus the window),
+        or ``plausible`` says it may be taken."""
+        if self.plausible is not None:
+            return self.plausible(step)
+        now = self.now_step()
+        return now is not None and step <= now + self.window * self.stride
 
     def check(self, step: int) -> None:
         """Raise :class:`SignalError` unless ``step`` is one the gate takes now (nothing changes)."""
@@ -78,7 +118,7 @@ class StreamGate:
             return
         if step <= self.last:
             raise SignalError(f"stale stamp (step {step}, last taken {self.last})")
-        if step > self.last + self.window * self.stride:
+        if step > self.last + self.window * self.stride and not self._plausible(step):
             expected = (
                 f"{self.last + self.stride}"
                 if self.window == 1
@@ -89,6 +129,15 @@ class StreamGate:
     def accept(self, step: int) -> None:
         """:meth:`check`, then take ``step`` as the last one."""
         self.check(step)
+        if self.last is not None:
+            gap = (step - self.last) // self.stride - 1
+            if gap > 0:
+                self.skipped += gap
+                self.jumps += gap >= self.window
+        if self.period_ns is not None:
+            self._start_ns = deadlines.start_estimate_ns(
+                self._start_ns, time.monotonic_ns(), step, self.period_ns
+            )
         self.last = step
 
     @property

@@ -103,3 +103,33 @@ def test_health_round_trips_through_json_and_report_files(tmp_path) -> None:
     )
     again = RunHealth.from_dict(json.loads(json.dumps(health.to_dict())))
     assert again == health
+
+
+def test_a_realtime_loop_not_closed_never_reports_success() -> None:
+    """Misses over realtime.max_miss_fraction, or a plant that ended the run because no
+    command came, exit 5 with the reason first (issue 30); within the limit, 0."""
+    from servo_axis.analysis.health import EXIT_LOOP_NOT_CLOSED, loop_not_closed
+    from servo_axis.analysis.realtime import Realtime
+
+    def block(misses: int) -> Realtime:
+        return Realtime(
+            period_ns=1_000_000, ticks=2000, misses=misses, commands_missing=misses // 2,
+            commands_late=misses - misses // 2, timer_rate=1.0, tick_late_us=None,
+            command_late_us=None,
+        )  # fmt: skip
+
+    assert loop_not_closed(block(100), 0.05, {}) is None  # exactly 5 %
+    why = loop_not_closed(block(101), 0.05, {})
+    assert why is not None and "101 of 2000 ticks (5.1 %)" in why and "50 commands" in why
+    health = assess(failure=None, deaths=[], reports={}, faults=1, realtime=True, open_loop=why)
+    assert health.exit_code == EXIT_LOOP_NOT_CLOSED and health.reasons[0] == why
+    assert not health.deterministic and health.outcome == "complete"
+    plant = NodeHealth("plant")
+    plant.fallbacks.append(Fallback("loop_open", 812, "no command for 2.01 s"))
+    why = loop_not_closed(block(0), 0.05, {"plant": plant})
+    assert why == "the loop was not closed: plant ended the run (loop_open) at step 812"
+    health = assess(failure=None, deaths=[], reports={"plant": plant}, faults=0, realtime=True,
+                    open_loop=why)  # fmt: skip
+    assert health.exit_code == EXIT_LOOP_NOT_CLOSED
+    assert health.reasons[1].startswith("plant fell back (loop_open) at step 812")
+    assert assess(failure=None, deaths=[], reports={}, faults=0, realtime=True).exit_code == 0

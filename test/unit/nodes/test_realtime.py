@@ -3,6 +3,7 @@ set-point, catching up."""
 
 from __future__ import annotations
 
+import itertools
 import math
 import threading
 import time
@@ -13,6 +14,8 @@ import pytest
 from servo_axis.core import deadlines
 from servo_axis.core.errors import SignalError
 from servo_axis.nodes.realtime import (
+    SLIP_MIN_NS,
+    SLIP_PERIODS,
     CatchUp,
     ClockRecord,
     ClockThread,
@@ -37,20 +40,24 @@ def test_the_priority_is_applied_once_when_the_run_starts() -> None:
 
     def apply(priority: int) -> dict[str, object]:
         asked.append(priority)
-        return {"policy": "fifo", "priority": priority, "threads": 3}
+        return {"policy": "fifo", "priority": priority}
 
-    scheduling = RealtimeScheduling(49, warn=warnings.append, apply=apply)
+    scheduling = RealtimeScheduling(49, warn=warnings.append, apply=apply, favour=lambda: 7)
     assert scheduling.applied is None and not scheduling.fifo and asked == []
     scheduling.start()
     scheduling.start()
-    assert asked == [49] and scheduling.fifo and scheduling.applied == apply(49)
+    assert asked == [49] and scheduling.fifo
+    # Under SCHED_FIFO the middleware's threads get more weight (at the default policy).
+    assert scheduling.applied == {**apply(49), "middleware_nice": -10, "middleware_threads": 7}
     assert warnings == []
 
 
 def test_a_refused_priority_leaves_the_default_scheduler_and_says_why() -> None:
     warnings: list[str] = []
     refused = {"policy": "other", "priority": 0, "refused": "PermissionError: no"}
-    scheduling = RealtimeScheduling(50, warn=warnings.append, apply=lambda p: refused)
+    scheduling = RealtimeScheduling(
+        50, warn=warnings.append, apply=lambda p: refused, favour=lambda: 1 / 0
+    )
     scheduling.start()
     assert not scheduling.fifo and scheduling.applied == refused
     assert warnings == ["thread_priority 50: refused (PermissionError: no); the default scheduler"]
@@ -74,7 +81,7 @@ def test_the_clock_thread_ticks_in_order_never_before_a_deadline() -> None:
     clock = ClockThread(period_ns=period_ns, tick=tick, name="test-clock")
     assert not clock.started
     start = time.monotonic_ns()
-    clock.start(start, fifo=False)
+    clock.start(start)
     assert last.wait(5.0)
     time.sleep(5 * period_ns * 1e-9)  # no tick after the last one
     clock.stop(timeout_s=5.0)
@@ -89,7 +96,7 @@ def test_a_tick_that_raises_ends_the_clock_and_is_kept() -> None:
         raise ZeroDivisionError("model blew up")
 
     clock = ClockThread(period_ns=1_000_000, tick=tick, name="test-clock")
-    clock.start(time.monotonic_ns(), fifo=True)
+    clock.start(time.monotonic_ns(), priority=0)
     deadline = time.monotonic() + 5.0
     while clock.error is None and time.monotonic() < deadline:
         time.sleep(0.001)
@@ -105,7 +112,7 @@ def test_stop_ends_a_running_clock() -> None:
         return False  # never the last one
 
     clock = ClockThread(period_ns=1_000_000, tick=tick, name="test-clock")
-    clock.start(time.monotonic_ns(), fifo=False)
+    clock.start(time.monotonic_ns())
     assert ticks.wait(5.0)
     t0 = time.monotonic()
     clock.stop(timeout_s=5.0)
@@ -212,3 +219,38 @@ def test_catching_up_skips_exactly_what_answer_useful_says() -> None:
     assert answered == expected
     assert catch_up.skipped == last + 1 - len(answered) > 0
     assert last in answered and max(np.diff(answered)) <= gap
+
+
+def test_a_clock_far_behind_slips_to_the_next_deadline_instead_of_running_the_missed_ticks() -> (
+    None
+):
+    """A tick that returns 150 periods late (the process was stopped) does not cause 150
+    ticks back to back: the deadlines are re-based to the first one after now (issue 30)."""
+    period_ns = 1_000_000
+    stall_ns = 150 * period_ns  # beyond SLIP_PERIODS periods and SLIP_MIN_NS
+    assert stall_ns > max(SLIP_PERIODS * period_ns, SLIP_MIN_NS)
+    seen: list[tuple[int, int, int]] = []
+    last = threading.Event()
+
+    def tick(j: int, deadline_ns: int) -> bool:
+        seen.append((j, deadline_ns, time.monotonic_ns()))
+        if j == 3:
+            time.sleep(stall_ns * 1e-9)
+        if j == 10:
+            last.set()
+        return j == 10
+
+    clock = ClockThread(period_ns=period_ns, tick=tick, name="test-clock")
+    start = time.monotonic_ns()
+    clock.start(start)
+    assert last.wait(5.0)
+    clock.stop(timeout_s=5.0)
+    assert [j for j, _, _ in seen] == list(range(1, 11))
+    assert clock.slips == 1 and clock.slipped_periods >= 145
+    # Tick 4 is due on the grid, after the stall: no earlier than when tick 3 returned.
+    (_, d3, t3), (_, d4, _) = seen[2], seen[3]
+    assert (d4 - start) % period_ns == 0 and d4 >= t3 + stall_ns - period_ns
+    assert d4 - d3 == (clock.slipped_periods + 1) * period_ns
+    # After it the ticks follow one period apart again.
+    assert [b[1] - a[1] for a, b in itertools.pairwise(seen[3:])] == [period_ns] * 6
+    assert all(now >= d for _, d, now in seen)

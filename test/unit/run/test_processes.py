@@ -97,6 +97,21 @@ def test_a_node_that_ignores_sigint_delays_the_recorder_by_the_timeout_only(
     assert 0.45 <= got[("recorder", "sigint")] - started < 3.0
 
 
+def test_a_run_stopped_by_a_signal_has_every_process_gone_within_the_total(
+    tmp_path: Path, notes: Path
+) -> None:
+    """With ``total_s`` the others get 60 % of it and the recorder the rest (at least 1 s)."""
+    procs = [
+        start("recorder", notes, tmp_path, 0.0),
+        start("plant", notes, tmp_path, 0.0, ignore_sigint=True),
+    ]
+    started = time.monotonic()
+    codes = stop_nodes(procs, timeout_s=30.0, total_s=2.0)
+    assert time.monotonic() - started < 2.5
+    assert codes["plant"] < 0 and codes["recorder"] == 0
+    assert 1.15 <= events(notes)[("recorder", "sigint")] - started < 1.6
+
+
 @pytest.mark.parametrize("cores", [[0, 1], [2, 5, 7]])
 def test_cores_are_shared_out_by_time_mode(cores: list[int]) -> None:
     from servo_axis.run.processes import cpu_set

@@ -133,3 +133,34 @@ def test_a_plant_clock_refuses_a_stamp_behind_or_ahead_of_its_arrival() -> None:
         origin.state_step(5 * T_NS + 1000 * T_NS, arrival_ns=2 * T_NS)
     # the junk moved nothing: the real next state is taken
     assert origin.state_step(7 * T_NS, arrival_ns=2 * T_NS) == 2
+
+
+def test_realtime_gate_takes_a_jump_the_wall_clock_allows_and_counts_what_it_skipped() -> None:
+    """A node that fell behind takes the newest sample (issue 30); junk far ahead is refused."""
+    import time
+
+    period = 1_000_000  # 1 ms
+    gate = StreamGate(window=10, first=0, period_ns=period)
+    start = time.monotonic_ns()
+    for step in range(0, 5):
+        gate.accept(step)
+    # The clock's start as the arrivals show it: step 4 arrived no earlier than d_4.
+    time.sleep(0.2)  # 200 periods pass while the node is stopped
+    with pytest.raises(SignalError, match="ahead of the stream"):
+        gate.accept(4 + 100_000)  # a stranger's step + 100,000: beyond the wall clock
+    assert gate.last == 4 and gate.skipped == 0
+    now_step = (time.monotonic_ns() - start) // period
+    gate.accept(now_step - 5)  # the newest sample after the stall
+    assert gate.last == now_step - 5
+    assert gate.skipped == now_step - 5 - 4 - 1 and gate.jumps == 1
+    gate.accept(now_step - 3)  # a gap inside the window: counted, not a jump
+    assert gate.skipped == now_step - 5 - 4 - 1 + 1 and gate.jumps == 1
+
+
+def test_without_a_wall_clock_a_gate_refuses_every_jump_as_before() -> None:
+    gate = StreamGate(window=10, first=0)
+    gate.accept(0)
+    with pytest.raises(SignalError, match="at most 10"):
+        gate.accept(11)
+    gate.accept(10)
+    assert gate.skipped == 9 and gate.now_step() is None
