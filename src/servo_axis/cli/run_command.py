@@ -147,7 +147,11 @@ def handle(args: argparse.Namespace) -> int:
     print()
     print(format_any_summary(result.summary))
     print()
-    axis = "bag/, summary.json, *.png, logs/" if options.plots else "bag/, summary.json, logs/"
+    axis = (
+        "bag/, summary.json, params.yaml, *.png, logs/"
+        if options.plots
+        else "bag/, summary.json, params.yaml, logs/"
+    )
     contents = (
         f"{', '.join(a + '/' for a in result.summary.axes)} (one axis each: {axis}), "
         + ("summary.json, contour.png" if options.plots else "summary.json")
