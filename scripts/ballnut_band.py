@@ -181,24 +181,16 @@ def evaluate(args: tuple[int, dict[str, float] | None]) -> dict[str, Any]:
         )
         row["gms_slow_um"] = max_after_first_cycle(slow_gms) * 1e6
         row["gms_fast_um"] = max_after_first_cycle(fast_gms) * 1e6
-        sigmoid_set: dict[str, dict[str, object]] = {"plant": plant}
-        if choice is not None:
-            half_width = choice["width_of_xs"] * row["presliding_um"] * 1e-6
-            sigmoid_set["feedforward"] = {
-                "sigmoid.coulomb_Nm": gms.params.coulomb_Nm,
-                "sigmoid.gamma_m_per_rad": gamma_for_width(
-                    sigma_m2_per_rad=PAPER_SIGMA,
-                    half_width_m=half_width,
-                    fraction=choice["fraction"],
-                ),
-            }
         fast_sig = bn.run_trace(
             bn.scenario_with(
-                CONFIG / "fast_reversal_contact_sigmoid.yaml", tmp / "fs.yaml", sigmoid_set
+                CONFIG / "fast_reversal_contact_sigmoid.yaml",
+                tmp / "fs.yaml",
+                sigmoid_set(plant, choice, gms.params.coulomb_Nm, row["presliding_um"]),
             )
         )
         row["sigmoid_fast_um"] = max_after_first_cycle(fast_sig) * 1e6
         row["change_pct"] = 100.0 * (row["sigmoid_fast_um"] / row["gms_fast_um"] - 1.0)
+        row.update(baselines(row, choice, tmp))
         checks = {
             "sigma": PAPER_SIGMA / 2 <= fit.sigma_m2_per_rad <= 2 * PAPER_SIGMA,
             "F0": abs(loop.coulomb_Nm / IDENTIFIED_F0 - 1.0) <= 0.03,
@@ -218,6 +210,61 @@ def evaluate(args: tuple[int, dict[str, float] | None]) -> dict[str, Any]:
     return row
 
 
+def sigmoid_set(
+    plant: dict[str, object],
+    choice: dict[str, float] | None,
+    coulomb_Nm: float,
+    presliding_um: float,
+) -> dict[str, dict[str, object]]:
+    """The overrides of a draw's sigmoid runs: its plant, its F_0 and its gamma."""
+    out: dict[str, dict[str, object]] = {"plant": plant}
+    if choice is not None:
+        out["feedforward"] = {
+            "sigmoid.coulomb_Nm": coulomb_Nm,
+            "sigmoid.gamma_m_per_rad": gamma_for_width(
+                sigma_m2_per_rad=PAPER_SIGMA,
+                half_width_m=choice["width_of_xs"] * presliding_um * 1e-6,
+                fraction=choice["fraction"],
+            ),
+        }
+    return out
+
+
+def baselines(row: dict[str, Any], choice: dict[str, float] | None, tmp: Path) -> dict[str, Any]:
+    """No compensation at all, and 004 eq. (9) from the measured stage (``sigmoid.source:
+    stage``), at the fast reversal of a draw whose GMS and sigmoid runs are in ``row``."""
+    plant = {} if choice is None else plant_of(choice)
+    none = bn.run_trace(
+        bn.scenario_with(
+            CONFIG / "fast_reversal_contact_none.yaml", tmp / "fn.yaml", {"plant": plant}
+        )
+    )
+    stage = bn.run_trace(
+        bn.scenario_with(
+            CONFIG / "fast_reversal_contact_sigmoid_stage.yaml",
+            tmp / "fss.yaml",
+            sigmoid_set(plant, choice, row["gms_F_c_Nm"], row["presliding_um"]),
+        )
+    )
+    out = {
+        "none_fast_um": max_after_first_cycle(none) * 1e6,
+        "stage_fast_um": max_after_first_cycle(stage) * 1e6,
+    }
+    for name in ("none", "stage"):
+        out[f"{name}_change_pct"] = 100.0 * (out[f"{name}_fast_um"] / row["gms_fast_um"] - 1.0)
+    return out
+
+
+def add_baselines(args: tuple[dict[str, Any], dict[str, float] | None]) -> dict[str, Any]:
+    """:func:`baselines` of a row of the table (``--add-baselines``): the row with them."""
+    row, choice = args
+    start = time.monotonic()
+    tmp = Path(tempfile.mkdtemp(prefix=f"ballnut_base_{row['draw']}_"))
+    row = {**row, **baselines(row, choice, tmp)}
+    row["baseline_wall_time_s"] = time.monotonic() - start
+    return row
+
+
 def bn_frozen_plant() -> dict[str, object]:
     """The plant keys of the frozen contact scenarios."""
     data = load_scenario(CONFIG / "fast_reversal_contact_gms.yaml")
@@ -227,10 +274,11 @@ def bn_frozen_plant() -> dict[str, object]:
 
 
 def reversal_figure(path: Path) -> None:
-    """The frozen GMS and sigmoid runs at the reversal at 1.5 s (like 004 Figs. 12-13)."""
+    """The frozen runs at the reversal at 1.5 s (like 004 Figs. 12-13): no compensation,
+    GMS, the sigmoid law from the reference and from the measured stage."""
     traces = {
         name: bn.run_trace(CONFIG / f"fast_reversal_contact_{name}.yaml")
-        for name in ("gms", "sigmoid")
+        for name in ("none", "gms", "sigmoid", "sigmoid_stage")
     }
     fig, ax = plt.subplots(2, 2, figsize=(11, 7), sharex=True)
     for name, tr in traces.items():
@@ -246,15 +294,16 @@ def reversal_figure(path: Path) -> None:
         d_r = np.where(dr.valid, dr.d_r_m_per_rad * 1e3, np.nan)
         ax[0, 0].plot(t[win], (tr.scale_m[win] - tr.scale_m[FAST_STOP]) * 1e6, label=name)
         ax[1, 0].plot(t[win], d_r[win], label=name)
-        ax[1, 1].plot(t[win], tr.error_m[win] * 1e6, label=name)
+        (line,) = ax[1, 1].plot(t[win], tr.error_m[win] * 1e6, label=name)
         if name == "gms":
-            ax[0, 1].plot(t[win], tr.nut_Nm[win], label="T_f nut")
-            ax[0, 1].plot(t[win], tr.bearing_Nm[win], label="T_f bearings")
-            ax[0, 1].plot(t[win], tr.guide_N[win] * tr.lead_m_per_rad, label="R f_g")
+            ax[0, 1].plot(t[win], tr.nut_Nm[win], "k", label="T_f nut")
+            ax[0, 1].plot(t[win], tr.bearing_Nm[win], "k--", label="T_f bearings")
+            ax[0, 1].plot(t[win], tr.guide_N[win] * tr.lead_m_per_rad, "0.6", label="R f_g")
         ax[0, 1].plot(
             t[win],
             tr.command_Nm[win] - np.median(tr.command_Nm[win]),
             ":",
+            color=line.get_color(),
             lw=0.8,
             label=f"command - median ({name})",
         )
@@ -293,6 +342,12 @@ def main() -> int:
     parser.add_argument("--seed", type=int, default=21)
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument(
+        "--add-baselines",
+        action="store_true",
+        help="keep the rows of docs/figures/ballnut_band.csv and add to the frozen plant and "
+        "each kept draw the runs without compensation and with the sigmoid law from the stage",
+    )
+    parser.add_argument(
         "--resume",
         action="store_true",
         help="keep the rows of docs/figures/ballnut_band.csv and run only the draws not in it "
@@ -310,6 +365,22 @@ def main() -> int:
             rows = [_typed(r) for r in csv.DictReader(f)]
         done = {r["draw"] for r in rows}
         jobs = [j for j in jobs if j[0] not in done]
+    if args.add_baselines:
+        with table.open() as f:
+            rows = [_typed(r) for r in csv.DictReader(f)]
+        choices = dict(jobs)
+        todo = [(r, choices[r["draw"]]) for r in rows if r["draw"] == 0 or r.get("kept")]
+        added: dict[int, dict[str, Any]] = {}
+        with Pool(args.workers) as pool:
+            for row in pool.imap(add_baselines, todo):
+                added[row["draw"]] = row
+                print(
+                    f"draw {row['draw']:3d}: none {row['none_fast_um']:.3f} um, stage"
+                    f" {row['stage_fast_um']:.3f} um ({row['baseline_wall_time_s']:.1f} s)",
+                    flush=True,
+                )
+        rows = [added.get(r["draw"], r) for r in rows]
+        jobs = []
     with Pool(args.workers) as pool:
         for row in pool.imap(evaluate, jobs):
             rows.append(row)
@@ -329,33 +400,47 @@ def main() -> int:
     kept = [r for r in rows[1:] if r.get("kept")]
     changes = np.array([r["change_pct"] for r in kept])
     print(
-        f"frozen: GMS {frozen['gms_fast_um']:.3f} um, sigmoid {frozen['sigmoid_fast_um']:.3f} um,"
+        f"frozen: none {frozen['none_fast_um']:.3f} um, GMS {frozen['gms_fast_um']:.3f} um,"
+        f" sigmoid {frozen['sigmoid_fast_um']:.3f} um (stage {frozen['stage_fast_um']:.3f} um),"
         f" change {frozen['change_pct']:+.1f} % (checks failed: '{frozen['failed_checks']}')"
     )
+    laws = {
+        "change_pct": ("sigmoid, reference", "C0", "sigmoid_fast_um"),
+        "stage_change_pct": ("sigmoid, stage", "C1", "stage_fast_um"),
+        "none_change_pct": ("no compensation", "C2", "none_fast_um"),
+    }
     if changes.size:
-        print(
-            f"band over {changes.size} kept draws of {args.draws}: min {changes.min():+.1f} %,"
-            f" median {np.median(changes):+.1f} %, max {changes.max():+.1f} %;"
-            f" sigmoid better in {(changes < 0).sum()}"
-        )
         fig, ax = plt.subplots(1, 2, figsize=(11, 4))
-        ax[0].hist(changes, bins=15, color="0.6")
-        ax[0].axvline(frozen["change_pct"], color="r", label="frozen plant")
+        for key, (label, color, _) in laws.items():
+            ch = np.array([r[key] for r in kept])
+            print(
+                f"{label} against GMS over {ch.size} kept draws of {args.draws}: min"
+                f" {ch.min():+.1f} %, median {np.median(ch):+.1f} %, max {ch.max():+.1f} %;"
+                f" better than GMS in {(ch < 0).sum()}"
+            )
+            ax[0].hist(ch, bins=15, histtype="step", lw=1.5, color=color, label=label)
+            ax[0].axvline(frozen[key], color=color, ls="--", lw=1)
         ax[0].axvline(0.0, color="k", lw=0.5)
         ax[0].set(
-            xlabel="max error after cycle 1, sigmoid against GMS (%)",
+            xlabel="max error after cycle 1 against GMS (%); dashed: the frozen plant",
             ylabel="draws",
             title=f"fast reversal, {changes.size} draws inside the calibration checks",
         )
-        ax[0].legend()
+        ax[0].legend(fontsize=8)
         gms = np.array([r["gms_fast_um"] for r in kept])
-        sig = np.array([r["sigmoid_fast_um"] for r in kept])
-        ax[1].plot(gms, sig, ".", color="0.4")
-        ax[1].plot(frozen["gms_fast_um"], frozen["sigmoid_fast_um"], "r*", ms=12, label="frozen")
-        top = max(gms.max(), sig.max()) * 1.05
-        ax[1].plot([0, top], [0, top], "k", lw=0.5)
-        ax[1].set(xlabel="GMS (um)", ylabel="sigmoid (um)", title="max error after cycle 1")
-        ax[1].legend()
+        top = 0.0
+        for label, color, column in laws.values():
+            other = np.array([r[column] for r in kept])
+            ax[1].plot(gms, other, ".", color=color, label=label)
+            ax[1].plot(frozen["gms_fast_um"], frozen[column], "*", color=color, ms=12, mec="k")
+            top = max(top, gms.max(), other.max())
+        ax[1].plot([0, top * 1.05], [0, top * 1.05], "k", lw=0.5)
+        ax[1].set(
+            xlabel="GMS (um)",
+            ylabel="the other law (um); stars: frozen",
+            title="max error after cycle 1",
+        )
+        ax[1].legend(fontsize=8)
         fig.tight_layout()
         fig.savefig(DOCS / "ballnut_band.png", dpi=110)
     reversal_figure(DOCS / "ballnut_reversal.png")

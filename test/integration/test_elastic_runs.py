@@ -145,6 +145,30 @@ def test_gms_and_sigmoid_at_slow_and_fast_reversals(ros_env: int, tmp_path: Path
     )
 
 
+def test_the_sigmoid_law_from_the_stage_runs_in_the_loop_as_the_plain_calls(
+    ros_env: int, tmp_path: Path
+) -> None:
+    """``sigmoid.source: stage`` (issue 33): the feedback node computes 004 eq. (9) from the
+    scale, with the values the feedforward section sets; the bag is the plain-call loop's."""
+    name = "fast_reversal_contact_sigmoid_stage"
+    run_dir = tmp_path / name
+    cli(ros_env, tmp_path, "run", name, "--out", str(run_dir), "--no-plots")
+    core = simulate(CONFIG / f"{name}.yaml")
+    got = joint_streams(run_dir)
+    assert_array_equal(series(got["/x/state"], "position", 1), core.scale_m)
+    assert_array_equal(series(got["/x/command"], "effort", 0), core.command_Nm)
+    error = np.abs(R * core.reference_rad - core.scale_m)[len(core.scale_m) // 2 :]
+    assert abs(max_after_first_cycle(run_dir) - error.max()) <= 1e-12
+    # The law acts, and it is not the reference's: the same run without a
+    # compensation and with the feedforward's term command other currents.
+    for other in ("fast_reversal_contact_none", "fast_reversal_contact_sigmoid"):
+        differ = core.command_Nm != simulate(CONFIG / f"{other}.yaml").command_Nm
+        assert differ.sum() > 3000, other  # of 4000 samples
+    params = yaml.safe_load((run_dir / "params.yaml").read_text())
+    feedback = params["/**/feedback"]["ros__parameters"]  # copied from the feedforward's
+    assert feedback["sigmoid.source"] == "stage" and feedback["sigmoid.coulomb_Nm"] == 0.4225
+
+
 def test_fast_reversal_sigmoid_bags_are_identical_separate_and_composed(
     ros_env: int, tmp_path: Path, raw_payloads: Any
 ) -> None:

@@ -319,3 +319,62 @@ def test_diagnostics_are_forwarded_at_the_simulation_time_the_bridge_has_seen(
             "values": [{"key": "deadline_misses", "value": "3"}],
         }
     ]
+
+
+def refused(port: int, give_up: threading.Event, out: list[object]) -> None:
+    """A client offering only the older subprotocol: what the server answered."""
+    from websockets.exceptions import InvalidStatus
+    from websockets.sync.client import connect
+
+    while not give_up.is_set():
+        try:
+            with connect(
+                f"ws://127.0.0.1:{port}", subprotocols=["foxglove.websocket.v1"], open_timeout=5
+            ) as ws:
+                out.append(ws.subprotocol)
+            return
+        except InvalidStatus as err:
+            out.append(err.response.status_code)
+            return
+        except OSError:
+            time.sleep(0.02)
+
+
+def test_under_load_two_viewers_get_the_last_step_and_a_refused_one_is_told(
+    ros_env: int, tmp_path: Path
+) -> None:
+    """Two CPU hogs beside the run: the live view drains until the run's last step
+    (it once stopped 3 s after the nodes, two viewers at step 1,982 of 3,000, silently),
+    and the runner's terminal says why a viewer offering only foxglove.websocket.v1 was
+    refused (the SDK answers HTTP 400 and logged only "handshake failed")."""
+    steps = run_steps(node_values(load_scenario(find_scenario(SCENARIO)), "plant"))
+    port = free_port()
+    viewers = [Viewer(port), Viewer(port)]
+    give_up = threading.Event()
+    clients = [threading.Thread(target=v.watch, args=(give_up,), daemon=True) for v in viewers]
+    answer: list[object] = []
+    clients.append(threading.Thread(target=refused, args=(port, give_up, answer), daemon=True))
+    hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
+    try:
+        for c in clients:
+            c.start()
+        live = run(tmp_path / "live", ros_env, "--live", "--live-port", str(port))
+    finally:
+        for hog in hogs:
+            hog.kill()
+            hog.wait()
+        give_up.set()
+        for c in clients:
+            c.join(timeout=90)
+    assert live.returncode == 0, live.stdout + live.stderr
+    assert answer == [400], answer
+    assert "live view: a viewer could not connect (Dropping client 127.0.0.1:" in live.stderr
+    assert "offers only the older foxglove.websocket.v1 is refused with HTTP 400" in live.stderr
+    for viewer in viewers:
+        assert viewer.error is None, repr(viewer.error)
+        got = [m["step"] for _, m in viewer.messages.get("/x/state", [])]
+        assert got == list(range(steps)), (
+            f"{len(got)} states of {steps}, missing {missing_ranges(steps, got)}; "
+            f"the terminal said: {live.stderr[-1500:]}"
+        )
+    assert "/x/state: forwarded" not in live.stderr  # nothing to report

@@ -10,6 +10,7 @@ times: exit 0, nothing on stderr.
 from __future__ import annotations
 
 import os
+import shlex
 import signal
 import subprocess
 import sys
@@ -67,8 +68,23 @@ def test_the_watcher_follows_a_run_and_ends_quietly_on_ctrl_c(ros_env: int, tmp_
         tmp_path / "run.log",
     )  # fmt: skip
     try:
+        # The watcher the run's header names, as a user pastes it (no ros2 CLI needed).
+        wait_for(tmp_path / "run.log", "watch it: ", run, 60)
+        line = next(
+            ln for ln in (tmp_path / "run.log").read_text().splitlines() if "watch it: " in ln
+        )
+        words = shlex.split(line.removeprefix("watch it: ").split("  (")[0])
+        env = dict(os.environ) | dict(w.split("=", 1) for w in words[:2])
+        assert env["ROS_DOMAIN_ID"] == str(ros_env) and words[2] == "python", words
         log = tmp_path / "watching.log"
-        proc = start(watcher, log)
+        with log.open("wb") as out:
+            proc = subprocess.Popen(
+                [sys.executable, *words[3:]],
+                stdout=out,
+                stderr=subprocess.PIPE,
+                start_new_session=True,
+                env=env,
+            )
         wait_for(log, "read-only: True", proc, 120)
         wait_for(log, "state [", proc, 60)
         text = log.read_text()

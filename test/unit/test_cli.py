@@ -81,6 +81,12 @@ def test_domain_ids() -> None:
         ("--namespace", "x", "absolute"),
         ("--namespace", "/x/", "end with '/'"),
         ("--respawn-limit", "-1", "expected an integer >= 0"),
+        ("--external-timeout", "-5", "'-5': expected a finite number > 0"),
+        ("--external-timeout", "0", "expected a finite number > 0"),
+        ("--external-timeout", "inf", "expected a finite number > 0"),
+        ("--live-port", "0", "'0': expected an integer 1..65535"),
+        ("--live-port", "70000", "expected an integer 1..65535"),
+        ("--live-port", "x", "expected an integer 1..65535"),
     ],
 )
 def test_run_refuses_a_bad_option_before_anything(

@@ -187,3 +187,16 @@ def test_a_benchmark_run_updates_its_rows_and_keeps_the_others(tmp_path: Path) -
     assert rows["b"][3] == "n/a" and rows["b"][5] == "-" and rows["b"][6] == "then, abc1234, --all"
     text = page.read_text()
     assert text.startswith("# Benchmarks\n\nintro\n") and text.endswith("\nafter\n")
+
+
+def test_code_and_help_point_to_pages_that_exist_not_to_readme_sections() -> None:
+    """The README's old sections (Studies, Watching a live run, ...) moved to the site:
+    a pointer in a docstring, a help text or the run's header names a page of docs/."""
+    named = set()
+    for path in (REPO / "src").rglob("*.py"):
+        text = path.read_text()
+        assert not re.search(r"README[,:)]", text), f"{path.relative_to(REPO)} points to the README"
+        named |= set(re.findall(r"docs/[\w/-]+\.md", text))
+    assert "docs/how-to/watch-a-run.md" in named and "docs/reference/studies.md" in named
+    missing = sorted(p for p in named if not (REPO / p).is_file())
+    assert not missing, f"pointers to no page: {missing}"

@@ -7,7 +7,13 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from servo_axis.cli.options import Subparsers, domain_id, int_at_least, namespace
+from servo_axis.cli.options import (
+    Subparsers,
+    domain_id,
+    int_at_least,
+    namespace,
+    positive_float,
+)
 from servo_axis.core.errors import ConfigError
 
 
@@ -74,7 +80,7 @@ def _add_outside_options(run: argparse.ArgumentParser) -> None:
     )
     run.add_argument(
         "--external-timeout",
-        type=float,
+        type=positive_float,
         default=120.0,
         metavar="S",
         help="seconds to wait for the outside nodes before the first step (default 120)",
@@ -86,7 +92,10 @@ def _add_outside_options(run: argparse.ArgumentParser) -> None:
         "(needs the extra: pip install -e '.[live]')",
     )
     run.add_argument(
-        "--live-port", type=int, default=None, help="port of the live view (implies --live)"
+        "--live-port",
+        type=int_at_least(1, 65535),
+        default=None,
+        help="port of the live view, 1..65535 (implies --live)",
     )
 
 
@@ -143,11 +152,16 @@ def handle(args: argparse.Namespace) -> int:
     print()
     print(format_any_summary(result.summary))
     print()
+    axis = (
+        "bag/, summary.json, params.yaml, *.png, logs/"
+        if options.plots
+        else "bag/, summary.json, params.yaml, logs/"
+    )
     contents = (
-        f"{', '.join(a + '/' for a in result.summary.axes)} (one axis each: bag/, summary.json, "
-        "*.png, logs/), summary.json, contour.png"
+        f"{', '.join(a + '/' for a in result.summary.axes)} (one axis each: {axis}), "
+        + ("summary.json, contour.png" if options.plots else "summary.json")
         if isinstance(result.summary, AxesSummary)
-        else "bag/, summary.json, *.png, logs/"
+        else axis
     )
     print(f"run directory: {result.run_dir}  ({contents})")
     health = result.health

@@ -21,7 +21,7 @@ def add_parser(commands: Subparsers) -> None:
     )
     sw.add_argument(
         "study",
-        help="study file (YAML; README, Studies) or a shipped study's name, e.g. reversal_004",
+        help="study file (YAML; docs/reference/studies.md) or a shipped study's name, e.g. reversal_004",
     )
     sw.add_argument("--out", help="study directory (default studies/<name>)")
     sw.add_argument(

@@ -202,6 +202,10 @@ class IdentifierNode(ServoNode):
             ("samples_held", self.held_angles + self.held_torques),
         ]
 
+    def diagnostic_stamp_ns(self) -> int:
+        """The simulation time of the last sample identified (it does not run on ``/clock``)."""
+        return max(self.identifier.last_step or 0, 0) * self._period_ns
+
     def _publish(self, e: Estimate) -> None:
         applies = e.step + 1 + self._latency
         if applies >= self._steps:

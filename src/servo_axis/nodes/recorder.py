@@ -394,6 +394,10 @@ class RecorderNode(ServoNode):
         last = self._gates[name][1].last
         return 0 if last is None else last + 1
 
+    def diagnostic_stamp_ns(self) -> int:
+        """The simulation time the recorder has seen (it does not run on ``/clock``)."""
+        return self.timeline.now_ns
+
     def diagnostic_values(self) -> list[tuple[str, Any]]:
         return [
             ("steps_recorded", self.recorded),

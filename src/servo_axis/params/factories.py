@@ -25,7 +25,9 @@ from servo_axis.core.errors import ParameterFileError
 from servo_axis.core.feedback.dob import DisturbanceObserver
 from servo_axis.core.feedback.loop import FeedbackLoop, SafetyLimits
 from servo_axis.core.feedback.pid import DiscretePid, design_pid_pole_placement
+from servo_axis.core.feedback.stage_sigmoid import StageSigmoid
 from servo_axis.core.feedforward.generator import FeedforwardGenerator
+from servo_axis.core.feedforward.sigmoid import SigmoidParams
 from servo_axis.core.feedforward.terms import FeedforwardTerm, OutsideObserver
 from servo_axis.core.identification.base import OnlineIdentifier
 from servo_axis.core.learning.base import LearningLaw
@@ -188,6 +190,23 @@ def build_loop(values: Values) -> FeedbackLoop:
         else None
     )
     limits = build("limits.", SafetyLimits, **section(values, "limits"))
+    compensation = None
+    if values["sigmoid.enabled"] and values["sigmoid.source"] == "stage":
+        # 004 eq. (9) with sgn(v) and z of the stage: the loop has the scale.
+        params = build(
+            "sigmoid.",
+            SigmoidParams,
+            sigma_m2_per_rad=values["sigmoid.sigma_m2_per_rad"],
+            gamma_m_per_rad=values["sigmoid.gamma_m_per_rad"],
+            coulomb_Nm=values["sigmoid.coulomb_Nm"],
+        )
+        compensation = build(
+            "sigmoid.",
+            StageSigmoid,
+            keys=NOMINAL_KEYS,
+            params=params,
+            torque_constant_Nm_per_A=values["nominal.torque_constant_Nm_per_A"],
+        )
     return build(
         "",
         FeedbackLoop,
@@ -198,6 +217,7 @@ def build_loop(values: Values) -> FeedbackLoop:
         use_feedforward=values["use_feedforward"],
         sensor=values["sensor"],
         dob_sensor=values["dob.sensor"],
+        compensation=compensation,
     )
 
 

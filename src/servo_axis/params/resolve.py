@@ -41,7 +41,8 @@ def copied(
     section's ``law`` (``learning.law``; it decides target- or input-side
     corrections) when the learning unit runs and its section names one,
     and, when an identifier runs, :func:`adaptive_overrides`. The learning
-    unit: :func:`learning_overrides`. Other nodes take nothing. ``roles``
+    unit: :func:`learning_overrides`. The feedback:
+    :func:`feedback_overrides`. Other nodes take nothing. ``roles``
     are the nodes that run (default: those with a section,
     :func:`~servo_axis.params.scenario.roles_of`).
     """
@@ -56,6 +57,8 @@ def copied(
         return out
     if role == "learning":
         return learning_overrides(scenario)
+    if role == "feedback":
+        return feedback_overrides(scenario)
     return {}
 
 
@@ -142,6 +145,18 @@ def feedforward_overrides(scenario: dict[str, Any], given: Values) -> dict[str, 
     for _, term in feedforward_terms():
         out.update(term.overrides(scenario, given))
     return out
+
+
+def feedback_overrides(scenario: dict[str, Any]) -> dict[str, Any]:
+    """What the feedback copies from the other sections: the feedforward's ``sigmoid.*``.
+
+    With ``sigmoid.source: stage`` the law of 004 eq. (9) takes its sign and
+    distance from the measured stage: the loop computes it
+    (:func:`~servo_axis.params.factories.build_loop`), from the values the
+    feedforward section sets (one source) or its term's defaults.
+    """
+    ff = node_params(scenario, "feedforward")
+    return {key: ff.get(key, param.default) for key, param in schemas.FEEDBACK_SIGMOID.items()}
 
 
 def learning_overrides(scenario: dict[str, Any]) -> dict[str, Any]:

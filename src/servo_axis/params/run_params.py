@@ -192,7 +192,7 @@ def handshake_overrides(
         out["learning"].update(waits["learning"])
     out["plant"].update(waits["plant"])
     if "feedback" in roles:
-        out["feedback"] = dict(waits["feedback"])
+        out["feedback"] = {**waits["feedback"], **copied(scenario, "feedback", roles)}
     if "feedforward" in roles:
         given = node_params(scenario, "feedforward")
         files = {

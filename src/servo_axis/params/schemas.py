@@ -22,6 +22,11 @@ presets of the design intent.
 from __future__ import annotations
 
 from servo_axis.core.feedback.loop import SafetyLimits
+from servo_axis.core.feedforward.sigmoid import (
+    PAPER_PRESLIDING_M,
+    PAPER_SIGMA_M2_PER_RAD,
+    gamma_for_width,
+)
 from servo_axis.core.models.ball_screw import BallScrewParams
 from servo_axis.params.param import Param, dataclass_defaults
 from servo_axis.wire import topics
@@ -222,6 +227,45 @@ SENSOR = Param(
     "or linear scale / R (full-closed)",
 )
 
+#: ``sigmoid.source`` of the feedforward term: where 004 eq. (9) takes ``sgn(v)`` and ``z``.
+SIGMOID_SOURCES = ("reference", "stage")
+
+#: What the feedback copies of the feedforward section's ``sigmoid.*``
+#: (:func:`~servo_axis.params.resolve.feedback_overrides`): with
+#: ``sigmoid.source: stage`` the law is computed in the loop, from the scale.
+FEEDBACK_SIGMOID: dict[str, Param] = {
+    "sigmoid.enabled": Param(
+        False,
+        meaning="the feedforward section's sigmoid.enabled (copied): 004 eq. (9) is on",
+    ),
+    "sigmoid.source": Param(
+        "reference",
+        choices=SIGMOID_SOURCES,
+        meaning="the feedforward section's sigmoid.source (copied); stage: this loop adds "
+        "F_c / K_T of 004 eq. (9) from the measured table position, outside the DOB",
+    ),
+    "sigmoid.sigma_m2_per_rad": Param(
+        PAPER_SIGMA_M2_PER_RAD,
+        unit="m^2/rad",
+        above=0.0,
+        meaning="sigma of 004 eq. (8) (copied from the feedforward section)",
+    ),
+    "sigmoid.gamma_m_per_rad": Param(
+        gamma_for_width(
+            sigma_m2_per_rad=PAPER_SIGMA_M2_PER_RAD, half_width_m=PAPER_PRESLIDING_M / 2
+        ),
+        unit="m/rad",
+        above=0.0,
+        meaning="gamma of 004 eq. (9) (copied from the feedforward section)",
+    ),
+    "sigmoid.coulomb_Nm": Param(
+        0.43,
+        unit="N m",
+        above=0.0,
+        meaning="F_0 of 004 eq. (9), N m at the motor (copied from the feedforward section)",
+    ),
+}
+
 FEEDBACK: dict[str, Param] = {
     "bandwidth_hz": Param(
         40.0,
@@ -326,6 +370,7 @@ FEEDBACK: dict[str, Param] = {
         "acknowledged step k + 1 - recorder_lag_steps (recorder/progress), so that a plant "
         "with a keep-last 10 `state` writer never overruns it; 0: no such wait",
     ),
+    **FEEDBACK_SIGMOID,
 }
 
 #: The reference trajectory (at the table), read by the feedforward and the learning unit.

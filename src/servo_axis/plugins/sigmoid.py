@@ -2,7 +2,10 @@
 
 ``F_c`` of eq. (9) with ``d_r^ = sigma / z`` of eq. (8), ``z`` the distance
 to the nearest reversal of the reference (before and after it)
-(:class:`servo_axis.core.feedforward.sigmoid.SigmoidTerm`).
+(:class:`servo_axis.core.feedforward.sigmoid.SigmoidTerm`). With
+``sigmoid.source: stage`` the law is the feedback loop's instead, from the
+measured table position
+(:class:`servo_axis.core.feedback.stage_sigmoid.StageSigmoid`).
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ from servo_axis.core.feedforward.sigmoid import (
     gamma_for_width,
 )
 from servo_axis.core.feedforward.terms import FeedforwardTerm
+from servo_axis.params import schemas
 from servo_axis.params.factories import NOMINAL_KEYS, build_reference
 from servo_axis.params.param import Param, build
 from servo_axis.params.registry import FeedforwardTermEntry, Values
@@ -49,6 +53,14 @@ SCHEMA: dict[str, Param] = {
         meaning="F_0 of 004 eq. (9): the Coulomb level of the friction at the motor "
         "(the sliding level of the friction_id run)",
     ),
+    "sigmoid.source": Param(
+        "reference",
+        choices=schemas.SIGMOID_SOURCES,
+        meaning="where eq. (9) takes sgn(v) and z: reference (this term: the preview of the "
+        "reference, F_c falls before the reversal) or stage (004's wording, the velocity of "
+        "the stage: the feedback loop computes it from the measured table position, after "
+        "the measured reversal; this term is then off)",
+    ),
     "sigmoid.search_horizon_s": Param(
         1.0,
         unit="s",
@@ -60,8 +72,8 @@ SCHEMA: dict[str, Param] = {
 
 def _build(values: Values) -> FeedforwardTerm | None:
     """The sigmoid law of 004 eq. (9), if on."""
-    if not values["sigmoid.enabled"]:
-        return None
+    if not values["sigmoid.enabled"] or values["sigmoid.source"] == "stage":
+        return None  # from the stage: the feedback loop's (factories.build_loop)
     params = build(
         "sigmoid.",
         SigmoidParams,

@@ -1,4 +1,4 @@
-"""The node-death policy of a run (README): restart, run on, or stop the run.
+"""The node-death policy of a run (docs/explanation/reliability.md): restart, run on, or stop the run.
 
 * learning unit, identifier (:data:`RESTARTED_ROLES`): started again
   (``late_join``), up to the run's ``respawn_limit`` times per axis; they

@@ -57,6 +57,7 @@ import argparse
 import contextlib
 import dataclasses
 import json
+import logging
 import sys
 import time
 from collections.abc import Callable
@@ -67,11 +68,13 @@ from servo_axis.core.feedback.output import controlled_output
 from servo_axis.run.live_channels import (
     DEFAULT_PORT,
     DIAGNOSTICS_SCHEMA,
+    DRAIN_MAX_S,
     HOLD_LOCKSTEP_SAMPLES,
     HOLD_SAMPLES,
     HOST,
     INSTALL_HINT,
     READY,
+    TERMINAL,
     ErrorPairs,
     IncreasingSteps,
     InOrder,
@@ -88,11 +91,12 @@ TIME_EVERY_S = 0.01
 #: Messages buffered per viewer before the oldest is dropped (the SDK's
 #: default, 1024, is a quarter of a simulated second of four 1 kHz channels).
 BACKLOG_MESSAGES = 16_384
-#: Seconds the live view goes on forwarding after SIGINT/SIGTERM while
-#: messages still arrive (the runner's SIGKILL comes 5 s after its SIGINT),
-#: and the pause in arrivals that ends it sooner.
-DRAIN_S = 3.0
-DRAIN_IDLE_S = 0.5
+#: After SIGINT/SIGTERM the live view forwards until every axis's last state
+#: (step ``steps - 1``) is forwarded, for at most DRAIN_MAX_S (the runner
+#: waits that long for it), or until nothing arrives for DRAIN_IDLE_S (a run
+#: stopped early). A fixed 3 s once cut two viewers of a loaded run at step
+#: 1,982 of 3,000, and nothing said so.
+DRAIN_IDLE_S = 2.0
 #: Seconds the server is given to send what it has queued before it stops.
 FLUSH_S = 0.3
 
@@ -126,6 +130,7 @@ class LiveBridge:
         self.flushes: list[Callable[[], None]] = []
         self.sim_ns = 0
         self.channels: dict[str, Any] = {}
+        self.streams: list[_AxisStreams] = []
 
         def channel(topic: str, schema: dict[str, Any]) -> Any:
             ch = foxglove.Channel(
@@ -148,6 +153,27 @@ class LiveBridge:
             channel(axis.topic("tracking_error"), error_schema(axis))
         channel("/diagnostics", DIAGNOSTICS_SCHEMA)
 
+    def complete(self) -> bool:
+        """Every axis's last step (``steps - 1``) has come on each of its streams (False: steps
+        not known)."""
+        return all(s.complete() for s in self.streams)
+
+    def report(self) -> list[str]:
+        """Per axis, the state steps not forwarded (lines for the terminal, none if all were)."""
+        lines = []
+        for s in self.streams:
+            steps = s.axis.steps
+            if steps <= 0 or s.forwarded_states == steps:
+                continue
+            lines.append(
+                f"{TERMINAL}{s.axis.topic('state')}: forwarded {s.forwarded_states} of {steps} "
+                f"steps, up to step {s.last_state} (not forwarded: "
+                f"{steps - s.forwarded_states}; the run ended before its last step, or the "
+                "view fell behind by more than its queue of "
+                f"{HOLD_LOCKSTEP_SAMPLES} samples)"
+            )
+        return lines
+
     @property
     def topics(self) -> list[str]:
         """The channels' topics."""
@@ -163,7 +189,9 @@ class LiveBridge:
         from rclpy.qos import QoSProfile, ReliabilityPolicy
 
         for axis in self.axes:
-            _AxisStreams(self, axis).subscribe(node)
+            streams = _AxisStreams(self, axis)
+            streams.subscribe(node)
+            self.streams.append(streams)
         try:
             from diagnostic_msgs.msg import DiagnosticArray
         except ImportError:  # not installed: the channel stays empty
@@ -196,6 +224,15 @@ class _AxisStreams:
         self.pairs = ErrorPairs()
         self.error_ch = bridge.channels[axis.topic("tracking_error")]
         self.error_gate = IncreasingSteps()
+        self.last_state = -1
+        self.forwarded_states = 0
+        # The last step that came on each stream, forwarded or not.
+        self.last_seen = {"state": -1, "reference": -1, "command": -1}
+
+    def complete(self) -> bool:
+        """The run's last step has come on each of the axis's streams."""
+        last = self.axis.steps - 1
+        return last >= 0 and all(step >= last for step in self.last_seen.values())
 
     def subscribe(self, node: Any) -> None:
         """Subscribe ``node`` to the axis's three streams."""
@@ -229,6 +266,8 @@ class _AxisStreams:
         self.error_ch.log(out, log_time=ns)
 
     def _on_state(self, sample: Any) -> None:
+        self.last_state = max(self.last_state, sample.step)
+        self.forwarded_states += 1
         bridge = self.bridge
         ns = sample.step * self.period
         if ns > bridge.sim_ns:
@@ -273,6 +312,8 @@ class _AxisStreams:
                 if after is not None:
                     after(sample)
 
+        last_seen = self.last_seen
+
         def on_data(data: bytes) -> None:
             bridge.last_message_s = time.monotonic()
             needed = always or ch.has_sinks() or (after is not None and error_ch.has_sinks())
@@ -280,13 +321,16 @@ class _AxisStreams:
                 # Unwatched, it moves on all the same: a viewer that
                 # subscribes later does not wait for the steps skipped.
                 with contextlib.suppress(SignalError):  # junk: not forwarded anyway
-                    order.skip(msgs.stamp_ns_from_cdr(data) // period)
+                    step = msgs.stamp_ns_from_cdr(data) // period
+                    order.skip(step)
+                    last_seen[name] = max(last_seen[name], step)
                 return
             try:
                 sample = decode(deserialize_message(data, JointState))
             except SignalError:
                 bridge.rejected += 1
                 return
+            last_seen[name] = max(last_seen[name], sample.step)
             forward(order.put(sample.step, sample))
 
         bridge.flushes.append(lambda: forward(order.flush()))
@@ -310,6 +354,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"live: {INSTALL_HINT}", file=sys.stderr, flush=True)
         return 2
     axes = [LiveAxis(**a) for a in json.loads(args.axes)]
+    _say_refused_viewers(foxglove)
     bridge = LiveBridge(foxglove, axes)
     try:
         server = foxglove.start_server(
@@ -330,12 +375,43 @@ def main(argv: list[str] | None = None) -> int:
         server.stop()
 
 
+#: Why foxglove-sdk 0.30 fails a WebSocket handshake, in practice: the
+#: subprotocol. It logs only "handshake failed" (and answers HTTP 400).
+REFUSED_WHY = (
+    "this server speaks the subprotocol foxglove.sdk.v1 (foxglove-sdk 0.30); a client that "
+    "offers only the older foxglove.websocket.v1 is refused with HTTP 400: use a current "
+    "Foxglove or Lichtblick, or offer both subprotocols"
+)
+
+
+class _RefusedViewers(logging.Handler):
+    """The SDK's log records of a viewer it dropped, as a line for the user's terminal."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        text = record.getMessage()
+        if "handshake failed" in text:
+            print(f"{TERMINAL}a viewer could not connect ({text}): {REFUSED_WHY}", flush=True)
+        elif record.levelno >= logging.WARNING:
+            print(f"{TERMINAL}{record.name}: {text}", flush=True)
+
+
+def _say_refused_viewers(foxglove: Any) -> None:
+    """Route the SDK's warnings and errors (a viewer refused) to the terminal's lines."""
+    logger = logging.getLogger("foxglove")
+    logger.addHandler(_RefusedViewers(level=logging.WARNING))
+    logger.setLevel(logging.WARNING)
+    logger.propagate = False  # not also on the root logger's stderr
+    with contextlib.suppress(Exception):  # an SDK without it: its log stays its own
+        foxglove.set_log_level("WARNING")
+
+
 def _spin(bridge: LiveBridge, ready: str) -> int:
     """Subscribe, say ``ready``, forward until SIGINT/SIGTERM, then what still arrives.
 
     The runner starts the nodes once ``ready`` is printed: the subscriptions
     exist by then, so they are discovered while the nodes start. Forwarding
-    goes on for at most :data:`DRAIN_S` after the signal.
+    goes on after the signal until the run's last state is forwarded (see
+    :data:`DRAIN_IDLE_S`); the steps not forwarded are then said.
     """
     import rclpy
     from rclpy.signals import SignalHandlerOptions
@@ -356,10 +432,16 @@ def _spin(bridge: LiveBridge, ready: str) -> int:
             executor.spin_once(timeout_sec=0.1)
         # The runner stops the live view after the nodes: what they sent
         # last may still be queued here (the bridge can lag behind a fast run).
-        end = time.monotonic() + DRAIN_S
-        while time.monotonic() < end and time.monotonic() - bridge.last_message_s < DRAIN_IDLE_S:
-            executor.spin_once(timeout_sec=DRAIN_IDLE_S / 4)
+        end = time.monotonic() + DRAIN_MAX_S
+        while (
+            not bridge.complete()
+            and time.monotonic() < end
+            and time.monotonic() - bridge.last_message_s < DRAIN_IDLE_S
+        ):
+            executor.spin_once(timeout_sec=0.05)
         bridge.flush()
+        for line in bridge.report():
+            print(line, flush=True)
     finally:
         executor.shutdown()
         node.destroy_node()

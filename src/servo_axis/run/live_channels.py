@@ -19,6 +19,13 @@ HOST = "127.0.0.1"
 DEFAULT_PORT = 8765
 #: What the process prints once its server listens (the runner waits for it).
 READY = "live view serving"
+#: How the live process starts a line the runner copies to the user's terminal
+#: (a viewer refused, steps not forwarded; :class:`~servo_axis.run.live_view.LogRelay`).
+TERMINAL = "live view: "
+#: Seconds the live view may go on forwarding after it is told to stop, while
+#: the run's last steps are still on their way (it stops sooner once every
+#: axis's last state is forwarded, or when nothing arrives for DRAIN_IDLE_S).
+DRAIN_MAX_S = 60.0
 #: The one line shown when the optional extra is missing.
 INSTALL_HINT = (
     "--live needs the optional package foxglove-sdk: install it with "
@@ -60,6 +67,9 @@ class LiveAxis:
     lockstep : bool
         The run's time mode is lockstep (every step comes: a gap is waited
         for, :data:`HOLD_LOCKSTEP_SAMPLES`); False: realtime.
+    steps : int
+        The run's steps (0: not known): the live view drains until the state
+        of step ``steps - 1`` and says which steps it did not forward.
     """
 
     namespace: str
@@ -69,6 +79,7 @@ class LiveAxis:
     lead_m_per_rad: float
     linear: bool
     lockstep: bool = True
+    steps: int = 0
 
     def topic(self, name: str) -> str:
         """The resolved ROS name of the axis's topic ``name``."""

@@ -14,6 +14,7 @@ import dataclasses
 import json
 import socket
 import sys
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -22,11 +23,22 @@ from typing import TextIO
 
 from servo_axis.core.errors import ConfigError
 from servo_axis.params.run_plan import AxisPlan
-from servo_axis.run.live_channels import HOST, INSTALL_HINT, READY, LiveAxis
+from servo_axis.run.live_channels import (
+    DRAIN_MAX_S,
+    HOST,
+    INSTALL_HINT,
+    READY,
+    TERMINAL,
+    LiveAxis,
+)
 from servo_axis.run.processes import Proc, start_process, stop_nodes
 
 #: Seconds the runner waits for the live view to listen.
 READY_TIMEOUT_S = 20.0
+#: Seconds the live view is given to stop: it drains for up to DRAIN_MAX_S.
+STOP_TIMEOUT_S = DRAIN_MAX_S + 10.0
+#: How often the runner looks for the live view's lines for the terminal.
+RELAY_EVERY_S = 0.25
 
 
 def live_axis(plan: AxisPlan) -> LiveAxis:
@@ -39,6 +51,7 @@ def live_axis(plan: AxisPlan) -> LiveAxis:
         lead_m_per_rad=plan.lead_m_per_rad,
         linear=plan.linear,
         lockstep=not plan.realtime,
+        steps=plan.steps,
     )
 
 
@@ -111,6 +124,7 @@ class LiveView:
     axes: list[LiveAxis]
     out: TextIO | None
     proc: Proc | None = None
+    relay: LogRelay | None = None
 
     def start(self, env: dict[str, str], log_dir: Path, stopped: Callable[[], bool]) -> None:
         """Start the live process and wait until it listens (or ``stopped()``); print its URL."""
@@ -129,15 +143,65 @@ class LiveView:
                 file=self.out,
                 flush=True,
             )
+        # What the user must know at once (a viewer refused, what was not
+        # forwarded) goes from its log to the terminal.
+        self.relay = LogRelay(proc.log_path, sys.stderr)
+        self.relay.start()
 
     def stop(self) -> None:
         """Stop the live process, if it was started; say so if it had failed (the run goes on)."""
         if self.proc is None:
             return
-        code = stop_nodes([self.proc])["live"]
+        code = stop_nodes([self.proc], STOP_TIMEOUT_S)["live"]
+        if self.relay is not None:
+            self.relay.stop()
         if code != 0:
             print(
                 f"live view exited with code {code} (see {self.proc.log_path}); "
                 "the run is not affected",
                 file=sys.stderr,
             )
+
+
+class LogRelay:
+    """A thread that copies the live view's lines for the terminal (:data:`TERMINAL`) to ``out``.
+
+    The live process writes to its log; a viewer that could not connect, or
+    the steps a viewer did not get, must reach the user's terminal while the
+    run goes on (and at its end), not only that log.
+    """
+
+    def __init__(self, log_path: Path, out: TextIO) -> None:
+        self._path = log_path
+        self._out = out
+        self._offset = 0
+        self._done = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="live-relay", daemon=True)
+
+    def start(self) -> None:
+        """Start copying."""
+        self._thread.start()
+
+    def stop(self) -> None:
+        """Copy what is left (the process has ended) and stop."""
+        self._done.set()
+        self._thread.join(timeout=5.0)
+        self.copy()
+
+    def copy(self) -> None:
+        """Copy the lines for the terminal written since the last call."""
+        try:
+            with self._path.open("rb") as f:
+                f.seek(self._offset)
+                data = f.read()
+        except OSError:
+            return
+        end = data.rfind(b"\n") + 1  # whole lines only
+        self._offset += end
+        for line in data[:end].decode(errors="replace").splitlines():
+            if line.startswith(TERMINAL):
+                print(line, file=self._out, flush=True)
+
+    def _run(self) -> None:
+        while not self._done.wait(RELAY_EVERY_S):
+            self.copy()

@@ -84,7 +84,8 @@ def run_header(domain_id: int, namespaces: list[str], settings: Mapping[str, str
     -------
     list of str
         The lines: domain and namespaces, discovery and transports, and the
-        environment a ``ros2`` command needs to see the run.
+        environment and the command that watch the run (the shipped
+        watcher, no ``ros2`` CLI needed).
     """
     shown = [ns or "/" for ns in namespaces]
     first = shown[0].rstrip("/")
@@ -105,8 +106,10 @@ def run_header(domain_id: int, namespaces: list[str], settings: Mapping[str, str
             if range_ == "LOCALHOST"
             else ""
         ),
+        # The watcher ships in the wheel: a PyPI-only user has no ros2 CLI.
         f"watch it: ROS_DOMAIN_ID={domain_id} ROS_AUTOMATIC_DISCOVERY_RANGE={range_} "
-        f"ros2 topic echo {first}/state  (README: Watching a live run)",
+        f"python -m servo_axis.examples.watch_run --ros-args -r __ns:={first or '/'}  "
+        "(or ros2 topic echo, or run --live for Foxglove: docs/how-to/watch-a-run.md)",
     ]
 
 

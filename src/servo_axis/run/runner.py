@@ -14,7 +14,7 @@ stalls), and when the plant has finished stops the rest with SIGINT, then
 SIGKILL after a timeout (:mod:`servo_axis.run.stop`). It then writes
 ``summary.json`` and the plots (:mod:`servo_axis.run.summarise`).
 
-A node that dies during the run (node-death policy, README):
+A node that dies during the run (node-death policy, docs/explanation/reliability.md):
 
 * learning unit: the axis runs on (the feedforward generator keeps the last
   correction once the unit's liveliness has lapsed) and the runner starts

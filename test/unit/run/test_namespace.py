@@ -42,8 +42,10 @@ def test_the_header_names_domain_namespace_and_discovery(tmp_path: Path) -> None
     )
     assert "FASTDDS_BUILTIN_TRANSPORTS=UDPv4 + shared memory" in lines[1]
     assert lines[2].startswith(
-        "watch it: ROS_DOMAIN_ID=42 ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST ros2 topic echo /x/state"
+        "watch it: ROS_DOMAIN_ID=42 ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST "
+        "python -m servo_axis.examples.watch_run --ros-args -r __ns:=/x  "
     )
+    assert lines[2].endswith("docs/how-to/watch-a-run.md)") and "README" not in lines[2]
     root = run_header(7, [""], settings)
-    assert "namespace / (nodes /plant" in root[0] and "echo /state" in root[2]
+    assert "namespace / (nodes /plant" in root[0] and "-r __ns:=/  " in root[2]
     assert "namespaces /x, /y" in run_header(7, ["/x", "/y"], settings)[0]

@@ -2,7 +2,10 @@
 
 ``u = u_ff + C_fb(z) (r - y) - d_hat`` where ``C_fb`` is the pole-placement
 PID (Tustin) and ``d_hat`` the inverse-model disturbance observer estimate
-(paper 004 Sect. II, DOB on the motor angle). The loop trips to zero current,
+(paper 004 Sect. II, DOB on the motor angle), plus an optional friction
+compensation from the measured table position added outside the DOB's view
+(004 eq. (9) from the stage, :mod:`~servo_axis.core.feedback.stage_sigmoid`).
+The loop trips to zero current,
 for good, on a following error, a travel limit or a current demand beyond
 the trip level, or when the caller reports a missing input.
 """
@@ -17,6 +20,7 @@ from servo_axis.core.feedback.discrete import DiscreteFilter
 from servo_axis.core.feedback.dob import DisturbanceObserver
 from servo_axis.core.feedback.output import SENSORS
 from servo_axis.core.feedback.pid import DiscretePid
+from servo_axis.core.feedback.stage_sigmoid import StageSigmoid
 
 #: One sample inside the loop: current, PID output, DOB estimate, error, fault, value.
 _Sample = tuple[float, float, float, float, "Fault | None", float]
@@ -103,6 +107,13 @@ class FeedbackLoop:
         The angle the DOB observes in :meth:`step`: paper 004 closes the PID
         on the table (``scale``) and the DOB on the motor (``encoder``), for
         the DOB's bandwidth.
+    compensation : StageSigmoid or None
+        A friction compensation from the measured table position (the linear
+        scale, m), e.g. 004 eq. (9) with sign and distance from the stage
+        (:class:`~servo_axis.core.feedback.stage_sigmoid.StageSigmoid`): its
+        ``current_A(scale_m)`` is added after the point where the DOB reads
+        the current, as 004 Fig. 5 adds ``F_c`` (the DOB's input is the
+        command without it). Needs the scale: :meth:`step` or :meth:`current`.
     """
 
     def __init__(
@@ -115,6 +126,7 @@ class FeedbackLoop:
         use_feedforward: bool = True,
         sensor: str = "encoder",
         dob_sensor: str = "encoder",
+        compensation: StageSigmoid | None = None,
     ) -> None:
         self._pid = pid
         self._dob = dob
@@ -131,6 +143,7 @@ class FeedbackLoop:
         self._on_scale = sensor == "scale"
         self._dob_on_scale = dob_sensor == "scale"
         self._fused = _FusedFilters.of(pid, dob)
+        self._compensation = compensation
 
     @property
     def tripped(self) -> bool:
@@ -156,7 +169,7 @@ class FeedbackLoop:
             As in :meth:`update`.
         """
         u, fb, d_hat, error, fault, value = self._sample(
-            *self._observed(encoder_rad, scale_m), reference_rad, feedforward_A
+            *self._observed(encoder_rad, scale_m), reference_rad, feedforward_A, scale_m
         )
         return LoopOutput(u, fb, d_hat, error, fault, value)
 
@@ -173,7 +186,7 @@ class FeedbackLoop:
             observed = y
         else:
             observed = scale_m / self._lead if self._dob_on_scale else encoder_rad
-        return self._sample(y, observed, reference_rad, feedforward_A)[0]
+        return self._sample(y, observed, reference_rad, feedforward_A, scale_m)[0]
 
     def _observed(self, encoder_rad: float, scale_m: float) -> tuple[float, float]:
         """``(y, the DOB's angle)`` of :meth:`step` from the readings.
@@ -208,6 +221,11 @@ class FeedbackLoop:
         observer_angle_rad : float or None
             The angle the DOB observes, rad (None: ``angle_rad``).
         """
+        if self._compensation is not None:
+            raise ConfigError(
+                "compensation: a compensation from the scale needs step() or current(), "
+                "which get the scale reading; update() gets only the angle"
+            )
         observed = angle_rad if observer_angle_rad is None else observer_angle_rad
         u, fb, d_hat, error, fault, value = self._sample(
             angle_rad, observed, reference_rad, feedforward_A
@@ -215,7 +233,12 @@ class FeedbackLoop:
         return LoopOutput(u, fb, d_hat, error, fault, value)
 
     def _sample(
-        self, angle_rad: float, observed: float, reference_rad: float, feedforward_A: float
+        self,
+        angle_rad: float,
+        observed: float,
+        reference_rad: float,
+        feedforward_A: float,
+        scale_m: float = 0.0,
     ) -> _Sample:
         """One sample of :meth:`update` as a tuple (no dataclass on the per-sample path)."""
         error = reference_rad - angle_rad
@@ -228,6 +251,10 @@ class FeedbackLoop:
             fb = self._pid.update(error)
             d_hat = self._dob.update(observed, self._previous_A) if self._dob is not None else 0.0
         u = (feedforward_A if self._use_ff else 0.0) + fb - d_hat
+        observer_A = u
+        if self._compensation is not None:
+            # 004 Fig. 5: F_c enters after the DOB's view of the current.
+            u = observer_A + self._compensation.current_A(scale_m)
         lead = self._lead
         lim = self._limits
         fault: Fault | None = None
@@ -241,7 +268,7 @@ class FeedbackLoop:
         if fault is not None:
             self.trip(fault)
             return 0.0, fb, d_hat, error, fault, value
-        self._previous_A = u
+        self._previous_A = observer_A
         return u, fb, d_hat, error, None, 0.0
 
 

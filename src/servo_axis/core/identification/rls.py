@@ -92,6 +92,8 @@ class RlsParams:
     names : tuple of str, length n
         Parameter names, e.g. ``("J", "D", "U")``; used in messages and state.
 
+    Notes
+    -----
     Array fields are stored as tuples of float.
     """
 

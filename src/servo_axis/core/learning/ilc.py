@@ -47,7 +47,7 @@ trial-to-trial eigenvalue of -1 that eq. (6)-(7) do not contain. After a
 reference that reverses the last move (the friction held at rest flips
 from ``-T_c`` to ``+T_c``, 2 T_c / K_T = 9 A on the 001 axis) the learned
 input at rest alternated between +9.0 and -4.5 A from trial to trial and
-the error stayed at 3.9 um RMS (README, paper 001).
+the error stayed at 3.9 um RMS (docs/explanation/paper-001.md, S-ILC and the trial boundary).
 """
 
 from __future__ import annotations
