@@ -13,5 +13,5 @@ if [ $# -gt 0 ]; then
 fi
 status=0
 .venv/bin/python -m pytest -n auto test/unit || status=$?
-.venv/bin/python -m pytest test/ros test/integration || { [ "$status" -ne 0 ] || status=$?; }
+.venv/bin/python -m pytest test/ros test/integration || { code=$?; [ "$status" -ne 0 ] || status=$code; }
 exit "$status"
