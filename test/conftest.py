@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import os
 import time
@@ -49,19 +50,17 @@ def next_domain_id() -> int:
     return _LOW + (_START + next(_domains)) % (_HIGH - _LOW + 1)
 
 
-@pytest.fixture
-def ros_env(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, request: pytest.FixtureRequest
-) -> Iterator[int]:
-    """Distinct ROS_DOMAIN_ID, localhost discovery, UDP only, temporary ROS_LOG_DIR.
+@contextlib.contextmanager
+def _isolated_ros(monkeypatch: pytest.MonkeyPatch, log_dir: Path, what: str) -> Iterator[int]:
+    """A fresh domain, localhost discovery, UDP only and ``log_dir`` as ROS_LOG_DIR.
 
-    Everything it sets is restored when the test ends.
+    Set with ``monkeypatch`` (which restores them); Fast DDS shared memory
+    made meanwhile and left behind is removed and named in a warning (``what``).
     """
     domain = next_domain_id()
     monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
     monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     monkeypatch.setenv("FASTDDS_BUILTIN_TRANSPORTS", "UDPv4")
-    log_dir = tmp_path / "ros_log"
     log_dir.mkdir()
     monkeypatch.setenv("ROS_LOG_DIR", str(log_dir))
     # The in-test probes use the nodes' discovery profile (restored after).
@@ -78,10 +77,36 @@ def ros_env(
 
     left = clean_stale_shm(since=started)
     if left:
-        warnings.warn(
-            f"{request.node.nodeid} left Fast DDS shared memory behind (removed): {left}",
-            stacklevel=1,
-        )
+        warnings.warn(f"{what} left Fast DDS shared memory behind (removed): {left}", stacklevel=1)
+
+
+@pytest.fixture
+def ros_env(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, request: pytest.FixtureRequest
+) -> Iterator[int]:
+    """Distinct ROS_DOMAIN_ID, localhost discovery, UDP only, temporary ROS_LOG_DIR.
+
+    Everything it sets is restored when the test ends.
+    """
+    with _isolated_ros(monkeypatch, tmp_path / "ros_log", request.node.nodeid) as domain:
+        yield domain
+
+
+@pytest.fixture(scope="module")
+def module_ros_env(
+    tmp_path_factory: pytest.TempPathFactory, request: pytest.FixtureRequest
+) -> Iterator[tuple[int, Path]]:
+    """``ros_env`` for the runs a module's tests share: ``(domain, a folder for the runs)``.
+
+    A run that several tests read is made once (in a module-scoped fixture
+    of the test module) instead of once per test.
+    """
+    folder = tmp_path_factory.mktemp(request.module.__name__.rsplit(".", 1)[-1])
+    with (
+        pytest.MonkeyPatch.context() as monkeypatch,
+        _isolated_ros(monkeypatch, folder / "ros_log", request.module.__name__) as domain,
+    ):
+        yield domain, folder
 
 
 def read_raw_payloads(bag_dir: Path) -> dict[str, list[bytes]]:

@@ -27,7 +27,7 @@ from servo_axis.params.factories import build_reference
 from servo_axis.params.resolve import node_values
 from servo_axis.params.scenario import load_scenario
 from servo_axis.recording.reader import read_raw
-from servo_axis.run.runner import RunOptions, run_scenario
+from servo_axis.run.runner import RunOptions, RunResult, run_scenario
 from servo_axis.simulate import simulate_identification
 from servo_axis.wire import cdr
 
@@ -81,13 +81,30 @@ def rmsd(path: Path, angle_rad: np.ndarray) -> float:
     return float(np.sqrt(np.mean((target - angle_rad) ** 2)))
 
 
-def test_the_four_schemes_are_their_plain_call_loops(ros_env: int, tmp_path: Path) -> None:
-    figures = {}
+@pytest.fixture(scope="module")
+def scheme_runs(module_ros_env: tuple[int, Path]) -> dict[str, tuple[Path, RunResult]]:
+    """Each scheme cut to 2 s and run once (separate processes): ``(scenario file, result)``.
+
+    The tests of this module read the same runs.
+    """
+    domain, folder = module_ros_env
+    runs = {}
     for scheme in SCHEMES:
-        path = short(scheme, tmp_path / f"{scheme}.yaml")
-        result = run_scenario(
-            path, RunOptions(out_dir=tmp_path / scheme, domain_id=ros_env, progress=None)
+        path = short(scheme, folder / f"{scheme}.yaml")
+        runs[scheme] = (
+            path,
+            run_scenario(
+                path, RunOptions(out_dir=folder / scheme, domain_id=domain, progress=None)
+            ),
         )
+    return runs
+
+
+def test_the_four_schemes_are_their_plain_call_loops(
+    scheme_runs: dict[str, tuple[Path, RunResult]],
+) -> None:
+    figures = {}
+    for scheme, (path, result) in scheme_runs.items():
         assert result.exit_code == 0, scheme
         summary = result.summary
         core = simulate_identification(path)
@@ -120,26 +137,27 @@ def test_the_four_schemes_are_their_plain_call_loops(ros_env: int, tmp_path: Pat
         assert figures[scheme] < 0.5 * figures["pid"], scheme
 
 
-def test_identical_bags_run_after_run_and_composed(
-    ros_env: int, tmp_path: Path, raw_payloads: Any
+def test_identical_bags_separate_and_composed(
+    ros_env: int,
+    tmp_path: Path,
+    raw_payloads: Any,
+    scheme_runs: dict[str, tuple[Path, RunResult]],
 ) -> None:
-    path = short("lpf2", tmp_path / "lpf2.yaml", seconds=1.5)
-    bags = []
-    for name, composed in (("a", False), ("b", False), ("composed", True)):
-        result = run_scenario(
-            path,
-            RunOptions(
-                out_dir=tmp_path / name, domain_id=ros_env, composed=composed, progress=None
-            ),
-        )
-        assert result.exit_code == 0, name
-        bags.append(raw_payloads(result.run_dir / "bag"))
-    first = bags[0]
+    # The shared separate lpf2 run against a composed one: every topic, the
+    # identifier's estimates included (two runs, two process layouts; the
+    # separate runs are also the plain-call loop bit for bit, above).
+    path, separate = scheme_runs["lpf2"]
+    composed = run_scenario(
+        path,
+        RunOptions(out_dir=tmp_path / "composed", domain_id=ros_env, composed=True, progress=None),
+    )
+    assert separate.exit_code == 0 and composed.exit_code == 0
+    first = raw_payloads(separate.run_dir / "bag")
+    other = raw_payloads(composed.run_dir / "bag")
     assert "/tilt/identifier/estimates" in first and len(first["/tilt/identifier/estimates"]) > 100
-    for other in bags[1:]:
-        assert set(other) == set(first)
-        for topic in first:
-            assert other[topic] == first[topic], topic
+    assert set(other) == set(first)
+    for topic in first:
+        assert other[topic] == first[topic], topic
 
 
 def test_a_killed_identifier_resumes_bit_identically(ros_env: int, tmp_path: Path) -> None:

@@ -2,10 +2,11 @@
 
 Starts ``dask scheduler`` and two ``dask worker`` processes (one thread
 each, no nanny: the process started is the worker) on 127.0.0.1, runs a
-20-point study of ``pid_disturbance`` (40 s of simulated time per point,
-about 0.5 s each) through ``python -m servo_axis sweep --scheduler``,
-SIGKILLs one worker once a few points are done, and checks that every point
-is in the table with the same figures as a serial, in-process run of the
+20-point study of ``pid_disturbance`` (20 s of simulated time per point,
+about 0.25 s each: long enough that the worker dies with points still to
+do) through ``python -m servo_axis sweep --scheduler``, SIGKILLs one
+worker once a few points are done, and checks that every point is in the
+table with the same figures as a serial, in-process run of the
 same points (:func:`servo_axis.sweep.point.run_point`, no dask). Every
 process is reaped.
 """
@@ -36,7 +37,7 @@ STUDY = """\
 name: dask_kill
 scenario: pid_disturbance
 set:
-  /**.duration_s: 40.0
+  /**.duration_s: 20.0
 grid:
   feedback.bandwidth_hz: [20.0, 25.0, 30.0, 35.0, 40.0]
   disturbance.amplitude_Nm: [0.25, 0.5, 0.75, 1.0]
