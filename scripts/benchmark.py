@@ -688,6 +688,12 @@ def _pct(d: dict | None) -> str:
     return f"{d['p50']:.0f}/{d['p99']:.0f}/{d['max']:.0f}"
 
 
+def bench_domain(args: argparse.Namespace) -> int:
+    """The ROS domain of this invocation: ``--domain-id``, or one of 60..89 by pid (a
+    second benchmark or a test suite beside it picks another with ``--domain-id``)."""
+    return args.domain_id if args.domain_id is not None else 60 + os.getpid() % 30
+
+
 def run_all(args: argparse.Namespace) -> int:
     """``--all`` / ``--quick``: the one table of every scenario and the realtime figures."""
     from servo_axis.params.scenario import axes_of
@@ -697,7 +703,7 @@ def run_all(args: argparse.Namespace) -> int:
     if args.only:
         names = tuple(args.only.split(","))
     tmp = Path(tempfile.mkdtemp(prefix="servo_axis_bench_all_"))
-    domain = 60 + os.getpid() % 30
+    domain = bench_domain(args)
     env = ros_environment(domain, tmp)
     started = time.monotonic()
     print("ping-pong baseline (2 processes) ...", flush=True)
@@ -864,7 +870,7 @@ def budget(args: argparse.Namespace) -> int:
     steps = round(common["duration_s"] / common.get("control_period_s", 1e-3))
     prof_dir = tmp / "profiles"
     prof_dir.mkdir()
-    domain = 60 + os.getpid() % 30
+    domain = bench_domain(args)
     plain = run_scenario(
         scenario, RunOptions(out_dir=tmp / "plain", domain_id=domain, progress=None, plots=False)
     )
@@ -910,7 +916,7 @@ def topology(args: argparse.Namespace) -> int:
     from servo_axis.run.processes import ros_environment
 
     tmp = Path(tempfile.mkdtemp(prefix="servo_axis_bench_topology_"))
-    domain = 60 + os.getpid() % 30
+    domain = bench_domain(args)
     env = ros_environment(domain, tmp)
     scenario, _ = prepared(Path(args.scenario), tmp, args.duration)
     rates: dict[str, list[float]] = {}
@@ -1028,6 +1034,13 @@ def main() -> int:
     parser.add_argument("--floor", help="rt_floor.py --json output to use instead of measuring")
     parser.add_argument("--only", help="with --all: these scenarios (comma-separated names)")
     parser.add_argument(
+        "--domain-id",
+        type=int,
+        choices=range(233),
+        metavar="0..232",
+        help="ROS domain of the runs (default: one of 60..89 by process id)",
+    )
+    parser.add_argument(
         "--budget", action="store_true", help="where a lockstep step's time goes (profiled run)"
     )
     args = parser.parse_args()
@@ -1078,7 +1091,7 @@ def main() -> int:
     scenario.write_text(yaml.safe_dump(data))
     period = float(data["/**"]["ros__parameters"].get("control_period_s", 1e-3))
     steps = round(args.duration / period)
-    domain = 60 + os.getpid() % 30
+    domain = bench_domain(args)
 
     if args.learning_cost:
         return learning_cost(args, data, scenario, tmp, domain, steps, period)
