@@ -16,7 +16,7 @@ import os
 import signal
 import subprocess
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -37,7 +37,6 @@ from test_external import (
 )
 from test_external import stop as stop_node
 
-from conftest import next_domain_id, read_raw_payloads
 from servo_axis.recording.deserialize import read_messages
 from servo_axis.run.processes import pids_of
 
@@ -117,27 +116,16 @@ def run_outside(path: Path, out: Path, *, pause_recorder_s: float = 0.0) -> Run:
 
 
 @pytest.fixture(scope="module")
-def runs(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, Run]]:
+def runs(module_ros_env: tuple[int, Path]) -> Iterator[dict[str, Run]]:
     """The scenario with the suite's plant, with the example plant, and with the example
     plant while the recorder is stopped (SIGSTOP) for 2 s mid-run: one domain, in turn."""
-    tmp = tmp_path_factory.mktemp("outside_plant")
-    domain = next_domain_id()
-    from servo_axis.run.processes import ros_environment
-
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("ROS_DOMAIN_ID", str(domain))
-        mp.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-        mp.setenv("FASTDDS_BUILTIN_TRANSPORTS", "UDPv4")
-        (tmp / "ros_log").mkdir()
-        mp.setenv("ROS_LOG_DIR", str(tmp / "ros_log"))
-        env = ros_environment(domain, tmp / "ros_log")
-        mp.setenv("FASTRTPS_DEFAULT_PROFILES_FILE", env["FASTRTPS_DEFAULT_PROFILES_FILE"])
-        path = scenario(tmp)
-        alone = tmp / "alone"
-        done = {"alone": Run(finish(start_run(path, alone), RUN_TIMEOUT_S), alone)}
-        done["outside"] = run_outside(path, tmp / "outside")
-        done["paused"] = run_outside(path, tmp / "paused", pause_recorder_s=2.0)
-        yield done
+    _domain, tmp = module_ros_env
+    path = scenario(tmp)
+    alone = tmp / "alone"
+    done = {"alone": Run(finish(start_run(path, alone), RUN_TIMEOUT_S), alone)}
+    done["outside"] = run_outside(path, tmp / "outside")
+    done["paused"] = run_outside(path, tmp / "paused", pause_recorder_s=2.0)
+    yield done
 
 
 def joint_arrays(bag: Path, topic: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -198,7 +186,7 @@ def test_the_example_plant_closes_the_loop_in_lockstep_as_the_suites_plant(
 
 
 def test_a_stopped_recorder_loses_nothing_of_a_keep_last_10_plant(
-    runs: dict[str, Run],
+    runs: dict[str, Run], raw_payloads: Callable[[Path], dict[str, list[bytes]]]
 ) -> None:
     """With the recorder stopped for 2 s mid-run, the feedback holds its commands until the
     recorder has caught up, so the example's keep-last 10 `state` writer never overruns: the
@@ -208,7 +196,7 @@ def test_a_stopped_recorder_loses_nothing_of_a_keep_last_10_plant(
     assert paused.code == 0, tails(paused.out)
     rejected = summary(paused)["health"]["nodes"]
     assert not any(node.get("rejected") for node in rejected.values()), rejected
-    assert read_raw_payloads(paused.out / "bag") == read_raw_payloads(outside.out / "bag")
+    assert raw_payloads(paused.out / "bag") == raw_payloads(outside.out / "bag")
 
 
 def test_a_killed_outside_plant_ends_the_run_with_a_readable_bag(

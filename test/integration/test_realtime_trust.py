@@ -90,13 +90,10 @@ def fifo_permitted() -> bool:
 
 
 @pytest.fixture(scope="module")
-def stalled_run(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+def stalled_run(module_ros_env: tuple[int, Path]) -> dict[str, Any]:
     """A realtime run whose feedback is stopped for 0.3 s mid-run; its threads' policies."""
-    from conftest import next_domain_id
-
-    tmp = tmp_path_factory.mktemp("stall")
+    domain, tmp = module_ros_env
     run_dir = tmp / "run"
-    domain = next_domain_id()
     proc = start_run(realtime_copy(tmp / "rt.yaml", 3.0), run_dir, domain)
     plant = wait_for_the_clock(run_dir, proc)
     (feedback,) = pids_of(run_dir, "feedback")
