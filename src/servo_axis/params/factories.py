@@ -153,6 +153,18 @@ def build_plant(values: Values) -> Plant:
 # --------------------------------------------------------------------------- feedback
 
 
+def sigmoid_params(values: Values) -> SigmoidParams:
+    """The sigmoid law's constants of 004 eq. (9) from the ``sigmoid.*`` keys (the
+    feedforward term from the reference and the feedback's from the stage share them)."""
+    return build(
+        "sigmoid.",
+        SigmoidParams,
+        sigma_m2_per_rad=values["sigmoid.sigma_m2_per_rad"],
+        gamma_m_per_rad=values["sigmoid.gamma_m_per_rad"],
+        coulomb_Nm=values["sigmoid.coulomb_Nm"],
+    )
+
+
 def build_loop(values: Values) -> FeedbackLoop:
     """The feedback loop (PID, optional DOB, trips) of checked feedback values."""
     period = values["control_period_s"]
@@ -193,18 +205,11 @@ def build_loop(values: Values) -> FeedbackLoop:
     compensation = None
     if values["sigmoid.enabled"] and values["sigmoid.source"] == "stage":
         # 004 eq. (9) with sgn(v) and z of the stage: the loop has the scale.
-        params = build(
-            "sigmoid.",
-            SigmoidParams,
-            sigma_m2_per_rad=values["sigmoid.sigma_m2_per_rad"],
-            gamma_m_per_rad=values["sigmoid.gamma_m_per_rad"],
-            coulomb_Nm=values["sigmoid.coulomb_Nm"],
-        )
         compensation = build(
             "sigmoid.",
             StageSigmoid,
             keys=NOMINAL_KEYS,
-            params=params,
+            params=sigmoid_params(values),
             torque_constant_Nm_per_A=values["nominal.torque_constant_Nm_per_A"],
         )
     return build(

@@ -13,13 +13,12 @@ from __future__ import annotations
 from servo_axis.core.feedforward.sigmoid import (
     PAPER_PRESLIDING_M,
     PAPER_SIGMA_M2_PER_RAD,
-    SigmoidParams,
     SigmoidTerm,
     gamma_for_width,
 )
 from servo_axis.core.feedforward.terms import FeedforwardTerm
 from servo_axis.params import schemas
-from servo_axis.params.factories import NOMINAL_KEYS, build_reference
+from servo_axis.params.factories import NOMINAL_KEYS, build_reference, sigmoid_params
 from servo_axis.params.param import Param, build
 from servo_axis.params.registry import FeedforwardTermEntry, Values
 
@@ -74,18 +73,11 @@ def _build(values: Values) -> FeedforwardTerm | None:
     """The sigmoid law of 004 eq. (9), if on."""
     if not values["sigmoid.enabled"] or values["sigmoid.source"] == "stage":
         return None  # from the stage: the feedback loop's (factories.build_loop)
-    params = build(
-        "sigmoid.",
-        SigmoidParams,
-        sigma_m2_per_rad=values["sigmoid.sigma_m2_per_rad"],
-        gamma_m_per_rad=values["sigmoid.gamma_m_per_rad"],
-        coulomb_Nm=values["sigmoid.coulomb_Nm"],
-    )
     return build(
         "sigmoid.",
         SigmoidTerm,
         keys={**NOMINAL_KEYS, "control_period_s": "control_period_s"},
-        params=params,
+        params=sigmoid_params(values),
         reference=build_reference(values),
         control_period_s=values["control_period_s"],
         torque_constant_Nm_per_A=values["nominal.torque_constant_Nm_per_A"],
