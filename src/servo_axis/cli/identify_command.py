@@ -7,18 +7,9 @@ import shlex
 import sys
 from pathlib import Path
 
-from servo_axis.cli.options import Subparsers
+from servo_axis.cli.options import Subparsers, output_file
 from servo_axis.core.errors import ConfigError
 from servo_axis.identify import MODELS
-
-
-def _output_file(text: str) -> str:
-    path = Path(text)
-    if path.is_dir():
-        raise argparse.ArgumentTypeError(f"{text}: is a directory, expected a file to write")
-    if not path.parent.is_dir():
-        raise argparse.ArgumentTypeError(f"{text}: cannot write it: no directory {path.parent}")
-    return text
 
 
 def add_parser(commands: Subparsers) -> None:
@@ -42,7 +33,7 @@ def add_parser(commands: Subparsers) -> None:
     p.add_argument(
         "--model", required=True, choices=MODELS, help="the plant model whose keys are fitted"
     )
-    p.add_argument("--out", required=True, type=_output_file, help="scenario file to write (YAML)")
+    p.add_argument("--out", required=True, type=output_file, help="scenario file to write (YAML)")
     p.add_argument(
         "--friction",
         action="append",
