@@ -65,6 +65,15 @@ class Realtime(Serial):
     identifier_samples_held : int or None
         Steps the identifier ran with the last angle or torque held (a
         sample that never came).
+    setpoints : dict or None
+        ``command_source: drive_setpoint`` (a drive's set-points, of no
+        step): ``period_ns`` (the commander's period the misses are judged
+        by), ``received`` (finite set-points taken), ``unset`` (NaN ones:
+        no command yet, never applied), ``quiet_ticks`` (ticks without a
+        fresh set-point that were no miss: the commander quiet by design);
+        ``misses`` are then the ticks whose newest set-point was older than
+        1.5 periods (``commands_missing`` the same, ``commands_late`` 0);
+        None otherwise.
     """
 
     period_ns: int
@@ -85,6 +94,7 @@ class Realtime(Serial):
     states_skipped: int | None = field(default=None, metadata={"omit_none": True})
     answers_skipped: int | None = field(default=None, metadata={"omit_none": True})
     identifier_samples_held: int | None = field(default=None, metadata={"omit_none": True})
+    setpoints: dict[str, int] | None = field(default=None, metadata={"omit_none": True})
 
     @property
     def miss_fraction(self) -> float:

@@ -532,6 +532,7 @@ def check_consistency(role: str, values: Values) -> None:
     external_roles(values)
     if role == "plant":
         build_plant(values)
+        check_command_source(values)
     elif role == "feedback":
         build_loop(values)
         build_deformation(values)
@@ -546,6 +547,22 @@ def check_consistency(role: str, values: Values) -> None:
         check_recorder_topics(values)
     elif role == "identifier":
         build_identifier(values)
+
+
+def check_command_source(values: Values) -> None:
+    """``command_source: drive_setpoint`` only in realtime (a set-point has no step to wait for).
+
+    Raises
+    ------
+    ParameterFileError
+        Naming ``command_source`` and ``mode``.
+    """
+    if values.get("command_source") == "drive_setpoint" and values["mode"] == "lockstep":
+        raise ParameterFileError(
+            "parameter 'command_source': drive_setpoint needs mode: realtime (a drive's "
+            "set-point carries no step of the k T_u grid, which lockstep waits for; "
+            "got mode: lockstep)"
+        )
 
 
 #: The roles a node from outside the suite may play (``external_roles``).

@@ -258,3 +258,27 @@ def test_the_capped_lead_loses_nothing_of_a_default_depth_writer() -> None:
     # The shipped lead (200, acknowledged every 50) lost all but the newest
     # 10 of each burst: what a slow recorder met with an example controller.
     assert lost_by_a_keep_last_writer(200, 50) > 1000
+
+
+def test_a_drive_set_point_is_recorded_not_counted_and_only_in_realtime() -> None:
+    """``command_source: drive_setpoint``: ros2_control's commands carry no step, so the
+    recorder records `command` without counting it, and lockstep (which waits for the
+    command of each step) refuses the option naming both keys."""
+    data = scenario("ptc_nominal")
+    data["/**"]["ros__parameters"]["mode"] = "realtime"
+    data["plant"]["ros__parameters"]["command_source"] = "drive_setpoint"
+    external = ("feedback",)
+    rec = handshake_overrides(data, roles_of(data), BAG, CONFIG, external)["recorder"]
+    assert "command" in rec["topics"] and "command" not in rec["counted_topics"]
+    assert "state" in rec["counted_topics"]
+    stamped = scenario("ptc_nominal")
+    stamped["/**"]["ros__parameters"]["mode"] = "realtime"
+    rec = handshake_overrides(stamped, roles_of(stamped), BAG, CONFIG, external)["recorder"]
+    assert "command" in rec["counted_topics"]
+    from servo_axis.core.errors import ParameterFileError
+    from servo_axis.params.factories import checked_values
+
+    with pytest.raises(ParameterFileError, match=r"'command_source': drive_setpoint needs mode"):
+        checked_values("plant", {"command_source": "drive_setpoint", "mode": "lockstep"})
+    values = checked_values("plant", {"command_source": "drive_setpoint", "mode": "realtime"})
+    assert values["setpoint_period_s"] == 0.0 and values["setpoint_threshold_Nm"] == -1.0
