@@ -400,6 +400,15 @@ FEEDBACK: dict[str, Param] = {
         "acknowledged step k + 1 - recorder_lag_steps (recorder/progress), so that a plant "
         "with a keep-last 10 `state` writer never overruns it; 0: no such wait",
     ),
+    "forward_commands_topic": Param(
+        "",
+        meaning="also send each command as ros2_control's forward command controllers take "
+        "it (effort_controllers/JointGroupEffortController, ros2_controllers 4.42.1): "
+        "std_msgs/Float64MultiArray, data = [motor torque reference (N m)], empty layout, no "
+        "stamp, reliable volatile keep-last 10, on this topic (absolute, e.g. "
+        "/effort_controller/commands, or relative to the axis's namespace); the "
+        "controller's `joints` must be [<axis>_motor]; not recorded; empty = off",
+    ),
     **FEEDBACK_SIGMOID,
 }
 

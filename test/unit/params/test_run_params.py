@@ -282,3 +282,13 @@ def test_a_drive_set_point_is_recorded_not_counted_and_only_in_realtime() -> Non
         checked_values("plant", {"command_source": "drive_setpoint", "mode": "lockstep"})
     values = checked_values("plant", {"command_source": "drive_setpoint", "mode": "realtime"})
     assert values["setpoint_period_s"] == 0.0 and values["setpoint_threshold_Nm"] == -1.0
+
+
+@pytest.mark.parametrize("topic", ["/effort_controller/commands", "effort_controller/commands"])
+def test_a_forward_commands_topic_is_a_ros_topic_name(topic: str) -> None:
+    from servo_axis.core.errors import ParameterFileError
+    from servo_axis.params.factories import checked_values
+
+    assert checked_values("feedback", {"forward_commands_topic": topic})["forward_commands_topic"]
+    with pytest.raises(ParameterFileError, match=r"'forward_commands_topic': .* segment '2x'"):
+        checked_values("feedback", {"forward_commands_topic": topic.replace("commands", "2x")})
