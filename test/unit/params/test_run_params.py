@@ -260,7 +260,7 @@ def test_the_capped_lead_loses_nothing_of_a_default_depth_writer() -> None:
     assert lost_by_a_keep_last_writer(200, 50) > 1000
 
 
-def test_a_drive_set_point_is_recorded_not_counted_and_only_in_realtime() -> None:
+def test_a_drive_set_point_is_recorded_not_counted_and_only_in_realtime(tmp_path: Path) -> None:
     """``command_source: drive_setpoint``: ros2_control's commands carry no step, so the
     recorder records `command` without counting it, and lockstep (which waits for the
     command of each step) refuses the option naming both keys."""
@@ -282,6 +282,16 @@ def test_a_drive_set_point_is_recorded_not_counted_and_only_in_realtime() -> Non
         checked_values("plant", {"command_source": "drive_setpoint", "mode": "lockstep"})
     values = checked_values("plant", {"command_source": "drive_setpoint", "mode": "realtime"})
     assert values["setpoint_period_s"] == 0.0 and values["setpoint_threshold_Nm"] == -1.0
+    # The identifier pairs commands with states by stamp: refused before anything starts.
+    from servo_axis.core.errors import ConfigError
+    from servo_axis.params.run_plan import plan_run
+
+    path = CONFIG / "dlpid_tilt_lpf2.yaml"
+    identified = load_scenario(path)
+    identified["/**"]["ros__parameters"]["mode"] = "realtime"
+    identified["plant"]["ros__parameters"]["command_source"] = "drive_setpoint"
+    with pytest.raises(ConfigError, match="drive_setpoint: the identifier pairs each command"):
+        plan_run(identified, path, out_dir=tmp_path / "run")
 
 
 @pytest.mark.parametrize("topic", ["/effort_controller/commands", "effort_controller/commands"])
