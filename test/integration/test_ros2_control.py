@@ -111,8 +111,11 @@ def test_a_ros2_control_stack_drives_the_emulated_axis_in_real_time(
     rt = summary["realtime"]
     assert rt["ticks"] == 2000
     assert rt["misses"] == rt["commands_missing"] and rt["commands_late"] == 0
-    fraction = rt["misses"] / rt["ticks"]
-    assert code == (5 if fraction > 0.05 else 0), tails(out)  # misses decide, nothing else
+    # Exit 5 with more than 5 % misses (a starved stand-in may also go silent for 2 s:
+    # loop_open, exit 5 too); else 0: nothing else is wrong with the run.
+    assert code in (0, 5) and (code == 5 or rt["misses"] <= 0.05 * rt["ticks"]), tails(out)
+    if code == 5:
+        assert summary["health"]["reasons"][0].startswith("the loop was not closed: ")
     points = rt["setpoints"]
     assert points["period_ns"] == 2_000_000 and points["quiet_ticks"] == 0
     sent = sum(v is not None for v in log["published"])
