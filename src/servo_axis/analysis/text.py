@@ -176,7 +176,9 @@ def _realtime_lines(rt: Realtime | None) -> list[str]:
         f"{rt.commands_missing} command(s) never came; clock rate {rt.timer_rate:.4f}x",
         f"tick late (us)    {_late(rt.tick_late_us)}",
         f"command late (us) {_late(rt.command_late_us)}  (after its state's tick; a miss: > "
-        f"{period_us:g})",
+        f"{period_us:g})"
+        if rt.setpoints is None
+        else f"command late (us) {_late(rt.command_late_us)}  (after the newest state's tick)",
     ]
     if rt.setpoints is not None:
         sp = rt.setpoints

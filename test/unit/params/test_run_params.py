@@ -302,3 +302,21 @@ def test_a_forward_commands_topic_is_a_ros_topic_name(topic: str) -> None:
     assert checked_values("feedback", {"forward_commands_topic": topic})["forward_commands_topic"]
     with pytest.raises(ParameterFileError, match=r"'forward_commands_topic': .* segment '2x'"):
         checked_values("feedback", {"forward_commands_topic": topic.replace("commands", "2x")})
+
+
+def test_the_run_tells_an_outside_feedback_that_its_command_is_a_set_point(
+    tmp_path: Path,
+) -> None:
+    from servo_axis.params.run_plan import plan_run
+    from servo_axis.run.prepare import describe_external
+
+    path = CONFIG / "ptc_nominal.yaml"
+    data = load_scenario(path)
+    data["/**"]["ros__parameters"]["mode"] = "realtime"
+    stamped = plan_run(data, path, out_dir=tmp_path / "a", external=["feedback"]).axes[0]
+    assert "the answer to state[k]" in describe_external(stamped, "feedback")
+    data["plant"]["ros__parameters"]["command_source"] = "drive_setpoint"
+    driven = plan_run(data, path, out_dir=tmp_path / "b", external=["feedback"]).axes[0]
+    text = describe_external(driven, "feedback")
+    assert "a drive's set-point: effort of the motor joint (N m), any stamp" in text
+    assert "the answer to state[k]" not in text
