@@ -65,6 +65,11 @@ class Realtime(Serial):
     identifier_samples_held : int or None
         Steps the identifier ran with the last angle or torque held (a
         sample that never came).
+    measured_from : str or None
+        Where the figures come from when the plant is not the suite's (an
+        outside plant: the feedback's arrival and send times,
+        :func:`servo_axis.core.deadlines.loop_from_times`); None: the suite's
+        plant's clock.
     """
 
     period_ns: int
@@ -85,6 +90,7 @@ class Realtime(Serial):
     states_skipped: int | None = field(default=None, metadata={"omit_none": True})
     answers_skipped: int | None = field(default=None, metadata={"omit_none": True})
     identifier_samples_held: int | None = field(default=None, metadata={"omit_none": True})
+    measured_from: str | None = field(default=None, metadata={"omit_none": True})
 
     @property
     def miss_fraction(self) -> float:

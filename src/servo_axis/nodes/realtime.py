@@ -11,6 +11,7 @@ Nothing here imports rclpy (the numbers are :mod:`servo_axis.core.deadlines`'):
 * :class:`HeldSetPoint`: the current a drive applies at a tick: the command
   of the step if it arrived by the deadline, else the newest one received.
 * :class:`CatchUp`: which states a node that fell behind still answers.
+* :class:`LoopTimes`: the loop around an outside plant, as its feedback sees it.
 """
 
 from __future__ import annotations
@@ -474,6 +475,55 @@ class ClockRecord:
             "command_late_us": deadlines.lateness_stats(late),
             "scheduling": scheduling,
         }
+
+
+#: ``Realtime.measured_from`` of a loop a feedback measured (:class:`LoopTimes`).
+MEASURED_AT_FEEDBACK = "the feedback's arrival and send times (an outside plant)"
+
+
+class LoopTimes:
+    """When each state came and each command went, at a feedback whose plant is outside.
+
+    Such a plant (a drive, a user's node) reports no clock, so the feedback
+    measures the loop (:func:`~servo_axis.core.deadlines.loop_from_times`):
+    misses, lateness, states never answered; the summary's ``realtime``
+    block is made of it.
+
+    Parameters
+    ----------
+    steps : int
+        Steps of the run, >= 1 (later ones are not kept).
+    period_ns : int
+        The control period ``T``, ns, > 0.
+    """
+
+    def __init__(self, *, steps: int, period_ns: int) -> None:
+        self.period_ns = period_ns
+        self._arrived = np.zeros(steps, dtype=np.int64)
+        self._sent = np.zeros(steps, dtype=np.int64)
+
+    def arrived(self, step: int, now_ns: int) -> None:
+        """``state[step]`` arrived at ``now_ns`` (monotonic; the first arrival counts)."""
+        if 0 <= step < self._arrived.size and self._arrived[step] == 0:
+            self._arrived[step] = now_ns
+
+    def sent(self, step: int, now_ns: int) -> None:
+        """``command[step]`` went out at ``now_ns`` (monotonic)."""
+        if 0 <= step < self._sent.size and self._sent[step] == 0:
+            self._sent[step] = now_ns
+
+    def report(self) -> dict[str, Any] | None:
+        """The fields of the summary's ``realtime`` block; None before any state."""
+        states = np.flatnonzero(self._arrived)
+        commands = np.flatnonzero(self._sent)
+        figures = deadlines.loop_from_times(
+            period_ns=self.period_ns,
+            state_steps=states.tolist(),
+            state_times_ns=self._arrived[states].tolist(),
+            command_steps=commands.tolist(),
+            command_times_ns=self._sent[commands].tolist(),
+        )
+        return None if figures is None else {**figures, "measured_from": MEASURED_AT_FEEDBACK}
 
 
 class HeldSetPoint:
