@@ -74,6 +74,11 @@ class Realtime(Serial):
         ``misses`` are then the ticks whose newest set-point was older than
         1.5 periods (``commands_missing`` the same, ``commands_late`` 0);
         None otherwise.
+    measured_from : str or None
+        Where the figures come from when the plant is not the suite's (an
+        outside plant: the feedback's arrival and send times,
+        :func:`servo_axis.core.deadlines.loop_from_times`); None: the suite's
+        plant's clock.
     """
 
     period_ns: int
@@ -95,6 +100,7 @@ class Realtime(Serial):
     answers_skipped: int | None = field(default=None, metadata={"omit_none": True})
     identifier_samples_held: int | None = field(default=None, metadata={"omit_none": True})
     setpoints: dict[str, int] | None = field(default=None, metadata={"omit_none": True})
+    measured_from: str | None = field(default=None, metadata={"omit_none": True})
 
     @property
     def miss_fraction(self) -> float:

@@ -19,6 +19,8 @@ a missed deadline (:func:`misses_of`).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -154,3 +156,79 @@ def start_estimate_ns(
         return estimate_ns
     offset = arrival_ns - step * period_ns
     return offset if estimate_ns is None else min(estimate_ns, offset)
+
+
+def loop_from_times(
+    *,
+    period_ns: int,
+    state_steps: Sequence[int],
+    state_times_ns: Sequence[int],
+    command_steps: Sequence[int],
+    command_times_ns: Sequence[int],
+) -> dict[str, Any] | None:
+    """A loop's misses and lateness from when each state came and each command went.
+
+    Where the plant is not the suite's (an outside plant reports no clock) the
+    feedback measures the loop as the suite's plant does from its arrivals:
+    tick ``k`` is when ``state[k]`` arrived; the command that answers it is
+    late by the time from then until it was sent, and a miss if that is more
+    than one period (:func:`misses_of`), or if it was never sent. The plant's
+    transport, both ways, is not in these figures: what a drive sees is later
+    by it.
+
+    Parameters
+    ----------
+    period_ns : int
+        The control period ``T``, ns, > 0.
+    state_steps, state_times_ns : sequence of int
+        The step of each state (increasing; a plant whose timer skipped
+        leaves steps out) and when it arrived, ns (any monotonic clock).
+    command_steps, command_times_ns : sequence of int
+        The same of each command sent, on the same clock (the first per step counts).
+
+    Returns
+    -------
+    dict or None
+        ``ticks``, ``misses``, ``commands_missing``, ``commands_late``,
+        ``timer_rate`` (periods per period of wall time between the first
+        and the last state), ``tick_late_us`` (each state's arrival after
+        the grid of the first one's) and ``command_late_us`` (:func:`lateness_stats`);
+        None without states.
+
+    Raises
+    ------
+    ValueError
+        ``period_ns`` not positive, or times not one per step.
+    """
+    if period_ns <= 0:
+        raise ValueError(f"period_ns: expected > 0, got {period_ns!r}")
+    k = np.asarray(state_steps, dtype=np.int64)
+    t = np.asarray(state_times_ns, dtype=np.int64)
+    if k.shape != t.shape:
+        raise ValueError(f"state_times_ns: expected one per state step ({k.size}), got {t.size}")
+    if len(command_steps) != len(command_times_ns):
+        raise ValueError(
+            f"command_times_ns: expected one per command step ({len(command_steps)}), "
+            f"got {len(command_times_ns)}"
+        )
+    if k.size == 0:
+        return None
+    sent: dict[int, int] = {}
+    for step, when in zip(command_steps, command_times_ns, strict=True):
+        sent.setdefault(int(step), int(when))
+    late = np.array(
+        [sent[s] - a if s in sent else np.nan for s, a in zip(k.tolist(), t.tolist(), strict=True)],
+        dtype=float,
+    )
+    misses = misses_of(late, period_ns)
+    missing = int(np.count_nonzero(np.isnan(late)))
+    return {
+        "period_ns": int(period_ns),
+        "ticks": int(k.size),
+        "misses": misses,
+        "commands_missing": missing,
+        "commands_late": misses - missing,
+        "timer_rate": timer_rate(int(k[-1] - k[0]), period_ns, int(t[0]), int(t[-1])),
+        "tick_late_us": lateness_stats(np.maximum(t - t[0] - (k - k[0]) * period_ns, 0)),
+        "command_late_us": lateness_stats(late),
+    }

@@ -170,7 +170,7 @@ class ServoNode(Node):
         """The stamp of a status: the node's clock (simulation time with ``use_sim_time``)."""
         return int(self.get_clock().now().nanoseconds)
 
-    def realtime_counts(self) -> dict[str, int]:
+    def realtime_counts(self) -> dict[str, Any]:
         """What the node counted of a realtime run for the summary's ``realtime`` block
         (fields of :class:`~servo_axis.analysis.summary.Realtime`; put in the report
         when it closes); none here."""

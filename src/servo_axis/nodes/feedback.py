@@ -85,7 +85,7 @@ from servo_axis.nodes.lockstep import (
     SampleBuffer,
     stream_gate,
 )
-from servo_axis.nodes.realtime import CatchUp
+from servo_axis.nodes.realtime import CatchUp, LoopTimes
 from servo_axis.nodes.runtime import run_main, steady_clock
 from servo_axis.params.factories import build_deformation, build_loop, run_steps
 from servo_axis.wire import messages as msgs
@@ -177,6 +177,12 @@ class FeedbackNode(ServoNode):
             None
             if self._lockstep or self._origin is not None
             else CatchUp(period_ns=self._period_ns, last_step=run_steps(values) - 1, gap=ANSWER_GAP)
+        )
+        # An outside plant reports no clock: the loop is measured here.
+        self.loop_times = (
+            LoopTimes(steps=run_steps(values), period_ns=self._period_ns)
+            if self._outside_plant and not self._lockstep
+            else None
         )
         self.inputs_subscribed = False
         self._flow = FlowControl(
@@ -339,6 +345,8 @@ class FeedbackNode(ServoNode):
         self.realtime.start()
         if self.catch_up is not None:
             self.catch_up.arrived(state.step, time.monotonic_ns())
+        if self.loop_times is not None:
+            self.loop_times.arrived(state.step, time.monotonic_ns())
         self._pending = state
         self._pending_since = time.monotonic()
         self._try_answer()
@@ -389,6 +397,8 @@ class FeedbackNode(ServoNode):
         self._command_pub.publish(
             self._command_codec.encode(msgs.CommandSample(step=stamp, torque_Nm=torque))
         )
+        if self.loop_times is not None:
+            self.loop_times.sent(state.step, time.monotonic_ns())
         if self._forward_pub is not None:
             self._forward_msg.data[0] = torque
             self._forward_pub.publish(self._forward_msg)
@@ -402,8 +412,10 @@ class FeedbackNode(ServoNode):
             )
             self._deformation_pub.publish(self._deformation_codec.encode(sample))
 
-    def realtime_counts(self) -> dict[str, int]:
+    def realtime_counts(self) -> dict[str, Any]:
+        loop = None if self.loop_times is None else self.loop_times.report()
         return {
+            **(loop or {}),
             "references_held": self.missed_references,
             "states_skipped": self._states.skipped,
             "answers_skipped": 0 if self.catch_up is None else self.catch_up.skipped,

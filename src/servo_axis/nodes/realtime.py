@@ -13,12 +13,14 @@ Nothing here imports rclpy (the numbers are :mod:`servo_axis.core.deadlines`'):
 * :class:`DriveSetPoint`: the same for a drive's set-point of no step
   (``command_source: drive_setpoint``): the newest one, whatever its stamp.
 * :class:`CatchUp`: which states a node that fell behind still answers.
+* :class:`LoopTimes`: the loop around an outside plant, as its feedback sees it.
 """
 
 from __future__ import annotations
 
 import gc
 import os
+import re
 import sys
 import threading
 import time
@@ -89,7 +91,8 @@ def fifo_this_thread(priority: int) -> dict[str, object]:
     set with ``SCHED_RESET_ON_FORK``, so that a thread this one creates later
     (the middleware makes some from the thread that creates an entity)
     starts at the default policy. The middleware's own threads (``dds.*``,
-    made at start-up) stay ``SCHED_OTHER``: a Fast DDS thread that spins at
+    made at start-up) are set by :func:`favour_middleware_threads`: only its
+    receive threads get a realtime priority; a Fast DDS thread that spins at
     a realtime priority takes a core from everything below it (issue 30:
     ``dds.asyn.0.0`` at ``SCHED_FIFO`` 50 used 92 % of a core for minutes,
     the run never ended and SIGTERM did nothing). Where the system refuses
@@ -113,18 +116,35 @@ def fifo_this_thread(priority: int) -> dict[str, object]:
 
 
 #: The nice value given to the middleware's threads (``dds.*``) of a node whose
-#: executor thread runs under ``SCHED_FIFO``: they stay ``SCHED_OTHER`` (a
-#: spinning one cannot take a core from everything else), but with more
-#: weight than the host's default jobs, since every sample the executor
-#: takes passes through them first.
+#: executor thread runs under ``SCHED_FIFO``, but for its receive threads: they
+#: stay ``SCHED_OTHER`` (a spinning one cannot take a core from everything
+#: else), with more weight than the host's default jobs.
 MIDDLEWARE_NICE = -10
 
+#: Fast DDS's receive threads: one per shared-memory port (``dds.shm.<port>``)
+#: and per UDP port (``dds.udp.<port>``) a participant listens on. Each sample
+#: the executor takes was handed over by one of them: they are on the
+#: per-sample path, as the executor thread is. They block in a receive call
+#: while nothing comes. The port watchdog (``dds.shm.wdog``), the events thread
+#: (``dds.ev.*``) and the asynchronous writer (``dds.asyn.*``, the thread that
+#: spun in issue 30) are not receive threads.
+RECEIVE_THREAD = re.compile(r"dds\.(shm|udp)\.\d+")
 
-def favour_middleware_threads(nice: int = MIDDLEWARE_NICE, fifo_priority: int = 0) -> int:
-    """Give this process's ``dds.*`` threads the nice value ``nice`` (best effort), or with
-    ``fifo_priority`` > 0 ``SCHED_FIFO`` at that priority (``realtime.middleware_priority``).
 
-    Returns how many threads got it (0 where the system refuses or there is no ``/proc``).
+def favour_middleware_threads(nice: int = MIDDLEWARE_NICE, receive_priority: int = 0) -> int:
+    """Put this process's middleware receive threads under ``SCHED_FIFO`` at
+    ``receive_priority`` (``realtime.middleware_priority``; 0: leave them with
+    the rest), and its other ``dds.*`` threads at the nice value ``nice`` (best effort).
+
+    Why the receive threads get a realtime priority: at ``SCHED_OTHER`` a
+    sample waits for one to be scheduled behind the host's default jobs before
+    the ``SCHED_FIFO`` executor can take it. A 2 s realtime ``ptc_nominal``
+    on a quiet 2-core host missed 461-914 of 2,000 deadlines with them at nice
+    -10, 31-111 with them under ``SCHED_FIFO`` 49 (the bare pair of
+    ``rt_floor.py``, between the runs: 32-191; docs/explanation/realtime.md).
+
+    Returns how many threads got their setting (0 where the system refuses or
+    there is no ``/proc``).
     """
     done = 0
     try:
@@ -134,11 +154,12 @@ def favour_middleware_threads(nice: int = MIDDLEWARE_NICE, fifo_priority: int = 
     for tid in tids:
         try:
             with open(f"/proc/self/task/{tid}/comm") as f:
-                if not f.read().startswith("dds."):
-                    continue
-            if fifo_priority > 0:
+                name = f.read().strip()
+            if not name.startswith("dds."):
+                continue
+            if receive_priority > 0 and RECEIVE_THREAD.fullmatch(name):
                 policy = os.SCHED_FIFO | os.SCHED_RESET_ON_FORK
-                os.sched_setscheduler(int(tid), policy, os.sched_param(fifo_priority))
+                os.sched_setscheduler(int(tid), policy, os.sched_param(receive_priority))
             else:
                 os.setpriority(os.PRIO_PROCESS, int(tid), nice)
             done += 1
@@ -187,8 +208,9 @@ class RealtimeScheduling:
     never started). So the node calls :meth:`start` when its first
     per-sample input arrives, in the executor's thread: that thread (the
     per-sample callbacks) is the one put under ``SCHED_FIFO``, with
-    ``SCHED_RESET_ON_FORK``; the middleware's threads stay at the default
-    policy (:func:`fifo_this_thread`). The plant's clock thread, started
+    ``SCHED_RESET_ON_FORK``, and the middleware's receive threads just below
+    it; its other threads stay at the default policy
+    (:func:`favour_middleware_threads`). The plant's clock thread, started
     from it, starts at the default policy and asks for its own
     (:meth:`ClockThread.start`).
 
@@ -201,12 +223,12 @@ class RealtimeScheduling:
     apply : callable
         What applies a priority to the calling thread (:func:`fifo_this_thread`).
     favour : callable or None
-        What gives the middleware's threads more weight once ``apply`` got
-        ``SCHED_FIFO`` (None: :func:`favour_middleware_threads`).
+        What sets the middleware's threads once ``apply`` got ``SCHED_FIFO``
+        (None: :func:`favour_middleware_threads`).
     middleware_priority : int
-        ``realtime.middleware_priority``: 0, the middleware's threads stay
-        ``SCHED_OTHER`` (nice :data:`MIDDLEWARE_NICE`); > 0, ``SCHED_FIFO``
-        at it (below the executor's).
+        ``realtime.middleware_priority``: the ``SCHED_FIFO`` priority of the
+        middleware's receive threads (:data:`RECEIVE_THREAD`); 0, they stay
+        ``SCHED_OTHER`` as its other threads (nice :data:`MIDDLEWARE_NICE`).
     """
 
     def __init__(
@@ -223,9 +245,10 @@ class RealtimeScheduling:
         self.asked = priority
         self._warn = warn
         self._apply = apply
-        self.middleware_priority = middleware_priority
+        # Below the executor's: a sample's first step must not preempt its last.
+        self.middleware_priority = min(middleware_priority, max(0, (priority or 0) - 1))
         self._favour = favour or (
-            lambda: favour_middleware_threads(fifo_priority=middleware_priority)
+            lambda: favour_middleware_threads(receive_priority=middleware_priority)
         )
         #: What :meth:`start` got (``fifo_this_thread``'s answer); None before, or never asked.
         self.applied: dict[str, object] | None = None
@@ -243,11 +266,10 @@ class RealtimeScheduling:
         self._pending = None
         got = self._apply(priority)
         if got["policy"] == "fifo":
-            middleware = (
-                {"middleware_priority": self.middleware_priority}
-                if self.middleware_priority > 0
-                else {"middleware_nice": MIDDLEWARE_NICE}
-            )
+            middleware = {
+                "middleware_priority": self.middleware_priority,
+                "middleware_nice": MIDDLEWARE_NICE,
+            }
             got = {**got, **middleware, "middleware_threads": self._favour()}
         self.applied = got
         if "refused" in got:
@@ -459,6 +481,55 @@ class ClockRecord:
             "command_late_us": deadlines.lateness_stats(late),
             "scheduling": scheduling,
         }
+
+
+#: ``Realtime.measured_from`` of a loop a feedback measured (:class:`LoopTimes`).
+MEASURED_AT_FEEDBACK = "the feedback's arrival and send times (an outside plant)"
+
+
+class LoopTimes:
+    """When each state came and each command went, at a feedback whose plant is outside.
+
+    Such a plant (a drive, a user's node) reports no clock, so the feedback
+    measures the loop (:func:`~servo_axis.core.deadlines.loop_from_times`):
+    misses, lateness, states never answered; the summary's ``realtime``
+    block is made of it.
+
+    Parameters
+    ----------
+    steps : int
+        Steps of the run, >= 1 (later ones are not kept).
+    period_ns : int
+        The control period ``T``, ns, > 0.
+    """
+
+    def __init__(self, *, steps: int, period_ns: int) -> None:
+        self.period_ns = period_ns
+        self._arrived = np.zeros(steps, dtype=np.int64)
+        self._sent = np.zeros(steps, dtype=np.int64)
+
+    def arrived(self, step: int, now_ns: int) -> None:
+        """``state[step]`` arrived at ``now_ns`` (monotonic; the first arrival counts)."""
+        if 0 <= step < self._arrived.size and self._arrived[step] == 0:
+            self._arrived[step] = now_ns
+
+    def sent(self, step: int, now_ns: int) -> None:
+        """``command[step]`` went out at ``now_ns`` (monotonic)."""
+        if 0 <= step < self._sent.size and self._sent[step] == 0:
+            self._sent[step] = now_ns
+
+    def report(self) -> dict[str, Any] | None:
+        """The fields of the summary's ``realtime`` block; None before any state."""
+        states = np.flatnonzero(self._arrived)
+        commands = np.flatnonzero(self._sent)
+        figures = deadlines.loop_from_times(
+            period_ns=self.period_ns,
+            state_steps=states.tolist(),
+            state_times_ns=self._arrived[states].tolist(),
+            command_steps=commands.tolist(),
+            command_times_ns=self._sent[commands].tolist(),
+        )
+        return None if figures is None else {**figures, "measured_from": MEASURED_AT_FEEDBACK}
 
 
 class HeldSetPoint:

@@ -123,15 +123,15 @@ SHARED: dict[str, Param] = {
         "(the loop was not closed) and the summary says why; ignored in lockstep",
     ),
     "realtime.middleware_priority": Param(
-        0,
+        49,
         minimum=0,
         maximum=99,
-        meaning="realtime mode: 0 = the middleware's threads (dds.*) of the plant and the "
-        "feedback stay SCHED_OTHER, at nice -10 (a spinning one cannot take a core from "
-        "everything else); N > 0 = SCHED_FIFO at priority N for them, below thread_priority "
-        "(on a loaded host their wake-up latency is then the realtime one; a spinning one "
-        "starves the default jobs on its core, and once hung a plant after its last tick, "
-        "until the run's watchdogs end the run: see docs/explanation/realtime.md)",
+        meaning="realtime mode: SCHED_FIFO priority of the middleware's receive threads "
+        "(dds.shm.<port>, dds.udp.<port>) of the plant and the feedback, which hand each "
+        "sample to the executor (the per-sample path's first step; at most "
+        "thread_priority - 1); 0 = SCHED_OTHER at nice -10 like the middleware's other threads (dds.asyn, "
+        "dds.ev, dds.shm.wdog), which never get a realtime priority. On a quiet 2-core "
+        "host 0 missed 5-10x more deadlines: see docs/explanation/realtime.md",
     ),
     "thread_priority": Param(
         50,
@@ -140,7 +140,8 @@ SHARED: dict[str, Param] = {
         meaning="realtime mode: SCHED_FIFO priority of the threads that do the per-sample "
         "work: the plant's clock thread and the executor thread of the plant and the feedback "
         "(the per-sample pair), as ros2_control's thread_priority; the middleware's threads "
-        "stay SCHED_OTHER (nice -10), and so do the other nodes. 0: the default scheduler "
+        "stay SCHED_OTHER (nice -10) but its receive threads (realtime.middleware_priority), "
+        "and so do the other nodes. 0: the default scheduler "
         "for all. Where the system refuses (no CAP_SYS_NICE or rtprio limit), a warning and "
         "the default scheduler; ignored in lockstep",
     ),

@@ -120,12 +120,19 @@ def _summarise_axis(
             summary, startup_s=span[0] - state.t_start, finish_s=state.t_end - span[1]
         )
     plant = reports.get("plant")
+    # The feedback's and the generator's counts, with the plant's clock: the
+    # suite's plant's report, or of an outside plant the loop as the feedback
+    # measured it.
+    counts = {k: v for h in reports.values() for k, v in h.realtime.items()}
+    rt = None
     if plant is not None and plant.realtime:
-        # The plant's clock, with the feedback's and the generator's counts.
-        counts = {k: v for h in reports.values() for k, v in h.realtime.items()}
         rt = summaries.Realtime.from_dict({**counts, **plant.realtime})
+    elif "ticks" in counts:
+        rt = summaries.Realtime.from_dict(counts)  # an outside plant: the feedback's figures
+    if rt is not None:
         at = (floor or {}).get(round(rt.period_ns / 1000))
-        summary = dataclasses.replace(summary, realtime=dataclasses.replace(rt, floor=at))
+        rt = dataclasses.replace(rt, floor=at)
+    summary = dataclasses.replace(summary, realtime=rt)
     realtime = summary.time_mode == "realtime"
     health = assess(
         failure=state.failure,

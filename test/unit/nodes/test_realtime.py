@@ -14,6 +14,7 @@ import pytest
 from servo_axis.core import deadlines
 from servo_axis.core.errors import SignalError
 from servo_axis.nodes.realtime import (
+    RECEIVE_THREAD,
     SLIP_MIN_NS,
     SLIP_PERIODS,
     CatchUp,
@@ -48,8 +49,14 @@ def test_the_priority_is_applied_once_when_the_run_starts() -> None:
     scheduling.start()
     scheduling.start()
     assert asked == [49] and scheduling.fifo
-    # Under SCHED_FIFO the middleware's threads get more weight (at the default policy).
-    assert scheduling.applied == {**apply(49), "middleware_nice": -10, "middleware_threads": 7}
+    # Under SCHED_FIFO the middleware's threads are set too (its receive threads at
+    # middleware_priority, 0 here: at the default policy with the rest).
+    assert scheduling.applied == {
+        **apply(49),
+        "middleware_priority": 0,
+        "middleware_nice": -10,
+        "middleware_threads": 7,
+    }
     assert warnings == []
 
 
@@ -283,3 +290,22 @@ def test_a_clock_far_behind_slips_to_the_next_deadline_instead_of_running_the_mi
     # After it the ticks follow one period apart again.
     assert [b[1] - a[1] for a, b in itertools.pairwise(seen[3:])] == [period_ns] * 6
     assert all(now >= d for _, d, now in seen)
+
+
+def test_the_receive_threads_stay_below_the_executor() -> None:
+    def apply(priority: int) -> dict[str, object]:
+        return {"policy": "fifo", "priority": priority}
+
+    for executor, asked, got in ((50, 49, 49), (50, 60, 49), (10, 49, 9), (1, 49, 0), (50, 0, 0)):
+        scheduling = RealtimeScheduling(
+            executor, warn=print, apply=apply, favour=lambda: 0, middleware_priority=asked
+        )
+        assert scheduling.middleware_priority == got, (executor, asked)
+
+
+def test_only_fast_dds_receive_threads_are_receive_threads() -> None:
+    # Thread names of a realtime plant on Jazzy's Fast DDS (summary.json's
+    # realtime.scheduling.threads).
+    receive = ["dds.shm.58663", "dds.shm.7001", "dds.udp.58662", "dds.udp.7001"]
+    other = ["dds.asyn.0.0", "dds.ev.0", "dds.shm.wdog", "dds.gc", "plant-clock", "python"]
+    assert [n for n in receive + other if RECEIVE_THREAD.fullmatch(n)] == receive
