@@ -65,6 +65,15 @@ class Realtime(Serial):
     identifier_samples_held : int or None
         Steps the identifier ran with the last angle or torque held (a
         sample that never came).
+    setpoints : dict or None
+        ``command_source: drive_setpoint`` (a drive's set-points, of no
+        step): ``period_ns`` (the commander's period the misses are judged
+        by), ``received`` (finite set-points taken), ``unset`` (NaN ones:
+        no command yet, never applied), ``quiet_ticks`` (ticks without a
+        fresh set-point that were no miss: the commander quiet by design);
+        ``misses`` are then the ticks whose newest set-point was older than
+        1.5 periods (``commands_missing`` the same, ``commands_late`` 0);
+        None otherwise.
     measured_from : str or None
         Where the figures come from when the plant is not the suite's (an
         outside plant: the feedback's arrival and send times,
@@ -90,6 +99,7 @@ class Realtime(Serial):
     states_skipped: int | None = field(default=None, metadata={"omit_none": True})
     answers_skipped: int | None = field(default=None, metadata={"omit_none": True})
     identifier_samples_held: int | None = field(default=None, metadata={"omit_none": True})
+    setpoints: dict[str, int] | None = field(default=None, metadata={"omit_none": True})
     measured_from: str | None = field(default=None, metadata={"omit_none": True})
 
     @property

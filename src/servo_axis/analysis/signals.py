@@ -210,6 +210,11 @@ class StreamRules:
     deformation : bool
         Whether the feedback publishes the deformation ratio
         (``deformation.enabled``): else no ``deformation`` message is valid.
+    state_stamps : str
+        The plant's ``state_stamps`` (``plant_clock``: :attr:`plant_clock`).
+    command_source : str
+        The plant's ``command_source``: ``drive_setpoint`` commands are a
+        drive's set-points of no step, recorded but not indexed.
     """
 
     period_ns: int
@@ -225,6 +230,7 @@ class StreamRules:
     estimate_latency_steps: int = 0
     deformation: bool = False
     state_stamps: str = "grid"
+    command_source: str = "stamped"
 
     @property
     def plant_clock(self) -> bool:
@@ -275,6 +281,7 @@ class StreamRules:
             estimate_latency_steps=latency,
             deformation=bool(node_values(scenario, "feedback")["deformation.enabled"]),
             state_stamps=plant["state_stamps"],
+            command_source=plant["command_source"],
         )
 
     @classmethod
@@ -565,6 +572,10 @@ def stream_for(name: str, rules: StreamRules, origin: StampOrigin | None = None)
     (:func:`plant_clock_steps`), for its ``state`` and ``command``.
     """
     w, limit = rules.window, rules.steps
+    if name == "command" and rules.command_source == "drive_setpoint":
+        # A drive's set-points are of no step: recorded, not indexed (the
+        # torque each step applied is the state's motor effort).
+        return None
     if name in ("state", "command") and rules.plant_clock and origin is not None:
         # The plant's timer may skip samples: any step ahead within the run.
         window = 2**62 if limit is None else max(limit, 1)

@@ -176,8 +176,17 @@ def _realtime_lines(rt: Realtime | None) -> list[str]:
         f"{rt.commands_missing} command(s) never came; clock rate {rt.timer_rate:.4f}x",
         f"tick late (us)    {_late(rt.tick_late_us)}",
         f"command late (us) {_late(rt.command_late_us)}  (after its state's tick; a miss: > "
-        f"{period_us:g})",
+        f"{period_us:g})"
+        if rt.setpoints is None
+        else f"command late (us) {_late(rt.command_late_us)}  (after the newest state's tick)",
     ]
+    if rt.setpoints is not None:
+        sp = rt.setpoints
+        lines.append(
+            f"set-points        {sp['received']} received every {sp['period_ns'] / 1000:g} us "
+            f"(a miss: none for 1.5 of that), {sp['unset']} NaN (no command yet, not applied), "
+            f"{sp['quiet_ticks']} tick(s) held on a silent commander"
+        )
     if rt.references_held is not None or rt.late_estimates is not None:
         held, estimates, corrections = (
             "-" if n is None else str(n)

@@ -11,7 +11,10 @@ Topics (relative to the namespace):
   scale_increment_m, encoder_increment_rad, valid]``, every sample: the
   deformation ratio ``d_r`` of paper 004 eqs. (5)-(7) from the scale and
   the encoder, :mod:`servo_axis.core.deformation`), published just before
-  the command of the same sample.
+  the command of the same sample; with ``forward_commands_topic`` each
+  command also as ros2_control's forward command controllers take it
+  (``std_msgs/Float64MultiArray``, ``data = [torque]``, no stamp), just
+  after it.
 
 The loop computes in currents (A); the wire carries torques: the
 feedforward torque of ``reference`` becomes a current and the loop's current
@@ -68,6 +71,9 @@ import dataclasses
 import time
 from typing import Any
 
+from rclpy.qos import QoSProfile
+from std_msgs.msg import Float64MultiArray
+
 from servo_axis.core.drive import current_from_torque, torque_from_current
 from servo_axis.core.errors import SignalError
 from servo_axis.core.feedback.loop import Fault, LoopOutput
@@ -123,6 +129,14 @@ class FeedbackNode(ServoNode):
         self._command_pub = None if self._outside_plant else self.publisher("command")
         self._answering = not self._outside_plant
         self._fault_pub = self.publisher("fault")
+        # ros2_control's forward command controllers subscribe with the
+        # system default QoS: a reliable, volatile writer matches it either way.
+        self._forward_pub = None
+        if values["forward_commands_topic"]:
+            self._forward_pub = self.create_publisher(
+                Float64MultiArray, values["forward_commands_topic"], QoSProfile(depth=10)
+            )
+            self._forward_msg = Float64MultiArray(data=[0.0])
         self._deformation = build_deformation(values)
         if self._deformation is not None:
             self._deformation_codec = msgs.array_codec("deformation")
@@ -379,16 +393,15 @@ class FeedbackNode(ServoNode):
             return
         # The command first: it is what the plant waits for.
         assert self._command_pub is not None  # answering
+        torque = torque_from_current(out.current_A, torque_constant_Nm_per_A=self._kt)
         self._command_pub.publish(
-            self._command_codec.encode(
-                msgs.CommandSample(
-                    step=stamp,
-                    torque_Nm=torque_from_current(out.current_A, torque_constant_Nm_per_A=self._kt),
-                )
-            )
+            self._command_codec.encode(msgs.CommandSample(step=stamp, torque_Nm=torque))
         )
         if self.loop_times is not None:
             self.loop_times.sent(state.step, time.monotonic_ns())
+        if self._forward_pub is not None:
+            self._forward_msg.data[0] = torque
+            self._forward_pub.publish(self._forward_msg)
         if self._deformation is not None:
             sample = msgs.DeformationSample(
                 state.step,

@@ -46,6 +46,13 @@ command arrives in the executor's thread: the state both threads touch is
 guarded by a lock. The plant's report (``realtime``) holds the ticks, the
 misses and the lateness of ticks and commands (p50, p99, max;
 :class:`~servo_axis.nodes.realtime.ClockRecord`).
+With ``command_source: drive_setpoint`` (realtime only) the plant is a
+drive behind ros2_control's topic-based hardware interface: a command is a
+set-point of no step, the newest one whatever its stamp
+(:func:`~servo_axis.wire.setpoint.setpoint_torque`), held until the next;
+NaN (no command yet) is counted and never applied; the clock starts with
+the first finite one; misses are judged against the commander's own period
+(:class:`~servo_axis.nodes.realtime.DriveSetPoint`).
 
 Run: ``python -m servo_axis.nodes.plant --ros-args --params-file config/<scenario>.yaml``
 """
@@ -53,6 +60,7 @@ Run: ``python -m servo_axis.nodes.plant --ros-args --params-file config/<scenari
 from __future__ import annotations
 
 import copy
+import math
 import threading
 import time
 from typing import Any
@@ -62,10 +70,18 @@ from servo_axis.core.errors import ParameterFileError, SignalError
 from servo_axis.core.models.base import Plant, PlantOutput
 from servo_axis.nodes.base import ServoNode
 from servo_axis.nodes.lockstep import FlowControl, PeerWatch
-from servo_axis.nodes.realtime import ClockRecord, ClockThread, HeldSetPoint, thread_policies
+from servo_axis.nodes.realtime import (
+    ClockRecord,
+    ClockThread,
+    DriveSetPoint,
+    HeldSetPoint,
+    thread_policies,
+)
 from servo_axis.nodes.runtime import run_main, steady_clock
 from servo_axis.params.factories import build_plant, plant_model, run_steps
 from servo_axis.wire import messages as msgs
+from servo_axis.wire.cdr import decode_joint_state
+from servo_axis.wire.setpoint import setpoint_torque
 
 #: Wall time the plant waits at the end for the recorder to acknowledge
 #: everything, in realtime or after a fallback (in lockstep it waits while
@@ -163,12 +179,28 @@ class PlantNode(ServoNode):
         self._first_step_s = 0.0  # time.monotonic() when state 0 went out
         self._last_command_ns = 0  # realtime: monotonic ns of the newest command's arrival
         self._finish_timeout_s = FINISH_TIMEOUT_S
-        self.inputs.subscribe(
-            "command",
-            lambda data: self._awaited_command(command_codec.decode(data)),
-            self._on_command,
-            raw=True,
-        )
+        # A drive's set-point (ros2_control's topic-based hardware), or the
+        # command of a stamped step (the suite's feedback).
+        self._drive: DriveSetPoint | None = None
+        if values["command_source"] == "drive_setpoint":
+            self._drive = DriveSetPoint(
+                period_ns=msgs.period_ns(values["setpoint_period_s"] or values["control_period_s"]),
+                threshold_Nm=values["setpoint_threshold_Nm"],
+            )
+            motor = f"{self._axis}_motor"
+            self.inputs.subscribe(
+                "command",
+                lambda data: setpoint_torque(decode_joint_state(data), motor=motor),
+                self._on_setpoint,
+                raw=True,
+            )
+        else:
+            self.inputs.subscribe(
+                "command",
+                lambda data: self._awaited_command(command_codec.decode(data)),
+                self._on_command,
+                raw=True,
+            )
         self.inputs.subscribe(
             "recorder/progress",
             lambda m: self._plausible_progress(
@@ -300,6 +332,31 @@ class PlantNode(ServoNode):
             self.clock_record.arrived(cmd.step, now)
             self._setpoint.arrived(cmd.step, current, now, self.plant.step_index)
 
+    def _on_setpoint(self, torque_Nm: float) -> None:
+        """Realtime, ``drive_setpoint``: the newest set-point, held from now on (NaN: none yet)."""
+        drive = self._drive
+        assert drive is not None
+        with self._lock:
+            if math.isnan(torque_Nm):
+                # The plugin's command before a controller is active: never applied.
+                if drive.unset == 0:
+                    self.get_logger().info(
+                        "command: NaN (no controller active yet): zero current held"
+                    )
+                drive.unset += 1
+                return
+            now = time.monotonic_ns()
+            self._last_command_ns = now
+            if not self._clock_thread.started:
+                # The first set-point: the loop has closed once, d_0 = now.
+                self.realtime.start()
+                self.clock_record.start_ns = now
+                self._clock_thread.start(now, priority=self.realtime.asked or 0)
+            # It answers the newest state out (its lateness: since that state's tick).
+            self.clock_record.arrived(self.plant.step_index, now)
+            current = current_from_torque(torque_Nm, torque_constant_Nm_per_A=self._kt)
+            drive.arrived(current, now)
+
     def _on_progress(self, recorded: int) -> None:
         if self._lockstep:
             self._flow.acknowledge(recorded)
@@ -341,6 +398,14 @@ class PlantNode(ServoNode):
             now_ns - max(self._clock_thread.last_tick_ns, self.clock_record.start_ns)
         ) * 1e-9
         open_s = (now_ns - self._last_command_ns) * 1e-9
+        if (
+            self._drive is not None
+            and self._drive.silent_when_unchanged
+            and self.inputs.peer_alive("command")
+        ):
+            # A commander silent while its command does not change: the loop
+            # is open only once it has left the graph.
+            open_s = 0.0
         if stalled_s > CLOCK_STALL_S:
             kind, detail = (
                 "clock_stalled",
@@ -463,7 +528,10 @@ class PlantNode(ServoNode):
             if self._finishing:
                 return True
             self.clock_record.ticked(tick, deadline, time.monotonic_ns())
-            current, on_time = self._setpoint.take(deadline, self.plant.step_index)
+            if self._drive is not None:
+                current, on_time = self._drive.take(deadline)
+            else:
+                current, on_time = self._setpoint.take(deadline, self.plant.step_index)
             if not on_time:
                 self.clock_record.misses += 1
             out = self.plant.step(current)
@@ -482,12 +550,20 @@ class PlantNode(ServoNode):
             "clock": clock.scheduling,
             "threads": thread_policies(),
         }
-        self.report.health.realtime = self.clock_record.report(
+        report = self.clock_record.report(
             self.plant.step_index,
             scheduling,
             slips=clock.slips,
             slipped_periods=clock.slipped_periods,
         )
+        if self._drive is not None:
+            # A set-point answers no step: a miss is a tick without a fresh one.
+            report.update(
+                commands_missing=report["misses"],
+                commands_late=0,
+                setpoints=self._drive.report(),
+            )
+        self.report.health.realtime = report
 
     def close(self) -> None:
         """Stop the clock thread (a run stopped from outside), then the base's close.

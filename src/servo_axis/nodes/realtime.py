@@ -10,6 +10,8 @@ Nothing here imports rclpy (the numbers are :mod:`servo_axis.core.deadlines`'):
   ticks and of the arrivals they wait for (the plant's ``realtime`` report).
 * :class:`HeldSetPoint`: the current a drive applies at a tick: the command
   of the step if it arrived by the deadline, else the newest one received.
+* :class:`DriveSetPoint`: the same for a drive's set-point of no step
+  (``command_source: drive_setpoint``): the newest one, whatever its stamp.
 * :class:`CatchUp`: which states a node that fell behind still answers.
 * :class:`LoopTimes`: the loop around an outside plant, as its feedback sees it.
 """
@@ -56,6 +58,10 @@ START_WINDOW = 1024
 #: one after now, and the slip is counted (:attr:`ClockThread.slips`).
 SLIP_PERIODS = 100
 SLIP_MIN_NS = 50_000_000
+#: ``command_source: drive_setpoint``: a tick misses its deadline when the
+#: newest set-point is older than this many set-point periods then
+#: (:class:`DriveSetPoint`).
+SETPOINT_AGE_PERIODS = 1.5
 
 
 # -- scheduling -------------------------------------------------------------------------
@@ -576,6 +582,83 @@ class HeldSetPoint:
             self.held_step = step
             self.held = command
         return current, on_time
+
+
+class DriveSetPoint:
+    """``command_source: drive_setpoint``: the newest set-point, whatever its stamp, held.
+
+    A drive commanded over a fieldbus, or the hardware behind ros2_control's
+    topic-based interface, applies at each tick the newest set-point
+    received, held until the next one. Its commander runs on a clock of its
+    own at the set-point period ``P`` (ros2_control: the controller
+    manager's ``update_rate``), so a set-point belongs to no step. How a
+    tick without a fresh one is judged depends on the commander:
+
+    * it publishes every cycle (``threshold_Nm`` < 0: the plugin's
+      ``trigger_joint_command_threshold: -1``): a tick misses its deadline
+      when the newest set-point is older than :data:`SETPOINT_AGE_PERIODS`
+      ``P`` then (any phase between the two clocks, jitter up to ``P / 2``);
+    * it publishes only when its command moves away from the effort it read
+      by more than ``threshold_Nm`` (the plugin's default, 1e-5): silence
+      means "no change", which a drive cannot tell from a lost set-point. A
+      tick without a fresh set-point is then held and counted
+      (:attr:`quiet_ticks`), never judged a miss.
+
+    NaN (the plugin's command before a controller is active) is no
+    set-point: the node counts it (:attr:`unset`) and never applies it.
+
+    Parameters
+    ----------
+    period_ns : int
+        The set-point period ``P``, ns, > 0.
+    threshold_Nm : float
+        The commander's ``trigger_joint_command_threshold``, N m; negative:
+        it publishes every cycle.
+    """
+
+    def __init__(self, *, period_ns: int, threshold_Nm: float) -> None:
+        if period_ns <= 0:
+            raise ValueError(f"period_ns: expected > 0, got {period_ns!r}")
+        self.period_ns = period_ns
+        self.threshold_Nm = threshold_Nm
+        self.max_age_ns = int(SETPOINT_AGE_PERIODS * period_ns)
+        self.held_A = 0.0  # zero current until the first set-point
+        self.arrival_ns: int | None = None
+        #: Set-points taken (finite), and NaN ones (no command yet) counted, not applied.
+        self.received = 0
+        self.unset = 0
+        #: Ticks without a fresh set-point that were no miss (a commander that is
+        #: silent while its command does not change).
+        self.quiet_ticks = 0
+
+    @property
+    def silent_when_unchanged(self) -> bool:
+        """Whether the commander publishes only on a change (``threshold_Nm`` >= 0)."""
+        return self.threshold_Nm >= 0.0
+
+    def arrived(self, current_A: float, now_ns: int) -> None:
+        """A set-point (finite, as a current) arrived at ``now_ns``: held from now on."""
+        self.held_A, self.arrival_ns = current_A, now_ns
+        self.received += 1
+
+    def take(self, deadline_ns: int) -> tuple[float, bool]:
+        """The current for the tick due at ``deadline_ns``, and whether it kept its deadline."""
+        fresh = self.arrival_ns is not None and (
+            deadline_ns - self.max_age_ns < self.arrival_ns <= deadline_ns
+        )
+        if not fresh and self.silent_when_unchanged and self.arrival_ns is not None:
+            self.quiet_ticks += 1
+            return self.held_A, True
+        return self.held_A, fresh
+
+    def report(self) -> dict[str, Any]:
+        """The set-point figures of the plant's ``realtime`` report (``setpoints``)."""
+        return {
+            "period_ns": self.period_ns,
+            "received": self.received,
+            "unset": self.unset,
+            "quiet_ticks": self.quiet_ticks,
+        }
 
 
 class CatchUp:

@@ -35,6 +35,7 @@ from servo_axis.core.models.base import NominalModel, Plant
 from servo_axis.core.reference import Reference, make_reference
 from servo_axis.core.timing import SampleGrid
 from servo_axis.params import schemas
+from servo_axis.params.names import namespace_problem
 from servo_axis.params.param import Param, build, check_values, section
 from servo_axis.params.registry import FEEDFORWARD_TERMS as FEEDFORWARD_TERMS
 from servo_axis.params.registry import IDENTIFIERS as IDENTIFIERS
@@ -532,9 +533,11 @@ def check_consistency(role: str, values: Values) -> None:
     external_roles(values)
     if role == "plant":
         build_plant(values)
+        check_command_source(values)
     elif role == "feedback":
         build_loop(values)
         build_deformation(values)
+        check_forward_topic(values)
     elif role == "feedforward":
         for _, term in feedforward_terms():
             term.check(values)
@@ -546,6 +549,41 @@ def check_consistency(role: str, values: Values) -> None:
         check_recorder_topics(values)
     elif role == "identifier":
         build_identifier(values)
+
+
+def check_command_source(values: Values) -> None:
+    """``command_source: drive_setpoint`` only in realtime (a set-point has no step to wait for).
+
+    Raises
+    ------
+    ParameterFileError
+        Naming ``command_source`` and ``mode``.
+    """
+    if values.get("command_source") == "drive_setpoint" and values["mode"] == "lockstep":
+        raise ParameterFileError(
+            "parameter 'command_source': drive_setpoint needs mode: realtime (a drive's "
+            "set-point carries no step of the k T_u grid, which lockstep waits for; "
+            "got mode: lockstep)"
+        )
+
+
+def check_forward_topic(values: Values) -> None:
+    """``forward_commands_topic``: empty, or a ROS topic name (absolute or relative).
+
+    Raises
+    ------
+    ParameterFileError
+        Naming ``forward_commands_topic`` and what rcl would refuse.
+    """
+    topic = values.get("forward_commands_topic", "")
+    if not topic:
+        return
+    problem = namespace_problem(topic if topic.startswith("/") else f"/{topic}")
+    if problem is not None or topic in ("/", "~"):
+        raise ParameterFileError(
+            f"parameter 'forward_commands_topic': {topic!r} is not a ROS topic name: "
+            f"{problem or 'no name'}"
+        )
 
 
 #: The roles a node from outside the suite may play (``external_roles``).

@@ -264,12 +264,24 @@ def _outside_plant(
             )
 
 
+def drive_setpoints(scenario: dict[str, Any]) -> bool:
+    """Whether the plant takes ``command`` as a drive's set-point (``command_source``)."""
+    given = node_params(scenario, "plant").get(
+        "command_source", schemas.PLANT["command_source"].default
+    )
+    return bool(given == "drive_setpoint")
+
+
 def _counted(scenario: dict[str, Any], name: str, external: tuple[str, ...]) -> bool:
     """Whether the recorder counts ``name`` in its progress.
 
     Of an outside node's streams, flow control counts only the one its role
-    must publish (an outside feedback need not publish ``deformation``).
+    must publish (an outside feedback need not publish ``deformation``). A
+    drive's set-points (``command_source: drive_setpoint``) are of no step:
+    recorded, never counted.
     """
+    if name == "command" and drive_setpoints(scenario):
+        return False
     entry = topic(name)
     if entry.producer in external:
         return entry.counted and name == presence_topic(scenario, entry.producer)

@@ -30,6 +30,7 @@ from servo_axis.params.resolve import node_values
 from servo_axis.params.run_params import (
     HANDSHAKES,
     Handshake,
+    drive_setpoints,
     external_roles_of,
     handshake_overrides,
     run_params,
@@ -337,6 +338,12 @@ def _axis_plan(
                 f"--external {role}: the scenario has no {role} section (its roles: "
                 f"{', '.join(roles)})"
             )
+    if "identifier" in roles and drive_setpoints(view):
+        raise ConfigError(
+            "plant command_source: drive_setpoint: the identifier pairs each command with its "
+            "state by stamp, which a drive's set-point does not carry (run without the "
+            "identifier section)"
+        )
     overrides = handshake_overrides(view, roles, axis_dir / "bag", scenario_path.parent, outside)
     plans = tuple(_role_plan(view, roles, role, overrides, outside) for role in roles)
     if axis:

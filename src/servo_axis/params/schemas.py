@@ -218,6 +218,36 @@ PLANT: dict[str, Param] = {
         minimum=1,
         meaning="publish plant/status (the feedforward's progress signal) every this many samples",
     ),
+    "command_source": Param(
+        "stamped",
+        choices=("stamped", "drive_setpoint"),
+        meaning="what a `command` is: stamped = the command of the state of its stamp "
+        "(the suite's feedback); drive_setpoint (realtime only; lockstep refuses it) = a "
+        "drive's set-point, as ros2_control's joint_state_topic_hardware_interface sends it: "
+        "the newest message whatever its stamp, held until the next one; the motor torque "
+        "(N m) is the `effort` of `<axis>_motor` (by name, or the only value), NaN = no "
+        "command yet (held, counted); `command` is recorded but not counted",
+    ),
+    "setpoint_period_s": Param(
+        0.0,
+        unit="s",
+        minimum=0.0,
+        meaning="drive_setpoint: the commander's period P (ros2_control: 1 / the controller "
+        "manager's update_rate); with setpoint_threshold_Nm < 0 a tick misses its deadline "
+        "when the newest set-point is older than 1.5 P then (the commander's clock is not "
+        "the plant's: any phase, jitter up to P / 2); 0 = control_period_s",
+    ),
+    "setpoint_threshold_Nm": Param(
+        -1.0,
+        unit="N m",
+        meaning="drive_setpoint: the commander's trigger_joint_command_threshold. < 0 (the "
+        "plugin's -1: it publishes every cycle) = a tick without a fresh set-point is a "
+        "miss, and 2 s without one end the run (loop_open); >= 0 (the plugin's default "
+        "1e-5: it publishes nothing while its command stays within that of the effort it "
+        "read, which a drive cannot tell from a lost set-point) = such a tick is held and "
+        "counted (realtime.setpoints.quiet_ticks), never a miss, and the loop counts as "
+        "open only once the commander has left the graph",
+    ),
 }
 
 #: The controlled output, shared by the feedback loop and the learning unit.
@@ -370,6 +400,15 @@ FEEDBACK: dict[str, Param] = {
         meaning="an outside plant in lockstep: answer state[k] only once the recorder has "
         "acknowledged step k + 1 - recorder_lag_steps (recorder/progress), so that a plant "
         "with a keep-last 10 `state` writer never overruns it; 0: no such wait",
+    ),
+    "forward_commands_topic": Param(
+        "",
+        meaning="also send each command as ros2_control's forward command controllers take "
+        "it (effort_controllers/JointGroupEffortController, ros2_controllers 4.42.1): "
+        "std_msgs/Float64MultiArray, data = [motor torque reference (N m)], empty layout, no "
+        "stamp, reliable volatile keep-last 10, on this topic (absolute, e.g. "
+        "/effort_controller/commands, or relative to the axis's namespace); the "
+        "controller's `joints` must be [<axis>_motor]; not recorded; empty = off",
     ),
     **FEEDBACK_SIGMOID,
 }

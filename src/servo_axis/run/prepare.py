@@ -106,9 +106,18 @@ def describe_external(axis: AxisPlan, role: str) -> str:
     def full(name: str) -> str:
         return name if name.startswith("/") else f"{ns}/{name}"
 
+    plant = axis.role("plant")
+    setpoints = plant is not None and plant.values.get("command_source") == "drive_setpoint"
+
     def row(kind: str, t: Topic) -> str:
         optional = "" if played.required(t.name) else "(optional) "
-        return f"  {kind:11} {full(t.name):32} {t.type_name:30} {optional}{t.meaning}"
+        meaning = t.meaning
+        if t.name == "command" and setpoints:
+            meaning = (
+                "a drive's set-point: effort of the motor joint (N m), any stamp, NaN = none "
+                "(command_source: drive_setpoint; docs/how-to/ros2-control.md)"
+            )
+        return f"  {kind:11} {full(t.name):32} {t.type_name:30} {optional}{meaning}"
 
     lines = [
         f"outside {axis.where(role)}: any node name, default QoS accepted (docs/interfaces.md)"

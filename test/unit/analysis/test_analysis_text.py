@@ -228,6 +228,17 @@ def test_a_realtime_summary_reports_misses_and_lateness_and_is_never_determinist
         "late inputs       5 state(s) answered with the last reference; applied late: "
         "12 estimate(s), 0 correction(s)"
     ) in format_summary(s2)
+    assert "set-points" not in format_summary(s2)
+    points = {"period_ns": 2_000_000, "received": 990, "unset": 40, "quiet_ticks": 0}
+    s3 = RunSummary.from_dict(dict(data, realtime=dict(REALTIME, setpoints=points)))
+    assert RunSummary.from_json(s3.to_json()) == s3
+    assert (
+        "set-points        990 received every 2000 us (a miss: none for 1.5 of that), "
+        "40 NaN (no command yet, not applied), 0 tick(s) held on a silent commander"
+    ) in format_summary(s3)
+    assert "command late (us) p50 310  p99 980  max 4200  (after the newest state's tick)" in (
+        format_summary(s3)
+    )
     # A lockstep summary has no realtime entry and says nothing of one.
     assert "realtime" not in demo_summary().to_dict()
     assert "deadline misses" not in format_summary(demo_summary())

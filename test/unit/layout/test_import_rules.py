@@ -18,7 +18,7 @@ hidden inside a function is still a circle.
   finds its own extensions by entry point, as it finds an outside package's;
 * ``simulate``, ``analysis``, ``friction_id``, ``gms_fit``, ``identify``, ``params``,
   ``plugins``, ``sweep``, ``wire.topics``, ``wire.layouts``, ``wire.checks``, ``wire.streams``,
-  ``wire.cdr``, ``wire.sample_cdr``, ``recording.reader``, ``nodes.lockstep`` and
+  ``wire.cdr``, ``wire.sample_cdr``, ``wire.setpoint``, ``recording.reader``, ``nodes.lockstep`` and
   ``nodes.realtime`` reach no rclpy and no ROS message
   package, directly or through other modules of the project.
 """
@@ -230,6 +230,7 @@ ROS_FREE = [
     "servo_axis.wire.streams",
     "servo_axis.wire.cdr",
     "servo_axis.wire.sample_cdr",
+    "servo_axis.wire.setpoint",
     "servo_axis.recording.reader",
     "servo_axis.nodes.lockstep",
     "servo_axis.nodes.realtime",

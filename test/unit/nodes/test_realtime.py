@@ -20,6 +20,7 @@ from servo_axis.nodes.realtime import (
     CatchUp,
     ClockRecord,
     ClockThread,
+    DriveSetPoint,
     HeldSetPoint,
     RealtimeScheduling,
     realtime_priority,
@@ -196,6 +197,34 @@ def test_a_command_that_came_before_the_tick_but_after_its_deadline_is_a_miss_ye
     current, ok = drive.take(1_000, 0)
     assert (current, ok) == (0.0, False)  # the miss applies the held value ...
     assert drive.held == 5.0 and drive.held_step == 0  # ... and the late one is held on
+
+
+def test_a_drive_set_point_is_the_newest_held_and_misses_by_its_own_period() -> None:
+    """A set-point period of 2 ticks (ros2_control at 500 Hz on a 1 kHz axis), publishing
+    every cycle: a tick keeps its deadline while the newest set-point is at most 1.5
+    periods old, and the newest one is applied even when it came after the deadline."""
+    tick_ns, period_ns = 1_000, 2_000
+    drive = DriveSetPoint(period_ns=period_ns, threshold_Nm=-1.0)
+    assert drive.take(1 * tick_ns) == (0.0, False)  # nothing yet: zero current, a miss
+    drive.arrived(1.0, 1_500)
+    assert drive.take(2 * tick_ns) == (1.0, True)
+    assert drive.take(3 * tick_ns) == (1.0, True)  # 1.5 us old: in time
+    assert drive.take(4 * tick_ns) == (1.0, True)  # 2.5 us old: in time
+    assert drive.take(5 * tick_ns) == (1.0, False)  # 3.5 us old: a miss, the held one
+    drive.arrived(2.0, 5_200)  # after the deadline of tick 5, before tick 6's
+    assert drive.take(6 * tick_ns) == (2.0, True)
+    assert drive.report() == {"period_ns": 2_000, "received": 2, "unset": 0, "quiet_ticks": 0}
+
+
+def test_a_drive_set_point_of_a_commander_silent_while_unchanged_is_held_not_missed() -> None:
+    """threshold >= 0 (the plugin's default 1e-5): silence means "no change": after the
+    first set-point a tick without a fresh one is held and counted, never a miss."""
+    drive = DriveSetPoint(period_ns=1_000, threshold_Nm=1e-5)
+    assert drive.silent_when_unchanged
+    assert drive.take(1_000) == (0.0, False)  # before the first set-point: a miss
+    drive.arrived(3.0, 1_500)
+    assert [drive.take(d) for d in (2_000, 9_000, 60_000)] == [(3.0, True)] * 3
+    assert drive.quiet_ticks == 2
 
 
 def test_catching_up_skips_exactly_what_answer_useful_says() -> None:

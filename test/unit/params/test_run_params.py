@@ -258,3 +258,65 @@ def test_the_capped_lead_loses_nothing_of_a_default_depth_writer() -> None:
     # The shipped lead (200, acknowledged every 50) lost all but the newest
     # 10 of each burst: what a slow recorder met with an example controller.
     assert lost_by_a_keep_last_writer(200, 50) > 1000
+
+
+def test_a_drive_set_point_is_recorded_not_counted_and_only_in_realtime(tmp_path: Path) -> None:
+    """``command_source: drive_setpoint``: ros2_control's commands carry no step, so the
+    recorder records `command` without counting it, and lockstep (which waits for the
+    command of each step) refuses the option naming both keys."""
+    data = scenario("ptc_nominal")
+    data["/**"]["ros__parameters"]["mode"] = "realtime"
+    data["plant"]["ros__parameters"]["command_source"] = "drive_setpoint"
+    external = ("feedback",)
+    rec = handshake_overrides(data, roles_of(data), BAG, CONFIG, external)["recorder"]
+    assert "command" in rec["topics"] and "command" not in rec["counted_topics"]
+    assert "state" in rec["counted_topics"]
+    stamped = scenario("ptc_nominal")
+    stamped["/**"]["ros__parameters"]["mode"] = "realtime"
+    rec = handshake_overrides(stamped, roles_of(stamped), BAG, CONFIG, external)["recorder"]
+    assert "command" in rec["counted_topics"]
+    from servo_axis.core.errors import ParameterFileError
+    from servo_axis.params.factories import checked_values
+
+    with pytest.raises(ParameterFileError, match=r"'command_source': drive_setpoint needs mode"):
+        checked_values("plant", {"command_source": "drive_setpoint", "mode": "lockstep"})
+    values = checked_values("plant", {"command_source": "drive_setpoint", "mode": "realtime"})
+    assert values["setpoint_period_s"] == 0.0 and values["setpoint_threshold_Nm"] == -1.0
+    # The identifier pairs commands with states by stamp: refused before anything starts.
+    from servo_axis.core.errors import ConfigError
+    from servo_axis.params.run_plan import plan_run
+
+    path = CONFIG / "dlpid_tilt_lpf2.yaml"
+    identified = load_scenario(path)
+    identified["/**"]["ros__parameters"]["mode"] = "realtime"
+    identified["plant"]["ros__parameters"]["command_source"] = "drive_setpoint"
+    with pytest.raises(ConfigError, match="drive_setpoint: the identifier pairs each command"):
+        plan_run(identified, path, out_dir=tmp_path / "run")
+
+
+@pytest.mark.parametrize("topic", ["/effort_controller/commands", "effort_controller/commands"])
+def test_a_forward_commands_topic_is_a_ros_topic_name(topic: str) -> None:
+    from servo_axis.core.errors import ParameterFileError
+    from servo_axis.params.factories import checked_values
+
+    assert checked_values("feedback", {"forward_commands_topic": topic})["forward_commands_topic"]
+    with pytest.raises(ParameterFileError, match=r"'forward_commands_topic': .* segment '2x'"):
+        checked_values("feedback", {"forward_commands_topic": topic.replace("commands", "2x")})
+
+
+def test_the_run_tells_an_outside_feedback_that_its_command_is_a_set_point(
+    tmp_path: Path,
+) -> None:
+    from servo_axis.params.run_plan import plan_run
+    from servo_axis.run.prepare import describe_external
+
+    path = CONFIG / "ptc_nominal.yaml"
+    data = load_scenario(path)
+    data["/**"]["ros__parameters"]["mode"] = "realtime"
+    stamped = plan_run(data, path, out_dir=tmp_path / "a", external=["feedback"]).axes[0]
+    assert "the answer to state[k]" in describe_external(stamped, "feedback")
+    data["plant"]["ros__parameters"]["command_source"] = "drive_setpoint"
+    driven = plan_run(data, path, out_dir=tmp_path / "b", external=["feedback"]).axes[0]
+    text = describe_external(driven, "feedback")
+    assert "a drive's set-point: effort of the motor joint (N m), any stamp" in text
+    assert "the answer to state[k]" not in text
