@@ -63,6 +63,28 @@ class JointStateBridge(Node):
 
     def __init__(self) -> None:
         super().__init__(NAME)
+        try:
+            self._configure()
+        except ConfigError:
+            self.destroy_node()  # refused: nothing of it stays in the graph
+            raise
+        self.names = [f"{self.axis}_motor", f"{self.axis}_table"]
+        self.stream = BridgeStream()
+        self.started = self.finished = False
+        self.held_torque_Nm = 0.0
+        self._gone_since: Time | None = None
+        # Reliable, volatile, keep-last 10: what the suite's readers take from a default publisher.
+        self.pub = self.create_publisher(JointState, "state", QoSProfile(depth=10))
+        self.commands = self.create_subscription(
+            JointState, "command", self._on_command, QoSProfile(depth=10)
+        )
+        self.create_subscription(
+            JointState, self.topic, self._on_joint_states, qos_profile_sensor_data
+        )
+        self.create_timer(CHECK_S, self._check, clock=steady_clock())
+
+    def _configure(self) -> None:
+        """The parameters, checked."""
         p = lambda name, value: self.declare_parameter(name, value).value  # noqa: E731
         mode, stamps = p("mode", SHARED["mode"].default), p("state_stamps", "grid")
         if mode != "realtime":
@@ -80,19 +102,7 @@ class JointStateBridge(Node):
         self.lead = require_positive(
             "lead_m_per_rad", p("lead_m_per_rad", SHARED["lead_m_per_rad"].default)
         )
-        topic = p("joint_states_topic", "/joint_states")
-        self.names = [f"{self.axis}_motor", f"{self.axis}_table"]
-        self.stream = BridgeStream()
-        self.started = self.finished = False
-        self.held_torque_Nm = 0.0
-        self._gone_since: Time | None = None
-        # Reliable, volatile, keep-last 10: what the suite's readers take from a default publisher.
-        self.pub = self.create_publisher(JointState, "state", QoSProfile(depth=10))
-        self.commands = self.create_subscription(
-            JointState, "command", self._on_command, QoSProfile(depth=10)
-        )
-        self.create_subscription(JointState, topic, self._on_joint_states, qos_profile_sensor_data)
-        self.create_timer(CHECK_S, self._check, clock=steady_clock())
+        self.topic = str(p("joint_states_topic", "/joint_states"))
 
     def _check(self) -> None:
         commanded = self.commands.get_publisher_count() > 0
