@@ -43,7 +43,7 @@ from servo_axis.nodes.runtime import run_main, steady_clock
 from servo_axis.params.schemas import SHARED
 from servo_axis.wire.joint_states import BridgeStream, axis_state
 
-#: The node's name (the broadcaster's messages need no answer from a named node).
+#: The node's name (any would do: the run waits for its plant by topic, not by node name).
 NAME = "joint_state_bridge"
 #: How often the start rule and the end are checked (s, wall time).
 CHECK_S = 0.01
@@ -86,7 +86,8 @@ class JointStateBridge(Node):
     def _configure(self) -> None:
         """The parameters, checked."""
         p = lambda name, value: self.declare_parameter(name, value).value  # noqa: E731
-        mode, stamps = p("mode", SHARED["mode"].default), p("state_stamps", "grid")
+        mode = p("mode", SHARED["mode"].default)
+        stamps = p("state_stamps", SHARED["state_stamps"].default)
         if mode != "realtime":
             raise ConfigError(
                 f"mode: expected realtime, got {mode!r}: a ros2_control stack has no lockstep "
