@@ -231,6 +231,7 @@ ROS_FREE = [
     "servo_axis.wire.cdr",
     "servo_axis.wire.sample_cdr",
     "servo_axis.wire.setpoint",
+    "servo_axis.wire.joint_states",
     "servo_axis.recording.reader",
     "servo_axis.nodes.lockstep",
     "servo_axis.nodes.realtime",
