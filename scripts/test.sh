@@ -1,10 +1,19 @@
 #!/usr/bin/env bash
 # Set up (first time only) and run the whole test suite (unit, ROS, integration).
 #
-# With arguments: pytest with those arguments. Without: test/unit on every core
-# (pytest-xdist; no test there starts ROS or measures time), then test/ros and
-# test/integration one test at a time (their nodes' timing is the cores').
-# Both parts always run; the exit code is the first failing part's.
+# With arguments: pytest with those arguments. Without, three parts:
+# 1. test/unit on every core (pytest-xdist; no test there starts ROS or
+#    measures time).
+# 2. test/ros and test/integration but the `realtime` tests, two at a time
+#    (-n 2): lockstep runs are deterministic whatever the load, and each
+#    worker takes its own half of the ROS domains (test/conftest.py). Tests
+#    that share a module-scoped run, and the `shm` tests (a SIGKILLed
+#    participant's /dev/shm files), each stay on one worker
+#    (--dist loadgroup); the longest groups go first (--no-loadscope-reorder
+#    keeps the order test/conftest.py gives).
+# 3. The `realtime` tests (wall-clock time, mode realtime, deadline misses)
+#    one at a time, alone: what they measure is the cores'.
+# All parts always run; the exit code is the first failing part's.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh
@@ -12,6 +21,13 @@ if [ $# -gt 0 ]; then
   exec .venv/bin/python -m pytest "$@"
 fi
 status=0
-.venv/bin/python -m pytest -n auto test/unit || status=$?
-.venv/bin/python -m pytest test/ros test/integration || { code=$?; [ "$status" -ne 0 ] || status=$code; }
+part() {
+  local started=$SECONDS
+  "$@" || { code=$?; [ "$status" -ne 0 ] || status=$code; }
+  echo "scripts/test.sh: $((SECONDS - started)) s: $*"
+}
+part .venv/bin/python -m pytest -n auto test/unit
+part .venv/bin/python -m pytest -n 2 --dist loadgroup --no-loadscope-reorder \
+  -m "not realtime" test/ros test/integration
+part .venv/bin/python -m pytest -m realtime test/ros test/integration
 exit "$status"

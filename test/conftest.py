@@ -21,7 +21,8 @@ CONFIG = REPO / "config"
 # Each test that touches ROS gets its own domain; the base depends on the pid
 # so that two suites on one machine are unlikely to collide.
 # SERVO_AXIS_TEST_DOMAINS=LO-HI confines a suite to domains LO..HI (inclusive),
-# so that suites run side by side (two checkouts) never share one.
+# so that suites run side by side (two checkouts) never share one; the
+# workers of one suite under pytest-xdist split it among themselves.
 _domains = itertools.count()
 
 
@@ -42,12 +43,35 @@ def _domain_range() -> tuple[int, int]:
     return low, high
 
 
+def _worker_range(low: int, high: int) -> tuple[int, int]:
+    """This pytest-xdist worker's share of ``low..high``: workers never share a domain.
+
+    ``gwK`` of ``N`` workers takes the K-th of N equal, disjoint slices (the
+    whole range without xdist).
+    """
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "")
+    if not worker:
+        return low, high
+    count = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
+    index = int(worker.removeprefix("gw"))
+    size = (high - low + 1) // count
+    if size < 1:
+        raise pytest.UsageError(
+            f"SERVO_AXIS_TEST_DOMAINS: {high - low + 1} domains for {count} pytest-xdist "
+            "workers; expected at least one each"
+        )
+    return low + index * size, low + (index + 1) * size - 1
+
+
 _LOW, _HIGH = _domain_range()
 _START = (os.getpid() % 9) * 10
 
 
 def next_domain_id() -> int:
-    return _LOW + (_START + next(_domains)) % (_HIGH - _LOW + 1)
+    # The worker's slice is asked for here, not at import: test/unit on many
+    # workers needs no domain, whatever the range.
+    low, high = _worker_range(_LOW, _HIGH)
+    return low + (_START + next(_domains)) % (high - low + 1)
 
 
 @contextlib.contextmanager
@@ -125,3 +149,40 @@ def read_raw_payloads(bag_dir: Path) -> dict[str, list[bytes]]:
 def raw_payloads() -> Callable[[Path], dict[str, list[bytes]]]:
     """The bag reader for payload comparisons (independent of servo_axis)."""
     return read_raw_payloads
+
+
+def _xdist_group(item: pytest.Item) -> str | None:
+    """The group a test shares a pytest-xdist worker with (``--dist loadgroup``), or None.
+
+    ``shm`` tests run one after another: a participant SIGKILLed by one
+    leaves Fast DDS files that nobody maps until its runner removes them,
+    which another's ``/dev/shm`` check would count as its own. Tests that
+    share a module-scoped run go to one worker, so that the run is made once.
+    """
+    if item.get_closest_marker("shm"):
+        return "shm"
+    info = getattr(item, "_fixtureinfo", None)
+    defs = info.name2fixturedefs.values() if info is not None else []
+    if any(d[-1].scope == "module" for d in defs if d):
+        return item.module.__name__ if item.module is not None else None
+    return None
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Put each test in its :func:`_xdist_group`; the groups first, the longest first.
+
+    The groups are the longest runs of work a worker cannot share, so they
+    start first (``scripts/test.sh`` keeps this order: --no-loadscope-reorder).
+    Without xdist the marks change nothing and the order stays the collection's.
+    """
+    groups: dict[str, int] = {}
+    for item in items:
+        group = _xdist_group(item)
+        if group is not None:
+            item.add_marker(pytest.mark.xdist_group(group))
+            groups[group] = groups.get(group, 0) + 1
+    if getattr(config.option, "dist", "no") == "no":
+        return
+    rank = {g: i for i, g in enumerate(sorted(groups, key=lambda g: -groups[g]))}
+    items.sort(key=lambda item: rank.get(_xdist_group(item) or "", len(rank)))

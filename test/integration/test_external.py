@@ -535,6 +535,7 @@ def test_a_stranger_beside_the_outside_controller_is_reported_and_changes_nothin
     same_streams(tmp_path / "clean", dirty, path)
 
 
+@pytest.mark.shm
 def test_an_outside_controller_that_stops_answering_is_a_reported_fallback(
     ros_env: int, tmp_path: Path
 ) -> None:
@@ -567,6 +568,7 @@ def test_an_outside_controller_that_stops_answering_is_a_reported_fallback(
     assert 0 < summary["message_counts"][f"{NS}/command"] < 1500
 
 
+@pytest.mark.realtime
 def test_in_realtime_an_outside_controller_that_stops_answering_ends_the_run_with_exit_5(
     ros_env: int, tmp_path: Path
 ) -> None:
