@@ -151,38 +151,62 @@ def raw_payloads() -> Callable[[Path], dict[str, list[bytes]]]:
     return read_raw_payloads
 
 
-def _xdist_group(item: pytest.Item) -> str | None:
-    """The group a test shares a pytest-xdist worker with (``--dist loadgroup``), or None.
-
-    ``shm`` tests run one after another: a participant SIGKILLed by one
-    leaves Fast DDS files that nobody maps until its runner removes them,
-    which another's ``/dev/shm`` check would count as its own. Tests that
-    share a module-scoped run go to one worker, so that the run is made once.
-    """
-    if item.get_closest_marker("shm"):
-        return "shm"
-    info = getattr(item, "_fixtureinfo", None)
-    defs = info.name2fixturedefs.values() if info is not None else []
-    if any(d[-1].scope == "module" for d in defs if d):
-        return item.module.__name__ if item.module is not None else None
-    return None
+#: The modules of the longest runs of work one pytest-xdist worker cannot
+#: share (``--dist loadfile``: a module is one unit), longest first (a serial
+#: ``pytest test/ros test/integration --durations=0``); the order only.
+_LONGEST_FIRST = (
+    "test_external",
+    "test_determinism",
+    "test_elastic_runs",
+    "test_runs",
+    "test_dlpid_runs",
+    "test_learning",
+    "test_outside_plant",
+    "test_ilc_runs",
+    "test_live",
+    "test_bad_params",
+    "test_node_deaths",
+    "test_junk",
+)
 
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Put each test in its :func:`_xdist_group`; the groups first, the longest first.
+    """Under pytest-xdist the longest modules first, so that none is left for the end.
 
-    The groups are the longest runs of work a worker cannot share, so they
-    start first (``scripts/test.sh`` keeps this order: --no-loadscope-reorder).
-    Without xdist the marks change nothing and the order stays the collection's.
+    ``scripts/test.sh`` keeps this order (``--no-loadscope-reorder``).
+    Without xdist the order stays the collection's.
     """
-    groups: dict[str, int] = {}
-    for item in items:
-        group = _xdist_group(item)
-        if group is not None:
-            item.add_marker(pytest.mark.xdist_group(group))
-            groups[group] = groups.get(group, 0) + 1
     if getattr(config.option, "dist", "no") == "no":
         return
-    rank = {g: i for i, g in enumerate(sorted(groups, key=lambda g: -groups[g]))}
-    items.sort(key=lambda item: rank.get(_xdist_group(item) or "", len(rank)))
+
+    def rank(item: pytest.Item) -> int:
+        name = item.module.__name__.rsplit(".", 1)[-1] if item.module is not None else ""
+        return _LONGEST_FIRST.index(name) if name in _LONGEST_FIRST else len(_LONGEST_FIRST)
+
+    items.sort(key=rank)
+
+
+@pytest.fixture(autouse=True)
+def _shm_tests_one_at_a_time(
+    request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[None]:
+    """A test marked ``shm`` waits for the other workers' ``shm`` tests (pytest-xdist).
+
+    A participant SIGKILLed by one leaves Fast DDS files that nobody maps
+    until its runner removes them, which another's ``/dev/shm`` check
+    would count as its own. The lock is a file all workers of the session
+    share (the parent of each worker's base temporary directory).
+    """
+    if request.node.get_closest_marker("shm") is None or not os.environ.get("PYTEST_XDIST_WORKER"):
+        yield
+        return
+    import fcntl
+
+    lock = tmp_path_factory.getbasetemp().parent / "shm_tests.lock"
+    with lock.open("a") as f:
+        fcntl.flock(f, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(f, fcntl.LOCK_UN)
