@@ -4,17 +4,16 @@
 # With arguments: pytest with those arguments. Without, three parts:
 # 1. test/unit on every core (pytest-xdist; no test there starts ROS or
 #    measures time).
-# 2. test/ros and test/integration but the `realtime` tests, two at a time
-#    (-n 2): lockstep runs are deterministic whatever the load, and each
-#    worker takes its own half of the ROS domains (test/conftest.py). A
+# 2. test/ros and test/integration but the `realtime` and `shm` tests, two at
+#    a time (-n 2): lockstep runs are deterministic whatever the load, and
+#    each worker takes its own half of the ROS domains (test/conftest.py). A
 #    module stays on one worker (--dist loadfile: its module-scoped runs are
 #    made once), the longest modules first (--no-loadscope-reorder keeps the
-#    order test/conftest.py gives); the `shm` tests (a SIGKILLed
-#    participant's /dev/shm files) wait for each other (a file lock).
-#    (Not --dist loadgroup: with pytest 9.2 it ignores xdist_group,
-#    pytest-xdist issue 1386.)
+#    order test/conftest.py gives). (Not --dist loadgroup: with pytest 9.2 it
+#    ignores xdist_group, pytest-xdist issue 1386.)
 # 3. The `realtime` tests (wall-clock time, mode realtime, deadline misses)
-#    one at a time, alone: what they measure is the cores'.
+#    and the `shm` tests (a SIGKILLed participant, /dev/shm checks: another
+#    run's segments would count) one at a time, alone.
 # All parts always run; the exit code is the first failing part's.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -30,6 +29,6 @@ part() {
 }
 part .venv/bin/python -m pytest -n auto test/unit
 part .venv/bin/python -m pytest -n 2 --dist loadfile --no-loadscope-reorder \
-  -m "not realtime" test/ros test/integration
-part .venv/bin/python -m pytest -m realtime test/ros test/integration
+  -m "not realtime and not shm" test/ros test/integration
+part .venv/bin/python -m pytest -m "realtime or shm" test/ros test/integration
 exit "$status"

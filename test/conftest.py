@@ -185,28 +185,3 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         return _LONGEST_FIRST.index(name) if name in _LONGEST_FIRST else len(_LONGEST_FIRST)
 
     items.sort(key=rank)
-
-
-@pytest.fixture(autouse=True)
-def _shm_tests_one_at_a_time(
-    request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
-) -> Iterator[None]:
-    """A test marked ``shm`` waits for the other workers' ``shm`` tests (pytest-xdist).
-
-    A participant SIGKILLed by one leaves Fast DDS files that nobody maps
-    until its runner removes them, which another's ``/dev/shm`` check
-    would count as its own. The lock is a file all workers of the session
-    share (the parent of each worker's base temporary directory).
-    """
-    if request.node.get_closest_marker("shm") is None or not os.environ.get("PYTEST_XDIST_WORKER"):
-        yield
-        return
-    import fcntl
-
-    lock = tmp_path_factory.getbasetemp().parent / "shm_tests.lock"
-    with lock.open("a") as f:
-        fcntl.flock(f, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(f, fcntl.LOCK_UN)
