@@ -21,7 +21,8 @@ CONFIG = REPO / "config"
 # Each test that touches ROS gets its own domain; the base depends on the pid
 # so that two suites on one machine are unlikely to collide.
 # SERVO_AXIS_TEST_DOMAINS=LO-HI confines a suite to domains LO..HI (inclusive),
-# so that suites run side by side (two checkouts) never share one.
+# so that suites run side by side (two checkouts) never share one; the
+# workers of one suite under pytest-xdist split it among themselves.
 _domains = itertools.count()
 
 
@@ -42,12 +43,35 @@ def _domain_range() -> tuple[int, int]:
     return low, high
 
 
+def _worker_range(low: int, high: int) -> tuple[int, int]:
+    """This pytest-xdist worker's share of ``low..high``: workers never share a domain.
+
+    ``gwK`` of ``N`` workers takes the K-th of N equal, disjoint slices (the
+    whole range without xdist).
+    """
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "")
+    if not worker:
+        return low, high
+    count = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
+    index = int(worker.removeprefix("gw"))
+    size = (high - low + 1) // count
+    if size < 1:
+        raise pytest.UsageError(
+            f"SERVO_AXIS_TEST_DOMAINS: {high - low + 1} domains for {count} pytest-xdist "
+            "workers; expected at least one each"
+        )
+    return low + index * size, low + (index + 1) * size - 1
+
+
 _LOW, _HIGH = _domain_range()
 _START = (os.getpid() % 9) * 10
 
 
 def next_domain_id() -> int:
-    return _LOW + (_START + next(_domains)) % (_HIGH - _LOW + 1)
+    # The worker's slice is asked for here, not at import: test/unit on many
+    # workers needs no domain, whatever the range.
+    low, high = _worker_range(_LOW, _HIGH)
+    return low + (_START + next(_domains)) % (high - low + 1)
 
 
 @contextlib.contextmanager
@@ -125,3 +149,39 @@ def read_raw_payloads(bag_dir: Path) -> dict[str, list[bytes]]:
 def raw_payloads() -> Callable[[Path], dict[str, list[bytes]]]:
     """The bag reader for payload comparisons (independent of servo_axis)."""
     return read_raw_payloads
+
+
+#: The modules of the longest runs of work one pytest-xdist worker cannot
+#: share (``--dist loadfile``: a module is one unit), longest first (a serial
+#: ``pytest test/ros test/integration --durations=0``); the order only.
+_LONGEST_FIRST = (
+    "test_external",
+    "test_determinism",
+    "test_elastic_runs",
+    "test_runs",
+    "test_dlpid_runs",
+    "test_learning",
+    "test_outside_plant",
+    "test_ilc_runs",
+    "test_live",
+    "test_bad_params",
+    "test_node_deaths",
+    "test_junk",
+)
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Under pytest-xdist the longest modules first, so that none is left for the end.
+
+    ``scripts/test.sh`` keeps this order (``--no-loadscope-reorder``).
+    Without xdist the order stays the collection's.
+    """
+    if getattr(config.option, "dist", "no") == "no":
+        return
+
+    def rank(item: pytest.Item) -> int:
+        name = item.module.__name__.rsplit(".", 1)[-1] if item.module is not None else ""
+        return _LONGEST_FIRST.index(name) if name in _LONGEST_FIRST else len(_LONGEST_FIRST)
+
+    items.sort(key=rank)

@@ -160,6 +160,7 @@ def test_identical_bags_separate_and_composed(
         assert other[topic] == first[topic], topic
 
 
+@pytest.mark.shm
 def test_a_killed_identifier_resumes_bit_identically(ros_env: int, tmp_path: Path) -> None:
     path = short("lpf2", tmp_path / "lpf2.yaml", seconds=3.0)
     run_dir = tmp_path / "run"
@@ -193,6 +194,7 @@ def test_a_killed_identifier_resumes_bit_identically(ros_env: int, tmp_path: Pat
     assert ident is not None and ident.repeated == len(got["estimates"]) - len(first)
 
 
+@pytest.mark.realtime
 def test_in_realtime_nothing_waits_for_the_identifier_and_it_tracks_as_in_lockstep(
     ros_env: int, tmp_path: Path
 ) -> None:

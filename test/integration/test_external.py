@@ -535,6 +535,7 @@ def test_a_stranger_beside_the_outside_controller_is_reported_and_changes_nothin
     same_streams(tmp_path / "clean", dirty, path)
 
 
+@pytest.mark.shm
 def test_an_outside_controller_that_stops_answering_is_a_reported_fallback(
     ros_env: int, tmp_path: Path
 ) -> None:
@@ -567,6 +568,7 @@ def test_an_outside_controller_that_stops_answering_is_a_reported_fallback(
     assert 0 < summary["message_counts"][f"{NS}/command"] < 1500
 
 
+@pytest.mark.realtime
 def test_in_realtime_an_outside_controller_that_stops_answering_ends_the_run_with_exit_5(
     ros_env: int, tmp_path: Path
 ) -> None:
@@ -590,10 +592,15 @@ def test_in_realtime_an_outside_controller_that_stops_answering_ends_the_run_wit
             stop(ctrl)
     finally:
         watcher.close()
-    assert code == 5, tails(out)
-    assert ended_s < 15.0  # 2 s of loop_open, 1 s for the recorder, the stop
     summary = yaml.safe_load((out / "summary.json").read_text())
     reasons = summary["health"]["reasons"]
+    if code == 5 and "(clock_stalled)" in reasons[0]:
+        # The host did not give the plant's clock its periods (other load):
+        # what the test is about, the loop opened by the gone controller,
+        # cannot be seen then.
+        pytest.skip(f"this host did not keep the realtime clock: {reasons[0]}")
+    assert code == 5, tails(out)
+    assert ended_s < 15.0  # 2 s of loop_open, 1 s for the recorder, the stop
     assert reasons[0].startswith("the loop was not closed: plant ended the run (loop_open)")
     (fallback,) = summary["health"]["nodes"]["plant"]["fallbacks"]
     assert fallback["kind"] == "loop_open" and 300 <= fallback["step"] < 30_000
@@ -605,6 +612,9 @@ def test_in_realtime_an_outside_controller_that_stops_answering_ends_the_run_wit
 # -- the runner's own checks -------------------------------------------------------------
 
 
+# Wall-clock: the run's own recorder must have opened the bag within the 3 s
+# (seen not to with a second test beside it on 2 cores: no bag at all).
+@pytest.mark.realtime
 def test_an_outside_node_that_never_comes_ends_the_run_with_a_readable_bag(
     ros_env: int, tmp_path: Path
 ) -> None:

@@ -20,8 +20,10 @@ from run_support import SWITCH, TRIAL_S, TRIALS, pids_of, run_and_kill, short_tr
 
 from servo_axis.analysis.health import EXIT_NOT_DETERMINISTIC
 from servo_axis.analysis.summary import RunSummary
+from servo_axis.recording.reader import read_raw
 from servo_axis.run.runner import RunOptions, run_scenario
 from servo_axis.simulate import simulate_learning
+from servo_axis.wire import cdr
 
 pytestmark = pytest.mark.integration
 
@@ -95,6 +97,7 @@ def test_projection_ilc_carries_over_to_a_new_reference(
     assert memory["law"] == "pilc_bfft" and memory["periods_learned"] == TRIALS - 1
 
 
+@pytest.mark.shm
 def test_killed_learning_unit_resumes_and_still_carries_over(ros_env: int, tmp_path: Path) -> None:
     path = short_trials("bfft", tmp_path / "bfft.yaml")
     run_dir = tmp_path / "run"
@@ -114,24 +117,45 @@ def test_killed_learning_unit_resumes_and_still_carries_over(ros_env: int, tmp_p
     assert summary.steps == TRIALS * N  # the axis ran to the end
     restart_log = (run_dir / "logs" / "learning.restart1.log").read_text()
     assert "resumed 2 learned cycles" in restart_log  # theta and the table of trial 2
-    # At the first trial of Ref. 2 the restarted proposal is still ahead of
-    # P-ILC (B.F.) and S-ILC run without a death (plain-call loop).
+    # When the restarted unit was back, from the run's record: the first
+    # trial it learned (learning/cycle_stats, [trial, rms, max, learned],
+    # learned past the 2 it resumed). The trials before it ran on a
+    # correction it had not learned: the last one before the kill (a
+    # fallback each, from the trial of the death on) and then its own
+    # unlearned one, which gives the error of an early trial (RMS 2.1-2.7
+    # um instead of ~0.8). How many depends on how long the restart took
+    # (two trials more on a loaded host), so the trial of the comparison
+    # does too: the first that runs on a correction it learned.
+    death_trial = death.step // N + 1
+    stats = [
+        cdr.decode("std_msgs/msg/Float64MultiArray", m.data).data
+        for m in read_raw(run_dir / "bag", topics=["/x/learning/cycle_stats"])
+    ]
+    back = next((int(st[0]) for st in stats if int(st[0]) >= death_trial and st[3] > 2), None)
+    fallbacks = summary.health.nodes["feedforward"]["fallbacks"]
+    missed = [f["step"] // N + 1 for f in fallbacks]
+    print("death in trial", death_trial, "fallbacks", missed, "first learned again", back)
+    assert back is not None, stats  # it learned again before the last trial
+    assert missed and missed == list(range(missed[0], missed[-1] + 1))  # consecutive
+    assert 2 < death_trial <= missed[0] and missed[-1] < back
     rms, peak = per_trial(summary)
     s = SWITCH - 1
     rms_bf, peak_bf = core_only(short_trials("bf", tmp_path / "bf.yaml"))
     rms_silc, peak_silc = core_only(short_trials("silc", tmp_path / "silc.yaml"))
     print("killed bfft", rms * 1e6, "bf", rms_bf * 1e6, "silc", rms_silc * 1e6)
-    assert rms[s] < rms_bf[s] < rms_silc[s]
-    assert peak[s] < peak_silc[s]
-    # Which trial the restarted unit missed (the feedforward ran it on the
-    # previous correction) depends on how long the restart took, and the
-    # trial after it runs on a correction learned from that trial (RMS 2.1-2.7
-    # um instead of ~0.8). When that trial is trial 5, trial 6 (the first of
-    # Ref. 2) is learned from it, and its peak can exceed B.F.'s: seen once in
-    # a loaded full suite (3.78 against 2.66 um, RMS 0.58 against 0.80 um).
-    fallbacks = summary.health.nodes["feedforward"]["fallbacks"]
-    missed = [f["step"] // N + 1 for f in fallbacks]
-    print("trials run on the previous correction:", missed)
-    assert len(missed) == 1 and 2 < missed[0] < SWITCH
-    if missed[0] + 1 < SWITCH - 1:
-        assert peak[s] < peak_bf[s]
+    first_learned = back + 1  # the first trial on a correction it learned
+    if first_learned <= SWITCH:
+        # Back for the first trial of Ref. 2: still ahead of P-ILC (B.F.)
+        # and S-ILC run without a death (plain-call loop).
+        assert rms[s] < rms_bf[s] < rms_silc[s]
+        assert peak[s] < peak_silc[s]
+        # Learned from the trial on its first learned correction, the peak
+        # can exceed B.F.'s (3.78 against 2.66 um, RMS 0.58 against 0.80 um,
+        # seen once in a loaded full suite); from the one after, not.
+        if first_learned < SWITCH:
+            assert peak[s] < peak_bf[s]
+    else:
+        # Back only within Ref. 2: the first trial on what it learned is
+        # still far below S-ILC relearning Ref. 2 from its first trial.
+        f = first_learned - 1
+        assert rms[f] < 0.5 * rms_silc[s] and peak[f] < 0.5 * peak_silc[s]

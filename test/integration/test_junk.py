@@ -287,9 +287,9 @@ class JunkPublisher:
 
 
 def test_junk_on_every_topic_changes_no_stream_and_no_figure(ros_env: int, tmp_path: Path) -> None:
-    # A domain above the 1..100 that the suite's fixture and the runner's
-    # default take, so that no other run on this machine is a stranger here.
-    domain = 101 + ros_env % 100
+    # The test's own domain: no other test of this suite, or of another one
+    # (SERVO_AXIS_TEST_DOMAINS), is a stranger here.
+    domain = ros_env
     scenario_path = short_scenario(tmp_path / "short.yaml")
     scenario = load_scenario(scenario_path)
     rules = StreamRules.from_scenario(scenario, PERIOD_S)
@@ -362,7 +362,7 @@ def test_junk_on_every_topic_of_an_identifier_run_changes_no_stream_and_no_estim
 ) -> None:
     """The same attack on a short ``dlpid_tilt_lpf2`` (paper 003): the estimates
     the feedforward uses, and so every stream, are the clean run's."""
-    domain = 101 + ros_env % 100
+    domain = ros_env
     data = yaml.safe_load((CONFIG / "dlpid_tilt_lpf2.yaml").read_text())
     data["/**"]["ros__parameters"]["duration_s"] = 1.0
     scenario_path = tmp_path / "short.yaml"

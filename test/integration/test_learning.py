@@ -130,6 +130,7 @@ def test_detailed_axis_learns_and_is_deterministic(
     assert all(b < a for a, b in itertools.pairwise(with_table)), with_table
 
 
+@pytest.mark.shm
 def test_killed_learning_unit_resumes_from_its_memory(ros_env: int, tmp_path: Path) -> None:
     import os
     import signal

@@ -140,6 +140,7 @@ def _report(role: str, k: Killed, what: str) -> None:
     )
 
 
+@pytest.mark.shm
 def test_killed_learning_unit_is_restarted_and_the_axis_runs_on(
     ros_env: int, tmp_path: Path
 ) -> None:
@@ -176,6 +177,7 @@ def test_killed_learning_unit_is_restarted_and_the_axis_runs_on(
     _report("learning", k, f"killed -> restarted {k.restart_seen_at - k.killed_at:.2f} s")
 
 
+@pytest.mark.realtime
 def test_killed_feedforward_trips_the_feedback_and_the_run_ends_safely(
     ros_env: int, tmp_path: Path
 ) -> None:
@@ -214,6 +216,7 @@ def test_killed_feedforward_trips_the_feedback_and_the_run_ends_safely(
     _report("feedforward", k, f"killed -> trip {trip_s:.2f} s (bound {bound:.2f} s + detection)")
 
 
+@pytest.mark.shm
 @pytest.mark.parametrize("role", ["plant", "feedback", "recorder"])
 def test_killed_plant_feedback_or_recorder_stops_the_run_and_keeps_the_bag(
     role: str, ros_env: int, tmp_path: Path

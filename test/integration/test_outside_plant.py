@@ -199,6 +199,7 @@ def test_a_stopped_recorder_loses_nothing_of_a_keep_last_10_plant(
     assert raw_payloads(paused.out / "bag") == raw_payloads(outside.out / "bag")
 
 
+@pytest.mark.shm
 def test_a_killed_outside_plant_ends_the_run_with_a_readable_bag(
     ros_env: int, tmp_path: Path
 ) -> None:
@@ -280,6 +281,7 @@ def plant_clock_steps(stamps: np.ndarray) -> np.ndarray:
     return np.array(steps)
 
 
+@pytest.mark.realtime
 def test_in_realtime_a_plant_that_owns_its_clock_is_answered_with_its_own_stamps(
     ros_env: int, tmp_path: Path
 ) -> None:

@@ -29,6 +29,8 @@ from servo_axis.params.scenario import load_scenario
 from servo_axis.recording.deserialize import read_messages
 from servo_axis.run.processes import pids_of
 
+pytestmark = [pytest.mark.integration, pytest.mark.realtime]
+
 CONFIG = Path(__file__).resolve().parents[2] / "config"
 ROLES = ("plant", "feedback", "feedforward", "recorder")
 

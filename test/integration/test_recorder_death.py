@@ -38,7 +38,8 @@ from servo_axis.params.scenario import load_scenario
 from servo_axis.run.fastdds import clean_stale_shm
 from servo_axis.run.progress import ProgressWatcher
 
-pytestmark = pytest.mark.integration
+# The loss is measured in wall time (the recorder's 0.25 s flush timer).
+pytestmark = [pytest.mark.integration, pytest.mark.realtime]
 
 CONFIG = Path(__file__).resolve().parents[2] / "config"
 ACK_EVERY = 50

@@ -206,6 +206,7 @@ def test_friction_table_halves_the_quadrant_glitches(ros_env: int, tmp_path: Pat
     assert peak_table <= 0.5 * peak_plain
 
 
+@pytest.mark.realtime
 def test_killed_feedforward_trips_the_feedback_and_the_bag_survives(
     ros_env: int, tmp_path: Path
 ) -> None:
@@ -347,6 +348,7 @@ def test_bad_parameter_file_stops_the_node_with_its_name(ros_env: int, tmp_path:
         assert not (tmp_path / "run").exists()
 
 
+@pytest.mark.realtime
 def test_realtime_mode_keeps_wall_time_and_counts_misses(ros_env: int, tmp_path: Path) -> None:
     scenario = scenario_copy(CONFIG / "ptc_nominal.yaml", tmp_path, duration_s=1.0, mode="realtime")
     result = run_scenario(
@@ -405,6 +407,7 @@ def test_realtime_mode_keeps_wall_time_and_counts_misses(ros_env: int, tmp_path:
         assert s["health"]["reasons"][0].startswith("the loop was not closed")
 
 
+@pytest.mark.shm
 def test_namespaced_composed_run_leaves_nothing_behind(ros_env: int, tmp_path: Path) -> None:
     shm_before = shm_names()
     scenario = scenario_copy(CONFIG / "ptc_nominal.yaml", tmp_path, duration_s=0.3)

@@ -18,11 +18,14 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
+import pytest
 from rclpy.context import Context
 from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray
 
 from servo_axis.nodes.runtime import STREAM_QOS, finish, make_executor, wait_for_acks
+
+pytestmark = pytest.mark.ros
 
 TOPIC = "/finish_probe"
 
@@ -72,6 +75,7 @@ def published_unspun(context: Context, reader: Node, count: int) -> Iterator[tup
         producer.destroy_node()
 
 
+@pytest.mark.realtime
 def test_finish_writes_what_was_sent_before_the_stop_and_nothing_is_spun_twice(
     context: Context,
 ) -> None:
@@ -114,6 +118,7 @@ rclpy.spin(node)
 """
 
 
+@pytest.mark.realtime
 def test_a_reader_that_stopped_reading_bounds_the_wait_and_is_named(context: Context) -> None:
     proc = subprocess.Popen(
         [sys.executable, "-c", READER], stdout=subprocess.PIPE, stderr=subprocess.STDOUT

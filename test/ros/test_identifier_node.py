@@ -273,6 +273,7 @@ def test_feedforward_rejects_bad_estimates_and_takes_a_repeat_silently(
         destroy(nodes)
 
 
+@pytest.mark.realtime
 def test_realtime_feedforward_goes_on_without_an_estimate_once_its_samples_are_due(
     context: Context, tmp_path: Path
 ) -> None:
@@ -579,6 +580,7 @@ def test_a_restarted_identifier_resumes_bit_identically_from_its_memory(
 # -- 5. realtime: a command that never comes ------------------------------------------------
 
 
+@pytest.mark.realtime
 def test_realtime_identifier_holds_the_last_torque_for_a_command_that_never_comes(
     context: Context, tmp_path: Path
 ) -> None:

@@ -183,6 +183,7 @@ def test_feedback_trips_on_following_error_and_holds_zero(context: Context) -> N
     probe.destroy_node()
 
 
+@pytest.mark.realtime
 def test_feedback_trips_when_reference_stops_arriving(context: Context) -> None:
     fb = FeedbackNode(
         context=context, parameter_overrides=[Parameter("input_timeout_s", value=0.3)]
@@ -300,6 +301,7 @@ def test_plant_starts_only_once_the_node_that_answers_state_listens(context: Con
         n.destroy_node()
 
 
+@pytest.mark.realtime
 def test_realtime_plant_holds_the_newest_command_and_counts_misses(context: Context) -> None:
     period_ns = 100_000_000  # 0.1 s ticks: the probe answers well within one
     plant = PlantNode(
@@ -859,6 +861,7 @@ def test_plant_rejects_implausible_recorder_progress_under_its_topic(context: Co
         n.destroy_node()
 
 
+@pytest.mark.realtime
 def test_plant_waits_for_a_slow_feedback_and_falls_back_only_once_it_is_gone(
     context: Context,
 ) -> None:
@@ -903,6 +906,7 @@ def test_plant_waits_for_a_slow_feedback_and_falls_back_only_once_it_is_gone(
         n.destroy_node()
 
 
+@pytest.mark.realtime
 def test_feedforward_keeps_the_last_correction_only_once_the_learning_unit_is_gone(
     context: Context,
 ) -> None:
@@ -933,6 +937,7 @@ def test_feedforward_keeps_the_last_correction_only_once_the_learning_unit_is_go
         n.destroy_node()
 
 
+@pytest.mark.realtime
 def test_realtime_feedforward_never_waits_for_a_correction_and_takes_a_late_one(
     context: Context,
 ) -> None:
