@@ -36,7 +36,7 @@ from test_outside_plant import (
     scenario,
 )
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.integration, pytest.mark.realtime]
 
 STANDIN = Path(__file__).with_name("ros2_control_axis_standin.py")
 BRIDGE = ["-m", "servo_axis.nodes.joint_state_bridge", "--ros-args", "-r", f"__ns:={NS}"]

@@ -26,7 +26,7 @@ from test_external import NS, RUN_TIMEOUT_S, finish, short, start_outside, start
 
 from servo_axis.recording.deserialize import read_messages
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.integration, pytest.mark.realtime]
 
 STANDIN = Path(__file__).with_name("ros2_control_standin.py")
 #: ptc_nominal's axis and the stand-in's PD: poles near 3 Hz, well damped, 1.95 N m at most.
