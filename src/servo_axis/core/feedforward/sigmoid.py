@@ -38,7 +38,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import brentq
 
 from servo_axis.core.errors import ConfigError, SignalError, require_finite, require_positive
 from servo_axis.core.feedforward.terms import ReferenceBlock
@@ -359,6 +358,9 @@ class SigmoidTerm:
             # last bit at a velocity of ~0: the smaller end is the zero.
             t_rev = ta if abs(fa) <= abs(fb) else tb
         else:
+            # Imported here: scipy.optimize costs every node process ~0.4 s at start-up.
+            from scipy.optimize import brentq
+
             t_rev = float(brentq(self._velocity_at, ta, tb, xtol=1e-13, maxiter=200))
         x_rev = float(self._reference.sample(t_rev)[0])
         return Reversal(time_s=t_rev, position_m=x_rev, detected_step=b_step)
