@@ -32,6 +32,7 @@ from test_outside_plant import (
     STEPS,
     TORQUE_LIMIT,
     joint_arrays,
+    plant_clock_rms_m,
     plant_clock_steps,
     scenario,
 )
@@ -118,11 +119,7 @@ def test_the_run_completes_on_the_broadcasters_clock_and_its_error_is_the_bags(
     assert_allclose(velocity[:, 1], LEAD * velocity[:, 0], rtol=1e-12, atol=0)  # NaN -> R w
     assert np.all(effort[:, 1] == 0.0)  # NaN friction force -> 0
     assert np.all(np.abs(effort[:, 0]) <= TORQUE_LIMIT)  # the torque the axis held
-    ref_stamps, reference, _, _ = joint_arrays(bag, f"{NS}/reference")
-    ref_of = dict(zip((ref_stamps // 1_000_000).tolist(), reference[:, 0], strict=True))
-    within = steps < STEPS
-    error = np.array([ref_of[k] for k in steps[within]]) - position[within, 0]
-    rms = float(np.sqrt(np.mean((LEAD * error) ** 2)))
+    rms = plant_clock_rms_m(bag, steps, position)
     assert_allclose(done["tracking_error"]["all_samples"]["rms_m"], rms, rtol=1e-9)
 
 

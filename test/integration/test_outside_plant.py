@@ -142,6 +142,16 @@ def joint_arrays(bag: Path, topic: str) -> tuple[np.ndarray, np.ndarray, np.ndar
     )
 
 
+def plant_clock_rms_m(bag: Path, steps: np.ndarray, position: np.ndarray) -> float:
+    """RMS tracking error, m, of the recorded states at their plant-clock ``steps`` (those
+    within the run) against the recorded references of those steps."""
+    ref_stamps, reference, _, _ = joint_arrays(bag, f"{NS}/reference")
+    ref_of = dict(zip((ref_stamps // 1_000_000).tolist(), reference[:, 0], strict=True))
+    within = steps < STEPS
+    error = np.array([ref_of[k] for k in steps[within]]) - position[within, 0]
+    return float(np.sqrt(np.mean((LEAD * error) ** 2)))
+
+
 def replay(torques: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Angle and speed of the rigid axis under ``torques`` held over each period (exact ZOH)."""
     a = math.exp(-DAMPING * PERIOD / INERTIA)
@@ -332,9 +342,5 @@ def test_in_realtime_a_plant_that_owns_its_clock_is_answered_with_its_own_stamps
     assert set(command_stamps.tolist()) <= set(stamps.tolist())
     answered = np.isin(stamps[steps < STEPS], command_stamps)
     assert answered.mean() > 0.9, answered.mean()
-    ref_stamps, reference, _, _ = joint_arrays(bag, f"{NS}/reference")
-    ref_of = dict(zip((ref_stamps // 1_000_000).tolist(), reference[:, 0], strict=True))
-    within = steps < STEPS
-    error = np.array([ref_of[k] for k in steps[within]]) - position[within, 0]
-    rms = float(np.sqrt(np.mean((LEAD * error) ** 2)))
+    rms = plant_clock_rms_m(bag, steps, position)
     assert_allclose(done["tracking_error"]["all_samples"]["rms_m"], rms, rtol=1e-9)
