@@ -221,6 +221,9 @@ def test_in_realtime_nothing_waits_for_the_identifier_and_it_tracks_as_in_lockst
     summary = RunSummary.from_json(run_dir / "summary.json")
     rt = summary.realtime
     assert rt is not None and rt.ticks >= summary.steps - 1
+    # Nothing waits for the identifier, whether or not the host closes the loop:
+    # its estimates keep coming (the CI failure of issue 30: 3 estimates, then none).
+    assert summary.identification is not None and summary.identification.estimates > 900
     if proc.returncode == 5:
         # A host that cannot close a 0.4 ms loop (two CPU-bound jobs beside it
         # on 2 cores, a loaded CI runner) says so: exit 5 and why, never 0.
@@ -232,7 +235,6 @@ def test_in_realtime_nothing_waits_for_the_identifier_and_it_tracks_as_in_lockst
     # The feedback's and the generator's counts are reported (how many, the host decides).
     assert rt.references_held is not None and rt.late_estimates is not None
     assert rt.late_corrections == 0  # nothing is learned
-    assert summary.identification is not None and summary.identification.estimates > 900
     lockstep = rmsd(path, simulate_identification(path).trajectory.encoder_rad)
     print(
         f"realtime RMSD {summary.rmsd:.4e} rad against lockstep {lockstep:.4e}; misses "

@@ -594,13 +594,14 @@ def test_in_realtime_an_outside_controller_that_stops_answering_ends_the_run_wit
         watcher.close()
     summary = yaml.safe_load((out / "summary.json").read_text())
     reasons = summary["health"]["reasons"]
-    if code == 5 and "(clock_stalled)" in reasons[0]:
+    # Either way the run ended by itself, long before its 30 s, and said why.
+    assert code == 5 and reasons[0].startswith("the loop was not closed"), tails(out)
+    assert ended_s < 15.0  # 2 s without a command or a tick, 1 s for the recorder, the stop
+    if "(clock_stalled)" in reasons[0]:
         # The host did not give the plant's clock its periods (other load):
         # what the test is about, the loop opened by the gone controller,
         # cannot be seen then.
         pytest.skip(f"this host did not keep the realtime clock: {reasons[0]}")
-    assert code == 5, tails(out)
-    assert ended_s < 15.0  # 2 s of loop_open, 1 s for the recorder, the stop
     assert reasons[0].startswith("the loop was not closed: plant ended the run (loop_open)")
     (fallback,) = summary["health"]["nodes"]["plant"]["fallbacks"]
     assert fallback["kind"] == "loop_open" and 300 <= fallback["step"] < 30_000
