@@ -2,8 +2,8 @@
 # Set up (first time only) and run the whole test suite (unit, ROS, integration).
 #
 # With arguments: pytest with those arguments. Without, three parts:
-# 1. test/unit on every core (pytest-xdist; no test there starts ROS or
-#    measures time).
+# 1. test/unit on every core (pytest-xdist; no test there starts ROS; the
+#    few that time a stop of child processes allow 0.4 s or more of slack).
 # 2. test/ros and test/integration but the `realtime` and `shm` tests, two at
 #    a time (-n 2): lockstep runs are deterministic whatever the load, and
 #    each worker takes its own half of the ROS domains (test/conftest.py). A
