@@ -22,12 +22,12 @@ instants are grouped into calls.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, NamedTuple, cast
 
 import numpy as np
-import scipy.linalg
 from numpy.typing import NDArray
 
 from servo_axis.core.errors import (
@@ -150,19 +150,29 @@ def _expm_upper(a: NDArray[np.float64]) -> NDArray[np.float64]:
     ``np.triu`` does there). Any other case (scaling needed, or scipy
     without those routines) is ``scipy.linalg.expm`` itself.
     """
-    if _pade is None:
-        return np.asarray(scipy.linalg.expm(a), dtype=float)
-    pick_pade_structure, pade_uv_calc = _pade
+    pade = _pade_routines()
+    if pade is None:
+        return _scipy_expm(a)
+    pick_pade_structure, pade_uv_calc = pade
     work = np.empty((5, 3, 3))
     work[0] = a
     order, scaling = pick_pade_structure(work)
     if order < 0 or scaling != 0 or pade_uv_calc(work, order) != 0:
-        return np.asarray(scipy.linalg.expm(a), dtype=float)
+        return _scipy_expm(a)
     e: NDArray[np.float64] = work[0].copy()
     e[1, 0] = e[2, 0] = e[2, 1] = 0.0
     return e
 
 
+def _scipy_expm(a: NDArray[np.float64]) -> NDArray[np.float64]:
+    import scipy.linalg
+
+    return np.asarray(scipy.linalg.expm(a), dtype=float)
+
+
+# Looked up on first use, not at import: scipy.linalg costs every node that
+# imports the factories (the recorder too) ~0.3 s at start-up.
+@functools.cache
 def _pade_routines() -> tuple[Any, Any] | None:
     """scipy's Pade routines behind ``expm`` (scipy >= 1.9), or None without them."""
     try:
@@ -170,9 +180,6 @@ def _pade_routines() -> tuple[Any, Any] | None:
     except ImportError:  # pragma: no cover - another scipy
         return None
     return pick_pade_structure, pade_UV_calc
-
-
-_pade = _pade_routines()
 
 
 class MultiratePtc:

@@ -57,7 +57,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import scipy.signal
 from numpy.polynomial import polynomial as npoly
 from numpy.typing import ArrayLike, NDArray
 
@@ -169,6 +168,8 @@ def _loop_polynomials(
     """
     model = params.nominal if plant is None else plant
     gain = params.lead_m_per_rad * model.torque_constant_Nm_per_A
+    import scipy.signal  # here: it costs a node ~1 s at start-up
+
     num_d, den_d, _ = scipy.signal.cont2discrete(
         (np.array([gain]), np.array([model.inertia_kgm2, model.damping_Nms_per_rad, 0.0])),
         params.period_s,
@@ -350,6 +351,8 @@ class Zpetc:
         if x.ndim != 1 or not np.all(np.isfinite(x)):
             raise SignalError(f"signal: expected a 1-D array of finite values, got shape {x.shape}")
         n, p = len(x), self.preview
+        import scipy.signal  # here: it costs a node ~1 s at start-up
+
         stable = scipy.signal.lfilter(self._a, self._b_a, np.concatenate((x, np.zeros(p))))
         # y[k] = sum_m u_m stable[k + d + m]: convolution with the reversed
         # taps, shifted by the preview d + deg B_u.

@@ -33,7 +33,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import scipy.signal
 from numpy.typing import ArrayLike, NDArray
 
 from servo_axis.core.errors import ConfigError, SignalError, TableError, require_positive
@@ -250,6 +249,8 @@ def estimate_parameters(
         f = w * f
         x = w[:, None] * x
     num, den = (np.asarray(v, dtype=float) for v in sensitivity)
+    import scipy.signal  # here: it costs a node ~1 s at start-up
+
     y = scipy.signal.lfilter(num, den, f)
     a = scipy.signal.lfilter(num, den, x, axis=0)
     norms = np.linalg.norm(a, axis=0)

@@ -19,7 +19,6 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
-import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
 from servo_axis.core.errors import ConfigError, SignalError, require_nonnegative, require_positive
@@ -196,5 +195,7 @@ def zoh(a: np.ndarray, b: np.ndarray, step_s: float) -> tuple[np.ndarray, np.nda
     m = np.zeros((n + 1, n + 1))
     m[:n, :n] = a * step_s
     m[:n, n] = b * step_s
+    import scipy.linalg  # here: it costs every node that imports this ~0.3 s at start-up
+
     e = scipy.linalg.expm(m)
     return e[:n, :n], e[:n, n].copy()

@@ -28,7 +28,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.signal import max_len_seq
 
 from servo_axis.core.errors import ConfigError, require_nonnegative, require_positive
 
@@ -159,6 +158,10 @@ class Excitation:
             hold = max(1, int(1.0 / (clock_hz * self.control_period_s)))
             bits = -(-n // hold)
             order = max(2, math.ceil(math.log2(bits + 1)))
+            # Imported here: scipy.signal costs the runner and the feedforward node ~1 s
+            # at start-up, and only a prbs needs it.
+            from scipy.signal import max_len_seq
+
             seq = max_len_seq(order)[0][:bits].astype(float) * 2.0 - 1.0
             x = np.repeat(seq, hold)[:n]
             x = x - x.mean()
