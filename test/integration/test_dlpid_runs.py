@@ -94,7 +94,8 @@ def scheme_runs(module_ros_env: tuple[int, Path]) -> dict[str, tuple[Path, RunRe
         runs[scheme] = (
             path,
             run_scenario(
-                path, RunOptions(out_dir=folder / scheme, domain_id=domain, progress=None)
+                path,
+                RunOptions(out_dir=folder / scheme, domain_id=domain, progress=None, plots=False),
             ),
         )
     return runs
@@ -149,7 +150,13 @@ def test_identical_bags_separate_and_composed(
     path, separate = scheme_runs["lpf2"]
     composed = run_scenario(
         path,
-        RunOptions(out_dir=tmp_path / "composed", domain_id=ros_env, composed=True, progress=None),
+        RunOptions(
+            out_dir=tmp_path / "composed",
+            domain_id=ros_env,
+            composed=True,
+            progress=None,
+            plots=False,
+        ),
     )
     assert separate.exit_code == 0 and composed.exit_code == 0
     first = raw_payloads(separate.run_dir / "bag")

@@ -109,7 +109,7 @@ def paper_runs(module_ros_env: tuple[int, Path]) -> dict[str, Path]:
     runs = {}
     for name in PAPER_RUNS:
         path = scenario_copy(name, folder / f"{name}.yaml")
-        cli(domain, folder, "run", str(path), "--out", str(folder / name))
+        cli(domain, folder, "run", str(path), "--out", str(folder / name), "--no-plots")
         runs[name] = folder / name
     return runs
 
@@ -195,7 +195,16 @@ def test_fast_reversal_sigmoid_bags_are_identical_separate_and_composed(
     # shared separate run against one composed run, every topic.
     separate = paper_runs["fast_reversal_sigmoid"]
     path = separate.with_suffix(".yaml")
-    cli(ros_env, tmp_path, "run", str(path), "--out", str(tmp_path / "composed"), "--composed")
+    cli(
+        ros_env,
+        tmp_path,
+        "run",
+        str(path),
+        "--out",
+        str(tmp_path / "composed"),
+        "--composed",
+        "--no-plots",
+    )
     first = raw_payloads(separate / "bag")
     other = raw_payloads(tmp_path / "composed" / "bag")
     assert len(first["/x/deformation"]) == len(first["/x/state"]) == 4000
@@ -206,7 +215,15 @@ def test_fast_reversal_sigmoid_bags_are_identical_separate_and_composed(
 
 def test_deformation_cases_show_the_finding_of_fig_11(ros_env: int, tmp_path: Path) -> None:
     run_dir = tmp_path / "cases"
-    cli(ros_env, tmp_path, "run", str(CONFIG / "deformation_cases.yaml"), "--out", str(run_dir))
+    cli(
+        ros_env,
+        tmp_path,
+        "run",
+        str(CONFIG / "deformation_cases.yaml"),
+        "--out",
+        str(run_dir),
+        "--no-plots",
+    )
     got = joint_streams(run_dir)
     encoder = series(got["/x/state"], "position", 0)
     scale = series(got["/x/state"], "position", 1)

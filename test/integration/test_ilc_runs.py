@@ -49,7 +49,7 @@ def test_projection_ilc_carries_over_to_a_new_reference(
     for law in ("silc", "bf", "bfft"):
         path = short_trials(law, tmp_path / f"{law}.yaml")
         runs[law] = run_scenario(
-            path, RunOptions(out_dir=tmp_path / law, domain_id=ros_env, progress=None)
+            path, RunOptions(out_dir=tmp_path / law, domain_id=ros_env, progress=None, plots=False)
         )
         summary = runs[law].summary
         assert summary.period_name == "trial" and not summary.faults
@@ -84,7 +84,11 @@ def test_projection_ilc_carries_over_to_a_new_reference(
     again = run_scenario(
         tmp_path / "bfft.yaml",
         RunOptions(
-            out_dir=tmp_path / "bfft_composed", domain_id=ros_env, composed=True, progress=None
+            out_dir=tmp_path / "bfft_composed",
+            domain_id=ros_env,
+            composed=True,
+            progress=None,
+            plots=False,
         ),
     )
     a, b = raw_payloads(runs["bfft"].run_dir / "bag"), raw_payloads(again.run_dir / "bag")

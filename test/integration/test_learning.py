@@ -31,11 +31,11 @@ def test_n_times_filter_learns_n_times_faster_through_the_node_graph(
 ) -> None:
     q3 = run_scenario(
         CONFIG / "rptc_ideal.yaml",
-        RunOptions(out_dir=tmp_path / "q3", domain_id=ros_env, progress=None),
+        RunOptions(out_dir=tmp_path / "q3", domain_id=ros_env, progress=None, plots=False),
     )
     q1 = run_scenario(
         CONFIG / "rptc_ideal_q.yaml",
-        RunOptions(out_dir=tmp_path / "q1", domain_id=ros_env, progress=None),
+        RunOptions(out_dir=tmp_path / "q1", domain_id=ros_env, progress=None, plots=False),
     )
     for run in (q3, q1):
         counts = run.summary.message_counts
@@ -79,15 +79,17 @@ def test_detailed_axis_learns_and_is_deterministic(
 ) -> None:
     q5 = run_scenario(
         CONFIG / "rptc_detailed.yaml",
-        RunOptions(out_dir=tmp_path / "q5", domain_id=ros_env, progress=None),
+        RunOptions(out_dir=tmp_path / "q5", domain_id=ros_env, progress=None, plots=False),
     )
     q1 = run_scenario(
         CONFIG / "rptc_detailed_q.yaml",
-        RunOptions(out_dir=tmp_path / "q1", domain_id=ros_env, progress=None),
+        RunOptions(out_dir=tmp_path / "q1", domain_id=ros_env, progress=None, plots=False),
     )
     again = run_scenario(
         CONFIG / "rptc_detailed.yaml",
-        RunOptions(out_dir=tmp_path / "again", domain_id=ros_env, composed=True, progress=None),
+        RunOptions(
+            out_dir=tmp_path / "again", domain_id=ros_env, composed=True, progress=None, plots=False
+        ),
     )
     # 000 Fig. 15: the max error falls cycle after cycle (6 cycles here), and
     # faster with Q~5 than with Q despite modes, dead time and friction.
@@ -122,7 +124,9 @@ def test_detailed_axis_learns_and_is_deterministic(
     # there to below what RPTC alone reaches.
     table = run_scenario(
         CONFIG / "rptc_friction_table.yaml",
-        RunOptions(out_dir=tmp_path / "table", domain_id=ros_env, composed=True, progress=None),
+        RunOptions(
+            out_dir=tmp_path / "table", domain_id=ros_env, composed=True, progress=None, plots=False
+        ),
     )
     with_table = max_per_cycle(table.summary)
     assert with_table[0] < 0.5 * max_per_cycle(q5.summary)[0]

@@ -75,7 +75,7 @@ def test_ptc_tracks_the_nominal_plant_and_pid_alone_does_not(ros_env: int, tmp_p
     elapsed = time.monotonic() - started
     pid = run_scenario(
         CONFIG / "pid_nominal.yaml",
-        RunOptions(out_dir=tmp_path / "pid", domain_id=ros_env, progress=None),
+        RunOptions(out_dir=tmp_path / "pid", domain_id=ros_env, progress=None, plots=False),
     )
     steps = 2000
     for result in (ptc, pid):
@@ -86,7 +86,8 @@ def test_ptc_tracks_the_nominal_plant_and_pid_alone_does_not(ros_env: int, tmp_p
         assert s["message_counts"]["/clock"] == steps // 10  # /clock every 10 samples
         assert not s["faults"]
         assert (result.run_dir / "summary.json").is_file()
-        assert (result.run_dir / "error.png").stat().st_size > 10_000
+    # The plots are drawn (of one run: the other skips them, as --no-plots does).
+    assert (ptc.run_dir / "error.png").stat().st_size > 10_000
     # The wall time is the steps': start-up and end are apart, and the three
     # lie within the call.
     s = ptc.summary
@@ -457,7 +458,7 @@ def test_a_signal_to_the_runner_stops_every_node_and_keeps_the_bag(
     out = tmp_path / "run"
     started = time.time()
     runner = subprocess.Popen(
-        [sys.executable, "-m", "servo_axis", "run", str(scenario), "--out", str(out)],
+        [sys.executable, "-m", "servo_axis", "run", str(scenario), "--out", str(out), "--no-plots"],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         text=True,
