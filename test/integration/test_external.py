@@ -468,9 +468,16 @@ class OutsideNode:
         self.rclpy.try_shutdown(context=self.context)
 
 
-def clean_external_run(path: Path, out: Path) -> None:
+@pytest.fixture(scope="module")
+def clean_external_run(module_ros_env: tuple[int, Path]) -> tuple[Path, Path]:
+    """``(scenario, run)``: ptc_nominal for 1 s with the example controller as the
+    feedback and nothing else on the domain; the junk tests compare their runs with it."""
+    _, folder = module_ros_env
+    path = short("ptc_nominal", folder, duration_s=1.0)
+    out = folder / "clean"
     code, _ = run_with_outside(path, out, ["feedback"], [pd_controller(20.0, 0.01)])
     assert code == 0, tails(out)
+    return path, out
 
 
 def same_streams(clean: Path, dirty: Path, path: Path) -> None:
@@ -483,13 +490,12 @@ def same_streams(clean: Path, dirty: Path, path: Path) -> None:
 
 
 def test_junk_from_the_outside_controller_itself_is_rejected_and_changes_nothing(
-    ros_env: int, tmp_path: Path
+    ros_env: int, tmp_path: Path, clean_external_run: tuple[Path, Path]
 ) -> None:
     """The outside feedback node answers every state and, through the same publisher,
     sends junk commands: the plant rejects and counts them like an internal node's; no
     stranger, exit 0, and the bag's validated streams are those of the clean example run."""
-    path = short("ptc_nominal", tmp_path, duration_s=1.0)
-    clean_external_run(path, tmp_path / "clean")
+    path, clean = clean_external_run
     dirty = tmp_path / "junk"
     node = OutsideNode(ros_env, answer=True)
     try:
@@ -503,17 +509,16 @@ def test_junk_from_the_outside_controller_itself_is_rejected_and_changes_nothing
     summary = yaml.safe_load((dirty / "summary.json").read_text())
     plant = summary["health"]["nodes"]["plant"]
     assert plant["rejected"]["command"] > 0 and not plant["strangers"]
-    same_streams(tmp_path / "clean", dirty, path)
+    same_streams(clean, dirty, path)
 
 
 def test_a_stranger_beside_the_outside_controller_is_reported_and_changes_nothing(
-    ros_env: int, tmp_path: Path
+    ros_env: int, tmp_path: Path, clean_external_run: tuple[Path, Path]
 ) -> None:
     """While the example controller drives the axis, a second outside node (default QoS)
     starts publishing junk commands: it is a stranger (exit 3), its junk is rejected and
     counted, and the bag's validated streams are those of the clean run."""
-    path = short("ptc_nominal", tmp_path, duration_s=1.0)
-    clean_external_run(path, tmp_path / "clean")
+    path, clean = clean_external_run
     dirty = tmp_path / "junk"
     junk = OutsideNode(ros_env)
     try:
@@ -532,7 +537,7 @@ def test_a_stranger_beside_the_outside_controller_is_reported_and_changes_nothin
     plant = summary["health"]["nodes"]["plant"]
     assert plant["rejected"]["command"] > 0
     assert any("not_a_servo_node" in who for who in plant["strangers"]["command"])
-    same_streams(tmp_path / "clean", dirty, path)
+    same_streams(clean, dirty, path)
 
 
 @pytest.mark.shm

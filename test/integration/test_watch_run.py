@@ -56,7 +56,8 @@ def test_the_watcher_follows_a_run_and_ends_quietly_on_ctrl_c(ros_env: int, tmp_
     log = tmp_path / "waiting.log"
     proc = start(watcher, log)
     wait_for(log, "waiting for /x/plant/describe_parameters ...", proc, 60)
-    assert interrupt(proc) == (0, "")
+    code, err = interrupt(proc)
+    assert (code, err) == (0, ""), err
 
     scenario = yaml.safe_load((REPO / "config" / "ptc_nominal.yaml").read_text())
     scenario["/**"]["ros__parameters"]["duration_s"] = 120.0  # stopped long before its end
@@ -89,7 +90,8 @@ def test_the_watcher_follows_a_run_and_ends_quietly_on_ctrl_c(ros_env: int, tmp_
         wait_for(log, "state [", proc, 60)
         text = log.read_text()
         assert "duration_s | " in text and "length of the run" in text, text[-2000:]
-        assert interrupt(proc) == (0, "")
+        code, err = interrupt(proc)
+        assert (code, err) == (0, ""), err
     finally:
         code, err = interrupt(run)
     assert code == 130, err

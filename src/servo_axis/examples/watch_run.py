@@ -10,10 +10,12 @@ run's localhost discovery and its namespace (the run's header prints all three):
 Ctrl-C ends it quietly at any point, also while it still waits for the run's plant.
 """
 
+import signal
+
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.srv import DescribeParameters
-from rclpy.executors import ExternalShutdownException
+from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 
 LEVELS = {b"\x00": "OK", b"\x01": "WARN", b"\x02": "ERROR", b"\x03": "STALE"}
@@ -25,7 +27,12 @@ def show_status(msg: DiagnosticArray) -> None:
 
 
 def main() -> None:
-    rclpy.init()
+    # Ctrl-C sets a flag the loops below look at every 0.1 s. rclpy's own handler
+    # raises KeyboardInterrupt wherever the main thread is, also inside rclpy's
+    # conversion of a message, which then fails with a RuntimeError instead.
+    stop: list[int] = []
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    signal.signal(signal.SIGINT, lambda number, frame: stop.append(number))
     node = rclpy.create_node("watcher")
     try:
         node.create_subscription(
@@ -34,17 +41,17 @@ def main() -> None:
         node.create_subscription(DiagnosticArray, "/diagnostics", show_status, 10)
         name = node.resolve_service_name("plant/describe_parameters")
         describe = node.create_client(DescribeParameters, name)
-        while not describe.wait_for_service(timeout_sec=1.0):
+        while not stop and not describe.wait_for_service(timeout_sec=1.0):
             print(f"waiting for {name} ...", flush=True)
         request = DescribeParameters.Request(names=["duration_s", "inertia_kgm2"])
         future = describe.call_async(request)
-        rclpy.spin_until_future_complete(node, future)
-        for d in future.result().descriptors:
+        while not stop and not future.done():
+            rclpy.spin_once(node, timeout_sec=0.1)
+        for d in future.result().descriptors if future.done() else []:
             span = list(d.floating_point_range)
             print(d.name, "|", d.description, "|", span, "| read-only:", d.read_only, flush=True)
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass  # Ctrl-C, or the context shut down: a normal end
+        while not stop:
+            rclpy.spin_once(node, timeout_sec=0.1)
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
