@@ -248,7 +248,7 @@ class RealtimeScheduling:
         # Below the executor's: a sample's first step must not preempt its last.
         self.middleware_priority = min(middleware_priority, max(0, (priority or 0) - 1))
         self._favour = favour or (
-            lambda: favour_middleware_threads(receive_priority=middleware_priority)
+            lambda: favour_middleware_threads(receive_priority=self.middleware_priority)
         )
         #: What :meth:`start` got (``fifo_this_thread``'s answer); None before, or never asked.
         self.applied: dict[str, object] | None = None

@@ -13,6 +13,7 @@ import pytest
 
 from servo_axis.core import deadlines
 from servo_axis.core.errors import SignalError
+from servo_axis.nodes import realtime
 from servo_axis.nodes.realtime import (
     RECEIVE_THREAD,
     SLIP_MIN_NS,
@@ -301,6 +302,27 @@ def test_the_receive_threads_stay_below_the_executor() -> None:
             executor, warn=print, apply=apply, favour=lambda: 0, middleware_priority=asked
         )
         assert scheduling.middleware_priority == got, (executor, asked)
+
+
+def test_the_receive_threads_get_the_priority_below_the_executor_not_the_one_asked(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    given: list[int] = []
+
+    def favour(nice: int = 0, receive_priority: int = 0) -> int:
+        given.append(receive_priority)
+        return 4
+
+    monkeypatch.setattr(realtime, "favour_middleware_threads", favour)
+    scheduling = RealtimeScheduling(
+        10,
+        warn=print,
+        apply=lambda priority: {"policy": "fifo", "priority": priority},
+        middleware_priority=49,
+    )
+    scheduling.start()
+    assert given == [9]
+    assert scheduling.applied is not None and scheduling.applied["middleware_threads"] == 4
 
 
 def test_only_fast_dds_receive_threads_are_receive_threads() -> None:
