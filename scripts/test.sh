@@ -33,7 +33,7 @@ beside() {
   # The unit tests in the background, their output in a file shown after.
   local log
   log=$(mktemp)
-  .venv/bin/python -m pytest -p no:cacheprovider test/unit >"$log" 2>&1 &
+  .venv/bin/python -m pytest -p no:cacheprovider -n 2 test/unit >"$log" 2>&1 &
   local unit=$!
   local code=0
   "$@" || code=$?
