@@ -18,7 +18,9 @@ variant and their median.
     .venv/bin/python scripts/rt_ab.py ptc_friction 5bf2293 HEAD --reps 6 --floor
     .venv/bin/python scripts/rt_ab.py ptc_nominal HEAD HEAD@RMW_FASTRTPS_PUBLICATION_MODE=SYNCHRONOUS
 
-Run it on a quiet machine: it is a measurement, not a test.
+Run it on a quiet machine: it is a measurement, not a test. The worktrees
+and venvs stay under ``--work`` for the next invocation; ``rm -rf`` it and
+``git worktree prune`` when done.
 """
 
 from __future__ import annotations
