@@ -100,8 +100,13 @@ def stalled_run(module_ros_env: tuple[int, Path]) -> dict[str, Any]:
     proc = start_run(realtime_copy(tmp / "rt.yaml", 3.0), run_dir, domain)
     plant = wait_for_the_clock(run_dir, proc)
     (feedback,) = pids_of(run_dir, "feedback")
-    time.sleep(0.3)  # the pair's executor threads have taken their first samples
-    policies = {"plant": thread_policies(plant), "feedback": thread_policies(feedback)}
+    (feedforward,) = pids_of(run_dir, "feedforward")
+    time.sleep(0.3)  # the executor threads have taken their first samples
+    policies = {
+        "plant": thread_policies(plant),
+        "feedback": thread_policies(feedback),
+        "feedforward": thread_policies(feedforward),
+    }
     time.sleep(0.5)
     os.kill(feedback, signal.SIGSTOP)
     stopped_at = time.monotonic()
@@ -118,11 +123,12 @@ def stalled_run(module_ros_env: tuple[int, Path]) -> dict[str, Any]:
             "policies": policies, "stall_s": stall_s, "left_s": left}  # fmt: skip
 
 
-def test_only_the_clock_the_executor_and_the_receive_threads_run_at_a_realtime_priority(
+def test_only_the_clock_the_executors_and_the_receive_threads_run_at_a_realtime_priority(
     stalled_run: dict[str, Any],
 ) -> None:
     plant, feedback = stalled_run["policies"]["plant"], stalled_run["policies"]["feedback"]
-    for policies in (plant, feedback):
+    feedforward = stalled_run["policies"]["feedforward"]
+    for policies in (plant, feedback, feedforward):
         # The middleware's other threads (the asynchronous writer that spun in
         # issue 30 among them) stay at the default policy.
         other_dds = [n for n in policies.get("other", []) if n.startswith("dds.")]
@@ -137,8 +143,11 @@ def test_only_the_clock_the_executor_and_the_receive_threads_run_at_a_realtime_p
         assert "plant-clock" in plant["fifo"] and len(plant["fifo"]) == 2 + len(receive)
         receive = [n for n in feedback["fifo"] if n.startswith("dds.")]
         assert receive and len(feedback["fifo"]) == 1 + len(receive)  # and its executor
+        # The feedforward the same, below the pair (test/unit/nodes/test_realtime.py).
+        receive = [n for n in feedforward["fifo"] if n.startswith("dds.")]
+        assert receive and len(feedforward["fifo"]) == 1 + len(receive)
     else:
-        assert "fifo" not in plant and "fifo" not in feedback
+        assert not {"fifo"} & (set(plant) | set(feedback) | set(feedforward))
     block = stalled_run["summary"]["realtime"]["scheduling"]
     assert set(block["threads"]) == set(plant)  # the summary says the same
 

@@ -59,11 +59,14 @@ class Step(NamedTuple):
 class FeedforwardNode(ServoNode):
     """Feedforward generator; see the module docstring for its protocol."""
 
-    # Realtime: the default scheduler. Only the per-sample pair's executor
-    # threads and the plant's clock run under SCHED_FIFO: a node of the
-    # reference path at FIFO (as before, one or two below the pair) starved
-    # the pair's middleware threads, which stay SCHED_OTHER (issue 30).
-    realtime_below = None
+    # Realtime: SCHED_FIFO two below the pair (48 under the default 50), so
+    # its executor thread and its receive threads (47) stay below the pair's
+    # receive threads (49), which it never delays. At the default scheduler
+    # the reference each state needs waited behind the host's other jobs: a
+    # 2 s realtime ptc_friction missed a median of 73 of 2000 deadlines, 17
+    # with this (scripts/rt_ab.py, alternated run by run; the bare pair 10).
+    # At 49 (one below) it competed with the pair's receive threads: worse.
+    realtime_below = 2
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("feedforward", **kwargs)

@@ -140,8 +140,9 @@ SHARED: dict[str, Param] = {
         meaning="realtime mode: SCHED_FIFO priority of the threads that do the per-sample "
         "work: the plant's clock thread and the executor thread of the plant and the feedback "
         "(the per-sample pair), as ros2_control's thread_priority; the middleware's threads "
-        "stay SCHED_OTHER (nice -10) but its receive threads (realtime.middleware_priority), "
-        "and so do the other nodes. 0: the default scheduler "
+        "stay SCHED_OTHER (nice -10) but its receive threads (realtime.middleware_priority); "
+        "the feedforward generator's executor runs two below (its receive threads one below "
+        "that), the other nodes at the default scheduler. 0: the default scheduler "
         "for all. Where the system refuses (no CAP_SYS_NICE or rtprio limit), a warning and "
         "the default scheduler; ignored in lockstep",
     ),

@@ -325,6 +325,40 @@ def test_the_receive_threads_get_the_priority_below_the_executor_not_the_one_ask
     assert scheduling.applied is not None and scheduling.applied["middleware_threads"] == 4
 
 
+def test_the_feedforward_and_its_receive_threads_run_below_the_pairs_receive_threads() -> None:
+    from servo_axis.nodes.feedback import FeedbackNode
+    from servo_axis.nodes.feedforward import FeedforwardNode
+    from servo_axis.nodes.plant import PlantNode
+
+    def apply(priority: int) -> dict[str, object]:
+        return {"policy": "fifo", "priority": priority}
+
+    for pair_priority in (50, 10, 3):
+        pair = [
+            RealtimeScheduling(
+                realtime_priority(mode="realtime", thread_priority=pair_priority, below=node),
+                warn=print,
+                apply=apply,
+                favour=lambda: 0,
+                middleware_priority=49,
+            )
+            for node in (PlantNode.realtime_below, FeedbackNode.realtime_below)
+        ]
+        ff_priority = realtime_priority(
+            mode="realtime", thread_priority=pair_priority, below=FeedforwardNode.realtime_below
+        )
+        assert ff_priority is not None
+        ff = RealtimeScheduling(
+            ff_priority, warn=print, apply=apply, favour=lambda: 0, middleware_priority=49
+        )
+        pair_receive = min(s.middleware_priority for s in pair)
+        assert pair_receive == pair_priority - 1
+        # Below the pair's receive threads, its own receive threads below it.
+        assert ff_priority == max(1, pair_priority - 2) and ff_priority < pair_receive
+        assert ff.middleware_priority < ff_priority or ff.middleware_priority == 0
+    assert realtime_priority(mode="lockstep", thread_priority=50, below=2) is None
+
+
 def test_only_fast_dds_receive_threads_are_receive_threads() -> None:
     # Thread names of a realtime plant on Jazzy's Fast DDS (summary.json's
     # realtime.scheduling.threads).
