@@ -47,9 +47,17 @@ def git(*args: str) -> str:
     ).stdout.strip()
 
 
+def commit_of(rev: str) -> str:
+    """The short hash of ``rev``; SystemExit with one line if it names no commit."""
+    try:
+        return git("rev-parse", "--short", "--verify", "--end-of-options", f"{rev}^{{commit}}")
+    except subprocess.CalledProcessError:
+        raise SystemExit(f"rt_ab.py: variant {rev!r}: not a commit of {REPO}") from None
+
+
 def prepare(rev: str, work: Path) -> tuple[Path, Path]:
     """``(python, checkout)`` of ``rev``: a worktree and a hard-linked venv with it installed."""
-    commit = git("rev-parse", "--short", rev)
+    commit = commit_of(rev)
     tree, venv = work / f"tree_{commit}", work / f"venv_{commit}"
     if not tree.is_dir():
         git("worktree", "add", "--detach", str(tree), commit)
@@ -98,6 +106,15 @@ def main() -> int:
         "--work", type=Path, default=Path("/tmp/servo_axis_rt_ab"), help="worktrees, venvs, runs"
     )
     args = parser.parse_args()
+    if args.reps < 1 or not args.seconds > 0:
+        parser.error(f"--reps {args.reps}, --seconds {args.seconds}: expected >= 1 and > 0")
+    for variant in args.variants:
+        rev, *assignments = variant.split("@")
+        commit_of(rev)
+        if any("=" not in a for a in assignments):
+            parser.error(f"variant {variant!r}: expected REV or REV@NAME=VALUE@...")
+    if not (REPO / "config" / f"{args.scenario}.yaml").is_file():
+        parser.error(f"scenario {args.scenario!r}: not a shipped scenario (config/<name>.yaml)")
     args.work.mkdir(parents=True, exist_ok=True)
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     prepared = {v: prepare(v.split("@")[0], args.work) for v in args.variants}
@@ -117,7 +134,7 @@ def main() -> int:
             print(f"floor      rep {rep}: {floor} misses of 2000", flush=True)
         for variant, (python, checkout) in prepared.items():
             rev, *assignments = variant.split("@")
-            tag = f"{git('rev-parse', '--short', rev)}_{rep}_{time.time_ns()}"
+            tag = f"{commit_of(rev)}_{rep}_{time.time_ns()}"
             path = realtime_copy(checkout, args.scenario, args.seconds, args.work / f"{tag}.yaml")
             run_dir = args.work / tag
             started = time.monotonic()
