@@ -145,7 +145,7 @@ class RecorderNode(ServoNode):
         self._gone: set[str] = set()
         # Streams whose writer's lease lapsed with none alive: the step then.
         # Not counted meanwhile; gone for good (a fallback) only if no writer
-        # is alive again by the end of the run (see _lapsed_writer).
+        # is alive again by the end of the run (see _publisher_gone).
         self._lapsed: dict[str, int] = {}
         #: Lapses after which a writer of the stream was alive again.
         self.lapses_recovered = 0
@@ -359,7 +359,7 @@ class RecorderNode(ServoNode):
             # start-up), while it lives.
             lapsed = info.alive_count == 0 and info.not_alive_count_change > 0
             if lapsed and not self.graph.published_in_process(name):
-                self._lapsed_writer(name)
+                self._publisher_gone(name, lapsed=True)
             elif info.alive_count > 0:
                 self._gone.discard(name)
                 if self._lapsed.pop(name, None) is not None:
@@ -367,29 +367,6 @@ class RecorderNode(ServoNode):
                     self.get_logger().info(f"a writer of {name} is alive again; counted again")
 
         return on_liveliness
-
-    def _lapsed_writer(self, name: str) -> None:
-        """The last alive writer of ``name`` let its lease lapse: not counted from now on.
-
-        A lease is renewed by the middleware's own thread, which a host busy
-        enough can hold back past the lease (1 s) while the producer lives
-        (seen in a lockstep run of test_determinism with a CPU hog and a
-        second test's runs beside it: ``reference`` at step 200, every
-        message recorded, the bag identical to the other runs'). So the
-        stream stops being counted,
-        that the run goes on whatever happened, but it is reported gone (a
-        fallback) only if none of its writers is alive again by the end of
-        the run (:meth:`close`); a killed producer's never is.
-        """
-        if name in self._gone or self._recorded_steps(name) >= self._steps:
-            return
-        self._gone.add(name)
-        self._lapsed[name] = self._recorded_steps(name)
-        self.get_logger().warning(
-            f"the writer of {name} let its liveliness lapse at step {self._lapsed[name]}: "
-            "not counted until it is alive again"
-        )
-        self._update_progress()
 
     def _check_gone(self) -> None:
         """A counted stream's publisher that offers no lease is gone when it left the graph.
@@ -404,22 +381,44 @@ class RecorderNode(ServoNode):
             if name in self._gates and running and self._subs[topic].get_publisher_count() == 0:
                 self._publisher_gone(name)
 
-    def _publisher_gone(self, name: str) -> None:
-        # A producer that leaves after its stream's last step is the end of
-        # the run, however its writer goes: under load its lease can lapse
-        # while it waits for acknowledgements and exits (the recorder is
-        # stopped last), which is no loss.
+    def _publisher_gone(self, name: str, *, lapsed: bool = False) -> None:
+        """The producer of ``name`` is gone (``lapsed``: its last alive writer's lease lapsed).
+
+        Either way its stream stops being counted (what it published is on
+        disk), so the rest of the run is recorded. A producer gone after its
+        stream's last step is the end of the run, however its writer goes:
+        under load its lease can lapse while it waits for acknowledgements
+        and exits (the recorder is stopped last), which is no loss.
+
+        A lapse is reported (a fallback) only if no writer of the stream is
+        alive again by the end of the run (:meth:`close`; a killed
+        producer's never is): a lease is renewed by the middleware's own
+        thread, which a host busy enough can hold back past the lease (1 s)
+        while the producer lives (seen in a lockstep run of test_determinism
+        with a CPU hog and a second test's runs beside it: ``reference`` at
+        step 200, every message recorded, the bag identical to the other
+        runs').
+        """
         if name in self._gone or self._recorded_steps(name) >= self._steps:
             return
-        # The producer is gone: its stream stops being counted (what it
-        # published is on disk), so the rest of the run is recorded.
         self._gone.add(name)
+        step = self._recorded_steps(name)
+        if lapsed:
+            self._lapsed[name] = step
+            self.get_logger().warning(
+                f"the writer of {name} let its liveliness lapse at step {step}: "
+                "not counted until it is alive again"
+            )
+        else:
+            self._report_gone(name, step)
+        self._update_progress()
+
+    def _report_gone(self, name: str, step: int, why: str = "") -> None:
         self.report.fallback(
             "publisher_gone",
-            self._recorded_steps(name),
-            f"the publisher of {name} is gone; its stream is no longer counted",
+            step,
+            f"the publisher of {name} is gone{why}; its stream is no longer counted",
         )
-        self._update_progress()
 
     def _recorded_steps(self, name: str) -> int:
         """Steps of counted stream ``name`` written in order (the next expected step)."""
@@ -449,12 +448,8 @@ class RecorderNode(ServoNode):
             self._closed = True
             for name, step in sorted(self._lapsed.items()):
                 if name in self._gone:
-                    self.report.fallback(
-                        "publisher_gone",
-                        step,
-                        f"the publisher of {name} is gone (its liveliness lapsed at step "
-                        f"{step} and no writer was alive again); its stream was no longer counted",
-                    )
+                    why = f" (its liveliness lapsed at step {step}; no writer was alive again)"
+                    self._report_gone(name, step, why)
             self._lapsed.clear()
             self.writer.close()
         super().close()
