@@ -31,6 +31,33 @@ def _lock_held(path: Path) -> bool:
     return False
 
 
+def files_in_use(directory: Path, proc: Path = Path("/proc")) -> set[str]:
+    """Names of the files in ``directory`` that a live process has open or mapped.
+
+    Read from each process's ``fd`` links and ``maps`` (Linux); a process
+    that ends meanwhile, or that this user may not look into, is passed over.
+    """
+    where = str(directory.resolve())
+    prefix = where.rstrip("/") + "/"
+    names: set[str] = set()
+    for pid in proc.iterdir():
+        if not pid.name.isdigit():
+            continue
+        try:
+            with open(pid / "maps", encoding="utf-8", errors="replace") as maps:
+                for line in maps:
+                    at = line.find(prefix)
+                    if at >= 0:
+                        names.add(line[at + len(prefix) :].split()[0])
+            for fd in (pid / "fd").iterdir():
+                target = os.readlink(fd)
+                if target.startswith(prefix):
+                    names.add(target[len(prefix) :].split()[0])
+        except OSError:
+            continue
+    return names
+
+
 def clean_stale_shm(
     *, since: float, shm_dir: Path = Path("/dev/shm"), dead_owners_only: bool = False
 ) -> list[str]:
@@ -38,24 +65,34 @@ def clean_stale_shm(
 
     With localhost discovery rmw_fastrtps uses shared memory; a clean exit
     removes its files, SIGKILL does not, and the port segments a killed
-    participant had opened stay behind after their last user exits too. A segment is stale when nobody holds
-    the lock on its ``_el`` file (live owners hold it; the kernel releases it
-    when the owner dies) or, for a port segment, when it has no ``_el`` at
-    all. Only files touched since ``since`` (epoch seconds: the start of the
-    run) are considered, so other users' files are left alone.
+    participant had opened stay behind after their last user exits too. A
+    segment is stale when no live process has it, its ``_el`` lock file or
+    its mutex open or mapped (:func:`files_in_use`), and nobody holds the
+    lock on its ``_el`` file (live owners hold it; the kernel releases it
+    when the owner dies) or, for a port segment, it has no ``_el`` at all.
+    Only files touched since ``since`` (epoch seconds: the start of the run)
+    are considered, so other users' files are left alone.
 
     With ``dead_owners_only`` only segments whose lock file exists and is
     free (their owner died) go, which is safe while other participants run:
-    a port segment without a lock file may be a live sender's. A restarted
-    node gets a participant id of its own (:func:`free_participant_id`), so
-    it never opens the dead one's receive port; what the dead one left is
-    removed here all the same, before the restart.
+    a port segment without a lock file may be a sender's about to map it. A
+    restarted node gets a participant id of its own
+    (:func:`free_participant_id`), so it never opens the dead one's receive
+    port; what the dead one left and no live peer still maps is removed here
+    all the same, before the restart.
     """
     removed = []
     # A lock file whose segment is gone counts too: Fast DDS may remove a
     # dead owner's port segment when another participant reopens the port,
     # and leave the lock file behind.
     names = {p.name.removesuffix("_el") for p in shm_dir.glob("fastrtps_*")}
+    # Never a file a live process has open or mapped, whatever its lock says:
+    # another run on the machine (a second pytest-xdist worker, a user's)
+    # may be between creating a segment and locking it, or write to a port
+    # that has no lock file; removing it cuts that process off for good
+    # (its peers' messages go to a segment nobody reads). Looked at after
+    # the listing: a file made in between is open already.
+    in_use = files_in_use(shm_dir)
     for name in sorted(names):
         seg, lock = shm_dir / name, shm_dir / f"{name}_el"
         try:
@@ -63,6 +100,8 @@ def clean_stale_shm(
         except (OSError, ValueError):
             continue
         if touched < since or (lock.exists() and _lock_held(lock)):
+            continue
+        if {name, f"{name}_el", f"sem.{name}_mutex"} & in_use:
             continue
         if dead_owners_only and not lock.exists():
             continue

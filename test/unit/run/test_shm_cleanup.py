@@ -5,6 +5,8 @@ from __future__ import annotations
 import fcntl
 import os
 import socket
+import subprocess
+import sys
 import time
 from pathlib import Path
 from xml.etree import ElementTree
@@ -14,6 +16,7 @@ import pytest
 from servo_axis.run.fastdds import (
     RESTART_PARTICIPANT_IDS,
     clean_stale_shm,
+    files_in_use,
     free_participant_id,
     participant_ports,
     with_participant_id,
@@ -71,6 +74,49 @@ def test_while_a_run_goes_on_only_segments_of_dead_owners_are_removed(tmp_path: 
         "fastrtps_live_el",
         "fastrtps_port7411",
     ]
+
+
+HOLDER = """
+import mmap, os, sys
+held = []
+for path in sys.argv[2:]:
+    fd = os.open(path, os.O_RDWR)
+    if sys.argv[1] == "map":
+        held.append(mmap.mmap(fd, 0))
+        os.close(fd)  # the mapping alone keeps it in use, as Fast DDS's segments
+    else:
+        held.append(fd)
+print("ready", flush=True)
+sys.stdin.read()
+"""
+
+
+@pytest.mark.parametrize("how", ["map", "open"])
+def test_a_file_a_live_process_holds_is_never_removed(tmp_path: Path, how: str) -> None:
+    """Another run on the machine (a second pytest-xdist worker) may be between
+    creating a segment and locking it, or send to a port that has no lock file:
+    a file any live process has mapped or open stays, whatever its lock says."""
+    since = time.time() - 10
+    names = ["fastrtps_port7002", "fastrtps_abc", "fastrtps_abc_el", "fastrtps_port7011"]
+    for name in names:
+        (tmp_path / name).write_bytes(b"x" * 4096)
+    holder = subprocess.Popen(
+        [sys.executable, "-c", HOLDER, how, str(tmp_path / "fastrtps_port7002"),
+         str(tmp_path / "fastrtps_abc_el")],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        assert holder.stdout is not None and holder.stdout.readline() == "ready\n"
+        assert {"fastrtps_port7002", "fastrtps_abc_el"} <= files_in_use(tmp_path)
+        assert clean_stale_shm(since=since, shm_dir=tmp_path) == ["fastrtps_port7011"]
+    finally:
+        holder.communicate("", timeout=10)
+    # Once its holder has gone, what it held is stale like the rest.
+    assert sorted(clean_stale_shm(since=since, shm_dir=tmp_path)) == [
+        "fastrtps_abc",
+        "fastrtps_port7002",
+    ]
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_participant_ports_follow_the_rtps_mapping() -> None:
