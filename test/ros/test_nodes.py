@@ -277,13 +277,18 @@ def test_plant_rejects_bad_commands_and_waits_for_a_valid_one(context: Context) 
     probe.destroy_node()
 
 
-def test_plant_starts_only_once_the_node_that_answers_state_listens(context: Context) -> None:
+def test_plant_starts_only_once_the_node_that_answers_state_listens(
+    context: Context, monkeypatch: pytest.MonkeyPatch, capfd: pytest.CaptureFixture[str]
+) -> None:
     """Another subscriber of `state` (an outside reference generator that answers it too)
     does not stand in for the node that publishes `command`: with the expected count met
-    and settled, and `command` matched, the plant waits until that node subscribes."""
+    and settled, and `command` matched, the plant waits until that node subscribes, and
+    says what it waits for."""
+    monkeypatch.setattr("servo_axis.nodes.plant.START_REPORT_S", 0.5)
     plant = PlantNode(
         context=context, parameter_overrides=[Parameter("wait_for_state_subscribers", value=1)]
     )
+    assert plant._waiting_for() == "1 subscribers of state (the graph lists 0, 0 matched)"
     generator = Node("my_sine_reference", context=context)
     generator.create_subscription(JointState, "state", lambda m: None, 10)
     controller = Node("my_controller", context=context)
@@ -293,6 +298,9 @@ def test_plant_starts_only_once_the_node_that_answers_state_listens(context: Con
     spin_until(context, nodes, lambda: time.monotonic() > settled)
     assert plant.graph.consumers_matched(plant._state_pub, "state", 1)
     assert plant.inputs.matched("command") and not plant.started
+    waiting = "the node that publishes command to subscribe to state"
+    assert plant._waiting_for() == waiting
+    assert f"waiting for {waiting}" in capfd.readouterr().err
     states: list[JointState] = []
     controller.create_subscription(JointState, "state", states.append, 10)
     spin_until(context, nodes, lambda: plant.started and len(states) == 1)

@@ -47,6 +47,8 @@ TWIN_GRACE_S = 7.0
 #: stranger subscriber beside the expected ones, a volatile endpoint that
 #: may not have matched on its own side yet).
 MATCH_SETTLE_S = 0.5
+#: Seconds between two log lines of a node still waiting for its consumers.
+WAIT_REPORT_S = 10.0
 
 
 @dataclass(frozen=True)
@@ -284,6 +286,13 @@ class GraphWatch:
             return True
         return self._settle.held(name, (len(infos), matched))
 
+    def consumers_missing(self, publisher: Publisher, name: str, count: int) -> str | None:
+        """What :meth:`consumers_matched` still waits for, for a person, or None if nothing."""
+        if self.consumers_matched(publisher, name, count):
+            return None
+        listed, matched = len(self.subscriptions(name)), publisher.get_subscription_count()
+        return f"{count} subscribers of {name} (the graph lists {listed}, {matched} matched)"
+
     def readers_settled(self, name: str, count: int) -> bool:
         """Whether topic ``name`` has a publisher and ``count`` subscriptions, held a while.
 
@@ -309,20 +318,31 @@ class GraphWatch:
         that nothing it publishes in answer is lost to a reader still being
         discovered: the plant takes step 0 only once all of its ``state``
         subscribers are in. At once if they already are, else from a 10 ms
-        poll.
+        poll, which says every :data:`WAIT_REPORT_S` what is still missing
+        (a start that never comes is otherwise silent).
         """
 
-        def ready() -> bool:
-            return all(self.consumers_matched(pub, name, n) for pub, name, n in outputs)
+        def missing() -> list[str]:
+            said = (self.consumers_missing(pub, name, n) for pub, name, n in outputs)
+            return [s for s in said if s is not None]
 
-        if ready():
+        if not missing():
             then()
             return
+        since = time.monotonic()
+        told = since
 
         def poll() -> None:
-            if ready():
+            nonlocal told
+            left = missing()
+            if not left:
                 timer.cancel()
                 then()
+            elif time.monotonic() - told >= WAIT_REPORT_S:
+                told = time.monotonic()
+                self._node.get_logger().warning(
+                    f"waiting {told - since:.0f} s for " + "; ".join(left)
+                )
 
         from servo_axis.nodes.runtime import steady_clock  # rclpy: not at the module's top
 

@@ -77,6 +77,7 @@ from servo_axis.nodes.realtime import (
     HeldSetPoint,
     thread_policies,
 )
+from servo_axis.nodes.reporting import Throttle
 from servo_axis.nodes.runtime import run_main, steady_clock
 from servo_axis.params.factories import build_plant, plant_model, run_steps
 from servo_axis.wire import messages as msgs
@@ -102,6 +103,9 @@ LOOP_OPEN_S = 2.0
 #: Wall time the plant waits at the end of a realtime run it ended itself
 #: (``clock_stalled``, ``loop_open``) for the recorder, s.
 FAULT_FINISH_S = 1.0
+#: Wall time before step 0 after which the plant says, every as many seconds,
+#: what it still waits for, s (the runner gives up after its stall timeout).
+START_REPORT_S = 10.0
 
 
 def state_sample(out: PlantOutput) -> msgs.StateSample:
@@ -209,6 +213,8 @@ class PlantNode(ServoNode):
             self._on_progress,
         )
 
+        self._created_s = time.monotonic()
+        self._start_complaint = Throttle(START_REPORT_S)
         self._start_timer = self.create_timer(0.01, self._try_start, clock=steady_clock())
         # Realtime: the clock thread, what it records, the set-point it applies,
         # and the lock on what it shares with the executor's thread.
@@ -236,19 +242,20 @@ class PlantNode(ServoNode):
         """The simulation time of the plant's step (it owns the clock)."""
         return int(self.plant.step_index) * self._period_ns
 
-    def _connected(self) -> bool:
+    def _waiting_for(self) -> str | None:
+        """What the plant still waits for before step 0, or None once every peer is in."""
         v, graph = self._v, self.graph
-        if not graph.consumers_matched(self._state_pub, "state", v["wait_for_state_subscribers"]):
-            return False
-        if not graph.consumers_matched(
-            self._status_pub, "plant/status", v["wait_for_status_subscribers"]
+        for pub, topic, count in (
+            (self._state_pub, "state", v["wait_for_state_subscribers"]),
+            (self._status_pub, "plant/status", v["wait_for_status_subscribers"]),
+            (self._clock_pub, "/clock", v["wait_for_clock_subscribers"]),
         ):
-            return False
-        if self._clock_pub is not None and not graph.consumers_matched(
-            self._clock_pub, "/clock", v["wait_for_clock_subscribers"]
-        ):
-            return False
-        if not (self.inputs.matched("command") and graph.answerer_listens("command", "state")):
+            missing = None if pub is None else graph.consumers_missing(pub, topic, count)
+            if missing is not None:
+                return missing
+        if not self.inputs.matched("command"):
+            return "a matched publisher of command"
+        if not graph.answerer_listens("command", "state"):
             # Whoever answers state[k] must be there before step 0: a stranger
             # subscribed to state, or an outside reference generator that
             # answers state too, must not stand in for a feedback node that
@@ -257,11 +264,23 @@ class PlantNode(ServoNode):
             # to no one). In realtime too: a clock that starts before the
             # commands can reach it counts misses that are no one's and
             # holds zero current while the feedback winds up.
-            return False
-        return self._flow.ready
+            return "the node that publishes command to subscribe to state"
+        if not self._flow.ready:
+            return "the recorder's first recorder/progress (flow control)"
+        return None
 
     def _try_start(self) -> None:
-        if self.started or not self._connected():
+        if self.started:
+            return
+        waiting = self._waiting_for()
+        if waiting is not None:
+            if self._start_complaint.ready():
+                # A start that never comes is otherwise silent ("no progress").
+                waited = time.monotonic() - self._created_s
+                if waited >= START_REPORT_S:
+                    self.get_logger().warning(
+                        f"not started after {waited:.0f} s: waiting for {waiting}"
+                    )
             return
         self._start_timer.cancel()
         self.started = True
