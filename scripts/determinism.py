@@ -93,6 +93,18 @@ def one_run(scenario: str, out: Path, domain: int, composed: bool, stranger: boo
                 clean_stale_shm(since=started)
 
 
+def log_tails(run_dir: Path, lines: int = 4) -> str:
+    """The last ``lines`` lines of each node's log in ``run_dir`` (what a failed run said)."""
+    out = []
+    for log in sorted(run_dir.glob("**/logs/*.log")):
+        if log.name.startswith("python_"):  # rcl's own copy of the same lines
+            continue
+        tail = log.read_text(errors="replace").splitlines()[-lines:]
+        out.append(f"  {log.relative_to(run_dir)}:")
+        out.extend(f"    {line}" for line in tail or ["(empty)"])
+    return "\n".join(out) or f"  no node logs under {run_dir}"
+
+
 def _count(entry: tuple[int, str] | None) -> str:
     """The message count of a topic's ``(count, sha256)``, or ``none`` if the first run had none."""
     return "none" if entry is None else str(entry[0])
@@ -150,6 +162,8 @@ def main(argv: list[str] | None = None) -> int:
                     + ("identical" if same else f"DIFFERENT ({', '.join(diff) or 'no bag'})"),
                     flush=True,
                 )
+                if code != 0:
+                    print(log_tails(out), flush=True)
     finally:
         for p in load:
             p.terminate()
