@@ -11,12 +11,16 @@ ended by itself (not stopped by this script's time limit). Then three runs of
 ``ptc_nominal`` under the same loads: the stall (SIGSTOP of the feedback for
 0.3 s mid-run: does the loop close again after it, the misses, what was skipped),
 the SIGTERM (time from SIGTERM to the runner until every process of the run is
-gone), and ``xy_circle`` is one of the scenarios (two axes).
+gone), and ``xy_circle`` is one of the scenarios (two axes). With ``--reps N``
+each scenario runs N times per load, each repeat after a floor of its own; the
+misses and the floors' misses are summed over the repeats before their ratio
+(a 2 s run at 1 ms expects about 7 misses of the floor: one run's ratio is noise).
 
 Run it on a quiet machine (it is the measurement, not a test)::
 
     .venv/bin/python scripts/rt_trust.py                   # every scenario, quiet and 2 hogs
     .venv/bin/python scripts/rt_trust.py ptc_nominal --hogs 0 --no-floor   # a quick look
+    .venv/bin/python scripts/rt_trust.py ptc_friction ptc_nominal --hogs 0 --reps 5 --no-extra
 """
 
 from __future__ import annotations
@@ -145,18 +149,37 @@ def realtime_blocks(summary: dict[str, Any]) -> list[dict[str, Any]]:
     return [a["realtime"] for a in summary.get("axes", {}).values() if "realtime" in a]
 
 
-def misses_text(summary: dict[str, Any], floor: dict[int, dict]) -> tuple[str, str]:
-    """``misses/ticks`` and their ratio to the floor's misses at the same period and ticks."""
-    blocks = realtime_blocks(summary)
-    if not blocks:
+def pooled_floor(floors: list[dict[int, dict]]) -> dict[int, dict]:
+    """The floor's misses and ticks summed over repeats, by period in us, with their ``miss_pct``."""
+    out: dict[int, dict] = {}
+    for floor in floors:
+        for period, f in floor.items():
+            o = out.setdefault(period, {"misses": 0, "ticks": 0})
+            o["misses"] += f["misses"]
+            o["ticks"] += f["ticks"]
+    for o in out.values():
+        o["miss_pct"] = 100 * o["misses"] / max(o["ticks"], 1)
+    return out
+
+
+def misses_text(summaries: list[dict[str, Any]], floor: dict[int, dict]) -> tuple[str, str]:
+    """``misses/ticks`` summed over the repeats (each run's misses in brackets when more
+    than one), and their ratio to the floor's at the same period (pooled over its repeats)."""
+    per_axis: dict[int, list[dict[str, Any]]] = {}
+    for summary in summaries:
+        for i, rt in enumerate(realtime_blocks(summary)):
+            per_axis.setdefault(i, []).append(rt)
+    if not per_axis:
         return "-", "-"
     parts, ratios = [], []
-    for rt in blocks:
-        parts.append(f"{rt['misses']}/{rt['ticks']}")
-        f = floor.get(round(rt["period_ns"] / 1000))
+    for blocks in per_axis.values():
+        misses, ticks = sum(b["misses"] for b in blocks), sum(b["ticks"] for b in blocks)
+        each = f" ({' '.join(str(b['misses']) for b in blocks)})" if len(blocks) > 1 else ""
+        parts.append(f"{misses}/{ticks}{each}")
+        f = floor.get(round(blocks[0]["period_ns"] / 1000))
         if f is not None:
-            expected = f["miss_pct"] / 100 * rt["ticks"]
-            ratios.append(f"{rt['misses'] / max(expected, 1.0):.2f}x ({f['miss_pct']:.2f} %)")
+            expected = f["miss_pct"] / 100 * ticks
+            ratios.append(f"{misses / max(expected, 1.0):.2f}x ({f['miss_pct']:.2f} %)")
     return ", ".join(parts), ", ".join(ratios) or "-"
 
 
@@ -209,10 +232,17 @@ def main() -> int:
     parser.add_argument("--no-floor", action="store_true", help="skip rt_floor.py")
     parser.add_argument("--domain-id", type=int, default=77)
     parser.add_argument("--no-extra", action="store_true", help="no stall and SIGTERM runs")
+    parser.add_argument(
+        "--reps", type=int, default=1,
+        help="runs of each scenario (and floors) per load; misses are pooled over them",
+    )  # fmt: skip
     args = parser.parse_args()
+    if args.reps < 1:
+        parser.error(f"--reps: expected at least 1, got {args.reps}")
     names = args.scenarios or sorted(p.stem for p in (REPO / "config").glob("*.yaml"))
     tmp = Path(tempfile.mkdtemp(prefix="rt_trust_"))
-    rows = ["| scenario | load | exit | misses | vs floor | wall s | ended by itself |",
+    rows = ["| scenario | load | exit | misses (each run) | vs floor | mean wall s "
+            "| ended by itself |",
             "|---|---|---|---|---|---|---|"]  # fmt: skip
     extra = ["| run | load | exit | misses | skipped (states / answers) | loop closed again "
              "| gone after SIGTERM |", "|---|---|---|---|---|---|---|"]  # fmt: skip
@@ -226,19 +256,34 @@ def main() -> int:
                 round(float(d["/**"]["ros__parameters"].get("control_period_s", 1e-3)) * 1e6)
                 for _, d in copies.values()
             })  # fmt: skip
-            floor = {} if args.no_floor else measure_floor(periods, ticks=5000)
-            floor_file = None
-            if floor:
-                floor_file = tmp / f"floor_{hogs_n}.jsonl"
-                floor_file.write_text("".join(json.dumps(r) + "\n" for r in floor.values()))
-            for name, (path, _) in copies.items():
-                r = run(path, tmp / f"{name}_{hogs_n}", args.domain_id, args.seconds, floor_file)
-                misses, ratio = misses_text(r["summary"], floor)
-                ended = "yes" if r["ended"] else "NO (stopped by the script)"
-                if r.get("left_behind"):
-                    ended += f", {r['left_behind']} process(es) left behind"
-                rows.append(f"| {name} | {load} | {r['code']} | {misses} | {ratio} "
-                            f"| {r['wall_s']:.1f} | {ended} |")  # fmt: skip
+            floors, results = [], {name: [] for name in copies}
+            for rep in range(args.reps):
+                # The floor and the runs alternate, so that a drift of the host
+                # weighs on both alike.
+                floor = {} if args.no_floor else measure_floor(periods, ticks=5000)
+                floors.append(floor)
+                floor_file = None
+                if floor:
+                    floor_file = tmp / f"floor_{hogs_n}_{rep}.jsonl"
+                    floor_file.write_text("".join(json.dumps(r) + "\n" for r in floor.values()))
+                for name, (path, _) in copies.items():
+                    run_dir = tmp / f"{name}_{hogs_n}_{rep}"
+                    r = run(path, run_dir, args.domain_id, args.seconds, floor_file)
+                    results[name].append(r)
+                    print(f"{name} {load} run {rep + 1}: exit {r['code']}, "
+                          f"{misses_text([r['summary']], floor)[0]} misses", flush=True)  # fmt: skip
+            pooled = pooled_floor(floors)
+            for name, rs in results.items():
+                misses, ratio = misses_text([r["summary"] for r in rs], pooled)
+                left = sum(r.get("left_behind", 0) for r in rs)
+                stopped = sum(not r["ended"] for r in rs)
+                ended = "yes" if not stopped else f"NO ({stopped} stopped by the script)"
+                if left:
+                    ended += f", {left} process(es) left behind"
+                codes = ",".join(str(r["code"]) for r in rs)
+                wall = sum(r["wall_s"] for r in rs) / len(rs)
+                rows.append(f"| {name} | {load} | {codes} | {misses} | {ratio} "
+                            f"| {wall:.1f} | {ended} |")  # fmt: skip
                 print(rows[-1], flush=True)
             if args.no_extra:
                 continue
