@@ -89,7 +89,9 @@ def announce(run: PreparedRun) -> None:
     if out is None:
         return
     print(f"servo_axis run {plan.name}: {plan.steps} steps, run directory {plan.run_dir}", file=out)
-    header = run_header(run.domain_id, plan.namespaces, discovery_settings(plan.axes[0].logs))
+    realtime = any(axis.realtime for axis in plan.axes)
+    settings = discovery_settings(plan.axes[0].logs, realtime=realtime)
+    header = run_header(run.domain_id, plan.namespaces, settings)
     print("\n".join(header), file=out, flush=True)
     for axis in plan.axes:
         for role in axis.outside:

@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from servo_axis.params.names import check_domain_id
-from servo_axis.run.fastdds import clean_stale_shm
+from servo_axis.run.fastdds import REALTIME_ANNOUNCEMENT_S, clean_stale_shm, realtime_profile
 
 #: Seconds between SIGINT and SIGKILL when the nodes are stopped at a run's
 #: end (each stage of :func:`stop_nodes`).
@@ -41,10 +41,10 @@ LOCKSTEP_PAIR = ("plant", "feedback")
 REALTIME_FIRST_CORE = ("plant", "identifier", "learning")
 
 
-def ros_environment(domain_id: int, log_dir: Path) -> dict[str, str]:
+def ros_environment(domain_id: int, log_dir: Path, *, realtime: bool = False) -> dict[str, str]:
     """Environment of the node processes: ``os.environ`` plus the run's ROS settings."""
     env = dict(os.environ)
-    env.update(discovery_settings(log_dir))
+    env.update(discovery_settings(log_dir, realtime=realtime))
     env.update(ROS_DOMAIN_ID=str(domain_id), PYTHONUNBUFFERED="1")
     # The nodes' matrices are 3x3 to 8x8: OpenBLAS threads only contend for
     # the cores with the nodes (a 3x3 expm went from 10 to 70-87 us under load).
@@ -52,14 +52,18 @@ def ros_environment(domain_id: int, log_dir: Path) -> dict[str, str]:
     return env
 
 
-def discovery_settings(log_dir: Path) -> dict[str, str]:
+def discovery_settings(log_dir: Path, *, realtime: bool = False) -> dict[str, str]:
     """The variables rcl and Fast DDS read when a context and its participant are made.
 
     Localhost discovery, the profile shipped with the package (100 ms
     discovery announcements, UDP and shared memory with 8 MB segments), and
-    the ROS log directory.
+    the ROS log directory. With ``realtime`` the profile is its copy with
+    announcements every second (:func:`~servo_axis.run.fastdds.realtime_profile`,
+    written to ``log_dir``).
     """
-    profile = resources.files("servo_axis") / "data" / "fastdds_localhost.xml"
+    profile = Path(str(resources.files("servo_axis") / "data" / "fastdds_localhost.xml"))
+    if realtime:
+        profile = realtime_profile(profile, log_dir / "fastdds_realtime.xml")
     return {
         "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
         "ROS_LOG_DIR": str(log_dir),
@@ -95,11 +99,14 @@ def run_header(domain_id: int, namespaces: list[str], settings: Mapping[str, str
     range_ = settings["ROS_AUTOMATIC_DISCOVERY_RANGE"]
     profile = settings["FASTRTPS_DEFAULT_PROFILES_FILE"]
     transports = settings["FASTDDS_BUILTIN_TRANSPORTS"]
+    realtime = Path(profile).name == "fastdds_realtime.xml"
+    announced = f"{REALTIME_ANNOUNCEMENT_S:g} s" if realtime else "100 ms"
     return [
         f"ROS 2: ROS_DOMAIN_ID={domain_id}, namespace{'s' if len(shown) > 1 else ''} "
         f"{', '.join(shown)} (nodes {first}/plant, {first}/feedback, ...{clock})",
         f"discovery: ROS_AUTOMATIC_DISCOVERY_RANGE={range_}, "
-        f"FASTRTPS_DEFAULT_PROFILES_FILE={profile} (100 ms announcements and heartbeats), "
+        f"FASTRTPS_DEFAULT_PROFILES_FILE={profile} ({announced} announcements, 100 ms "
+        "heartbeats), "
         f"transports FASTDDS_BUILTIN_TRANSPORTS={transports}"
         + (
             " + shared memory (rmw_fastrtps adds it under LOCALHOST)"

@@ -14,11 +14,13 @@ from xml.etree import ElementTree
 import pytest
 
 from servo_axis.run.fastdds import (
+    REALTIME_ANNOUNCEMENT_S,
     RESTART_PARTICIPANT_IDS,
     clean_stale_shm,
     files_in_use,
     free_participant_id,
     participant_ports,
+    realtime_profile,
     with_participant_id,
 )
 from servo_axis.run.processes import discovery_settings
@@ -162,3 +164,33 @@ def test_the_restart_profile_is_the_run_profile_with_the_id(tmp_path: Path) -> N
     assert {k: v for k, v in out.items() if k != "FASTRTPS_DEFAULT_PROFILES_FILE"} == {
         k: v for k, v in env.items() if k != "FASTRTPS_DEFAULT_PROFILES_FILE"
     }
+
+
+def test_the_realtime_profile_is_the_run_profile_with_announcements_every_second(
+    tmp_path: Path,
+) -> None:
+    """Each announcement reaches every participant of the run: in realtime every second."""
+    lockstep = discovery_settings(tmp_path)
+    realtime = discovery_settings(tmp_path / "logs", realtime=True)
+    assert realtime["FASTRTPS_DEFAULT_PROFILES_FILE"] == str(
+        tmp_path / "logs" / "fastdds_realtime.xml"
+    )
+    ns = {"f": "http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"}
+    path = "f:participant/f:rtps/f:builtin/f:discovery_config/f:leaseAnnouncement"
+    new = ElementTree.parse(realtime["FASTRTPS_DEFAULT_PROFILES_FILE"]).getroot()
+    old = ElementTree.parse(lockstep["FASTRTPS_DEFAULT_PROFILES_FILE"]).getroot()
+    for root, expected in ((old, 0.1), (new, REALTIME_ANNOUNCEMENT_S)):
+        period = root.find(path, ns)
+        assert period is not None
+        seconds = int(period.findtext("f:sec", namespaces=ns) or "")
+        nanoseconds = int(period.findtext("f:nanosec", namespaces=ns) or "")
+        assert seconds + nanoseconds * 1e-9 == pytest.approx(expected)
+    # Everything else is the run's profile.
+    for root in (new, old):
+        parent = root.find(path.rsplit("/", 1)[0], ns)
+        assert parent is not None
+        parent.remove(parent.find("f:leaseAnnouncement", ns))
+    assert ElementTree.tostring(new) == ElementTree.tostring(old)
+    (tmp_path / "bad.xml").write_text("<profiles/>")
+    with pytest.raises(RuntimeError, match="expected one <leaseAnnouncement> element"):
+        realtime_profile(tmp_path / "bad.xml", tmp_path / "out.xml")
