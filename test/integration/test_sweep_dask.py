@@ -66,10 +66,13 @@ def cluster(tmp_path: Path) -> Iterator[tuple[str, list[subprocess.Popen[bytes]]
     logs = tmp_path / "logs"
     logs.mkdir()
     procs: list[subprocess.Popen[bytes]] = []
+    # A worker the test kills leaves its point's temporary folder behind: here, not in /tmp.
+    (tmp_path / "tmp").mkdir()
+    env = {**os.environ, "TMPDIR": str(tmp_path / "tmp")}
 
     def start(name: str, *args: str) -> subprocess.Popen[bytes]:
         with (logs / f"{name}.log").open("wb") as log:
-            p = subprocess.Popen([DASK, *args], stdout=log, stderr=subprocess.STDOUT)
+            p = subprocess.Popen([DASK, *args], stdout=log, stderr=subprocess.STDOUT, env=env)
         procs.append(p)
         return p
 
