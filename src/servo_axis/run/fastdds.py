@@ -66,10 +66,12 @@ def clean_stale_shm(
     With localhost discovery rmw_fastrtps uses shared memory; a clean exit
     removes its files, SIGKILL does not, and the port segments a killed
     participant had opened stay behind after their last user exits too. A
-    segment is stale when no live process has it, its ``_el`` lock file or
-    its mutex open or mapped (:func:`files_in_use`), and nobody holds the
-    lock on its ``_el`` file (live owners hold it; the kernel releases it
-    when the owner dies) or, for a port segment, it has no ``_el`` at all.
+    segment with an ``_el`` lock file is stale when nobody holds the lock
+    (live owners hold it; the kernel releases it when the owner dies) and
+    no live process has the lock file open (a participant opens it before
+    it locks it), whoever still maps the segment; a port segment without
+    an ``_el`` when no live process has it or its mutex open or mapped
+    (:func:`files_in_use`: a sender's, or one being made).
     Only files touched since ``since`` (epoch seconds: the start of the run)
     are considered, so other users' files are left alone.
 
@@ -99,11 +101,15 @@ def clean_stale_shm(
             touched = max(p.stat().st_mtime for p in (seg, lock) if p.exists())
         except (OSError, ValueError):
             continue
-        if touched < since or (lock.exists() and _lock_held(lock)):
+        if touched < since:
             continue
-        if {name, f"{name}_el", f"sem.{name}_mutex"} & in_use:
-            continue
-        if dead_owners_only and not lock.exists():
+        if lock.exists():
+            # Its owner keeps the lock file open while it lives (and opens it
+            # before it locks it); a dead owner's segment goes even while its
+            # peers still map it (they read what it wrote; nobody writes).
+            if _lock_held(lock) or lock.name in in_use:
+                continue
+        elif dead_owners_only or {name, f"sem.{name}_mutex"} & in_use:
             continue
         for path in (seg, lock, shm_dir / f"sem.{name}_mutex"):
             path.unlink(missing_ok=True)

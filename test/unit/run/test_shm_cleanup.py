@@ -94,23 +94,28 @@ sys.stdin.read()
 
 
 @pytest.mark.parametrize("how", ["map", "open"])
-def test_a_file_a_live_process_holds_is_never_removed(tmp_path: Path, how: str) -> None:
+def test_what_a_live_process_holds_stays_unless_its_owner_died(tmp_path: Path, how: str) -> None:
     """Another run on the machine (a second pytest-xdist worker) may be between
     creating a segment and locking it, or send to a port that has no lock file:
-    a file any live process has mapped or open stays, whatever its lock says."""
+    those stay while a live process has them mapped or open. A dead owner's
+    segment goes even while a live peer maps it (nobody writes to it any more)."""
     since = time.time() - 10
-    names = ["fastrtps_port7002", "fastrtps_abc", "fastrtps_abc_el", "fastrtps_port7011"]
+    names = ["fastrtps_port7002", "fastrtps_abc", "fastrtps_abc_el", "fastrtps_port7011",
+             "fastrtps_dead", "fastrtps_dead_el"]  # fmt: skip
     for name in names:
         (tmp_path / name).write_bytes(b"x" * 4096)
+    # A sender's port segment without a lock file; a lock file its owner has
+    # open, not locked yet; a dead owner's segment that a live peer still maps.
+    held = ["fastrtps_port7002", "fastrtps_abc_el", "fastrtps_dead"]
     holder = subprocess.Popen(
-        [sys.executable, "-c", HOLDER, how, str(tmp_path / "fastrtps_port7002"),
-         str(tmp_path / "fastrtps_abc_el")],
+        [sys.executable, "-c", HOLDER, how, *(str(tmp_path / name) for name in held)],
         stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
     )  # fmt: skip
     try:
         assert holder.stdout is not None and holder.stdout.readline() == "ready\n"
-        assert {"fastrtps_port7002", "fastrtps_abc_el"} <= files_in_use(tmp_path)
-        assert clean_stale_shm(since=since, shm_dir=tmp_path) == ["fastrtps_port7011"]
+        assert set(held) <= files_in_use(tmp_path)
+        removed = clean_stale_shm(since=since, shm_dir=tmp_path)
+        assert removed == ["fastrtps_dead", "fastrtps_port7011"]
     finally:
         holder.communicate("", timeout=10)
     # Once its holder has gone, what it held is stale like the rest.
