@@ -12,8 +12,13 @@ from __future__ import annotations
 import fcntl
 import os
 import socket
+import time
 from collections.abc import Mapping
 from pathlib import Path
+
+#: Seconds a lock file nobody holds is taken to be one whose owner has not
+#: locked it yet (Fast DDS makes it, then locks it).
+LOCK_GRACE_S = 2.0
 
 
 def _lock_held(path: Path) -> bool:
@@ -68,10 +73,10 @@ def clean_stale_shm(
     participant had opened stay behind after their last user exits too. A
     segment with an ``_el`` lock file is stale when nobody holds the lock
     (live owners hold it; the kernel releases it when the owner dies) and
-    no live process has the lock file open (a participant opens it before
-    it locks it), whoever still maps the segment; a port segment without
-    an ``_el`` when no live process has it or its mutex open or mapped
-    (:func:`files_in_use`: a sender's, or one being made).
+    the lock file is older than :data:`LOCK_GRACE_S` (a participant makes
+    it, then locks it), whoever still maps the segment; a port segment
+    without an ``_el`` when no live process has it or its mutex open or
+    mapped (:func:`files_in_use`: a sender's, or one being made).
     Only files touched since ``since`` (epoch seconds: the start of the run)
     are considered, so other users' files are left alone.
 
@@ -95,6 +100,7 @@ def clean_stale_shm(
     # (its peers' messages go to a segment nobody reads). Looked at after
     # the listing: a file made in between is open already.
     in_use = files_in_use(shm_dir)
+    now = time.time()
     for name in sorted(names):
         seg, lock = shm_dir / name, shm_dir / f"{name}_el"
         try:
@@ -104,10 +110,10 @@ def clean_stale_shm(
         if touched < since:
             continue
         if lock.exists():
-            # Its owner keeps the lock file open while it lives (and opens it
-            # before it locks it); a dead owner's segment goes even while its
-            # peers still map it (they read what it wrote; nobody writes).
-            if _lock_held(lock) or lock.name in in_use:
+            # A lock file just made may not be locked yet (its owner opens it,
+            # then locks it). A dead owner's segment goes even while its peers
+            # still map it or look at its lock (nobody writes to it any more).
+            if _lock_held(lock) or now - lock.stat().st_mtime < LOCK_GRACE_S:
                 continue
         elif dead_owners_only or {name, f"sem.{name}_mutex"} & in_use:
             continue

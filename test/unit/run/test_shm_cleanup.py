@@ -29,12 +29,12 @@ from servo_axis.run.processes import discovery_settings
 def test_only_stale_files_of_this_run_are_removed(tmp_path: Path) -> None:
     since = time.time() - 10
 
-    def make(*names: str, mtime: float | None = None) -> None:
+    def make(*names: str, mtime: float = since + 1) -> None:
+        # Made after `since`, older than LOCK_GRACE_S.
         for name in names:
             path = tmp_path / name
             path.write_bytes(b"x")
-            if mtime is not None:
-                os.utime(path, (mtime, mtime))
+            os.utime(path, (mtime, mtime))
 
     make("fastrtps_live", "fastrtps_live_el")  # its owner holds the lock
     make("fastrtps_dead", "fastrtps_dead_el", "sem.fastrtps_dead_mutex")  # owner gone
@@ -60,6 +60,7 @@ def test_while_a_run_goes_on_only_segments_of_dead_owners_are_removed(tmp_path: 
     since = time.time() - 10
     for name in ("fastrtps_live", "fastrtps_live_el", "fastrtps_port7413", "fastrtps_port7413_el"):
         (tmp_path / name).write_bytes(b"x")
+        os.utime(tmp_path / name, (since + 1, since + 1))  # older than LOCK_GRACE_S
     (tmp_path / "sem.fastrtps_port7413_mutex").write_bytes(b"x")
     (tmp_path / "fastrtps_port7411").write_bytes(b"x")  # a live sender's: no lock file
     owner = os.open(tmp_path / "fastrtps_live_el", os.O_RDWR)
@@ -97,16 +98,20 @@ sys.stdin.read()
 def test_what_a_live_process_holds_stays_unless_its_owner_died(tmp_path: Path, how: str) -> None:
     """Another run on the machine (a second pytest-xdist worker) may be between
     creating a segment and locking it, or send to a port that has no lock file:
-    those stay while a live process has them mapped or open. A dead owner's
-    segment goes even while a live peer maps it (nobody writes to it any more)."""
-    since = time.time() - 10
+    a port segment without a lock file stays while a live process has it mapped
+    or open, a lock file nobody holds for LOCK_GRACE_S after it was made. A dead
+    owner's segment goes even while a live peer maps it or its lock file."""
+    since = time.time() - 60
     names = ["fastrtps_port7002", "fastrtps_abc", "fastrtps_abc_el", "fastrtps_port7011",
              "fastrtps_dead", "fastrtps_dead_el"]  # fmt: skip
     for name in names:
         (tmp_path / name).write_bytes(b"x" * 4096)
-    # A sender's port segment without a lock file; a lock file its owner has
-    # open, not locked yet; a dead owner's segment that a live peer still maps.
-    held = ["fastrtps_port7002", "fastrtps_abc_el", "fastrtps_dead"]
+    old = time.time() - 30
+    for name in ("fastrtps_port7011", "fastrtps_dead", "fastrtps_dead_el"):
+        os.utime(tmp_path / name, (old, old))
+    # A sender's port segment without a lock file; a dead owner's segment and
+    # lock file that a live peer still has.
+    held = ["fastrtps_port7002", "fastrtps_dead", "fastrtps_dead_el"]
     holder = subprocess.Popen(
         [sys.executable, "-c", HOLDER, how, *(str(tmp_path / name) for name in held)],
         stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
@@ -115,10 +120,12 @@ def test_what_a_live_process_holds_stays_unless_its_owner_died(tmp_path: Path, h
         assert holder.stdout is not None and holder.stdout.readline() == "ready\n"
         assert set(held) <= files_in_use(tmp_path)
         removed = clean_stale_shm(since=since, shm_dir=tmp_path)
+        # fastrtps_abc's lock file is new: its owner may not have locked it yet.
         assert removed == ["fastrtps_dead", "fastrtps_port7011"]
     finally:
         holder.communicate("", timeout=10)
-    # Once its holder has gone, what it held is stale like the rest.
+    # Once its holder has gone, and once the lock file is older, all goes.
+    os.utime(tmp_path / "fastrtps_abc_el", (old, old))
     assert sorted(clean_stale_shm(since=since, shm_dir=tmp_path)) == [
         "fastrtps_abc",
         "fastrtps_port7002",
