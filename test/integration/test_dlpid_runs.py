@@ -229,9 +229,21 @@ def test_in_realtime_nothing_waits_for_the_identifier_and_it_tracks_as_in_lockst
     rt = summary.realtime
     assert rt is not None and rt.ticks >= summary.steps - 1
     # Nothing waits for the identifier, whether or not the host closes the loop:
-    # its estimates keep coming (the CI failure of issue 30: 3 estimates, then none).
-    assert summary.identification is not None and summary.identification.estimates > 900
+    # its estimates keep coming, one every T_RLS with none missing (the CI failure
+    # of issue 30: 3 estimates, then none).
+    ident = summary.identification
+    assert ident is not None and ident.first_step is not None and ident.last_step is not None
+    ident_values = data["identifier"]["ros__parameters"]
+    stride = round(
+        ident_values["rls_period_s"] / data["/**"]["ros__parameters"]["control_period_s"]
+    )
+    assert ident.estimates == (ident.last_step - ident.first_step) // stride + 1, ident
     if proc.returncode == 5:
+        # On a host that cannot close a 0.4 ms loop the identifier, at the default
+        # scheduler beside the plant, falls behind the clock (two fresh-clone suites:
+        # estimates up to step 7,269 and 7,729 of 10,000 when the run ended); it
+        # must not stop.
+        assert ident.last_step > summary.steps // 2, ident
         # A host that cannot close a 0.4 ms loop (two CPU-bound jobs beside it
         # on 2 cores, a loaded CI runner) says so: exit 5 and why, never 0.
         assert summary.health is not None
@@ -239,6 +251,7 @@ def test_in_realtime_nothing_waits_for_the_identifier_and_it_tracks_as_in_lockst
         assert rt.miss_fraction > 0.05 or "ended the run" in summary.health.reasons[0]
         pytest.skip(f"this host did not close the realtime loop: {summary.health.reasons[0]}")
     assert summary.health is not None and summary.health.reasons == (), summary.health.reasons
+    assert ident.estimates > 900  # a closed loop: the identifier keeps up with the clock
     # The feedback's and the generator's counts are reported (how many, the host decides).
     assert rt.references_held is not None and rt.late_estimates is not None
     assert rt.late_corrections == 0  # nothing is learned
