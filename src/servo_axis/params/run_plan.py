@@ -265,6 +265,11 @@ class RunPlan:
         """Each axis's namespace."""
         return [a.namespace for a in self.axes]
 
+    @property
+    def realtime(self) -> bool:
+        """An axis of the run runs in realtime (the run's discovery profile is the realtime one)."""
+        return any(a.realtime for a in self.axes)
+
 
 def plan_run(
     scenario: dict[str, Any],

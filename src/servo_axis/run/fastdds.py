@@ -93,13 +93,12 @@ def clean_stale_shm(
     # dead owner's port segment when another participant reopens the port,
     # and leave the lock file behind.
     names = {p.name.removesuffix("_el") for p in shm_dir.glob("fastrtps_*")}
-    # Never a file a live process has open or mapped, whatever its lock says:
-    # another run on the machine (a second pytest-xdist worker, a user's)
-    # may be between creating a segment and locking it, or write to a port
-    # that has no lock file; removing it cuts that process off for good
-    # (its peers' messages go to a segment nobody reads). Looked at after
-    # the listing: a file made in between is open already.
-    in_use = files_in_use(shm_dir)
+    # A port segment without a lock file may be a live sender's, of another
+    # run on the machine (a second pytest-xdist worker, a user's): removing
+    # it cuts that process off for good (its peers' messages go to a segment
+    # nobody reads). Who has it is read from /proc once, if one is looked at,
+    # after the listing: a file made in between is open already.
+    in_use: set[str] | None = None
     now = time.time()
     for name in sorted(names):
         seg, lock = shm_dir / name, shm_dir / f"{name}_el"
@@ -115,8 +114,12 @@ def clean_stale_shm(
             # still map it or look at its lock (nobody writes to it any more).
             if _lock_held(lock) or now - lock.stat().st_mtime < LOCK_GRACE_S:
                 continue
-        elif dead_owners_only or {name, f"sem.{name}_mutex"} & in_use:
+        elif dead_owners_only:
             continue
+        else:
+            in_use = files_in_use(shm_dir) if in_use is None else in_use
+            if {name, f"sem.{name}_mutex"} & in_use:
+                continue
         for path in (seg, lock, shm_dir / f"sem.{name}_mutex"):
             path.unlink(missing_ok=True)
         removed.append(name)

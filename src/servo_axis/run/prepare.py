@@ -89,8 +89,7 @@ def announce(run: PreparedRun) -> None:
     if out is None:
         return
     print(f"servo_axis run {plan.name}: {plan.steps} steps, run directory {plan.run_dir}", file=out)
-    realtime = any(axis.realtime for axis in plan.axes)
-    settings = discovery_settings(plan.axes[0].logs, realtime=realtime)
+    settings = discovery_settings(plan.axes[0].logs, realtime=plan.realtime)
     header = run_header(run.domain_id, plan.namespaces, settings)
     print("\n".join(header), file=out, flush=True)
     for axis in plan.axes:

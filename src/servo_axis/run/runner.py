@@ -193,15 +193,14 @@ def _run_nodes(run: PreparedRun, line: ProgressLine | None) -> tuple[list[AxisNo
     plan, options = run.plan, run.options
     axes = [AxisNodes(axis) for axis in plan.axes]
     logs = plan.axes[0].logs
-    realtime = any(axis.realtime for axis in plan.axes)
-    env = ros_environment(run.domain_id, logs, realtime=realtime)
+    env = ros_environment(run.domain_id, logs, realtime=plan.realtime)
     state = RunState()
     started = time.time()  # epoch, for the shared-memory clean-up
     live = None
     if options.live_port is not None:
         live = LiveView(options.live_port, [live_axis(a) for a in plan.axes], options.progress)
     try:
-        open_watchers(axes, run.domain_id, discovery_settings(logs, realtime=realtime))
+        open_watchers(axes, run.domain_id, discovery_settings(logs, realtime=plan.realtime))
         state.t_start = time.monotonic()
         state.t_start_epoch = started
         previous_handlers = catch_stop_signals(state.signals)
