@@ -30,7 +30,7 @@ from typing import Any, Generic, TypeVar
 
 import numpy as np
 
-from servo_axis.core.errors import ConfigError, ParameterFileError
+from servo_axis.core.errors import ConfigError, ParameterFileError, did_you_mean
 from servo_axis.core.feedforward.terms import FeedforwardTerm
 from servo_axis.core.identification.base import OnlineIdentifier
 from servo_axis.core.learning.base import LearningLaw
@@ -285,9 +285,11 @@ class Registry(Mapping[str, E], Generic[E]):
         """The entry ``name``; a ParameterFileError naming ``key`` and the installed ones otherwise."""
         entries = self._loaded()
         if not isinstance(name, str) or name not in entries:
+            hint = did_you_mean(name, entries)
             raise ParameterFileError(
                 f"parameter '{key}': expected one of {sorted(entries)} (the installed "
                 f"{self.kind}s, entry points {self.group}), got {name!r}"
+                + (f"; {hint}" if hint else "")
             )
         return entries[name]
 
