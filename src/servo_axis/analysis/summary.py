@@ -222,7 +222,10 @@ class RunSummary(Serial):
         written) otherwise.
     realtime : Realtime or None
         A realtime run's deadline misses and lateness (the plant's report);
-        None (not written) in lockstep or without the report.
+        None (not written) in lockstep or without the report.    overrides : tuple of str or None
+        The ``--set SECTION.KEY=VALUE`` overrides of the scenario's keys the
+        run was given, in order (its ``params.yaml`` holds the result); None
+        (not written) for none.
     """
 
     scenario: str
@@ -251,6 +254,7 @@ class RunSummary(Serial):
     realtime: Realtime | None = field(default=None, metadata={"omit_none": True})
     startup_s: float | None = field(default=None, metadata={"omit_none": True})
     finish_s: float | None = field(default=None, metadata={"omit_none": True})
+    overrides: tuple[str, ...] | None = field(default=None, metadata={"omit_none": True})
 
     @property
     def unit(self) -> str:
@@ -289,7 +293,9 @@ class AxesSummary(Serial):
     contour : ContourSummary or None
         For two axes, their contour error.
     health : RunHealth or None
-        The whole run's health (each axis's summary has its own as well).
+        The whole run's health (each axis's summary has its own as well).    overrides : tuple of str or None
+        The run's ``--set`` overrides, as each axis's summary has them; None
+        (not written) for none.
     """
 
     scenario: str
@@ -298,6 +304,7 @@ class AxesSummary(Serial):
     axes: dict[str, RunSummary]
     contour: ContourSummary | None = field(default=None, metadata={"omit_none": True})
     health: RunHealth | None = field(default=None, metadata={"omit_none": True})
+    overrides: tuple[str, ...] | None = field(default=None, metadata={"omit_none": True})
 
     def to_json(self) -> str:
         """The text of ``summary.json``."""
@@ -511,10 +518,12 @@ def summarise_axes(
     axes: dict[str, RunSummary],
     wall_time_s: float,
     health: RunHealth | None = None,
+    overrides: tuple[str, ...] | None = None,
 ) -> AxesSummary:
     """Summary of a multi-axis run: the axes' summaries and, for two, the contour.
 
-    Writes ``run_dir / "summary.json"`` and returns it.
+    Writes ``run_dir / "summary.json"`` and returns it (``overrides``: the
+    run's ``--set`` overrides).
     """
     run_dir = Path(run_dir)
     common = axis_values(scenario)
@@ -529,6 +538,7 @@ def summarise_axes(
         axes=dict(axes),
         contour=contour_summary,
         health=health,
+        overrides=overrides,
     )
     (run_dir / SUMMARY_FILE).write_text(summary.to_json())
     return summary

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from shlex import quote
 
 from servo_axis.analysis.health import RunHealth
 from servo_axis.analysis.summary import (
@@ -223,6 +224,11 @@ def format_summary(summary: RunSummary) -> str:
     mu = micro(s.unit)
     lines = [
         f"scenario          {s.scenario}  ({s.processes}, {s.time_mode})",
+        *(
+            ["overrides         " + " ".join(f"--set {quote(o)}" for o in s.overrides)]
+            if s.overrides
+            else []
+        ),
         f"steps             {s.steps}  ({s.sim_time_s:.3f} s simulated)",
         f"wall time         {s.wall_time_s:.2f} s  ->  {s.steps_per_s:,.0f} steps/s, "
         f"{s.realtime_factor:.2f}x real time" + _around(s.startup_s, s.finish_s),

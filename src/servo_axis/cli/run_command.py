@@ -8,10 +8,12 @@ from pathlib import Path
 from typing import Any
 
 from servo_axis.cli.options import (
+    Parser,
     Subparsers,
     domain_id,
     int_at_least,
     namespace,
+    override,
     positive_float,
 )
 from servo_axis.core.errors import ConfigError
@@ -33,6 +35,19 @@ def add_parser(commands: Subparsers) -> None:
     run.add_argument(
         "--out",
         help="run directory to create; must be empty or not exist (default runs/<name>-<time>)",
+    )
+    run.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        type=override,
+        default=[],
+        metavar="SECTION.KEY=VALUE",
+        help="override a key of the scenario (repeatable, the last one of a key wins): "
+        "SECTION is shared (the /** keys), a node (plant, feedback, feedforward, learning, "
+        "identifier, recorder) or /<axis>/<node> of a multi-axis scenario; KEY is dotted "
+        "where the file nests (plant.friction.elements=8); VALUE is YAML. Checked as the "
+        "file is; params.yaml shows the result, summary.json the overrides",
     )
     run.add_argument(
         "--composed", action="store_true", help="all nodes in one process on one executor"
@@ -65,6 +80,29 @@ def add_parser(commands: Subparsers) -> None:
     )
     _add_outside_options(run)
     run.set_defaults(func=handle)
+    Parser.option_hints["run"] = _key_for_option
+
+
+def _key_for_option(option: str) -> str:
+    """For an option ``run`` does not have that looks like a scenario key: its ``--set``."""
+    from servo_axis.core.errors import closest
+    from servo_axis.params import schemas
+
+    sections = {
+        "shared": schemas.SHARED,
+        "plant": schemas.PLANT,
+        "feedback": schemas.FEEDBACK,
+        "feedforward": schemas.FEEDFORWARD,
+        "learning": schemas.LEARNING,
+        "identifier": schemas.IDENTIFIER,
+        "recorder": schemas.RECORDER,
+    }
+    name = option.lstrip("-").replace("-", "_")
+    for section, schema in sections.items():
+        found = closest(name, schema)
+        if found:
+            return f"a key of the scenario? --set {section}.{found[0]}=VALUE"
+    return ""
 
 
 def _add_outside_options(run: argparse.ArgumentParser) -> None:
@@ -141,6 +179,7 @@ def handle(args: argparse.Namespace) -> int:
             **({} if args.respawn_limit is None else {"respawn_limit": args.respawn_limit}),
             live_port=live_port,
             floor=floor,
+            overrides=tuple(args.overrides),
         )
         result = run_scenario(args.scenario, options)
     except RunInterruptedError as err:

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from servo_axis.cli.options import Subparsers, int_at_least
+from servo_axis.cli.options import Subparsers, int_at_least, override
 
 
 def add_parser(commands: Subparsers) -> None:
@@ -24,6 +24,17 @@ def add_parser(commands: Subparsers) -> None:
         help="study file (YAML; docs/reference/studies.md) or a shipped study's name, e.g. reversal_004",
     )
     sw.add_argument("--out", help="study directory (default studies/<name>)")
+    sw.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        type=override,
+        default=[],
+        metavar="SECTION.KEY=VALUE",
+        help="override a key of the study's scenario in every point, after the study's own "
+        "set (repeatable; as run --set: shared, a node or /<axis>/<node>; VALUE is YAML); "
+        "a swept key keeps its points' values",
+    )
     sw.add_argument(
         "--scheduler",
         metavar="tcp://HOST:PORT",
@@ -44,10 +55,16 @@ def add_parser(commands: Subparsers) -> None:
 
 def handle(args: argparse.Namespace) -> int:
     """Run the study's points; 1 if any failed."""
+    from servo_axis.params.scenario import flatten
     from servo_axis.sweep.engine import VersionMismatchError, run_study
     from servo_axis.sweep.spec import load_study
 
-    study = load_study(args.study)
+    extra: dict[str, object] = {}
+    for o in args.overrides:
+        section = o.section  # "/**", a role or /<axis>/<role>, as a study names them
+        leaves = flatten(o.value, f"{o.key}.") if isinstance(o.value, dict) else {o.key: o.value}
+        extra.update({f"{section}.{k}": v for k, v in leaves.items()})
+    study = load_study(args.study, extra)
     out = Path(args.out) if args.out else Path("studies") / study.name
     try:
         rows = run_study(

@@ -19,12 +19,14 @@ from __future__ import annotations
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from dataclasses import replace as dataclass_replace
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
 from servo_axis.core.errors import ConfigError, ParameterFileError
 from servo_axis.params.factories import EXTERNAL_ROLES, checked_values, plant_model, run_steps
+from servo_axis.params.overrides import Override, apply_overrides, blame
 from servo_axis.params.registry import term_files
 from servo_axis.params.resolve import node_values
 from servo_axis.params.run_params import (
@@ -233,7 +235,8 @@ class RunPlan:
     name : str
         The scenario's ``scenario.name`` (its file's stem if it has none).
     scenario : dict
-        The scenario as loaded (for the analysis of a multi-axis run).
+        The scenario as loaded, with the overrides applied (for the
+        analysis of a multi-axis run).
     scenario_path : Path
         Its file.
     run_dir : Path
@@ -245,6 +248,8 @@ class RunPlan:
     axes : tuple of AxisPlan
         One per axis, sorted by axis; one (``axis == ""``) for a
         single-axis scenario.
+    overrides : tuple of str
+        The ``--set`` overrides applied, as given (the summary records them).
     """
 
     name: str
@@ -254,6 +259,7 @@ class RunPlan:
     steps: int
     composed: bool
     axes: tuple[AxisPlan, ...]
+    overrides: tuple[str, ...] = ()
 
     @property
     def multi_axis(self) -> bool:
@@ -279,13 +285,17 @@ def plan_run(
     namespace: str = "",
     external: Sequence[str] = (),
     composed: bool = False,
+    overrides: Sequence[Override] = (),
 ) -> RunPlan:
     """Resolve ``scenario`` (loaded from ``scenario_path``) for a run, checking all of it.
 
     ``out_dir`` is the run directory (default ``runs/<name>-<time>``),
     ``namespace`` a checked ``--namespace`` (``""``: the axis's,
     :func:`single_axis_namespace`), ``external`` the roles of ``--external``
-    (with the scenario's ``external_roles``).
+    (with the scenario's ``external_roles``), ``overrides`` the ``--set``
+    overrides, applied to the scenario before anything is checked
+    (:mod:`servo_axis.params.overrides`); an error they cause names the one
+    at fault (``--set <its text>: ...``).
 
     Raises
     ------
@@ -299,6 +309,30 @@ def plan_run(
         key), a term's file that does not exist, an ``axis`` that cannot
         name a namespace.
     """
+    if not overrides:
+        return _plan(scenario, scenario_path, out_dir, namespace, external, composed)
+
+    def attempt(given: Sequence[Override]) -> RunPlan:
+        plan = _plan(
+            apply_overrides(scenario, given), scenario_path, out_dir, namespace, external, composed
+        )
+        return dataclass_replace(plan, overrides=tuple(o.text for o in given))
+
+    try:
+        return attempt(overrides)
+    except ConfigError as err:
+        raise blame(err, overrides, attempt) from None
+
+
+def _plan(
+    scenario: dict[str, Any],
+    scenario_path: Path,
+    out_dir: Path | None,
+    namespace: str,
+    external: Sequence[str],
+    composed: bool,
+) -> RunPlan:
+    """:func:`plan_run` of a scenario with its overrides applied."""
     name = shared(scenario).get("scenario", {}).get("name") or scenario_path.stem
     steps = run_steps(node_values(scenario, "plant"))
     run_dir = run_directory(out_dir, name)

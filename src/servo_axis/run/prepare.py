@@ -64,6 +64,7 @@ def prepare(scenario: str | Path, options: RunOptions) -> PreparedRun:
         namespace=namespace,
         external=options.external,
         composed=options.composed,
+        overrides=options.overrides,
     )
     _write(plan)
     return PreparedRun(plan, domain, options)

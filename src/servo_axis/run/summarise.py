@@ -146,7 +146,7 @@ def _summarise_axis(
         if realtime
         else None,
     )
-    summary = dataclasses.replace(summary, health=health)
+    summary = dataclasses.replace(summary, health=health, overrides=plan.overrides or None)
     return summary, reports, span
 
 
@@ -182,6 +182,7 @@ def _summarise_axes(
         if stepped is None or len(spans) < len(plan.axes)
         else stepped,
         health=health,
+        overrides=plan.overrides or None,
     )
 
 

@@ -40,7 +40,7 @@ from typing import Any
 
 import yaml
 
-from servo_axis.core.errors import ConfigError
+from servo_axis.core.errors import ConfigError, did_you_mean
 from servo_axis.params.scenario import (
     ROLES,
     SHARED_SECTION,
@@ -48,6 +48,7 @@ from servo_axis.params.scenario import (
     axis_section,
     find_scenario,
     load_scenario,
+    not_found,
     resolve_table,
     shipped_file,
 )
@@ -146,12 +147,16 @@ def find_study(name_or_path: str | Path) -> Path:
     found = shipped_file(name_or_path, study_dir())
     if found is not None:
         return found
-    names = ", ".join(sorted(p.stem for p in study_dir().glob("*.yaml")))
-    raise StudyError(f"study {name_or_path}: neither a file nor a shipped study ({names})")
+    names = sorted(p.stem for p in study_dir().glob("*.yaml"))
+    raise StudyError(not_found("study", name_or_path, names, None))
 
 
-def load_study(path: Path | str) -> Study:
+def load_study(path: Path | str, extra: dict[str, Any] | None = None) -> Study:
     """Read and check a study file or shipped study (each point's overrides are checked once).
+
+    ``extra`` (dotted keys -> values: ``sweep --set``) is added to the study's
+    ``set``, after it, so that it overrides the same keys of every point but
+    the swept ones.
 
     Raises
     ------
@@ -169,7 +174,12 @@ def load_study(path: Path | str) -> Study:
         raise StudyError(f"study {path}: expected a mapping")
     for key in data:
         if key not in _KEYS:
-            raise _fail(path, str(key), f"unknown key; expected one of {sorted(_KEYS)}")
+            hint = did_you_mean(key, _KEYS)
+            raise _fail(
+                path,
+                str(key),
+                f"unknown key; {hint + ' ' if hint else ''}expected one of {sorted(_KEYS)}",
+            )
     if "scenario" not in data or not isinstance(data["scenario"], str):
         raise _fail(path, "scenario", "required: a shipped scenario's name or a path")
     scenario_text = data["scenario"]
@@ -185,6 +195,7 @@ def load_study(path: Path | str) -> Study:
     fixed = data.get("set") or {}
     if not isinstance(fixed, dict) or not all(_scalar(v) for v in fixed.values()):
         raise _fail(path, "set", "expected a mapping of dotted keys to values")
+    fixed = {**fixed, **(extra or {})}
     if ("grid" in data) == ("points" in data):
         raise _fail(path, "grid", "give either 'grid' or 'points' (one of them)")
     own: list[dict[str, Any]]
@@ -213,6 +224,8 @@ def load_study(path: Path | str) -> Study:
         trial = copy.deepcopy(base)
         for key, value in point.items():
             where = f"points[{i}].{key}" if "points" in data else key
+            if key in (extra or {}) and key not in own[i]:
+                where = f"--set {key}"
             try:
                 apply_override(trial, key, value)
                 _check_section(trial, _section_of(trial, key)[0])
@@ -343,6 +356,9 @@ def _section_of(scenario: dict[str, Any], key: str) -> tuple[str, str]:
     if rest and (head == SHARED_SECTION or head in ROLES or axis_section(head) is not None):
         return head, rest
     holders = [s for s, v in scenario.items() if _has(v.get("ros__parameters") or {}, key)]
+    close = did_you_mean(head, [SHARED_SECTION, *ROLES]) if rest else ""
+    if not holders and close:
+        raise ConfigError(f"unknown section '{head}'; {close}")
     if len(holders) != 1:
         raise ConfigError(
             f"in no section of the scenario; name it: '<section>.{key}' "
