@@ -19,7 +19,9 @@ is one line on stderr and exit 2.
 ``python -m servo_axis identify RUN_DIR --model NAME --out SCENARIO.yaml [--friction RUN_DIR] [--validate RUN_DIR]``
     an axis identified from a measure_frf_* run, written as a scenario (docs/how-to/identify-your-axis.md);
 ``python -m servo_axis bag recover BAG_DIR``
-    make a bag whose recorder died readable again (a complete bag is left as it is).
+    make a bag whose recorder died readable again (a complete bag is left as it is);
+``python -m servo_axis floor [--period-us US ...] [--ticks N] [--json]``
+    this host's realtime floor: a bare rclpy pair's deadline misses (``run --floor FILE``).
 
 With no arguments it runs the shipped scenario ``rptc_friction_table``: the
 detailed axis (resonances, dead time, rolling friction) with the friction
@@ -36,6 +38,7 @@ import sys
 from servo_axis.cli import (
     bag_command,
     compare_command,
+    floor_command,
     friction_table_command,
     gms_fit_command,
     identify_command,
@@ -59,6 +62,7 @@ COMMANDS = (
     list_command,
     compare_command,
     bag_command,
+    floor_command,
 )
 
 #: What the top-level help says first.
@@ -83,6 +87,7 @@ examples:
   python -m servo_axis gms-fit runs/friction_id_elastic --out gms.txt --plot fit.png
   python -m servo_axis identify runs/frf --model ball_screw --out my_axis.yaml
   python -m servo_axis bag recover runs/ptc/bag
+  python -m servo_axis floor --period-us 1000 --json --out runs/floor.jsonl
 (`servo-axis` is the same command as `python -m servo_axis`.)
 
 Exit codes of run: 0 complete and deterministic (realtime: complete, never

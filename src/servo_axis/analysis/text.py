@@ -210,7 +210,7 @@ def _realtime_lines(rt: Realtime | None) -> list[str]:
         f = rt.floor
         trip = f.get("round_trip_us") or {}
         lines.append(
-            f"floor (rt_floor)  {f['miss_pct']:.2f} % misses at {f['period_us']} us "
+            f"floor             {f['miss_pct']:.2f} % misses at {f['period_us']} us "
             f"({f.get('executor', '?')}), round trip p50 {trip.get('p50')}  p99 {trip.get('p99')}"
             f"  max {trip.get('max')}"
         )

@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import Any
 
 from servo_axis.cli.options import (
     Parser,
@@ -16,7 +15,6 @@ from servo_axis.cli.options import (
     override,
     positive_float,
 )
-from servo_axis.core.errors import ConfigError
 
 
 def add_parser(commands: Subparsers) -> None:
@@ -69,8 +67,9 @@ def add_parser(commands: Subparsers) -> None:
     run.add_argument(
         "--floor",
         metavar="FILE",
-        help="a realtime run's summary shows this host's floor next to its misses: the "
-        "output of the shared tools' rt_floor.py --json (one result a line, by period)",
+        help="a realtime run's summary shows this host's floor next to its misses: what "
+        "`python -m servo_axis floor --json` printed (one result a line, by period), "
+        "measured in the same session",
     )
     run.add_argument(
         "--respawn-limit",
@@ -137,17 +136,6 @@ def _add_outside_options(run: argparse.ArgumentParser) -> None:
     )
 
 
-def _read_floor(path: str) -> dict[int, dict[str, Any]]:
-    """rt_floor.py ``--json`` results by period in us (one clear line if the file is not that)."""
-    import json
-
-    try:
-        rows = [json.loads(ln) for ln in Path(path).read_text().splitlines() if ln.strip()]
-        return {int(r["period_us"]): r for r in rows if {"miss_pct", "round_trip_us"} <= set(r)}
-    except (OSError, ValueError, KeyError, TypeError) as err:
-        raise ConfigError(f"--floor {path}: not rt_floor.py --json output ({err})") from err
-
-
 def handle(args: argparse.Namespace) -> int:
     """Run the scenario, print its summary and where it is; the run's exit code."""
     from servo_axis.analysis.health import (
@@ -163,7 +151,9 @@ def handle(args: argparse.Namespace) -> int:
 
     floor = None
     if args.floor:
-        floor = _read_floor(args.floor)
+        from servo_axis.run.floor import read_floor
+
+        floor = read_floor(args.floor)
     live_port = args.live_port  # --live-port implies --live
     if live_port is None and args.live:
         live_port = DEFAULT_PORT

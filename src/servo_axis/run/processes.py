@@ -212,15 +212,22 @@ def pids_of(run_dir: Path, role: str) -> list[int]:
 
 
 def start_process(
-    role: str, args: list[str], env: dict[str, str], log_path: Path, *, realtime: bool = False
+    role: str,
+    args: list[str],
+    env: dict[str, str],
+    log_path: Path,
+    *,
+    realtime: bool = False,
+    pinned: bool = True,
 ) -> Proc:
     """Start ``python args...`` (this interpreter) as a process of the run, logging to ``log_path``.
 
-    In its own process group, pinned like ``role`` (:func:`cpu_set`), and
-    ended by the kernel when the runner dies (:func:`_in_child`).
+    In its own process group, pinned like ``role`` (:func:`cpu_set`; not
+    with ``pinned`` false), and ended by the kernel when the runner dies
+    (:func:`_in_child`).
     """
     log = log_path.open("wb")
-    pin = os.environ.get("SERVO_AXIS_PIN", "1") == "1"
+    pin = pinned and os.environ.get("SERVO_AXIS_PIN", "1") == "1"
     cpus = cpu_set(role, realtime=realtime) if pin else None
     runner = os.getpid()
     popen = subprocess.Popen(

@@ -71,7 +71,7 @@ def summarise_run(
 
     A realtime run's summary holds the plant's report on its clock
     (``realtime``), with the host's floor at its period from ``floor``
-    (``rt_floor.py --json`` results by period in us) if given.
+    (``python -m servo_axis floor --json`` results by period in us) if given.
     """
     from servo_axis.analysis import plots as figures
     from servo_axis.analysis import summary as summaries

@@ -218,7 +218,7 @@ def test_a_realtime_summary_reports_misses_and_lateness_and_is_never_determinist
     assert "deadline misses   7 of 1000 ticks (0.70 %), 2 command(s) never came" in text
     assert "tick late (us)    p50 3  p99 240  max 1800" in text
     assert "command late (us) p50 310  p99 980  max 4200" in text
-    assert "floor (rt_floor)  0.25 % misses at 1000 us (events)" in text
+    assert "floor             0.25 % misses at 1000 us (events)" in text
     assert "late inputs" not in text  # nothing reported by the feedback or the generator
     late = {"references_held": 5, "late_estimates": 12, "late_corrections": 0}
     s2 = RunSummary.from_dict(dict(data, realtime=dict(REALTIME, **late)))
