@@ -33,9 +33,10 @@ def handle(args: argparse.Namespace) -> int:
     found = sorted(folder.glob("*.yaml"))
     if not found:
         raise ConfigError(f"--config-dir {folder}: no scenario files (*.yaml) there")
+    width = max(len(p.stem) for p in found)
     for path in found:
         about = shared(load_scenario(path)).get("scenario", {})
-        print(f"{path.stem:<24} {about.get('description', '')}")
+        print(f"{path.stem:<{width}}  {about.get('description', '')}")
     _list_extensions()
     return 0
 
@@ -50,10 +51,11 @@ def _list_extensions() -> None:
         "learning law": "learning.law",
         "identification method": "identifier.method",
     }
+    width = max(len(name) for registry in REGISTRIES.values() for name in registry)
     for kind, registry in REGISTRIES.items():
         print(f"\n{kind}s (selected by {selected_by[kind]}; entry points {registry.group}):")
         for name in sorted(registry):
             entry = registry[name]
-            print(f"  {name:<22} {entry.description} [{registry.source(name)}]")
+            print(f"  {name:<{width}}  {entry.description} [{registry.source(name)}]")
             if entry.schema:
-                print(f"  {'':<22} keys: {', '.join(entry.schema)}")
+                print(f"  {'':<{width}}  keys: {', '.join(entry.schema)}")

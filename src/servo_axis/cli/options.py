@@ -136,10 +136,13 @@ def _misplaced(
     if owners:
         return f"{option} is an option of {' and '.join(owners)}, not of {command}"
     if command is None:
-        every = {o: n for n, sub in root._subcommands().items() for o in _options(sub)}
+        every: dict[str, list[str]] = {}
+        for name, sub in root._subcommands().items():
+            for o in _options(sub):
+                every.setdefault(o, []).append(name)
         near = _closest_option(option, list(every))
         return f"{root.prog} takes a command first; no command has the option {option}" + (
-            f" (did you mean {near}, an option of {every[near]}?)" if near else ""
+            f" (did you mean {near}, an option of {' and '.join(every[near])}?)" if near else ""
         )
     return ""
 

@@ -55,16 +55,10 @@ def add_parser(commands: Subparsers) -> None:
 
 def handle(args: argparse.Namespace) -> int:
     """Run the study's points; 1 if any failed."""
-    from servo_axis.params.scenario import flatten
     from servo_axis.sweep.engine import VersionMismatchError, run_study
     from servo_axis.sweep.spec import load_study
 
-    extra: dict[str, object] = {}
-    for o in args.overrides:
-        section = o.section  # "/**", a role or /<axis>/<role>, as a study names them
-        leaves = flatten(o.value, f"{o.key}.") if isinstance(o.value, dict) else {o.key: o.value}
-        extra.update({f"{section}.{k}": v for k, v in leaves.items()})
-    study = load_study(args.study, extra)
+    study = load_study(args.study, args.overrides)
     out = Path(args.out) if args.out else Path("studies") / study.name
     try:
         rows = run_study(

@@ -190,14 +190,26 @@ def blame(
     """``err`` (raised with every override applied) as one line naming the override at fault.
 
     ``attempt(overrides)`` plans the scenario with those overrides. The
-    first prefix of ``overrides`` that fails (the scenario alone being
-    fine) is the culprit: ``--set <its text>: <its error>``. An error the
-    scenario has without any override, or one no override alone explains,
-    is returned as it is.
+    override at fault is the last of the shortest prefix of ``overrides``
+    whose plan fails with ``err``'s message: ``--set <its text>: <err>``.
+    An error the scenario has without any override (a bad ``--out``) is
+    returned as it is.
     """
     message = str(err)
     if not overrides or message.startswith("--set "):
         return err
+    try:
+        attempt(())
+    except ConfigError as alone:
+        if str(alone) == message:
+            return err  # the scenario's own problem, or the run's, whatever was set
+    for i in range(1, len(overrides) + 1):
+        try:
+            attempt(overrides[:i])
+        except ConfigError as first:
+            if str(first) == message:
+                return type(err)(f"--set {overrides[i - 1].text}: {message}")
+    return err
     try:
         attempt(())
     except ConfigError:

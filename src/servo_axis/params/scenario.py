@@ -169,8 +169,9 @@ def check_shared_keys(scenario: dict[str, Any], where: str) -> None:
     if not unknown:
         return
     hint = did_you_mean(unknown[0], SHARED) or f"the shared keys: {', '.join(SHARED)}"
+    prefix = f"{where}: " if where else ""
     raise ParameterFileError(
-        f"{where}: unknown parameter '{unknown[0]}' in the shared section '/**', which every "
+        f"{prefix}unknown parameter '{unknown[0]}' in the shared section '/**', which every "
         f"node reads ({hint}; a node's own key goes in its section)"
     )
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from servo_axis.core.errors import ConfigError
+from servo_axis.core.errors import ConfigError, ParameterFileError
 from servo_axis.params.names import check_domain_id, check_namespace
 from servo_axis.params.run_plan import AxisPlan, RunPlan, plan_run
 from servo_axis.params.scenario import dump_params, find_scenario, load_scenario
@@ -57,15 +57,21 @@ def prepare(scenario: str | Path, options: RunOptions) -> PreparedRun:
     data = load_scenario(path)
     if options.live_port is not None:
         check_live(options.live_port)
-    plan = plan_run(
-        data,
-        path,
-        out_dir=options.out_dir,
-        namespace=namespace,
-        external=options.external,
-        composed=options.composed,
-        overrides=options.overrides,
-    )
+    try:
+        plan = plan_run(
+            data,
+            path,
+            out_dir=options.out_dir,
+            namespace=namespace,
+            external=options.external,
+            composed=options.composed,
+            overrides=options.overrides,
+        )
+    except ParameterFileError as err:
+        if str(err).startswith("--set "):
+            raise
+        # A key of the file: name the file (as given: a shipped name or a path).
+        raise ParameterFileError(f"scenario {scenario}: {err}") from None
     _write(plan)
     return PreparedRun(plan, domain, options)
 

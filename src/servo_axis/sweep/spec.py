@@ -34,6 +34,7 @@ import hashlib
 import itertools
 import json
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -41,12 +42,15 @@ from typing import Any
 import yaml
 
 from servo_axis.core.errors import ConfigError, did_you_mean
+from servo_axis.params.overrides import Override
 from servo_axis.params.scenario import (
     ROLES,
     SHARED_SECTION,
     axes_of,
     axis_section,
+    check_shared_keys,
     find_scenario,
+    flatten,
     load_scenario,
     not_found,
     resolve_table,
@@ -151,12 +155,12 @@ def find_study(name_or_path: str | Path) -> Path:
     raise StudyError(not_found("study", name_or_path, names, None))
 
 
-def load_study(path: Path | str, extra: dict[str, Any] | None = None) -> Study:
+def load_study(path: Path | str, extra: Sequence[Override] = ()) -> Study:
     """Read and check a study file or shipped study (each point's overrides are checked once).
 
-    ``extra`` (dotted keys -> values: ``sweep --set``) is added to the study's
-    ``set``, after it, so that it overrides the same keys of every point but
-    the swept ones.
+    ``extra`` (``sweep --set``, :mod:`servo_axis.params.overrides`) is added
+    to the study's ``set``, after it, so that it overrides the same keys of
+    every point but the swept ones; an error it causes names it.
 
     Raises
     ------
@@ -195,7 +199,13 @@ def load_study(path: Path | str, extra: dict[str, Any] | None = None) -> Study:
     fixed = data.get("set") or {}
     if not isinstance(fixed, dict) or not all(_scalar(v) for v in fixed.values()):
         raise _fail(path, "set", "expected a mapping of dotted keys to values")
-    fixed = {**fixed, **(extra or {})}
+    given: dict[str, str] = {}  # study key -> the --set that gave it
+    for o in extra:
+        value = o.value
+        leaves = flatten(value, f"{o.key}.") if isinstance(value, dict) else {o.key: value}
+        for key, leaf in leaves.items():
+            given[f"{o.section}.{key}"] = o.text
+            fixed = {**fixed, f"{o.section}.{key}": leaf}
     if ("grid" in data) == ("points" in data):
         raise _fail(path, "grid", "give either 'grid' or 'points' (one of them)")
     own: list[dict[str, Any]]
@@ -224,8 +234,8 @@ def load_study(path: Path | str, extra: dict[str, Any] | None = None) -> Study:
         trial = copy.deepcopy(base)
         for key, value in point.items():
             where = f"points[{i}].{key}" if "points" in data else key
-            if key in (extra or {}) and key not in own[i]:
-                where = f"--set {key}"
+            if key in given and key not in own[i]:
+                where = f"--set {given[key]}"
             try:
                 apply_override(trial, key, value)
                 _check_section(trial, _section_of(trial, key)[0])
@@ -373,6 +383,8 @@ def _check_section(scenario: dict[str, Any], section: str) -> None:
     """Check the parameters of the roles a section sets (names, types, ranges)."""
     from servo_axis.params.resolve import node_values
 
+    if section == SHARED_SECTION:
+        check_shared_keys(scenario, "")
     roles = [r for r in ROLES if r in scenario] if section == SHARED_SECTION else [section]
     for role in roles:
         if role in ROLES and role != "recorder":

@@ -222,9 +222,17 @@ def test_cli_list_shows_every_shipped_scenario() -> None:
     assert "plant models (selected by plant.model" in extensions
     for name in ("ball_screw", "tilting_table", "friction_table", "rptc", "pilc_bfft", "dlpid"):
         assert f"\n  {name} " in extensions
-    for name in scenario_names():
+    # One column for the descriptions, at least two spaces after the longest name
+    # (fast_reversal_contact_sigmoid_stage, 35 characters).
+    width = max(len(name) for name in scenario_names()) + 2
+    rows = [line for line in scenarios.splitlines() if line.strip()]
+    for name, row in zip(scenario_names(), rows, strict=True):
         description = shared(load_scenario(find_scenario(name)))["scenario"]["description"]
-        assert f"{name}" in done.stdout and description.split()[0] in done.stdout
+        assert row == f"{name:<{width}}{description}"
+    # The extensions' descriptions and keys in one column too.
+    entries = [ln for ln in extensions.splitlines() if ln.startswith("  ")]
+    columns = {len(ln) - len(ln[2:].split("  ", 1)[1].lstrip()) for ln in entries if "  " in ln[2:]}
+    assert len(columns) == 1, columns
 
 
 @pytest.mark.parametrize(
