@@ -145,7 +145,7 @@ def measure_all(
     def interrupt(signum: int, _frame: object) -> None:
         raise FloorInterruptedError(signum)
 
-    previous = {}
+    previous: dict[int, Any] = {}
     if threading.current_thread() is threading.main_thread():
         previous = {sig: signal.signal(sig, interrupt) for sig in STOP_SIGNALS}
     results = []
