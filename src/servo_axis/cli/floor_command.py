@@ -60,8 +60,9 @@ def add_parser(commands: Subparsers) -> None:
         "--priority",
         type=int_at_least(0, 99),
         default=0,
-        help="SCHED_FIFO priority of both processes, 1..99, as a realtime run's "
-        "thread_priority (0, the default: the default scheduler)",
+        help="SCHED_FIFO priority of both processes' executor threads, 1..99, their "
+        "middleware receive threads one below, as a realtime run's plant and feedback with "
+        "thread_priority N (default 0: the default scheduler; a run's default is 50)",
     )
     fl.add_argument(
         "--domain-id",

@@ -66,8 +66,10 @@ class FloorOptions:
         ``events`` (rclpy's EventsExecutor, as the suite's nodes) or
         ``single`` (SingleThreadedExecutor).
     priority : int
-        ``SCHED_FIFO`` priority of both processes' main threads, 1-99, as a
-        realtime run's ``thread_priority``; 0: the default scheduler.
+        ``SCHED_FIFO`` priority of both processes' executor threads, 1-99
+        (their middleware receive threads one below), as a realtime run's
+        plant and feedback with ``thread_priority`` at it; 0: the default
+        scheduler.
     domain_id : int
         The ROS domain of the pair.
     """

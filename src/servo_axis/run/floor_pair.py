@@ -33,7 +33,12 @@ from typing import Any
 import numpy as np
 
 from servo_axis.core import deadlines
-from servo_axis.nodes.realtime import SPIN_FIFO_NS, SPIN_NS, fifo_this_thread
+from servo_axis.nodes.realtime import (
+    SPIN_FIFO_NS,
+    SPIN_NS,
+    favour_middleware_threads,
+    fifo_this_thread,
+)
 from servo_axis.stop_signals import catch_stop_signals
 
 #: Seconds the plant waits for the controller to appear (exit 3 after).
@@ -75,7 +80,19 @@ def _percentiles(values_us: np.ndarray, qs: tuple[float, ...]) -> dict[str, floa
     return out
 
 
-def controller(executor: str, seconds: float, stop: list[int], parent: int) -> int:
+def scheduling(priority: int) -> dict[str, object]:
+    """The calling thread under ``SCHED_FIFO`` at ``priority`` (0: none), the middleware's
+    receive threads just below it, as a realtime node's (``thread_priority``,
+    ``realtime.middleware_priority``: :class:`~servo_axis.nodes.realtime.RealtimeScheduling`)."""
+    got = fifo_this_thread(priority)
+    if got["policy"] == "fifo":
+        receive = max(0, priority - 1)
+        got["middleware_priority"] = receive
+        got["middleware_threads"] = favour_middleware_threads(receive_priority=receive)
+    return got
+
+
+def controller(executor: str, seconds: float, priority: int, stop: list[int], parent: int) -> int:
     """Echo every state until ``seconds`` passed, a stop signal came or the parent is gone."""
     import rclpy
     from rclpy.node import Node
@@ -93,6 +110,7 @@ def controller(executor: str, seconds: float, stop: list[int], parent: int) -> i
     node.create_subscription(JointState, STATE_TOPIC, echo, _qos())
     ex = _executor(executor)
     ex.add_node(node)
+    scheduling(priority)
     end = time.monotonic() + seconds
     try:
         while time.monotonic() < end and not stop and os.getppid() == parent and rclpy.ok():
@@ -104,9 +122,13 @@ def controller(executor: str, seconds: float, stop: list[int], parent: int) -> i
 
 
 def plant(
-    period_ns: int, ticks: int, executor: str, spin_ns: int, stop: list[int]
+    period_ns: int, ticks: int, executor: str, priority: int, stop: list[int]
 ) -> dict[str, Any] | None:
-    """The measured ticks (:mod:`servo_axis.run.floor_pair`); None if no controller appeared."""
+    """The measured ticks (:mod:`servo_axis.run.floor_pair`); None if no controller appeared.
+
+    The realtime priority is taken after discovery and the warm-up, as a
+    node takes it at its first per-sample input.
+    """
     from rclpy.node import Node
     from sensor_msgs.msg import JointState
 
@@ -137,6 +159,8 @@ def plant(
             while tag not in arrived and time.monotonic() < until:
                 ex.spin_once(timeout_sec=0.001)
         arrived.clear()
+        sched = scheduling(priority)
+        spin_ns = SPIN_FIFO_NS if sched["policy"] == "fifo" else SPIN_NS
         start = time.monotonic_ns() + 50_000_000
         late_ns = np.full(ticks, np.nan)  # tick: sent after its deadline
         echo_ns = np.full(ticks, np.nan)  # echo after the tick's deadline (NaN: never by the next)
@@ -180,6 +204,7 @@ def plant(
         "miss_pct": round(100 * misses / done, 3) if done else None,
         "tick_late_us": _percentiles(late_ns[:done] * 1e-3, (50, 99)),
         "round_trip_us": _percentiles(trips, (50, 99, 99.9)),
+        "scheduling": sched,
     }
 
 
@@ -201,16 +226,13 @@ def main(argv: list[str] | None = None) -> int:
     stop: list[int] = []
     catch_stop_signals(stop)
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
-    scheduling = fifo_this_thread(a.priority)
     try:
         if a.role == "controller":
-            return controller(a.executor, a.seconds, stop, a.parent)
-        spin = SPIN_FIFO_NS if scheduling["policy"] == "fifo" else SPIN_NS
-        result = plant(a.period_ns, a.ticks, a.executor, spin, stop)
+            return controller(a.executor, a.seconds, a.priority, stop, a.parent)
+        result = plant(a.period_ns, a.ticks, a.executor, a.priority, stop)
         if result is None:
             print("floor: the controller process did not appear", file=sys.stderr)
             return EXIT_NO_CONTROLLER
-        result["scheduling"] = scheduling
         if a.result is not None:
             a.result.write_text(json.dumps(result) + "\n")
         return 128 + stop[0] if stop else 0
