@@ -140,3 +140,26 @@ def test_the_plan_names_the_override_at_fault(tmp_path: Path, text: str, said: s
             overrides=sets("feedback.bandwidth_hz=30", text),
         )
     assert str(err.value).startswith(f"--set {text}: ") and said in str(err.value)
+
+
+def test_sweep_set_overrides_every_point_but_the_swept_keys(tmp_path: Path) -> None:
+    from servo_axis.sweep.spec import load_study
+
+    study = tmp_path / "study.yaml"
+    study.write_text(
+        yaml.safe_dump(
+            {
+                "scenario": "ptc_nominal",
+                "set": {"/**.duration_s": 0.5},
+                "grid": {"feedback.bandwidth_hz": [30, 40]},
+                "figures": ["tracking_error.all_samples.max_m"],
+            }
+        )
+    )
+    plain = load_study(study)
+    given = load_study(study, sets("shared.duration_s=0.2", "feedback.bandwidth_hz=99"))
+    assert [p["/**.duration_s"] for p in plain.points] == [0.5, 0.5]
+    assert [p["/**.duration_s"] for p in given.points] == [0.2, 0.2]
+    # The swept key keeps its points' values: the grid is what the study is about.
+    assert [p["feedback.bandwidth_hz"] for p in given.points] == [30, 40]
+    assert given.runs_fingerprint() != plain.runs_fingerprint()  # another study folder's
