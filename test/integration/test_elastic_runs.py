@@ -143,7 +143,8 @@ def test_gms_and_sigmoid_at_slow_and_fast_reversals(
     uncompensated = np.abs(R * none.reference_rad - none.scale_m)[len(none.scale_m) // 2 :].max()
     for name in ("fast_reversal_gms", "fast_reversal_sigmoid"):
         assert peaks[name] < 0.5 * uncompensated, name
-    # compare prints both peaks and the reduction of the second against the first
+    # compare prints both peaks and the reduction of the second against the first: its
+    # headline, the last cycle of each run, is cycle 2, the reversals after cycle 1
     table = cli(
         ros_env,
         tmp_path,
@@ -152,8 +153,10 @@ def test_gms_and_sigmoid_at_slow_and_fast_reversals(
         str(paper_runs["fast_reversal_sigmoid"]),
     )
     rows = {
-        m.group(1): (float(m.group(2)), m.group(3))
-        for m in re.finditer(r"^(fast_reversal_\w+)\s+([\d.]+)\s+(\S+)$", table, re.MULTILINE)
+        m.group(1): (float(m.group(3)), m.group(4))
+        for m in re.finditer(
+            r"^(fast_reversal_\w+)\s+(2)\s+([\d.]+)\s+(\S+)\s+[\d.]+\s+\S+$", table, re.MULTILINE
+        )
     }
     gms, sigmoid = peaks["fast_reversal_gms"], peaks["fast_reversal_sigmoid"]
     assert rows["fast_reversal_gms"] == (pytest.approx(gms * 1e6, rel=1e-5), "base")
