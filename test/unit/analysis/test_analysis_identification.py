@@ -457,11 +457,11 @@ def test_compare_prints_rmsd_and_reduction_against_pid(
     from servo_axis.analysis import plots
 
     order = ["dlpid_tilt_marc", "dlpid_tilt_lpf2", "dlpid_tilt_pid"]
-    chart = tmp_path / "fig9.png"
+    chart, error = tmp_path / "fig9.png", tmp_path / "error.png"
     dirs = [str(schemes[n][0]) for n in order]
     kept: list[Any] = []  # the figures, read from matplotlib's objects
     monkeypatch.setattr(plots._pyplot(), "close", kept.append)
-    assert main(["compare", *dirs, "--bar-chart", str(chart)]) == 0
+    assert main(["compare", *dirs, "--bar-chart", str(chart), "--error-out", str(error)]) == 0
     monkeypatch.undo()
     text = capsys.readouterr().out
     assert "reduction against dlpid_tilt_pid" in text  # the scenario ending in _pid
@@ -472,7 +472,13 @@ def test_compare_prints_rmsd_and_reduction_against_pid(
     assert bars.get_ylabel() == "RMSD of tracking error (rad)"
     heights = [p.get_height() for p in bars.patches]
     assert_allclose(heights, [rmsd(schemes[n][2]) for n in order], rtol=1e-9)
-    plots._pyplot().close(kept[0])
+    # The error against time: rad too, r - y of each run.
+    whole = kept[1].axes[0]
+    assert whole.get_ylabel() == "tracking error (rad)"
+    for line, name in zip(whole.get_lines(), order, strict=True):
+        assert_allclose(line.get_ydata(), schemes[name][2].error_rad, rtol=1e-9, atol=1e-15)
+    for fig in kept:
+        plots._pyplot().close(fig)
     rows = parse_rmsd_table(text)
     assert list(rows) == order
     base = rmsd(schemes["dlpid_tilt_pid"][2])
