@@ -206,7 +206,7 @@ def write() -> None:
         "backend": "plain",
         "points": [copy.deepcopy({**v, **scheme}) for v in dl for scheme in (off, on)],
         "figures": {
-            "rmsd_rad": "tracking_error.all_samples.rms_m",
+            "rmsd_rad": "tracking_error.all_samples.rms_rad",
             "J_ratio": "identification.final_ratio.inertia_kgm2",
             "D_ratio": "identification.final_ratio.damping_Nms_per_rad",
             "U_ratio": "identification.final_ratio.unbalance_Nm",
