@@ -720,6 +720,7 @@ def run_all(args: argparse.Namespace) -> int:
                 row["lock_rms"] = (
                     s.tracking_error.all_samples.rms_m if hasattr(s, "tracking_error") else None
                 )
+                row["unit"] = getattr(s, "unit", "m")
                 row["around"] = around_steps(s)
         print(f"{name}: core only ...", flush=True)
         row["core"] = core_rate(lock, data)
@@ -756,7 +757,7 @@ def run_all(args: argparse.Namespace) -> int:
     ]
     rt_lines = [
         "| scenario | T_u (ms) | misses | floor misses | tick late p50/p99/max (us) "
-        "| command late p50/p99/max (us) | rate | exit | RMS error rt / lockstep (um) "
+        "| command late p50/p99/max (us) | rate | exit | RMS error rt / lockstep "
         "| references held / late estimates |",
         "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
@@ -776,8 +777,12 @@ def run_all(args: argparse.Namespace) -> int:
                 f"| {row['name']} | {per * 1e3:g} | {rt or 'no figures'} | {fl_text} | | | | | | |"
             )
             continue
-        errs = "/".join(
-            "-" if v is None else f"{1e6 * v:.3g}" for v in (row.get("rt_rms"), row.get("lock_rms"))
+        from servo_axis.analysis.units import position_error
+
+        error = position_error(row.get("unit", "m"))  # um, rad on a rotary table
+        errs = (
+            "/".join(error.format(v, ".3g") for v in (row.get("rt_rms"), row.get("lock_rms")))
+            + f" {error.unit}"
         )
         rt_lines.append(
             f"| {row['name']} | {per * 1e3:g} | {rt['misses']} of {rt['ticks']} "

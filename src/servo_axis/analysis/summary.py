@@ -33,16 +33,18 @@ Units follow the plant model: the tracking error is the error of the table's
 position, ``R (r - y)`` in m for a table that moves along a line (a ball
 screw), ``r - y`` in rad for one that turns (a plant model whose registry
 entry says ``rotary``: the tilting table of paper 003, whose position is its
-angle); the keys keep
-their ``_m`` names and a rotary run's summary says ``"error_unit": "rad"``.
-The RMS over every sample of the run (``tracking_error.all_samples.rms_m``)
-is the RMSD paper 003 compares (Figs. 7, 9).
+angle). A rotary run's summary says ``"error_unit": "rad"`` and its
+tracking-error keys are ``rms_rad``, ``max_rad`` (the attributes keep their
+``rms_m``, ``max_m`` names: :func:`~servo_axis.analysis.tracking.unit_keys`).
+The RMS over every sample of the run (``tracking_error.all_samples.rms_m``,
+``rms_rad`` on a rotary table) is the RMSD paper 003 compares (Figs. 7, 9).
 """
 
 from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -94,6 +96,7 @@ from servo_axis.analysis.tracking import (
     axis_values,
     error_unit,
     position_scale,
+    unit_keys,
 )
 from servo_axis.core.errors import ConfigError
 from servo_axis.params.factories import build_reference
@@ -213,7 +216,8 @@ class RunSummary(Serial):
         (``plant``); None (not written) otherwise.
     error_unit : str or None
         ``rad`` for a plant whose table turns (its model's ``rotary``): every
-        ``*_m`` error is then in rad of table angle; None (not written): m.
+        ``*_m`` attribute of ``tracking_error`` is then in rad of table angle,
+        and its key in ``summary.json`` ``*_rad``; None (not written): m.
     identification : Identification or None
         With an identifier whose estimates the bag holds (paper 003); None
         (not written) otherwise.
@@ -260,6 +264,19 @@ class RunSummary(Serial):
     def unit(self) -> str:
         """The unit of the tracking error: ``m``, or ``rad`` for a rotary table."""
         return self.error_unit or "m"
+
+    def serial_out(self, data: dict[str, Any]) -> dict[str, Any]:
+        """The mapping written: a rotary run's error keys named ``*_rad``."""
+        data["tracking_error"] = unit_keys(data["tracking_error"], self.unit)
+        return data
+
+    @classmethod
+    def serial_in(cls, data: Mapping[str, Any]) -> Mapping[str, Any]:
+        """The mapping read: ``*_rad`` error keys back to the attributes' ``*_m``."""
+        unit = data.get("error_unit") or "m"
+        if "tracking_error" not in data:
+            return data
+        return {**data, "tracking_error": unit_keys(data["tracking_error"], unit, reading=True)}
 
     @property
     def rmsd(self) -> float:

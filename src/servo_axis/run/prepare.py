@@ -11,9 +11,11 @@ how to reach its ROS graph, and what each outside node must serve.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
+from servo_axis import numerics
 from servo_axis.core.errors import ConfigError, ParameterFileError
 from servo_axis.params.names import check_domain_id, check_namespace
 from servo_axis.params.run_plan import AxisPlan, RunPlan, plan_run
@@ -98,6 +100,8 @@ def announce(run: PreparedRun) -> None:
     print(f"servo_axis run {plan.name}: {plan.steps} steps, run directory {plan.run_dir}", file=out)
     settings = discovery_settings(plan.axes[0].logs, realtime=plan.realtime)
     header = run_header(run.domain_id, plan.namespaces, settings)
+    # What the node processes get (ros_environment), said as they will compute.
+    header.append(numerics.describe(numerics.portable_environment(os.environ)))
     print("\n".join(header), file=out, flush=True)
     for axis in plan.axes:
         for role in axis.outside:

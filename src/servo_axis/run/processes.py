@@ -23,6 +23,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from servo_axis import numerics
 from servo_axis.params.names import check_domain_id
 from servo_axis.run.fastdds import REALTIME_ANNOUNCEMENT_S, clean_stale_shm, realtime_profile
 
@@ -42,8 +43,13 @@ REALTIME_FIRST_CORE = ("plant", "identifier", "learning")
 
 
 def ros_environment(domain_id: int, log_dir: Path, *, realtime: bool = False) -> dict[str, str]:
-    """Environment of the node processes: ``os.environ`` plus the run's ROS settings."""
-    env = dict(os.environ)
+    """Environment of the node processes: ``os.environ`` plus the run's ROS settings.
+
+    The numeric paths pinned (:func:`servo_axis.numerics.portable_environment`:
+    the same numbers on any x86-64 host, in realtime too, where it costs
+    nothing measurable) unless ``SERVO_AXIS_NUMERICS=native``.
+    """
+    env = numerics.portable_environment(os.environ)
     env.update(discovery_settings(log_dir, realtime=realtime))
     env.update(ROS_DOMAIN_ID=str(domain_id), PYTHONUNBUFFERED="1")
     # The nodes' matrices are 3x3 to 8x8: OpenBLAS threads only contend for

@@ -244,8 +244,9 @@ def load_study(path: Path | str, extra: Sequence[Override] = ()) -> Study:
     # Before any point runs: a figure no summary can have would only show up as a
     # failed row of every point, after all of them ran.
     summary_kind = "axes" if axes_of(base) else backend
+    unit = _error_unit(base)
     for name, where in figures.items():
-        problem = figure_problem(where, summary_kind)
+        problem = figure_problem(where, summary_kind, unit=unit)
         if problem:
             raise _fail(path, f"figures.{name}", problem)
     return Study(
@@ -277,7 +278,10 @@ def _summary_fields(kind: str) -> dict[str, Any]:
 
     fields = _dataclass_fields(AxesSummary if kind == "axes" else RunSummary)
     if kind == "plain":
-        return {k: v for k, v in fields.items() if k in PLAIN_SUMMARY_FIELDS}
+        plain = {k: v for k, v in fields.items() if k in PLAIN_SUMMARY_FIELDS}
+        # A point with the excitation on: the identification's errors (identify/study.py),
+        # a mapping whose keys the plant's model decides.
+        return {**plain, "sysid": dict[str, Any] | None}
     return fields
 
 
@@ -303,7 +307,17 @@ def _strip_none(kind: Any) -> Any:
     return kind
 
 
-def figure_problem(path: str, kind: str) -> str | None:
+def _error_unit(scenario: dict[str, Any]) -> str:
+    """``rad`` when the scenario's plant model turns its table (``rotary``), else ``m``."""
+    from servo_axis.analysis.tracking import axis_values, error_unit
+
+    try:
+        return error_unit(axis_values(scenario))
+    except ConfigError:
+        return "m"  # a multi-axis scenario: its sections are checked per point
+
+
+def figure_problem(path: str, kind: str, *, unit: str = "m") -> str | None:
     """What is wrong with a figure path for a point's summary, or None when it may be there.
 
     The path is checked against the summary's layout (the dataclasses of
@@ -319,6 +333,10 @@ def figure_problem(path: str, kind: str) -> str | None:
     kind : str
         ``plain`` (the plain-call loops' fields), ``nodes`` (``summary.json``
         of a single-axis run) or ``axes`` (of a multi-axis run).
+    unit : str
+        The tracking error's unit of the study's scenario: ``m``, or ``rad``
+        on a rotary table, whose summary names the errors ``rms_rad``,
+        ``max_rad`` (:func:`servo_axis.analysis.tracking.unit_keys`).
     """
     import dataclasses
     import typing
@@ -330,6 +348,15 @@ def figure_problem(path: str, kind: str) -> str | None:
         if fields is not None:
             if not name:
                 return f"{path!r}: [{index}] at '{done or '.'}', which is a block, not a list"
+            if unit != "m" and done.startswith("tracking_error") and name in fields:
+                if name.endswith("_m"):
+                    return (
+                        f"{path!r}: the errors of a rotary table are in {unit}: "
+                        f"did you mean '{name[:-2]}_{unit}'?"
+                    )
+            elif unit != "m" and done.startswith("tracking_error"):
+                if name.endswith(f"_{unit}") and f"{name[: -len(unit) - 1]}_m" in fields:
+                    name = f"{name[: -len(unit) - 1]}_m"
             if name not in fields:
                 close = difflib.get_close_matches(name, fields, n=1)
                 hint = f"did you mean '{close[0]}'? " if close else ""
