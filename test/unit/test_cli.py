@@ -196,8 +196,9 @@ def test_every_argument_has_help_and_the_help_ends_with_examples(
         return found
 
     every = parsers(build_parser())
-    # main, run, friction-table, gms-fit, sweep, identify, summary, list, compare, bag, recover
-    assert len(every) == 11
+    # main, run, friction-table, gms-fit, sweep, identify, summary, list, params, compare,
+    # bag, recover
+    assert len(every) == 12
     for p in every:
         for action in p._actions:
             assert action.help and action.help != argparse.SUPPRESS, (p.prog, action.dest)

@@ -16,6 +16,7 @@ from pathlib import Path
 
 from servo_axis.core.errors import ConfigError
 from servo_axis.params.names import check_domain_id, check_namespace
+from servo_axis.params.registry import report_broken
 from servo_axis.params.run_plan import AxisPlan, RunPlan, plan_run
 from servo_axis.params.scenario import dump_params, find_scenario, load_scenario
 from servo_axis.run.live_view import check_live
@@ -66,6 +67,9 @@ def prepare(scenario: str | Path, options: RunOptions) -> PreparedRun:
         composed=options.composed,
     )
     _write(plan)
+    # The plan selects no broken plugin (it would have been refused): name the
+    # others now, before the run's output, not after it.
+    report_broken()
     return PreparedRun(plan, domain, options)
 
 
