@@ -90,6 +90,23 @@ def test_identify_a_node_graph_run(
     for name in ("report.md", "bode_encoder.png"):
         assert (tmp_path / "report" / name).is_file()
 
+    # The run directory is all identify needs: the scenario file moved, and one
+    # edited in its place (another excitation, another plant) change nothing.
+    scenario.rename(tmp_path / "moved.yaml")
+    edited = load_scenario(tmp_path / "moved.yaml")
+    edited["feedforward"]["ros__parameters"]["excitation"]["settle_periods"] = 2
+    edited["plant"]["ros__parameters"]["current_limit_A"] = 12.3  # a key the fit copies
+    scenario.write_text(yaml.safe_dump(edited, sort_keys=False))
+    (tmp_path / "after_the_move").mkdir()
+    again_out = tmp_path / "after_the_move" / out.name  # the name is the file's stem
+    assert main(["identify", str(run), "--model", "ball_screw", "--out", str(again_out)]) == 0
+    assert yaml.safe_load(again_out.read_text()) == yaml.safe_load(out.read_text())
+
+    def fitted(path: Path) -> list[str]:  # the header's "key = value +- error (source)" lines
+        return [s for s in path.read_text().splitlines() if s.startswith("#   ") and " = " in s]
+
+    assert len(fitted(out)) > 3 and fitted(again_out) == fitted(out)
+
     # The written scenario runs as it is (the excitation off: the measurement's move).
     again = tmp_path / "again"
     done = _cli(

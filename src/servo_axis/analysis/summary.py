@@ -97,8 +97,8 @@ from servo_axis.analysis.tracking import (
 )
 from servo_axis.core.errors import ConfigError
 from servo_axis.params.factories import build_reference
+from servo_axis.params.recorded import recorded_scenario
 from servo_axis.params.resolve import feedforward_values, node_values
-from servo_axis.params.scenario import load_scenario
 
 __all__ = [
     "DEFORMATION_WINDOWS_S",
@@ -170,7 +170,9 @@ class RunSummary(Serial):
     scenario, description : str
         The scenario's name (the file stem if it has none) and description.
     scenario_file : str
-        Path of the scenario file the run used.
+        Path of the scenario file the run was started from (what it held
+        then is the run directory's ``scenario.yaml``, which every later
+        command reads: :mod:`servo_axis.params.recorded`).
     processes : str
         How the nodes ran (``processes``, ``composed``, ...).
     time_mode : str
@@ -362,6 +364,7 @@ def summarise(
     wall_time_s: float,
     mode: str,
     health: RunHealth | None = None,
+    source_file: Path | None = None,
 ) -> RunSummary:
     """Compute the summary of a run, write ``summary.json`` and return it.
 
@@ -372,7 +375,12 @@ def summarise(
     scenario : dict
         The (single-axis) scenario the run used.
     scenario_path : Path
-        Its file (relative friction-table paths are relative to its directory).
+        Its file (relative friction-table paths are relative to its
+        directory): a run's ``scenario.yaml``.
+    source_file : Path or None
+        The scenario file the run was started from (the summary's
+        ``scenario_file`` and, without ``scenario.name``, its name);
+        ``scenario_path`` if None.
     wall_time_s : float
         Wall time of the run, s.
     mode : str
@@ -395,10 +403,11 @@ def summarise(
     cycle = ff["learning.cycle_s"] if learning else reference_period
     steps = int(sig.step.size)
     sim_time = steps * period
+    source = Path(source_file) if source_file is not None else Path(scenario_path)
     summary = RunSummary(
-        scenario=common["scenario.name"] or scenario_path.stem,
+        scenario=common["scenario.name"] or source.stem,
         description=common["scenario.description"],
-        scenario_file=str(scenario_path),
+        scenario_file=str(source),
         processes=mode,
         time_mode=common["mode"],
         control_period_s=period,
@@ -464,11 +473,14 @@ class RunSeries:
 
 
 def run_series(run_dir: Path) -> RunSeries:
-    """Summary, recorded signals, target and controlled output of a run directory."""
+    """Summary, recorded signals, target and controlled output of a run directory.
+
+    The scenario is the run's own (:func:`~servo_axis.params.recorded.recorded_scenario`).
+    """
     run_dir = Path(run_dir)
     summary = RunSummary.from_json(run_dir / SUMMARY_FILE)
-    scenario_path = Path(summary.scenario_file)
-    scenario = load_scenario(scenario_path)
+    recorded = recorded_scenario(run_dir, summary.scenario_file)
+    scenario, scenario_path = recorded.scenario, recorded.path
     lead = position_scale(axis_values(scenario))
     sig = load_signals(run_dir / "bag", summary.control_period_s, scenario=scenario)
     target, y = tracking(scenario, scenario_path, sig)
