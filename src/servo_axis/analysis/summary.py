@@ -323,7 +323,9 @@ def load_summary(run_dir: Path) -> RunSummary | AxesSummary:
     ------
     ConfigError
         If ``run_dir`` is not a directory with a ``summary.json``
-        (``<dir>: not a run directory: no summary.json``), or the file is not
+        (``<dir>: not a run directory: no summary.json``; for a run directory
+        whose runner was killed before it wrote one, what ``bag recover``
+        does for it), or the file is not
         a summary this version reads (the message names the file and what is
         wrong).
     """
@@ -331,7 +333,7 @@ def load_summary(run_dir: Path) -> RunSummary | AxesSummary:
     if not Path(run_dir).is_dir():
         raise ConfigError(f"{run_dir}: not a run directory: no such directory")
     if not path.is_file():
-        raise ConfigError(f"{run_dir}: not a run directory: no {SUMMARY_FILE}")
+        raise ConfigError(f"{run_dir}: {_no_summary(Path(run_dir))}")
     try:
         return summary_from_dict(_read(path))
     except OSError as err:
@@ -339,6 +341,18 @@ def load_summary(run_dir: Path) -> RunSummary | AxesSummary:
     except (ValueError, KeyError, TypeError, AttributeError) as err:
         what = f"missing key {err}" if isinstance(err, KeyError) else str(err)
         raise ConfigError(f"{path}: not a servo_axis run summary: {what}") from None
+
+
+def _no_summary(run_dir: Path) -> str:
+    """Why ``run_dir`` has no summary, and what to do: a run killed before it wrote one."""
+    bags = [run_dir / "bag"] if (run_dir / "bag").is_dir() else sorted(run_dir.glob("*/bag"))
+    if not bags:
+        return f"not a run directory: no {SUMMARY_FILE}"
+    command = " and ".join(f"python -m servo_axis bag recover {b}" for b in bags)
+    return (
+        f"no {SUMMARY_FILE}: the run has not ended, or was killed before its runner wrote it; "
+        f"{command} makes its bag readable and writes the summary of what was recorded"
+    )
 
 
 def cycle_errors(summary: RunSummary) -> dict[str, NDArray[Any]]:

@@ -147,6 +147,15 @@ class RecordedScenario:
     path: Path
     source: Path
 
+    @property
+    def started_from(self) -> Path:
+        """The scenario file the run was started from (its header's), else :attr:`source`."""
+        if self.source.name == SCENARIO_FILE:
+            lines = self.source.read_text().splitlines()[:3]
+            if len(lines) > 1 and lines[0].startswith("# ") and lines[1].startswith("#   "):
+                return Path(lines[1].removeprefix("#   "))
+        return self.source
+
 
 def scenario_of_params(path: Path) -> dict[str, Any]:
     """A run's ``params.yaml`` (``/**/<role>`` or ``/<ns>/<role>`` sections) as a scenario.
