@@ -30,7 +30,7 @@ def recover(args: argparse.Namespace) -> int:
 
     A bag whose run directory has no ``summary.json`` (its runner was
     killed with the nodes) gets the summary of what it recorded
-    (:func:`servo_axis.run.summarise.summarise_unfinished`), so that
+    (:func:`servo_axis.analysis.recovered.summarise_unfinished`), so that
     ``summary``, ``identify``, ``compare`` and ``friction-table`` read the
     run; a second line says so.
     """
@@ -41,8 +41,8 @@ def recover(args: argparse.Namespace) -> int:
     run_dir = bag_dir.parent
     recorded = any((run_dir / name).is_file() for name in ("scenario.yaml", "params.yaml"))
     if recorded and not (run_dir / "summary.json").exists():
+        from servo_axis.analysis.recovered import summarise_unfinished
         from servo_axis.core.errors import ServoAxisError
-        from servo_axis.run.summarise import summarise_unfinished
 
         try:
             summary = summarise_unfinished(run_dir)
