@@ -198,22 +198,26 @@ def recorded_scenario(run_dir: Path, scenario_file: str = "") -> RecordedScenari
     params = run_dir / PARAMS_FILE
     if copy.is_file():
         found = RecordedScenario(load_scenario(copy), copy, copy)
-        missing = "its copy is missing from the run directory"
     elif params.is_file():
         base = Path(scenario_file) if scenario_file else params
         found = RecordedScenario(scenario_of_params(params), base, params)
-        missing = (
-            "the run was made before runs kept copies of their data files (it has no "
-            f"{SCENARIO_FILE}), and the file is gone from where it was: put it back there"
-        )
     else:
         raise ConfigError(
             f"{run_dir}: no {SCENARIO_FILE} or {PARAMS_FILE}: not a directory written by "
             "`python -m servo_axis run`"
         )
+    inside = run_dir.resolve()
     for key, path in _data_files(found):
-        if not path.is_file():
-            raise ConfigError(f"{found.source}: {key} {path}: {missing}")
+        if path.is_file():
+            continue
+        if path.resolve().is_relative_to(inside):
+            why = "its copy is missing from the run directory"
+        else:  # a run (or an axis of several) made before runs copied their data files
+            why = (
+                "the run was made before runs kept copies of their data files, and the file "
+                "is gone from where it was: put it back there"
+            )
+        raise ConfigError(f"{found.source}: {key} {path}: {why}")
     return found
 
 
