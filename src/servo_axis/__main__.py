@@ -8,7 +8,10 @@ is one line on stderr and exit 2.
     run a scenario end to end and record it; SCENARIO is the name of a
     shipped scenario (``rptc_detailed``) or a scenario file;
 ``python -m servo_axis list``
-    the shipped scenarios and what each runs;
+    the shipped scenarios and what each runs, the installed extensions (a broken one marked);
+``python -m servo_axis params [NAME]``
+    every key of the nodes and of the installed extensions (plugins included): default, unit,
+    range, meaning;
 ``python -m servo_axis summary RUN_DIR`` / ``compare RUN_DIR...`` / ``friction-table RUN_DIR``
     a run's summary again, runs side by side, a friction table from a run;
 ``python -m servo_axis gms-fit RUN_DIR --out FILE [--elements N] [--plot PNG]``
@@ -43,6 +46,7 @@ from servo_axis.cli import (
     gms_fit_command,
     identify_command,
     list_command,
+    params_command,
     run_command,
     summary_command,
     sweep_command,
@@ -60,6 +64,7 @@ COMMANDS = (
     identify_command,
     summary_command,
     list_command,
+    params_command,
     compare_command,
     bag_command,
     floor_command,
@@ -78,6 +83,7 @@ With no command it runs the shipped scenario {DEFAULT_SCENARIO}.
 EXAMPLES = """\
 examples:
   python -m servo_axis list
+  python -m servo_axis params friction_table
   python -m servo_axis run ptc_nominal --out runs/ptc
   python -m servo_axis run rptc_detailed --composed --namespace /x --domain-id 42
   python -m servo_axis summary runs/ptc
@@ -126,7 +132,7 @@ def main(argv: list[str] | None = None, prog: str = "python -m servo_axis") -> i
     if args.command is None:
         args = parser.parse_args(["run", DEFAULT_SCENARIO])
     try:
-        return int(args.func(args))
+        code = int(args.func(args))
     except BrokenPipeError:
         # The reader of our output went away (`list | head`): not an error of ours.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
@@ -135,8 +141,18 @@ def main(argv: list[str] | None = None, prog: str = "python -m servo_axis") -> i
         print("\ninterrupted", file=sys.stderr)
         return 128 + int(signal.SIGINT)
     except (ServoAxisError, OSError) as err:
+        # One line: the error (the other broken plugins are named by a command that works).
         print(f"error: {err}", file=sys.stderr)
         return 2
+    _report_broken_plugins()
+    return code
+
+
+def _report_broken_plugins() -> None:
+    """Name once each installed plugin that cannot be loaded, of those the command looked at."""
+    registry = sys.modules.get("servo_axis.params.registry")
+    if registry is not None:  # else the command read no registry (and imports none now)
+        registry.report_broken()
 
 
 def console() -> int:

@@ -29,8 +29,8 @@ from servo_axis.core.feedforward.friction_table import (
     ReversalTracker,
     build_friction_table,
 )
+from servo_axis.params.recorded import recorded_scenario
 from servo_axis.params.resolve import node_values
-from servo_axis.params.scenario import load_scenario
 
 
 def estimate_friction_torque(
@@ -100,7 +100,7 @@ def measured_friction(run_dir: Path) -> MeasuredFriction:
     if not isinstance(summary, RunSummary):
         axes = ", ".join(str(Path(run_dir) / a) for a in summary.axes)
         raise ConfigError(f"{run_dir}: a multi-axis run; give one of its axes: {axes}")
-    scenario = load_scenario(Path(summary.scenario_file))
+    scenario = recorded_scenario(Path(run_dir), summary.scenario_file).scenario
     values = node_values(scenario, "feedforward")
     period = float(values["control_period_s"])
     sig = load_signals(Path(run_dir) / "bag", period, scenario=scenario)

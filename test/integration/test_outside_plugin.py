@@ -9,8 +9,11 @@ setuptools of this environment) that only the subprocesses of this test get
 on ``PYTHONPATH``: this environment is left as it was. Nothing under
 ``src/`` names it; a scenario does, and runs through the plain-call loop
 (:func:`servo_axis.simulate.simulate`) and through ``python -m servo_axis run``
-(a process per node, lockstep) with identical numbers. ``list`` and the
-parameter reference show it.
+(a process per node, lockstep) with identical numbers, with the broken
+plugins of ``test/data/broken_plugin`` installed beside it (each named once
+on stderr, none stopping a run that does not use it). ``list`` and
+``params`` show it; docs/parameters.md, the suite's own reference, stays
+what it is without it (``pytest test/unit`` passes with it installed).
 """
 
 from __future__ import annotations
@@ -110,9 +113,12 @@ def plugin_site(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return site
 
 
-def python(site: Path, env: dict[str, str], *args: str, timeout: float = 300.0) -> str:
-    """This interpreter with the plugin on PYTHONPATH: its stdout (exit code 0)."""
-    env = {**env, "PYTHONPATH": os.pathsep.join([str(site), env.get("PYTHONPATH", "")])}
+def python_run(
+    site: Path | list[Path], env: dict[str, str], *args: str, timeout: float = 300.0
+) -> subprocess.CompletedProcess[str]:
+    """This interpreter with the plugin folder(s) on PYTHONPATH (exit code 0)."""
+    sites = [str(s) for s in (site if isinstance(site, list) else [site])]
+    env = {**env, "PYTHONPATH": os.pathsep.join([*sites, env.get("PYTHONPATH", "")])}
     done = subprocess.run(
         [sys.executable, *args],
         env=env,
@@ -123,7 +129,12 @@ def python(site: Path, env: dict[str, str], *args: str, timeout: float = 300.0) 
         cwd=REPO,
     )
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
-    return done.stdout
+    return done
+
+
+def python(site: Path, env: dict[str, str], *args: str, timeout: float = 300.0) -> str:
+    """This interpreter with the plugin on PYTHONPATH: its stdout (exit code 0)."""
+    return python_run(site, env, *args, timeout=timeout).stdout
 
 
 def write_scenario(path: Path, *, viscous_ff: bool = True) -> Path:
@@ -172,14 +183,15 @@ def test_the_step_response_of_the_outside_plant_is_its_closed_form(
 
 
 def test_a_scenario_naming_the_outside_extensions_runs_identically_in_nodes_and_plain_calls(
-    plugin_site: Path, ros_env: int, tmp_path: Path
+    plugin_site: Path, broken_plugin_site: Path, ros_env: int, tmp_path: Path
 ) -> None:
     scenario = write_scenario(tmp_path / "outside_plugin.yaml")
     core = simulated(plugin_site, scenario, tmp_path / "core.npz")
     run_dir = tmp_path / "run"
     env = ros_environment(ros_env, tmp_path / "ros_log")
-    python(
-        plugin_site,
+    # Broken plugins installed too: they stop only a scenario that uses them.
+    done = python_run(
+        [plugin_site, broken_plugin_site],
         env,
         "-m",
         "servo_axis",
@@ -189,6 +201,10 @@ def test_a_scenario_naming_the_outside_extensions_runs_identically_in_nodes_and_
         str(run_dir),
         "--no-plots",
     )
+    # The broken plant model and term are named once each, the loaded extensions not at all.
+    for name in ("missing_axis", "failing_term"):
+        assert done.stderr.count(f"'{name}' cannot be loaded") == 1, done.stderr
+    assert "rigid_viscous_axis" not in done.stderr and "viscous_ff" not in done.stderr
     state: dict[int, Any] = {}
     command: dict[int, Any] = {}
     for m in read_raw(run_dir / "bag"):
@@ -218,21 +234,36 @@ def test_a_scenario_naming_the_outside_extensions_runs_identically_in_nodes_and_
     assert rms(core) < 0.2 * rms(bare), (rms(core), rms(bare))
 
 
-def test_list_and_the_parameter_reference_show_the_outside_extensions(
+def test_list_and_params_show_the_outside_extensions_and_the_reference_stays_the_suite_s(
     plugin_site: Path,
 ) -> None:
     listed = python(plugin_site, dict(os.environ), "-m", "servo_axis", "list")
-    assert "rigid_viscous_axis" in listed and "servo_axis_outside.rigid_axis:PLANT_MODEL" in listed
-    assert "viscous_ff.coefficient_Nms_per_rad" in listed
-    code = (
-        "import runpy\n"
-        f"print(runpy.run_path({str(REPO / 'scripts' / 'parameter_docs.py')!r})['render']())\n"
+    (row,) = [line for line in listed.splitlines() if line.split()[:1] == ["rigid_viscous_axis"]]
+    assert row.endswith(
+        "[servo_axis_outside.rigid_axis:PLANT_MODEL, servo-axis-outside-plugin 0.1.0]"
     )
-    docs = python(plugin_site, dict(os.environ), "-c", code)
-    assert "## plant (model rigid_viscous_axis)" in docs
-    assert "| `viscous_Nms_per_rad` | `0.2` | N m s/rad |" in docs
-    assert "## feedforward (term viscous_ff)" in docs
-    assert "`viscous_ff.coefficient_Nms_per_rad`" in docs
+    assert "viscous_ff.coefficient_Nms_per_rad" in listed
+    # Its keys with their defaults, units, ranges and meanings, from its own schema.
+    shown = python(
+        plugin_site, dict(os.environ), "-m", "servo_axis", "params", "rigid_viscous_axis"
+    )
+    head, *rows = shown.splitlines()
+    assert head == (
+        "plant (model rigid_viscous_axis)  [servo_axis_outside.rigid_axis:PLANT_MODEL, "
+        "servo-axis-outside-plugin 0.1.0]"
+    )
+    (viscous,) = [r for r in rows if r.split()[:1] == ["viscous_Nms_per_rad"]]
+    # Param(0.2, unit="N m s/rad", above=0.0, meaning=...) of rigid_axis.py
+    assert viscous.split()[1:7] == ["0.2", "N", "m", "s/rad", ">", "0"]
+    assert viscous.endswith("b: viscous friction torque per rad/s")
+    every = python(plugin_site, dict(os.environ), "-m", "servo_axis", "params")
+    assert "\nfeedforward (term viscous_ff)  [servo_axis_outside.viscous_term:TERM, " in every
+    # docs/parameters.md is the shipped package's: unchanged by what is installed.
+    script = str(REPO / "scripts" / "parameter_docs.py")
+    checked = python(plugin_site, dict(os.environ), script, "--check")
+    assert checked.strip().endswith("docs/parameters.md is up to date")
+    page = (REPO / "docs" / "parameters.md").read_text()
+    assert "rigid_viscous_axis" not in page and "python -m servo_axis params" in page
     # An unknown model names the installed ones, the outside one among them.
     bad = write_scenario(Path(plugin_site).parent / "bad.yaml")
     data = yaml.safe_load(bad.read_text())

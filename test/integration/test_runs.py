@@ -23,6 +23,7 @@ from mcap.reader import make_reader
 from run_support import shm_left_behind, shm_names
 
 from servo_axis.__main__ import main as cli
+from servo_axis.analysis.summary import run_series
 from servo_axis.friction_id import table_from_run
 from servo_axis.params.run_params import handshake_overrides, write_run_params
 from servo_axis.params.scenario import load_scenario
@@ -173,14 +174,18 @@ def test_lockstep_runs_are_identical_separate_and_composed(
     assert len(set(payloads[0]["/x/command"])) > 500
 
 
-def test_friction_table_halves_the_quadrant_glitches(ros_env: int, tmp_path: Path) -> None:
+def test_friction_table_halves_the_quadrant_glitches(
+    ros_env: int, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    sources = tmp_path / "scenarios"  # the scenario files and the table, moved away below
+    sources.mkdir()
     ident = run_scenario(
-        CONFIG / "friction_id.yaml",
+        scenario_copy(CONFIG / "friction_id.yaml", sources),
         RunOptions(
             out_dir=tmp_path / "id", domain_id=ros_env, composed=True, progress=None, plots=False
         ),
     )
-    table_path = tmp_path / "table.csv"
+    table_path = sources / "table.csv"
     # Through the command a user runs; it writes what table_from_run builds.
     assert cli(["friction-table", str(ident.run_dir), "--out", str(table_path)]) == 0
     table = load_friction_table(table_path)
@@ -188,11 +193,10 @@ def test_friction_table_halves_the_quadrant_glitches(ros_env: int, tmp_path: Pat
     # The identified table spans the Coulomb level of the plant (3.2 N m).
     assert table.torque_Nm[0] == pytest.approx(-3.2, rel=0.15)
     assert table.torque_Nm[-1] == pytest.approx(3.2, rel=0.1)
-    plain = scenario_copy(CONFIG / "ptc_friction.yaml", tmp_path)
+    plain = scenario_copy(CONFIG / "ptc_friction.yaml", sources)
     with_table = load_scenario(CONFIG / "ptc_friction_table.yaml")
-    with_table["feedforward"]["ros__parameters"]["friction_table"]["file"] = str(table_path)
-    (tmp_path / "wt").mkdir()
-    wt_path = tmp_path / "wt" / "ptc_friction_table.yaml"
+    with_table["feedforward"]["ros__parameters"]["friction_table"]["file"] = "table.csv"
+    wt_path = sources / "ptc_friction_table.yaml"
     wt_path.write_text(yaml.safe_dump(with_table))
     a = run_scenario(
         plain, RunOptions(out_dir=tmp_path / "plain", domain_id=ros_env, progress=None, plots=False)
@@ -205,6 +209,46 @@ def test_friction_table_halves_the_quadrant_glitches(ros_env: int, tmp_path: Pat
     peak_table = b.summary.tracking_error.after_first_cycle.all_samples.max_m
     assert peak_plain > 1e-6  # the glitches are there
     assert peak_table <= 0.5 * peak_plain
+
+    # A run directory is all a later command needs. What the commands give now ...
+    capsys.readouterr()
+    runs = [str(a.run_dir), str(b.run_dir)]
+
+    def results(tag: str) -> dict[str, Any]:
+        out = tmp_path / tag
+        out.mkdir()
+        assert cli(["friction-table", str(ident.run_dir), "--out", str(out / "t.csv")]) == 0
+        assert cli(["summary", str(b.run_dir)]) == 0
+        figure = ["--error-out", str(out / "e.png"), "--zoom-cycle", "2"]  # reads the bags
+        assert cli(["compare", *runs, "--labels", "plain,table", *figure]) == 0
+        return {
+            "table": (out / "t.csv").read_text(),
+            "printed": capsys.readouterr().out.replace(str(out), "OUT"),
+            "errors": [run_series(d).error_m for d in (a.run_dir, b.run_dir)],
+        }
+
+    before = results("before")
+    # ... is what they give once every scenario file and the table have moved, and
+    # edited ones stand in their place: another axis (lead, inertia, sensor), another table.
+    (b.run_dir / "inputs" / "friction_table" / "table.csv").stat()  # the run's own copy
+    sources.rename(tmp_path / "moved")
+    sources.mkdir()
+    for name in ("friction_id.yaml", "ptc_friction.yaml", "ptc_friction_table.yaml"):
+        data = load_scenario(tmp_path / "moved" / name)
+        shared = data["/**"]["ros__parameters"]
+        shared["lead_m_per_rad"] = 0.005
+        shared.setdefault("nominal", {})["inertia_kgm2"] = 0.03
+        data.setdefault("feedback", {"ros__parameters": {}})["ros__parameters"]["sensor"] = "scale"
+        (sources / name).write_text(yaml.safe_dump(data))
+    text = (tmp_path / "moved" / "table.csv").read_text()
+    (sources / "table.csv").write_text(text.replace("-", ""))  # every torque positive
+    # A run made before runs kept their scenario is read from its params.yaml.
+    (a.run_dir / "scenario.yaml").unlink()
+    after = results("after")
+    assert after["table"] == before["table"] and after["printed"] == before["printed"]
+    for now, then in zip(after["errors"], before["errors"], strict=True):
+        np.testing.assert_array_equal(now, then)
+    assert "plain" in before["printed"] and np.abs(before["errors"][1]).max() > 0
 
 
 @pytest.mark.realtime

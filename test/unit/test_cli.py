@@ -139,6 +139,27 @@ def test_summary_and_compare_of_a_directory_that_is_not_a_run(
         assert one_line_error(capsys) == f"error: {tmp_path}: not a run directory: no summary.json"
     assert main(["summary", str(tmp_path / "none")]) == 2
     assert "not a run directory: no such directory" in one_line_error(capsys)
+    # A run killed before its runner wrote the summary: what to do next, for each bag.
+    for bags in (["bag"], ["x/bag", "y/bag"]):
+        run = tmp_path / "killed" / str(len(bags))
+        for bag in bags:
+            (run / bag).mkdir(parents=True)
+        identify = [
+            "identify",
+            str(run),
+            "--model",
+            "ball_screw",
+            "--out",
+            str(tmp_path / "x.yaml"),
+        ]
+        for argv in (["summary", str(run)], identify):
+            assert main(argv) == 2
+            recover = " and ".join(f"python -m servo_axis bag recover {run / b}" for b in bags)
+            assert one_line_error(capsys) == (
+                f"error: {run}: no summary.json: the run has not ended, or was killed before its "
+                f"runner wrote it; {recover} makes its bag readable and writes the summary of "
+                "what was recorded"
+            )
     (tmp_path / "summary.json").write_text('{"steps": 3}')
     assert main(["summary", str(tmp_path)]) == 2
     assert "summary.json: not a servo_axis run summary: missing key 'scenario'" in one_line_error(
@@ -196,9 +217,9 @@ def test_every_argument_has_help_and_the_help_ends_with_examples(
         return found
 
     every = parsers(build_parser())
-    # main, run, friction-table, gms-fit, sweep, identify, summary, list, compare, bag,
-    # recover, floor
-    assert len(every) == 12
+    # main, run, friction-table, gms-fit, sweep, identify, summary, list, params, compare,
+    # bag, recover, floor
+    assert len(every) == 13
     for p in every:
         for action in p._actions:
             assert action.help and action.help != argparse.SUPPRESS, (p.prog, action.dest)

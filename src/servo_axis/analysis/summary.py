@@ -100,8 +100,8 @@ from servo_axis.analysis.tracking import (
 )
 from servo_axis.core.errors import ConfigError
 from servo_axis.params.factories import build_reference
+from servo_axis.params.recorded import recorded_scenario
 from servo_axis.params.resolve import feedforward_values, node_values
-from servo_axis.params.scenario import load_scenario
 
 __all__ = [
     "DEFORMATION_WINDOWS_S",
@@ -173,7 +173,9 @@ class RunSummary(Serial):
     scenario, description : str
         The scenario's name (the file stem if it has none) and description.
     scenario_file : str
-        Path of the scenario file the run used.
+        Path of the scenario file the run was started from (what it held
+        then is the run directory's ``scenario.yaml``, which every later
+        command reads: :mod:`servo_axis.params.recorded`).
     processes : str
         How the nodes ran (``processes``, ``composed``, ...).
     time_mode : str
@@ -345,7 +347,9 @@ def load_summary(run_dir: Path) -> RunSummary | AxesSummary:
     ------
     ConfigError
         If ``run_dir`` is not a directory with a ``summary.json``
-        (``<dir>: not a run directory: no summary.json``), or the file is not
+        (``<dir>: not a run directory: no summary.json``; for a run directory
+        whose runner was killed before it wrote one, what ``bag recover``
+        does for it), or the file is not
         a summary this version reads (the message names the file and what is
         wrong).
     """
@@ -353,7 +357,7 @@ def load_summary(run_dir: Path) -> RunSummary | AxesSummary:
     if not Path(run_dir).is_dir():
         raise ConfigError(f"{run_dir}: not a run directory: no such directory")
     if not path.is_file():
-        raise ConfigError(f"{run_dir}: not a run directory: no {SUMMARY_FILE}")
+        raise ConfigError(f"{run_dir}: {_no_summary(Path(run_dir))}")
     try:
         return summary_from_dict(_read(path))
     except OSError as err:
@@ -361,6 +365,18 @@ def load_summary(run_dir: Path) -> RunSummary | AxesSummary:
     except (ValueError, KeyError, TypeError, AttributeError) as err:
         what = f"missing key {err}" if isinstance(err, KeyError) else str(err)
         raise ConfigError(f"{path}: not a servo_axis run summary: {what}") from None
+
+
+def _no_summary(run_dir: Path) -> str:
+    """Why ``run_dir`` has no summary, and what to do: a run killed before it wrote one."""
+    bags = [run_dir / "bag"] if (run_dir / "bag").is_dir() else sorted(run_dir.glob("*/bag"))
+    if not bags:
+        return f"not a run directory: no {SUMMARY_FILE}"
+    command = " and ".join(f"python -m servo_axis bag recover {b}" for b in bags)
+    return (
+        f"no {SUMMARY_FILE}: the run has not ended, or was killed before its runner wrote it; "
+        f"{command} makes its bag readable and writes the summary of what was recorded"
+    )
 
 
 def cycle_errors(summary: RunSummary) -> dict[str, NDArray[Any]]:
@@ -386,6 +402,7 @@ def summarise(
     wall_time_s: float,
     mode: str,
     health: RunHealth | None = None,
+    source_file: Path | None = None,
 ) -> RunSummary:
     """Compute the summary of a run, write ``summary.json`` and return it.
 
@@ -396,7 +413,12 @@ def summarise(
     scenario : dict
         The (single-axis) scenario the run used.
     scenario_path : Path
-        Its file (relative friction-table paths are relative to its directory).
+        Its file (relative friction-table paths are relative to its
+        directory): a run's ``scenario.yaml``.
+    source_file : Path or None
+        The scenario file the run was started from (the summary's
+        ``scenario_file`` and, without ``scenario.name``, its name);
+        ``scenario_path`` if None.
     wall_time_s : float
         Wall time of the run, s.
     mode : str
@@ -419,10 +441,11 @@ def summarise(
     cycle = ff["learning.cycle_s"] if learning else reference_period
     steps = int(sig.step.size)
     sim_time = steps * period
+    source = Path(source_file) if source_file is not None else Path(scenario_path)
     summary = RunSummary(
-        scenario=common["scenario.name"] or scenario_path.stem,
+        scenario=common["scenario.name"] or source.stem,
         description=common["scenario.description"],
-        scenario_file=str(scenario_path),
+        scenario_file=str(source),
         processes=mode,
         time_mode=common["mode"],
         control_period_s=period,
@@ -488,11 +511,14 @@ class RunSeries:
 
 
 def run_series(run_dir: Path) -> RunSeries:
-    """Summary, recorded signals, target and controlled output of a run directory."""
+    """Summary, recorded signals, target and controlled output of a run directory.
+
+    The scenario is the run's own (:func:`~servo_axis.params.recorded.recorded_scenario`).
+    """
     run_dir = Path(run_dir)
     summary = RunSummary.from_json(run_dir / SUMMARY_FILE)
-    scenario_path = Path(summary.scenario_file)
-    scenario = load_scenario(scenario_path)
+    recorded = recorded_scenario(run_dir, summary.scenario_file)
+    scenario, scenario_path = recorded.scenario, recorded.path
     lead = position_scale(axis_values(scenario))
     sig = load_signals(run_dir / "bag", summary.control_period_s, scenario=scenario)
     target, y = tracking(scenario, scenario_path, sig)

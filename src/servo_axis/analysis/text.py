@@ -139,6 +139,16 @@ def _around(startup_s: float | None, finish_s: float | None) -> str:
     return f" (steps only; start-up {startup_s:.2f} s, end {finish_s:.2f} s)"
 
 
+def _wall_time_line(s: RunSummary) -> str:
+    """The wall time and rate; not known for a summary made after the run (``bag recover``)."""
+    if math.isnan(s.wall_time_s):
+        return "wall time         not known (this summary was made after the run, from its bag)"
+    return (
+        f"wall time         {s.wall_time_s:.2f} s  ->  {s.steps_per_s:,.0f} steps/s, "
+        f"{s.realtime_factor:.2f}x real time" + _around(s.startup_s, s.finish_s)
+    )
+
+
 def _health_lines(health: RunHealth | None, realtime: bool = False) -> list[str]:
     """The run's health: outcome, determinism, rejected messages, strangers, deaths."""
     if health is None:
@@ -230,8 +240,7 @@ def format_summary(summary: RunSummary) -> str:
             else []
         ),
         f"steps             {s.steps}  ({s.sim_time_s:.3f} s simulated)",
-        f"wall time         {s.wall_time_s:.2f} s  ->  {s.steps_per_s:,.0f} steps/s, "
-        f"{s.realtime_factor:.2f}x real time" + _around(s.startup_s, s.finish_s),
+        _wall_time_line(s),
         "messages          " + ", ".join(f"{k}: {v}" for k, v in sorted(s.message_counts.items())),
         "faults            "
         + (", ".join(f"{f.name} at step {f.step}" for f in s.faults) or "none"),

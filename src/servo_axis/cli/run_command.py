@@ -182,9 +182,9 @@ def handle(args: argparse.Namespace) -> int:
     print(format_any_summary(result.summary))
     print()
     axis = (
-        "bag/, summary.json, params.yaml, *.png, logs/"
+        "bag/, summary.json, scenario.yaml, params.yaml, *.png, logs/"
         if options.plots
-        else "bag/, summary.json, params.yaml, logs/"
+        else "bag/, summary.json, scenario.yaml, params.yaml, logs/"
     )
     contents = (
         f"{', '.join(a + '/' for a in result.summary.axes)} (one axis each: {axis}), "

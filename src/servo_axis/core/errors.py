@@ -24,6 +24,10 @@ class ParameterFileError(ConfigError):
     """A parameter file has an unknown key, a wrong type or an out-of-range value."""
 
 
+class BrokenPluginError(ParameterFileError):
+    """A scenario selects an installed extension (plugin) that cannot be loaded."""
+
+
 class SignalError(ServoAxisError):
     """A signal (array, message field) has the wrong length, NaN/inf or a bad stamp."""
 

@@ -248,7 +248,7 @@ def modes_outside_claim(
 def _template(record: Record, model: str) -> dict[str, Any]:
     """The run's plant values when its model is ``model`` (a template for the keys not fitted)."""
     values = record.plant_values()
-    schema = PLANT_MODELS[model].schema
+    schema = PLANT_MODELS.lookup(model, "--model").schema  # a broken one: one line
     if values.get("model") == model:
         return {k: values[k] for k in schema}
     return {k: p.default for k, p in schema.items()}
@@ -678,7 +678,7 @@ def fitted_scenario(ident: Identification, base: Record) -> dict[str, Any]:
     scenario = copy.deepcopy(base.scenario)
     plant = scenario.setdefault("plant", {}).setdefault("ros__parameters", {})
     keep = {k: plant[k] for k in ("noise_seed",) if k in plant}
-    schema = PLANT_MODELS[ident.model].schema
+    schema = PLANT_MODELS.lookup(ident.model, "--model").schema
     nested: dict[str, Any] = {}
     for key, value in ident.plant.items():
         if key != "model" and key not in schema:

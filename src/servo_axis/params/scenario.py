@@ -11,6 +11,7 @@ Nothing here imports rclpy.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -259,14 +260,28 @@ def axis_view(scenario: dict[str, Any], axis: str, scenario_dir: Path) -> dict[s
         if role in scenario or own:
             base = scenario.get(role, {}).get("ros__parameters", {})
             view[role] = {"ros__parameters": merge(base, own)}
-    ff = view.get("feedforward", {}).get("ros__parameters", {})
+    return with_term_files(view, lambda key, path: resolve_table(path, scenario_dir))
+
+
+def with_term_files(scenario: dict[str, Any], change: Callable[[str, str], str]) -> dict[str, Any]:
+    """``scenario`` with each file a feedforward term names replaced by ``change(key, path)``.
+
+    The keys are those of :func:`~servo_axis.params.registry.term_files`
+    (``friction_table.file``, ``gms.file``, an outside term's), nested
+    (``friction_table: {file: ...}``) or dotted; an empty one is left as it
+    is. The other sections are shared with ``scenario``, the feedforward's
+    is a new mapping.
+    """
+    if "feedforward" not in scenario:
+        return scenario
+    ff = dict(scenario["feedforward"].get("ros__parameters", {}))
     for key in term_files():  # friction_table.file, gms.file, an outside term's
         term, _, leaf = key.rpartition(".")
         if isinstance(ff.get(term), dict) and ff[term].get(leaf):
-            ff[term] = {**ff[term], leaf: resolve_table(ff[term][leaf], scenario_dir)}
+            ff[term] = {**ff[term], leaf: change(key, str(ff[term][leaf]))}
         elif ff.get(key):
-            ff[key] = resolve_table(ff[key], scenario_dir)
-    return view
+            ff[key] = change(key, str(ff[key]))
+    return {**scenario, "feedforward": {"ros__parameters": ff}}
 
 
 def resolve_table(path_text: str, scenario_dir: Path) -> str:

@@ -112,6 +112,7 @@ def _summarise_axis(
         axis.plan.dir,
         scenario=axis.plan.scenario,
         scenario_path=axis.plan.scenario_path,
+        source_file=axis.plan.source_path,
         wall_time_s=state.wall_time_s if span is None else span[1] - span[0],
         mode="composed" if plan.composed else "separate processes",
     )
