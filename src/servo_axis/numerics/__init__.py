@@ -46,7 +46,7 @@ from collections.abc import Mapping, Sequence
 SWITCH = "SERVO_AXIS_NUMERICS"
 
 #: numpy 2.4's dispatched targets beyond its X86_V2 baseline (``numpy._core.
-#: _multiarray_umath.__cpu_dispatch__``; test/unit/test_numerics.py checks
+#: _multiarray_umath.__cpu_dispatch__``; test/unit/test_portable_numerics.py checks
 #: the list against the installed numpy).
 NUMPY_DISPATCH = ("X86_V3", "X86_V4", "AVX512_ICL", "AVX512_SPR")
 
