@@ -68,7 +68,7 @@ def summary_of(cycle_s: float = 0.25) -> dict[str, Any]:
 
 
 def recorded_run(work: Path, name: str, reference_rad: np.ndarray, torque_Nm: np.ndarray) -> None:
-    """A run directory of ``reference_rad`` and the command ``torque_Nm`` (bag, summary.json)."""
+    """A run directory of ``reference_rad`` and the command ``torque_Nm`` (bag, summary.json, scenario.yaml)."""
     from rosbags.typesys import Stores, get_typestore
 
     ts = get_typestore(Stores.ROS2_JAZZY)
@@ -120,7 +120,8 @@ def recorded_run(work: Path, name: str, reference_rad: np.ndarray, torque_Nm: np
             }
         },
     }
-    path = work / f"{name}.yaml"
+    # The scenario as a run records it, where later commands read it.
+    path = run / "scenario.yaml"
     path.write_text(yaml.safe_dump(scenario))
     summarise(run, scenario=load_scenario(path), scenario_path=path, wall_time_s=1.0, mode="x")
 
@@ -502,6 +503,13 @@ CASES: list[tuple[list[str], str]] = [
     # -- bag
     (["bag", "recover", "nodir"], "nodir: no bag there (not a directory)"),
     (["bag", "recover", "notarun"], "notarun: no bag there (no *.mcap file)"),
+    # -- params
+    (
+        ["params", "feedbak"],
+        "params feedbak: neither a node nor an installed extension (did you mean 'feedback'?",
+    ),
+    (["params", "ball_scew"], "did you mean 'ball_screw'?"),
+    (["params", "feedback", "plant"], "unrecognized arguments: plant"),
     # -- floor
     (
         ["floor", "--period-us", "0"],

@@ -120,6 +120,8 @@ def test_a_run_that_selects_a_broken_plugin_is_one_line_before_anything_starts(
     # One line: this plugin's, not the warnings of the others.
     assert done.stderr.count("\n") == 1, done.stderr
     line = done.stderr.strip()
-    assert line.startswith(f"error: parameter '{key}': {kind} '{name}' cannot be loaded: ")
+    # Named after the scenario file it comes from.
+    assert line.startswith(f"error: scenario {path}: "), line
+    assert f": parameter '{key}': {kind} '{name}' cannot be loaded: " in line, line
     assert f"entry point '{name}' = '{value}' of group " in line and error in line
     assert not out.exists() and done.stdout == ""  # no header: nothing was started
