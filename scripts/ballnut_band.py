@@ -52,8 +52,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+import ballnut as bn  # scripts/ballnut.py, beside this script
 from servo_axis import numerics
-from servo_axis.analysis import ballnut as bn
 from servo_axis.core.deformation import deformation_ratio
 from servo_axis.core.feedforward.sigmoid import gamma_for_width
 from servo_axis.core.friction.gms_fitting import fit_gms

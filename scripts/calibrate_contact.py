@@ -37,8 +37,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+import ballnut as bn  # scripts/ballnut.py, beside this script
 from servo_axis import numerics
-from servo_axis.analysis import ballnut as bn
 from servo_axis.core.friction.gms_fitting import fit_gms
 from servo_axis.params.resolve import plant_fingerprint
 from servo_axis.params.scenario import load_scenario

@@ -19,7 +19,7 @@ holds the torques as the bag has them.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -29,7 +29,7 @@ import numpy as np
 from servo_axis.core.drive import current_from_torque, torque_from_current
 from servo_axis.core.feedback.loop import FeedbackLoop
 from servo_axis.core.feedback.output import controlled_output
-from servo_axis.core.models.base import PlantOutput
+from servo_axis.core.models.base import Plant, PlantOutput
 from servo_axis.params import factories, resolve
 from servo_axis.params.scenario import load_scenario
 
@@ -87,8 +87,26 @@ class _Drive:
         return tau_ff, tau, tau / self.plant
 
 
-def simulate(scenario_path: Path, *, steps: int | None = None) -> Trajectory:
-    """Run the scenario's loop (plant, feedback, feedforward) as plain calls."""
+def simulate(
+    scenario_path: Path,
+    *,
+    steps: int | None = None,
+    watch: Callable[[Plant], None] | None = None,
+) -> Trajectory:
+    """Run the scenario's loop (plant, feedback, feedforward) as plain calls.
+
+    Parameters
+    ----------
+    scenario_path : Path
+        The scenario file.
+    steps : int or None
+        Control samples to run; None: the scenario's duration.
+    watch : callable or None
+        Called with the plant at every sample, after the command is computed
+        and before the plant steps (its ``output()`` is then the sample's
+        state): a study's way to keep a plant's inner signals. It must not
+        change the plant.
+    """
     scenario = load_scenario(scenario_path)
     pv = resolve.node_values(scenario, "plant")
     fbv = resolve.node_values(scenario, "feedback")
@@ -108,6 +126,8 @@ def simulate(scenario_path: Path, *, steps: int | None = None) -> Trajectory:
         r, _, u_ff = refs[k]
         tau_ff, tau, current = step(loop, y, r, u_ff)
         record((y.encoder_rad, y.scale_m, r, tau_ff, tau))
+        if watch is not None:
+            watch(sim)
         y = sim.step(current)
     return _trajectory(rows, n)
 

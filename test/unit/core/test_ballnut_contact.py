@@ -5,20 +5,20 @@ shipped (frozen) contact scenarios, against paper 004's own data and never the
 sigmoid-vs-GMS comparison: the slow loop of Fig. 4(b), the rigid model of eq.
 (1), the first axial mode, eq. (8) before a fast stop and Fig. 11 before a slow
 one, the nut's reversal with the deformation pattern (Sect. III-B), Fig. 6.
-Core only: the plain-call loop, no ROS.
+Core only: the plain-call loop (``scripts/ballnut.py`` on :func:`servo_axis.simulate.simulate`), no ROS.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from servo_axis.analysis import ballnut as bn
 from servo_axis.core.deformation import deformation_ratio
 from servo_axis.core.errors import ConfigError
 from servo_axis.core.models.ball_screw_kernels import contact_load
@@ -30,6 +30,9 @@ from servo_axis.core.sensors import SensorParams
 from servo_axis.params import resolve
 from servo_axis.params.scenario import load_scenario
 from servo_axis.plugins.elastic_ball_screw import elastic_ball_screw_params
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "scripts"))
+import ballnut as bn
 
 CONFIG = Path(__file__).resolve().parents[3] / "src" / "servo_axis" / "scenarios"
 IDEAL = SensorParams(resolution=0.0)

@@ -1,5 +1,9 @@
 """Checks of the elastic ball screw's ball-nut friction against paper 004's own data.
 
+A study's module, not the package's: ``scripts/calibrate_contact.py`` and
+``scripts/ballnut_band.py`` calibrate and vary the contact plant with it, and
+``test/unit/core/test_ballnut_contact.py`` checks the frozen calibration.
+
 The calibration of ``plant.nut_friction: contact`` (issue 21) pins every free
 value with measurements of 004 that do not involve the sigmoid-vs-GMS
 comparison; each function here computes one of them from a core-only run (the
@@ -28,11 +32,11 @@ import numpy as np
 import yaml
 
 from servo_axis.core.deformation import deformation_ratio
-from servo_axis.core.drive import current_from_torque, torque_from_current
 from servo_axis.core.errors import SignalError
 from servo_axis.friction_id import estimate_friction_torque
-from servo_axis.params import factories, resolve
+from servo_axis.params import resolve
 from servo_axis.params.scenario import load_scenario
+from servo_axis.simulate import simulate
 
 FloatArray = np.ndarray
 
@@ -113,55 +117,46 @@ def scenario_with(
 
 
 def run_trace(scenario_path: Path, *, steps: int | None = None) -> PlantTrace:
-    """The loop of :func:`servo_axis.simulate.simulate` with the plant's inner signals.
+    """The loop of :func:`servo_axis.simulate.simulate`, with the plant's inner signals kept.
 
-    The same objects and the same order of calls (so the same floats); the
-    plant must be ``elastic_ball_screw``.
+    The plain-call loop itself (so the same floats as the node graph's), the
+    plant asked for its inner signals at each sample before it steps; the plant
+    must be ``elastic_ball_screw``.
     """
-    scenario = load_scenario(scenario_path)
-    pv = resolve.node_values(scenario, "plant")
+    pv = resolve.node_values(load_scenario(scenario_path), "plant")
     if pv["model"] != "elastic_ball_screw":
         raise SignalError(f"plant.model: expected elastic_ball_screw, got {pv['model']!r}")
-    fbv = resolve.node_values(scenario, "feedback")
-    ffv = resolve.feedforward_values(scenario, scenario_path)
-    n = factories.run_steps(pv) if steps is None else steps
-    sim = factories.build_plant(pv)
-    loop = factories.build_loop(fbv)
-    gen = factories.build_generator(ffv)
-    kt_ff = ffv["nominal.torque_constant_Nm_per_A"]
-    kt_fb = fbv["nominal.torque_constant_Nm_per_A"]
-    kt_plant = pv["torque_constant_Nm_per_A"]
-    refs = gen.samples(0, n)
-    lead = float(pv["lead_m_per_rad"])
-    cols = np.empty((n, 11))
-    y = sim.output()
-    for k in range(n):
-        r, _, u_ff = refs[k]
-        tau_ff = torque_from_current(u_ff, torque_constant_Nm_per_A=kt_ff)
-        u = loop.step(
-            encoder_rad=y.encoder_rad,
-            scale_m=y.scale_m,
-            reference_rad=r,
-            feedforward_A=current_from_torque(tau_ff, torque_constant_Nm_per_A=kt_fb),
-        ).current_A
-        tau = torque_from_current(u, torque_constant_Nm_per_A=kt_fb)
-        _, nut, bearing = sim.friction_torques_Nm
-        cols[k] = (
-            lead * r,
-            y.scale_m,
-            y.encoder_rad,
-            y.position_m,
-            y.angle_rad,
-            tau,
-            sim.deformation_m,
-            sim.contact_deformation_m,
-            nut,
-            bearing,
-            sim.guide_force_N,
+    inner: list[tuple[float, ...]] = []
+
+    def keep(plant: Any) -> None:
+        y = plant.output()
+        _, nut, bearing = plant.friction_torques_Nm
+        inner.append(
+            (
+                y.position_m,
+                y.angle_rad,
+                plant.deformation_m,
+                plant.contact_deformation_m,
+                nut,
+                bearing,
+                plant.guide_force_N,
+            )
         )
-        y = sim.step(current_from_torque(tau, torque_constant_Nm_per_A=kt_plant))
-    c = [cols[:, i].copy() for i in range(11)]
-    return PlantTrace(float(pv["control_period_s"]), lead, *c)
+
+    run = simulate(scenario_path, steps=steps, watch=keep)
+    lead = float(pv["lead_m_per_rad"])
+    cols = np.array(inner, dtype=float).reshape(-1, 7)
+    c = [cols[:, i].copy() for i in range(7)]
+    return PlantTrace(
+        float(pv["control_period_s"]),
+        lead,
+        lead * run.reference_rad,
+        run.scale_m,
+        run.encoder_rad,
+        *c[:2],
+        run.command_Nm,
+        *c[2:],
+    )
 
 
 @dataclass(frozen=True)
@@ -306,14 +301,3 @@ def sigma_fit(
     z_ok, dr_ok = z[ok], trace_dr.d_r_m_per_rad[ks][ok]
     sigma = float(np.mean(dr_ok * z_ok)) if z_ok.size else float("nan")
     return SigmaFit(sigma, z_ok, dr_ok)
-
-
-def stop_steps(trace: PlantTrace, *, after_s: float = 0.0) -> list[int]:
-    """Samples where the reference at the table reverses (its increments change sign)."""
-    dx = np.diff(trace.reference_m)
-    k0 = round(after_s / trace.period_s)
-    out = []
-    for k in range(max(k0, 1), len(dx)):
-        if dx[k - 1] != 0.0 and np.sign(dx[k]) != np.sign(dx[k - 1]):
-            out.append(k)
-    return out
