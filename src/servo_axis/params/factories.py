@@ -22,13 +22,13 @@ import numpy as np
 
 from servo_axis.core.deformation import DeformationRatio
 from servo_axis.core.errors import ParameterFileError
-from servo_axis.core.feedback.dob import DisturbanceObserver
+from servo_axis.core.feedback.dob import DisturbanceObserver, OutsideObserver
 from servo_axis.core.feedback.loop import FeedbackLoop, SafetyLimits
 from servo_axis.core.feedback.pid import DiscretePid, design_pid_pole_placement
 from servo_axis.core.feedback.stage_sigmoid import StageSigmoid
 from servo_axis.core.feedforward.generator import FeedforwardGenerator
 from servo_axis.core.feedforward.sigmoid import SigmoidParams
-from servo_axis.core.feedforward.terms import FeedforwardTerm, OutsideObserver
+from servo_axis.core.feedforward.terms import FeedforwardTerm
 from servo_axis.core.identification.base import OnlineIdentifier
 from servo_axis.core.learning.base import LearningLaw
 from servo_axis.core.models.base import NominalModel, Plant

@@ -7,8 +7,8 @@ import pytest
 from numpy.testing import assert_allclose
 
 from servo_axis.core.errors import ConfigError
-from servo_axis.core.feedback.dob import DisturbanceObserver, ObserverBypass
-from servo_axis.core.feedforward.terms import OutsideObserver, ReferenceBlock
+from servo_axis.core.feedback.dob import DisturbanceObserver, ObserverBypass, OutsideObserver
+from servo_axis.core.feedforward.terms import ReferenceBlock
 from servo_axis.core.models.elastic_ball_screw import ElasticBallScrewParams, ElasticBallScrewPlant
 
 NOMINAL = {"inertia_kgm2": 2.6e-3, "damping_Nms_per_rad": 0.070, "torque_constant_Nm_per_A": 0.715}

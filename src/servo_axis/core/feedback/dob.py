@@ -1,13 +1,15 @@
-"""Inverse-model disturbance observer on the motor angle (paper 004 Sect. II, Fig. 5)."""
+"""Inverse-model disturbance observer on the motor angle (paper 004 Sect. II, Fig. 5), and what enters outside it."""
 
 from __future__ import annotations
 
 import math
 
 import numpy as np
+from numpy.typing import NDArray
 
 from servo_axis.core.errors import ConfigError, require_nonnegative, require_positive
 from servo_axis.core.feedback.discrete import DiscreteFilter, tustin
+from servo_axis.core.feedforward.terms import FeedforwardTerm, ReferenceBlock
 
 
 class DisturbanceObserver:
@@ -132,3 +134,45 @@ class ObserverBypass:
         z[0] = z0
         self._filtered_previous = previous
         return out
+
+
+class OutsideObserver:
+    """The sum of some terms, added outside the disturbance observer (paper 004 Fig. 5).
+
+    With the DOB on, friction compensation enters the plant after the point
+    where the DOB reads the current; the feedback loop adds every
+    feedforward current inside it, so the sum goes through
+    :class:`ObserverBypass` of the DOB's own
+    low-pass, which makes the two the same current command.
+
+    Parameters
+    ----------
+    terms : list of FeedforwardTerm
+        The terms, summed.
+    cutoff_hz, period_s : float
+        The feedback's DOB cut-off (Hz) and the control period (s).
+    """
+
+    def __init__(self, terms: list[FeedforwardTerm], *, cutoff_hz: float, period_s: float) -> None:
+        self._terms = list(terms)
+        self._bypass = ObserverBypass(cutoff_hz=cutoff_hz, period_s=period_s)
+
+    def currents(self, block: ReferenceBlock) -> NDArray[np.float64]:
+        total = np.zeros(len(block.step))
+        for term in self._terms:
+            total += term.currents(block)
+        return np.array(self._bypass.update_many(total.tolist()), dtype=float)
+
+    def set_parameters(self, **kwargs: float) -> None:
+        """Pass online estimates on to the terms that take them."""
+        self._each("set_parameters", **kwargs)
+
+    def forget_before(self, step: int) -> None:
+        """Pass on to the terms that keep estimates by step."""
+        self._each("forget_before", step)
+
+    def _each(self, method: str, *args: object, **kwargs: float) -> None:
+        for term in self._terms:
+            call = getattr(term, method, None)
+            if call is not None:
+                call(*args, **kwargs)

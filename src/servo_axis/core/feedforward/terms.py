@@ -18,7 +18,6 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from servo_axis.core.feedback.dob import ObserverBypass
 from servo_axis.core.feedforward.friction_table import FrictionFeedforward, FrictionTable
 
 FloatArray = NDArray[np.float64]
@@ -69,45 +68,3 @@ class FrictionTableTerm:
 
     def currents(self, block: ReferenceBlock) -> FloatArray:
         return np.array([self._ff.current_A(float(p)) for p in block.position_m], dtype=float)
-
-
-class OutsideObserver:
-    """The sum of some terms, added outside the disturbance observer (paper 004 Fig. 5).
-
-    With the DOB on, friction compensation enters the plant after the point
-    where the DOB reads the current; the feedback loop adds every
-    feedforward current inside it, so the sum goes through
-    :class:`~servo_axis.core.feedback.dob.ObserverBypass` of the DOB's own
-    low-pass, which makes the two the same current command.
-
-    Parameters
-    ----------
-    terms : list of FeedforwardTerm
-        The terms, summed.
-    cutoff_hz, period_s : float
-        The feedback's DOB cut-off (Hz) and the control period (s).
-    """
-
-    def __init__(self, terms: list[FeedforwardTerm], *, cutoff_hz: float, period_s: float) -> None:
-        self._terms = list(terms)
-        self._bypass = ObserverBypass(cutoff_hz=cutoff_hz, period_s=period_s)
-
-    def currents(self, block: ReferenceBlock) -> FloatArray:
-        total = np.zeros(len(block.step))
-        for term in self._terms:
-            total += term.currents(block)
-        return np.array(self._bypass.update_many(total.tolist()), dtype=float)
-
-    def set_parameters(self, **kwargs: float) -> None:
-        """Pass online estimates on to the terms that take them."""
-        self._each("set_parameters", **kwargs)
-
-    def forget_before(self, step: int) -> None:
-        """Pass on to the terms that keep estimates by step."""
-        self._each("forget_before", step)
-
-    def _each(self, method: str, *args: object, **kwargs: float) -> None:
-        for term in self._terms:
-            call = getattr(term, method, None)
-            if call is not None:
-                call(*args, **kwargs)
