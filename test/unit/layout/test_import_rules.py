@@ -3,7 +3,9 @@
 Function-local imports count as much as module-level ones: an import circle
 hidden inside a function is still a circle.
 
-* no import circle between the modules of ``servo_axis``;
+* no import circle between the modules of ``servo_axis``, nor between the
+  packages of any one package (its subpackages and modules, each with all it
+  holds: ``analysis`` -> ``friction_id`` -> ``analysis`` was one);
 * no node module imports a role's node module (the composed container aside),
   and a role's parts (``nodes/<role>_*.py``) are imported by that role only;
 * ``servo_axis.core`` imports nothing of the project outside ``core``, and
@@ -103,6 +105,113 @@ def test_no_import_circle() -> None:
     for name in sorted(GRAPH):
         if name not in state:
             visit(name)
+
+
+def is_package(name: str) -> bool:
+    return MODULES[name].name == "__init__.py"
+
+
+def unit_in(package: str, name: str) -> str | None:
+    """What of ``package`` holds module ``name``: the subpackage or module right below it.
+
+    None for a module outside ``package`` and for its own ``__init__``. A kernel
+    module is a unit of its own: it imports nothing but the compiler (so it
+    closes no circle), and numba makes a family's kernels share one module,
+    which another package may call (``core.friction.maxwell_slip`` the
+    screws' ``core.models.ball_screw_kernels``).
+    """
+    if not name.startswith(package + "."):
+        return None
+    if is_kernel_module(name):
+        return name
+    return package + "." + name[len(package) + 1 :].split(".")[0]
+
+
+def package_circles(graph: dict[str, set[str]], package: str) -> list[list[str]]:
+    """The circles between what ``package`` holds, each with the imports that make its edges.
+
+    ``a -> b`` when a module of ``a`` (anywhere inside it) imports a module of
+    ``b``; each circle is returned once, as its strongly connected set of units.
+    """
+    edges: dict[str, dict[str, tuple[str, str]]] = {}
+    for name, imported in sorted(graph.items()):
+        a = unit_in(package, name)
+        if a is None:
+            continue
+        for other in sorted(imported):
+            b = unit_in(package, other)
+            if b is not None and b != a:
+                edges.setdefault(a, {}).setdefault(b, (name, other))
+    # Tarjan's strongly connected sets: a set of two or more units is a circle.
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    circles: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        for w in sorted(edges.get(v, {})):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            members = []
+            while True:
+                w = stack.pop()
+                members.append(w)
+                if w == v:
+                    break
+            if len(members) > 1:
+                circles.append(sorted(members))
+
+    for v in sorted(edges):
+        if v not in index:
+            visit(v)
+    return [
+        [f"{a} -> {b} ({edges[a][b][0]} imports {edges[a][b][1]})"
+         for a in circle for b in circle if b in edges.get(a, {})]
+        for circle in circles
+    ]  # fmt: skip
+
+
+PACKAGES = sorted(m for m in MODULES if is_package(m))
+
+
+@pytest.mark.parametrize("package", PACKAGES)
+def test_no_circle_between_packages(package: str) -> None:
+    circles = package_circles(GRAPH, package)
+    assert not circles, f"circles between the packages of {package}: " + "; ".join(
+        ", ".join(c) for c in circles
+    )
+
+
+def test_the_package_check_sees_the_old_circle() -> None:
+    """The circle through ``analysis.ballnut`` (issue 39), which no module circle showed."""
+    graph = {
+        "servo_axis.analysis.ballnut": {"servo_axis.friction_id", "servo_axis.simulate"},
+        "servo_axis.friction_id": {"servo_axis.analysis.signals", "servo_axis.analysis.summary"},
+        "servo_axis.analysis.summary": {"servo_axis.analysis.signals"},
+        "servo_axis.analysis.signals": set(),
+        "servo_axis.simulate": set(),
+    }
+    assert package_circles(graph, "servo_axis.analysis") == []
+    (circle,) = package_circles(graph, "servo_axis")
+    assert sorted(circle) == [
+        "servo_axis.analysis -> servo_axis.friction_id "
+        "(servo_axis.analysis.ballnut imports servo_axis.friction_id)",
+        "servo_axis.friction_id -> servo_axis.analysis "
+        "(servo_axis.friction_id imports servo_axis.analysis.signals)",
+    ]
+    # and a kernel module shared across packages closes no circle
+    kernels = {
+        "servo_axis.core.friction.maxwell_slip": {"servo_axis.core.models.ball_screw_kernels"},
+        "servo_axis.core.models.ball_screw": {"servo_axis.core.friction.maxwell_slip"},
+        "servo_axis.core.models.ball_screw_kernels": {"servo_axis.core.kernels"},
+    }
+    assert package_circles(kernels, "servo_axis.core") == []
 
 
 #: The node of each role (``nodes/<role>.py``); a role's own parts are ``nodes/<role>_*.py``.
