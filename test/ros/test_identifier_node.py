@@ -2,7 +2,7 @@
 
 What the nodes compute is compared with plain calls: the node graph of a
 shortened ``dlpid_tilt_lpf2`` with :func:`servo_axis.simulate.simulate_identification`,
-a lone :class:`IdentifierNode` with a core :class:`~servo_axis.core.identification.dlpid.Dlpid`
+a lone :class:`IdentifierNode` with a core :class:`~servo_axis.core.identification.online.dlpid.Dlpid`
 (:func:`~servo_axis.params.factories.build_identifier`) fed the same numbers,
 a lone :class:`FeedforwardNode` with a core generator
 (:func:`~servo_axis.params.factories.build_generator`).
@@ -28,7 +28,7 @@ from std_msgs.msg import Float64MultiArray
 
 from servo_axis.core.drive import torque_from_current
 from servo_axis.core.errors import ParameterFileError
-from servo_axis.core.identification.dlpid import Estimate
+from servo_axis.core.identification.online.dlpid import Estimate
 from servo_axis.nodes.feedforward import FeedforwardNode
 from servo_axis.nodes.identifier import IdentifierNode
 from servo_axis.nodes.plant import PlantNode

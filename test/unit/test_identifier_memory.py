@@ -13,7 +13,7 @@ from numpy.testing import assert_array_equal
 
 from servo_axis import storage
 from servo_axis.core.errors import SignalError
-from servo_axis.core.identification.base import OnlineIdentifier
+from servo_axis.core.identification.online.base import OnlineIdentifier
 from servo_axis.params import factories, resolve
 from servo_axis.params.scenario import load_scenario
 from servo_axis.storage import load_identifier_memory, save_identifier_memory

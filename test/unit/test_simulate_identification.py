@@ -10,7 +10,7 @@ import pytest
 import yaml
 from numpy.testing import assert_allclose, assert_array_equal
 
-from servo_axis.core.identification.dlpid import Dlpid
+from servo_axis.core.identification.online.dlpid import Dlpid
 from servo_axis.params import factories, resolve
 from servo_axis.params.scenario import load_scenario
 from servo_axis.simulate import IdentificationRun, simulate_identification

@@ -25,7 +25,7 @@ The kernels live beside what uses them, one module per family, each named
   feedforward segment (003 eq. (11));
 * :mod:`servo_axis.core.friction.gms_kernels`: the GMS model's block step (004)
   and its exact element sum;
-* :mod:`servo_axis.core.identification.kernels`: the DLPID's filter bank and
+* :mod:`servo_axis.core.identification.online.dlpid_kernels`: the DLPID's filter bank and
   the conditional RLS step (003).
 
 Compiled code is cached on disk: ``$NUMBA_CACHE_DIR`` if set, else

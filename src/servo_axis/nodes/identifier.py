@@ -43,7 +43,7 @@ from pathlib import Path
 from typing import Any
 
 from servo_axis.core.errors import ParameterFileError, ServoAxisError
-from servo_axis.core.identification.dlpid import Estimate
+from servo_axis.core.identification.online.dlpid import Estimate
 from servo_axis.nodes.base import ServoNode
 from servo_axis.nodes.lockstep import stream_gate
 from servo_axis.nodes.runtime import run_main

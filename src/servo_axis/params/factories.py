@@ -29,7 +29,7 @@ from servo_axis.core.feedback.stage_sigmoid import StageSigmoid
 from servo_axis.core.feedforward.generator import FeedforwardGenerator
 from servo_axis.core.feedforward.sigmoid import SigmoidParams
 from servo_axis.core.feedforward.terms import FeedforwardTerm
-from servo_axis.core.identification.base import OnlineIdentifier
+from servo_axis.core.identification.online.base import OnlineIdentifier
 from servo_axis.core.learning.base import LearningLaw
 from servo_axis.core.models.base import NominalModel, Plant
 from servo_axis.core.reference import Reference, make_reference

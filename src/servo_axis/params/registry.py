@@ -50,7 +50,7 @@ from servo_axis.core.errors import (
     did_you_mean,
 )
 from servo_axis.core.feedforward.terms import FeedforwardTerm
-from servo_axis.core.identification.base import OnlineIdentifier
+from servo_axis.core.identification.online.base import OnlineIdentifier
 from servo_axis.core.learning.base import LearningLaw
 from servo_axis.core.models.base import Plant
 from servo_axis.params import schemas

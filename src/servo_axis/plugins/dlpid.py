@@ -3,7 +3,7 @@
 ``dlpid``: double-layer parameter identification, the RLS of ``J, D, U``
 plus the friction layer of eq. (8), which estimates ``C``; ``marc``: the
 previous MARC, the RLS of ``J, D, U`` alone, friction unmodelled (003 [11])
-(:class:`servo_axis.core.identification.dlpid.Dlpid`, modes ``double_layer``
+(:class:`servo_axis.core.identification.online.dlpid.Dlpid`, modes ``double_layer``
 and ``single_layer``). The shared keys (schedule, bounds of ``J, D, U``,
 forgetting, conditions) are the identifier section's own; ``dlpid`` adds
 those of its friction layer.
@@ -15,9 +15,9 @@ from collections.abc import Callable
 from typing import Any
 
 from servo_axis.core.errors import ParameterFileError
-from servo_axis.core.identification.base import OnlineIdentifier
-from servo_axis.core.identification.dlpid import Dlpid, DlpidParams
-from servo_axis.core.identification.rls import RlsParams
+from servo_axis.core.identification.online.base import OnlineIdentifier
+from servo_axis.core.identification.online.dlpid import Dlpid, DlpidParams
+from servo_axis.core.identification.online.rls import RlsParams
 from servo_axis.params.factories import estimate_schedule
 from servo_axis.params.param import Param, build
 from servo_axis.params.registry import IdentifierEntry, Values

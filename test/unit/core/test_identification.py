@@ -11,9 +11,9 @@ import pytest
 from numpy.testing import assert_allclose
 
 from servo_axis.core.errors import ConfigError, SignalError
-from servo_axis.core.identification.dlpid import Dlpid, DlpidParams, Estimate
-from servo_axis.core.identification.pe import PeIndex
-from servo_axis.core.identification.rls import ConditionalRls, RlsParams
+from servo_axis.core.identification.online.dlpid import Dlpid, DlpidParams, Estimate
+from servo_axis.core.identification.online.pe import PeIndex
+from servo_axis.core.identification.online.rls import ConditionalRls, RlsParams
 
 # Table I: the plant and the initial estimates / forgetting factors of the RLS.
 J_TRUE, D_TRUE, U_TRUE, C_TRUE = 50e-4, 130e-4, 0.3, 0.02

@@ -1,6 +1,6 @@
 """The identifier's compiled kernels compute exactly what they replace.
 
-``core/identification/kernels.py`` is compiled with numba; with
+``core/identification/online/dlpid_kernels.py`` is compiled with numba; with
 ``NUMBA_DISABLE_JIT=1`` the very same functions run as plain Python. A DLPID
 and a conditional RLS are run both ways in a process of their own, and
 every output must agree to the last bit; in this process, the kernels are
@@ -21,9 +21,9 @@ import numpy as np
 import pytest
 
 from servo_axis.core.feedback.discrete import tustin
-from servo_axis.core.identification.dlpid import Dlpid, DlpidParams
-from servo_axis.core.identification.kernels import second_order_bank
-from servo_axis.core.identification.rls import ConditionalRls, RlsParams
+from servo_axis.core.identification.online.dlpid import Dlpid, DlpidParams
+from servo_axis.core.identification.online.dlpid_kernels import second_order_bank
+from servo_axis.core.identification.online.rls import ConditionalRls, RlsParams
 
 RLS = RlsParams(
     initial=(20e-4, 100e-4, 0.1),
@@ -37,8 +37,8 @@ RLS = RlsParams(
 RUN = r"""
 import json, math
 import numpy as np
-from servo_axis.core.identification.dlpid import Dlpid, DlpidParams
-from servo_axis.core.identification.rls import ConditionalRls, RlsParams
+from servo_axis.core.identification.online.dlpid import Dlpid, DlpidParams
+from servo_axis.core.identification.online.rls import ConditionalRls, RlsParams
 
 rls = RlsParams(initial=(20e-4, 100e-4, 0.1), lower=(1e-5, 0.0, 0.0), upper=(1.0, 1.0, 10.0),
                 forgetting=(0.999, 0.999, 0.995), initial_covariance=1e3, names=("J", "D", "U"))
@@ -64,7 +64,7 @@ for k in range(2000):
     r.update(phi, float(phi @ (3e-3, 2e-2, 0.4)) + 1e-3 * rng.standard_normal(), rng.random(3) < 0.7)
     rows.append([x.hex() for x in [*r.theta, *r.covariance.ravel()]])
 out["rls"] = rows
-from servo_axis.core.identification.pe import PeIndex
+from servo_axis.core.identification.online.pe import PeIndex
 pe = PeIndex(3, 7)
 rows = []
 for k in range(300):
@@ -182,7 +182,7 @@ def test_dlpid_state_round_trip_after_the_kernels() -> None:
 
 def test_the_pe_kernel_is_the_numpy_update() -> None:
     """PeIndex with its compiled running sum and direct eigvalsh = the numpy formulation."""
-    from servo_axis.core.identification.pe import PeIndex
+    from servo_axis.core.identification.online.pe import PeIndex
 
     window, n = 7, 3
     pe = PeIndex(n, window)

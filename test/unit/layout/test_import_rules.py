@@ -11,7 +11,7 @@ hidden inside a function is still a circle.
 * ``servo_axis.core`` imports nothing of the project outside ``core``, and
   nothing but numpy, scipy, numba (only ``core.kernels``, which compiles the
   kernels) and the standard library;
-* the kernel modules (``core/**/*_kernels.py``, ``core/identification/kernels.py``)
+* the kernel modules (``core/**/*_kernels.py``)
   import nothing of the project but ``core.kernels``, and no other module
   imports one at its top (numba is loaded only where a kernel is used);
 * ``analysis`` and ``simulate`` import nothing of ``run`` (the resolver is ``params.resolve``);
@@ -244,7 +244,7 @@ def test_the_kernel_modules_are_found() -> None:
         "servo_axis.core.models.tilting_table_kernels",
         "servo_axis.core.feedforward.ptc_kernels",
         "servo_axis.core.friction.gms_kernels",
-        "servo_axis.core.identification.kernels",
+        "servo_axis.core.identification.online.dlpid_kernels",
     } <= set(KERNEL_MODULES)
 
 

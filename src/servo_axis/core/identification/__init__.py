@@ -1,13 +1,10 @@
-"""Online parameter identification (the seam for paper 003's DLPID).
+"""Identification of a servo axis: the numerics, of two kinds.
 
-An identifier consumes the state stream at its own period (``T_RLS``) and
-publishes estimates that take effect in the feedforward from a step fixed by
-configuration (docs/design.md section 4): the PTC's model is replaced from that step on
-(:meth:`servo_axis.core.feedforward.ptc.MultiratePtc.replace_model`). An
-identifier is a module here (numerics: regression, RLS, PE index) plus its
-entry in :mod:`servo_axis.plugins` (an entry point), and its node under
-:mod:`servo_axis.nodes`. Built: the numerics of DLPID (``rls``: conditional RLS
-with per-parameter forgetting and projection; ``pe``: the PE index;
-``dlpid``: the two layers and the signal chain; ``base``: what the node asks
-of an identifier). The node is :mod:`servo_axis.nodes.identifier`.
+* :mod:`~servo_axis.core.identification.online`: paper 003's identifier,
+  which runs in the loop during a run (the identifier node) and whose
+  estimates the adaptive feedforward applies while the run goes on;
+* :mod:`~servo_axis.core.identification.offline`: the identification of a
+  whole axis from runs recorded for it (a frequency response, a slow
+  reversal), which the ``identify`` command fits into a scenario
+  (:mod:`servo_axis.identify`).
 """

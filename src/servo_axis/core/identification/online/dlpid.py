@@ -42,11 +42,11 @@ Lower layer, eqs. (4)-(5) and (16), at each RLS step ``k``
 -----------------------------------------------------------
 ``phi = [y'', y', sin y]``, ``u_lower = ubar - u_f`` with
 ``u_f = C_hat[k-1] sgn(y')``; conditional RLS
-(:class:`~servo_axis.core.identification.rls.ConditionalRls`) with the
+(:class:`~servo_axis.core.identification.online.rls.ConditionalRls`) with the
 conditions of eq. (16) evaluated on the *filtered* signals: ``U`` when
 ``y > angle_min_rad``, ``D`` when ``|y'| > velocity_min_rad_s``, ``J`` when
 ``|y''| > acceleration_min_rad_s2``. The PE index of eq. (7)
-(:class:`~servo_axis.core.identification.pe.PeIndex`) is fed every RLS step
+(:class:`~servo_axis.core.identification.online.pe.PeIndex`) is fed every RLS step
 with ``phi``; it is reported (``Estimate.kappa``), not used as a gate: the
 per-parameter conditions (16) are the paper's PE conditions, ``kappa`` its
 diagnostic (003 Fig. 6).
@@ -93,8 +93,8 @@ from servo_axis.core.errors import (
     require_positive,
 )
 from servo_axis.core.feedback.discrete import DiscreteFilter, tustin
-from servo_axis.core.identification.pe import PeIndex
-from servo_axis.core.identification.rls import ConditionalRls, RlsParams
+from servo_axis.core.identification.online.pe import PeIndex
+from servo_axis.core.identification.online.rls import ConditionalRls, RlsParams
 
 MODES = ("double_layer", "single_layer")
 
@@ -259,7 +259,7 @@ class Dlpid:
         # The four filters run as one compiled call on these arrays (the same
         # arithmetic as DiscreteFilter.update); the filter objects hold the
         # coefficients and settle the state on the first sample.
-        from servo_axis.core.identification.kernels import second_order_bank
+        from servo_axis.core.identification.online.dlpid_kernels import second_order_bank
 
         self._bank = second_order_bank
         self._coef = np.array([[*f.b, *f.a[1:]] for f in self._filters])

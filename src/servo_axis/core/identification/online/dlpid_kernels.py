@@ -1,6 +1,6 @@
 """Compiled per-sample kernels of the DLPID identifier (numba).
 
-The identifier of paper 003 (:mod:`servo_axis.core.identification.dlpid`)
+The identifier of paper 003 (:mod:`servo_axis.core.identification.online.dlpid`)
 filters every control sample through four second-order filters (Fig. 3:
 ``G_LPF`` on the angle and the torque, ``G_PD1``, ``G_PD2`` on the angle);
 as four :class:`~servo_axis.core.feedback.discrete.DiscreteFilter` calls in
@@ -101,7 +101,7 @@ def conditional_rls_update(
     """One conditional RLS step of 003 eqs. (5), (6), (16), in place.
 
     The arithmetic of :meth:`ConditionalRls.update
-    <servo_axis.core.identification.rls.ConditionalRls.update>` (see its
+    <servo_axis.core.identification.online.rls.ConditionalRls.update>` (see its
     module for the equations) step for step: the products of matrices and
     vectors are ``np.dot`` on contiguous copies of the same blocks (BLAS,
     as numpy's ``@``), the rest element by element in numpy's order.
@@ -220,7 +220,7 @@ def outer_window_add(
     """One regressor into the PE window of 003 eq. (7), in place; ``kappa`` if asked.
 
     The arithmetic of :meth:`PeIndex.update_checked
-    <servo_axis.core.identification.pe.PeIndex.update_checked>` between its
+    <servo_axis.core.identification.online.pe.PeIndex.update_checked>` between its
     recomputes, element by element as numpy does it::
 
         if full: total -= np.outer(buffer[slot], buffer[slot])

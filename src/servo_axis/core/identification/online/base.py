@@ -2,9 +2,9 @@
 
 An implementation takes one control sample at a time (the measured angle
 and the applied torque) and, once per its own period, returns an
-:class:`~servo_axis.core.identification.dlpid.Estimate`; its whole state can
+:class:`~servo_axis.core.identification.online.dlpid.Estimate`; its whole state can
 be saved and restored so that a restarted node resumes bit-identically.
-:class:`~servo_axis.core.identification.dlpid.Dlpid` is one (both of its
+:class:`~servo_axis.core.identification.online.dlpid.Dlpid` is one (both of its
 modes); a new method is a class like it plus its entry (schema, builder,
 entry point ``servo_axis.identification_methods``) in a module of its own
 (:mod:`servo_axis.params.registry`; the suite's in ``servo_axis.plugins``).
@@ -15,7 +15,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any, Protocol
 
-from servo_axis.core.identification.dlpid import Estimate
+from servo_axis.core.identification.online.dlpid import Estimate
 
 
 class OnlineIdentifier(Protocol):

@@ -171,7 +171,7 @@ class ConditionalRls:
         self._lower = np.array(params.lower)
         self._upper = np.array(params.upper)
         self._inv_sqrt_lambda = 1.0 / np.sqrt(np.array(params.forgetting))
-        from servo_axis.core.identification.kernels import conditional_rls_update
+        from servo_axis.core.identification.online.dlpid_kernels import conditional_rls_update
 
         self._kernel = conditional_rls_update
         self.reset()
@@ -260,7 +260,7 @@ class ConditionalRls:
 
         ``phi``: float64 array of shape (n,), finite; ``u``: a finite float;
         ``enabled``: bool array of shape (n,), not kept. The per-sample
-        path of :class:`~servo_axis.core.identification.dlpid.Dlpid`.
+        path of :class:`~servo_axis.core.identification.online.dlpid.Dlpid`.
         """
         if enabled.any():
             self._step(phi, u, enabled)
@@ -275,7 +275,7 @@ class ConditionalRls:
 
         The vector-forgetting update, the increment and the projection of
         the module docstring, compiled
-        (:func:`~servo_axis.core.identification.kernels.conditional_rls_update`):
+        (:func:`~servo_axis.core.identification.online.dlpid_kernels.conditional_rls_update`):
         ``theta``, ``P`` and the update counts change in place.
         """
         self._kernel(

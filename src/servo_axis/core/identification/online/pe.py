@@ -54,7 +54,7 @@ class PeIndex:
         self.window = window
         # The running sum's update, compiled (the same arithmetic as np.outer
         # and the elementwise -= / +=); numba loads only with a PE index.
-        from servo_axis.core.identification.kernels import outer_window_add
+        from servo_axis.core.identification.online.dlpid_kernels import outer_window_add
 
         self._add = outer_window_add
         self.reset()
