@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from servo_axis.core.errors import ConfigError, SignalError
-from servo_axis.core.sysid.excitation import Excitation
+from servo_axis.core.identification.offline.excitation import Excitation
 from servo_axis.params import resolve
 from servo_axis.params.recorded import recorded_scenario
 from servo_axis.params.registry import feedforward_terms

@@ -18,9 +18,9 @@ from typing import Any
 import numpy as np
 
 from servo_axis.core.errors import ConfigError
-from servo_axis.core.sysid import fit as sysfit
-from servo_axis.core.sysid.excitation import Excitation
-from servo_axis.core.sysid.frf import FrequencyResponse, closed_loop_frf
+from servo_axis.core.identification.offline import fit as sysfit
+from servo_axis.core.identification.offline.excitation import Excitation
+from servo_axis.core.identification.offline.frf import FrequencyResponse, closed_loop_frf
 from servo_axis.identify import MODELS
 from servo_axis.identify.data import Record
 from servo_axis.params.registry import PLANT_MODELS
@@ -181,7 +181,7 @@ BODE_MAX_STD = 0.02
 
 
 def well_measured(frf: FrequencyResponse) -> np.ndarray:
-    """Lines of coherence >= :data:`~servo_axis.core.sysid.fit.MIN_COHERENCE` and relative
+    """Lines of coherence >= :data:`~servo_axis.core.identification.offline.fit.MIN_COHERENCE` and relative
     standard deviation <= :data:`BODE_MAX_STD` (a coherence from a few periods is biased
     high; the spread of the periods is the measurement's own error)."""
     rel = frf.std / np.abs(frf.response)
@@ -404,7 +404,7 @@ def _tilting(
     # The linearised table about the run's angles: 1 / (J s^2 + D s + U cos th).
     first, stop = exc.window
     cos_mean = float(np.mean(np.cos(record.encoder_rad[record.window(first, stop)])))
-    from servo_axis.core.sysid.models import sampled_response
+    from servo_axis.core.identification.offline.models import sampled_response
 
     j, d, u = fit.value("inertia_kgm2"), fit.value("damping_Nms_per_rad"), fit.value("unbalance_Nm")
     a = np.array([[0.0, 1.0], [-u * cos_mean / j, -d / j]])

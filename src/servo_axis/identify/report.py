@@ -133,7 +133,7 @@ def bode_figure(ident: Identification, sensor: str) -> Any:
             panel.axhline(0.0, color="k", lw=0.6)
     # The view: the lines of coherence >= 0.9 with their error bars; a line with less is
     # clipped, its spread (of order its value) would hide every other one.
-    from servo_axis.core.sysid.fit import MIN_COHERENCE
+    from servo_axis.core.identification.offline.fit import MIN_COHERENCE
 
     coherent = (frf.coherence >= MIN_COHERENCE) & np.isfinite(relative)
     views = [(mag, level, err_db), (ph, phase, err_deg)]

@@ -1,7 +1,7 @@
 """Feedforward term ``excitation``: a known test torque for a frequency-response measurement.
 
 A periodic multisine, chirp or PRBS torque
-(:class:`servo_axis.core.sysid.excitation.Excitation`) added to the
+(:class:`servo_axis.core.identification.offline.excitation.Excitation`) added to the
 feedforward current, so that it enters the plant input on top of whatever
 loop stabilises the axis. It runs on any plant the run has: the suite's,
 an outside simulator, a real axis (``run --external plant``). The signal is
@@ -17,7 +17,7 @@ import numpy as np
 
 from servo_axis.core.errors import ParameterFileError
 from servo_axis.core.feedforward.terms import FeedforwardTerm, ReferenceBlock
-from servo_axis.core.sysid.excitation import PHASES, SIGNALS, Excitation
+from servo_axis.core.identification.offline.excitation import PHASES, SIGNALS, Excitation
 from servo_axis.params.param import Param, build
 from servo_axis.params.registry import FeedforwardTermEntry, Values
 

@@ -1,4 +1,4 @@
-"""The identification numerics (core/sysid): signals, the closed-loop estimator, models, fits."""
+"""The identification numerics (core/identification/offline): signals, the closed-loop estimator, models, fits."""
 
 from __future__ import annotations
 
@@ -11,10 +11,10 @@ from scipy.signal import cont2discrete, dlsim
 
 from servo_axis.core.errors import ConfigError
 from servo_axis.core.friction.maxwell_slip import MaxwellSlip
-from servo_axis.core.sysid import fit as sysfit
-from servo_axis.core.sysid.excitation import Excitation
-from servo_axis.core.sysid.frf import closed_loop_frf, remove_trend
-from servo_axis.core.sysid.models import rigid_modes, sampled_response, two_inertia
+from servo_axis.core.identification.offline import fit as sysfit
+from servo_axis.core.identification.offline.excitation import Excitation
+from servo_axis.core.identification.offline.frf import closed_loop_frf, remove_trend
+from servo_axis.core.identification.offline.models import rigid_modes, sampled_response, two_inertia
 
 T = 1e-3
 
@@ -209,7 +209,7 @@ def test_rigid_modes_fit_recovers_keys_from_a_noisy_response() -> None:
     noisy = p * (
         1 + rel * (rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size)) / math.sqrt(2)
     )
-    from servo_axis.core.sysid.frf import FrequencyResponse
+    from servo_axis.core.identification.offline.frf import FrequencyResponse
 
     frf = FrequencyResponse(f, noisy, np.ones(f.size), rel * np.abs(p), np.ones(f.size, complex), 4)
     fit = sysfit.fit_rigid_modes(frf, control_period_s=t)
@@ -234,7 +234,7 @@ def test_two_inertia_fit_recovers_keys() -> None:
     }
     f = np.arange(2.0, 451.0)
     both = sysfit.two_inertia_response(true, f, lead_m_per_rad=r, control_period_s=t)
-    from servo_axis.core.sysid.frf import FrequencyResponse
+    from servo_axis.core.identification.offline.frf import FrequencyResponse
 
     data = [
         FrequencyResponse(
@@ -261,7 +261,7 @@ def test_two_inertia_without_a_mode_in_the_band_is_refused() -> None:
     )
     f = np.arange(2.0, 60.0)
     resp = sampled_response(a, b, c, frequency_hz=f, control_period_s=t)
-    from servo_axis.core.sysid.frf import FrequencyResponse
+    from servo_axis.core.identification.offline.frf import FrequencyResponse
 
     data = [
         FrequencyResponse(

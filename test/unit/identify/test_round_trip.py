@@ -20,7 +20,7 @@ import pytest
 import yaml
 from numpy.testing import assert_allclose
 
-from servo_axis.core.sysid import fit as sysfit
+from servo_axis.core.identification.offline import fit as sysfit
 from servo_axis.identify.data import Record, from_simulation
 from servo_axis.identify.driver import IdentifyError, identify
 from servo_axis.identify.writer import scenario_of
@@ -342,7 +342,7 @@ def test_elastic_responses_and_validation(
     }
     f = ident.responses["encoder"].frequency_hz
     exact = sysfit.two_inertia_response(values, f, lead_m_per_rad=r, control_period_s=5e-4)
-    from servo_axis.core.sysid.models import axial_mode_hz
+    from servo_axis.core.identification.offline.models import axial_mode_hz
 
     mode = axial_mode_hz(
         motor_inertia_kgm2=values["motor_inertia_kgm2"],

@@ -4,7 +4,7 @@ Frequency domain (:func:`fit_response`): weighted nonlinear least squares on
 the log of the response, ``r = log(P_model / P_meas) / sigma_rel`` (real part:
 the magnitude error in neper, imaginary: the phase error in rad), at the
 lines whose coherence is at least ``min_coherence``; ``sigma_rel = std / |P|``
-from the spread of the periods (:mod:`servo_axis.core.sysid.frf`), with a
+from the spread of the periods (:mod:`servo_axis.core.identification.offline.frf`), with a
 floor so that no line dominates. The log makes a decade of magnitude weigh
 as much as another (a rigid body falls 40 dB/decade), and the per-line
 weight is the measurement's own uncertainty (the maximum-likelihood weight
@@ -42,8 +42,8 @@ from scipy.signal import butter, find_peaks, sosfiltfilt
 
 from servo_axis.core.errors import ConfigError, SignalError
 from servo_axis.core.friction.maxwell_slip import MaxwellSlip
-from servo_axis.core.sysid.frf import FrequencyResponse
-from servo_axis.core.sysid.models import rigid_modes, sampled_response, two_inertia
+from servo_axis.core.identification.offline.frf import FrequencyResponse
+from servo_axis.core.identification.offline.models import rigid_modes, sampled_response, two_inertia
 
 FloatArray = NDArray[np.float64]
 
@@ -219,7 +219,7 @@ def _mode_keys(i: int) -> tuple[str, str, str]:
 def rigid_modes_response(
     values: dict[str, float], frequency_hz: ArrayLike, *, modes: int, control_period_s: float
 ) -> NDArray[np.complex128]:
-    """The sampled response of :func:`~servo_axis.core.sysid.models.rigid_modes` from fit values."""
+    """The sampled response of :func:`~servo_axis.core.identification.offline.models.rigid_modes` from fit values."""
     listed = tuple(tuple(values[k] for k in _mode_keys(i)) for i in range(modes))
     a, b, c = rigid_modes(
         inertia_kgm2=values["inertia_kgm2"],

@@ -1,4 +1,4 @@
-"""System identification of a servo axis from recorded data (issue 32).
+"""The offline identification of a whole axis, from runs recorded for it (issue 32).
 
 ``excitation`` (the periodic test signals: multisine, chirp, PRBS),
 ``frf`` (the closed-loop frequency response with the excitation as
