@@ -33,7 +33,7 @@ import yaml
 
 from servo_axis.core.deformation import deformation_ratio
 from servo_axis.core.errors import SignalError
-from servo_axis.friction_id import estimate_friction_torque
+from servo_axis.identify.friction import estimate_friction_torque
 from servo_axis.params import resolve
 from servo_axis.params.scenario import load_scenario
 from servo_axis.simulate import simulate
@@ -193,7 +193,7 @@ def presliding_loop(
     """``F_0`` and the pre-sliding distance of a slow-reversal run (004 Fig. 4(b)).
 
     The friction is ``K_T u - J_n a_r - B_n v_r`` as for the GMS fit
-    (:func:`servo_axis.friction_id.estimate_friction_torque`) against the
+    (:func:`servo_axis.identify.friction.estimate_friction_torque`) against the
     reference at the table. The pre-sliding distance of a reversal is the
     reference's travel from it until the friction has covered ``fraction``
     of the swing from the old sliding level to the new one (004: "the

@@ -4,7 +4,7 @@ Paper 004 identifies its ball screw's friction by a slow 50 um, 0.05 Hz
 sinusoid and fits the conventional GMS model (Al-Bender et al. 2005) to
 the torque against the table position (its Fig. 4(b), dashed line). Here
 the run is a ``friction_id`` one: as for the friction table
-(:mod:`servo_axis.friction_id`), the friction is the torque the loop
+(:mod:`servo_axis.identify.friction`), the friction is the torque the loop
 supplies less the nominal inertial and viscous parts,
 ``K_T i - J_n a_r - D_n v_r``, against the reference at the table
 (``reference_rad * lead_m_per_rad``). The fit
@@ -29,7 +29,7 @@ import numpy as np
 
 from servo_axis.core.errors import SignalError
 from servo_axis.core.friction.gms_fitting import GmsFit, fit_gms
-from servo_axis.friction_id import measured_friction
+from servo_axis.identify.friction import measured_friction
 from servo_axis.params import resolve
 from servo_axis.params.resolve import node_values
 
@@ -74,7 +74,7 @@ def load_fit_data(run_dir: Path) -> RunFitData:
 
     The control period, the lead and the nominal model are the checked
     feedforward parameters of the run's scenario (their defaults where it
-    does not set them), as for :func:`servo_axis.friction_id.table_from_run`.
+    does not set them), as for :func:`servo_axis.identify.friction.table_from_run`.
     """
     measured = measured_friction(run_dir)
     return RunFitData(

@@ -25,7 +25,7 @@ from run_support import shm_left_behind, shm_mapped_by, shm_names
 from host_load import RunQueueWait, said
 from servo_axis.__main__ import main as cli
 from servo_axis.analysis.summary import run_series
-from servo_axis.friction_id import table_from_run
+from servo_axis.identify.friction import table_from_run
 from servo_axis.params.run_params import handshake_overrides, write_run_params
 from servo_axis.params.scenario import load_scenario
 from servo_axis.run.fastdds import clean_stale_shm

@@ -30,7 +30,7 @@ def add_parser(commands: Subparsers) -> None:
 
 def handle(args: argparse.Namespace) -> int:
     """Build the table and write it to ``--out``."""
-    from servo_axis.friction_id import table_from_run
+    from servo_axis.identify.friction import table_from_run
     from servo_axis.storage import save_friction_table
 
     table = table_from_run(

@@ -437,11 +437,11 @@ def _friction_data(
 ) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
     """Angle, direction and friction torque ``K_T i - J a_r - D v_r`` of each slow-reversal run.
 
-    The estimate of :func:`servo_axis.friction_id.estimate_friction_torque`
+    The estimate of :func:`servo_axis.identify.friction.estimate_friction_torque`
     (the friction identification of ``friction-table`` and ``gms-fit``),
     with the identified ``J, D`` instead of the run's nominal ones.
     """
-    from servo_axis.friction_id import estimate_friction_torque
+    from servo_axis.identify.friction import estimate_friction_torque
 
     angles, directions, torques = [], [], []
     for rec in runs:

@@ -1,4 +1,4 @@
-"""The analysis package and friction_id import neither rclpy nor a ROS message package."""
+"""The analysis package and identify.friction import neither rclpy nor a ROS message package."""
 
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ PROBE = """
 import importlib, json, pkgutil, sys
 import servo_axis.analysis as analysis
 names = [f"servo_axis.analysis.{m.name}" for m in pkgutil.iter_modules(analysis.__path__)]
-names.append("servo_axis.friction_id")
+names.append("servo_axis.identify.friction")
 for name in names:
     importlib.import_module(name)
 print(json.dumps({"imported": names, "modules": sorted(sys.modules)}))
@@ -39,7 +39,7 @@ def test_analysis_modules_do_not_import_ros() -> None:
         "servo_axis.analysis.summary",
         "servo_axis.analysis.text",
         "servo_axis.analysis.plots",
-        "servo_axis.friction_id",
+        "servo_axis.identify.friction",
     }
     modules = result["modules"]
     assert "rclpy" not in modules

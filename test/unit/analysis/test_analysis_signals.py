@@ -473,7 +473,7 @@ def test_summarise_axes_gives_the_contour_and_the_plots_draw(tmp_path: Path) -> 
 
 def test_friction_table_from_run_uses_the_scenario_nominal_model(tmp_path: Path) -> None:
     from servo_axis.core.feedforward.friction_table import build_friction_table
-    from servo_axis.friction_id import estimate_friction_torque, table_from_run
+    from servo_axis.identify.friction import estimate_friction_torque, table_from_run
 
     cdr = Cdr()
     n = 1000  # 2 s at 2 ms: two reversals of a 1 Hz, 20 um sine

@@ -22,7 +22,7 @@ and a moving-block bootstrap for the standard errors (the residuals of
 filtered signals are correlated, which the OLS formula ignores).
 
 Friction (:func:`fit_maxwell_slip`): the slow-reversal torque of
-:mod:`servo_axis.friction_id` against the motor angle, fitted by the
+:mod:`servo_axis.identify.friction` against the motor angle, fitted by the
 plant's own law (:class:`servo_axis.core.friction.maxwell_slip.MaxwellSlip`
 plus a Coulomb step at the velocity's reversal) run along the measured
 angle: the level, the pre-sliding width and the plain Coulomb level.
@@ -673,7 +673,7 @@ def fit_maxwell_slip(
     direction : sequence of array_like
         The motion's direction per sample (+1, -1; 0 at rest).
     torque_Nm : sequence of array_like
-        The friction torque estimate (:func:`servo_axis.friction_id.estimate_friction_torque`), N m.
+        The friction torque estimate (:func:`servo_axis.identify.friction.estimate_friction_torque`), N m.
     lead_m_per_rad : float
         ``R``, m/rad (the width is at the table).
     elements : int
