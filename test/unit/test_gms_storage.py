@@ -23,7 +23,7 @@ from servo_axis.core.friction.gms_fitting import fit_gms
 from servo_axis.core.friction.gms_model import simulate_gms
 from servo_axis.core.friction.gms_params import GmsParams
 from servo_axis.identify.friction import estimate_friction_torque
-from servo_axis.gms_fit import fit_from_run, load_fit_data, plant_fingerprint, plot_fit
+from servo_axis.identify.gms_fit import fit_from_run, load_fit_data, plant_fingerprint, plot_fit
 from servo_axis.params.scenario import load_scenario
 from servo_axis.recording.writer import BagWriter
 from servo_axis.storage import load_gms_parameters, save_gms_parameters

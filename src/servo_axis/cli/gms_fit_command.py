@@ -39,7 +39,7 @@ def add_parser(commands: Subparsers) -> None:
 def handle(args: argparse.Namespace) -> int:
     """Fit, write the parameter file (and the figure), print the elements."""
     from servo_axis.analysis.units import DISPLACEMENT
-    from servo_axis.gms_fit import fit_run_data, load_fit_data, plot_fit
+    from servo_axis.identify.gms_fit import fit_run_data, load_fit_data, plot_fit
     from servo_axis.storage import save_gms_parameters
 
     data = load_fit_data(Path(args.run_dir))

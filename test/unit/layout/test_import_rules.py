@@ -18,7 +18,7 @@ hidden inside a function is still a circle.
 * ``run`` imports none of the scenario's queries: it reads the plan (``params.run_plan``);
 * nothing outside ``servo_axis.plugins`` imports a module of it: the suite
   finds its own extensions by entry point, as it finds an outside package's;
-* ``simulate``, ``analysis``, ``gms_fit``, ``identify``, ``params``,
+* ``simulate``, ``analysis``, ``identify``, ``params``,
   ``plugins``, ``sweep``, ``wire.topics``, ``wire.layouts``, ``wire.checks``, ``wire.streams``,
   ``wire.cdr``, ``wire.sample_cdr``, ``wire.setpoint``, ``recording.reader``, ``nodes.lockstep`` and
   ``nodes.realtime`` reach no rclpy and no ROS message
@@ -330,7 +330,6 @@ def reach(name: str) -> set[str]:
 
 ROS_FREE = [
     "servo_axis.simulate",
-    "servo_axis.gms_fit",
     "servo_axis.storage",
     "servo_axis.wire.topics",
     "servo_axis.wire.layouts",

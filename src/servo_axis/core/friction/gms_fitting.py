@@ -1,6 +1,6 @@
 """The fit of a GMS model to a slow reversal (paper 004 Fig. 4(b)): :func:`fit_gms`.
 
-The ``gms-fit`` command (``servo_axis.gms_fit``) reads a run and calls it;
+The ``gms-fit`` command (``servo_axis.identify.gms_fit``) reads a run and calls it;
 here only the numbers. Nothing here reads a file, a clock or a logger.
 """
 
