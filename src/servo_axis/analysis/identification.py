@@ -1,7 +1,7 @@
 """The online parameter identification of a run (paper 003, topic ``identifier/estimates``).
 
 :func:`identification` summarises the validated estimates of a run's bag as
-an :class:`Identification` (``summary.json``'s ``identification`` block):
+an :class:`OnlineIdentification` (``summary.json``'s ``identification`` block):
 the final ``J, D, U, C`` against the plant's true values, their spread over
 the last period and how often each parameter was updated.
 """
@@ -53,7 +53,7 @@ class UpdateCounts(Serial):
 
 
 @dataclass(frozen=True)
-class Identification(Serial):
+class OnlineIdentification(Serial):
     """The online parameter identification of a run (paper 003, topic ``identifier/estimates``).
 
     Attributes
@@ -115,8 +115,8 @@ def summarise_estimates(
     period_s: float | None,
     repeated: int = 0,
     dropped: int = 0,
-) -> Identification:
-    """The :class:`Identification` of validated estimates (any order; one per step).
+) -> OnlineIdentification:
+    """The :class:`OnlineIdentification` of validated estimates (any order; one per step).
 
     Parameters
     ----------
@@ -151,7 +151,7 @@ def summarise_estimates(
         p2p = ParameterValues(*(float(v) for v in window.max(axis=0) - window.min(axis=0)))
         kappa = ordered[-1].kappa
     counts = [sum(1 for e in ordered if e.updated[i]) for i in range(4)]
-    return Identification(
+    return OnlineIdentification(
         estimates=len(ordered),
         repeated=repeated,
         dropped=dropped,
@@ -176,7 +176,7 @@ def true_parameters(plant_values: dict[str, Any]) -> ParameterValues:
 
 def identification(
     scenario: dict[str, Any], sig: Signals, *, period_s: float | None
-) -> Identification | None:
+) -> OnlineIdentification | None:
     """The identification of a run with an identifier whose estimates the bag has, else None.
 
     Estimates are the validated ones of :attr:`Signals.estimates`; the

@@ -40,7 +40,7 @@ from servo_axis.analysis.summary import (
     SUMMARY_FILE,
     AxesSummary,
     Deformation,
-    Identification,
+    OnlineIdentification,
     RunSeries,
     RunSummary,
     contour,
@@ -470,7 +470,7 @@ def plot_reversal_detail(
 
 def plot_identification(
     estimates: Sequence[EstimateData],
-    identification: Identification,
+    identification: OnlineIdentification,
     out_dir: Path,
     *,
     control_period_s: float,

@@ -17,7 +17,7 @@ keeps working):
 * :mod:`~servo_axis.analysis.learning_summary`: the ILC convergence measure
   of a trial law (:func:`ilc_convergence`, asked of the law's registry entry);
 * :mod:`~servo_axis.analysis.identification`: the online identification
-  (:class:`Identification`, paper 003);
+  (:class:`OnlineIdentification`, paper 003);
 * :mod:`~servo_axis.analysis.deformation_summary`: ``d_r`` at the stops of
   the reference (:class:`Deformation`, paper 004);
 * :mod:`~servo_axis.analysis.realtime`: a realtime run's deadline misses
@@ -69,7 +69,7 @@ from servo_axis.analysis.deformation_summary import (
 from servo_axis.analysis.health import RunHealth
 from servo_axis.analysis.identification import (
     IDENTIFIED,
-    Identification,
+    OnlineIdentification,
     ParameterValues,
     UpdateCounts,
     identification,
@@ -117,7 +117,7 @@ __all__ = [
     "DeformationStop",
     "DeformationWindow",
     "ErrorStats",
-    "Identification",
+    "OnlineIdentification",
     "ParameterValues",
     "Realtime",
     "ReferenceStop",
@@ -220,7 +220,7 @@ class RunSummary(Serial):
         ``rad`` for a plant whose table turns (its model's ``rotary``): every
         ``*_m`` attribute of ``tracking_error`` is then in rad of table angle,
         and its key in ``summary.json`` ``*_rad``; None (not written): m.
-    identification : Identification or None
+    identification : OnlineIdentification or None
         With an identifier whose estimates the bag holds (paper 003); None
         (not written) otherwise.
     deformation : Deformation or None
@@ -255,7 +255,7 @@ class RunSummary(Serial):
     period_name: str | None = field(default=None, metadata={"omit_none": True})
     ilc_convergence: dict[str, float] | None = field(default=None, metadata={"omit_none": True})
     error_unit: str | None = field(default=None, metadata={"omit_none": True})
-    identification: Identification | None = field(default=None, metadata={"omit_none": True})
+    identification: OnlineIdentification | None = field(default=None, metadata={"omit_none": True})
     deformation: Deformation | None = field(default=None, metadata={"omit_none": True})
     realtime: Realtime | None = field(default=None, metadata={"omit_none": True})
     startup_s: float | None = field(default=None, metadata={"omit_none": True})

@@ -21,7 +21,7 @@ from servo_axis.analysis.summary import (
     AxesSummary,
     Deformation,
     ErrorStats,
-    Identification,
+    OnlineIdentification,
     Realtime,
     RunSummary,
     cycle_errors,
@@ -66,7 +66,7 @@ def _cut(value: float) -> str:
 PARAMETER_ROWS: tuple[str, ...] = ("J (kg m^2)", "D (N m s/rad)", "U (N m)", "C (N m)")
 
 
-def identification_lines(ident: Identification) -> list[str]:
+def identification_lines(ident: OnlineIdentification) -> list[str]:
     """The identification of a run (003): counts, then a row per parameter."""
     steps = (
         f" (steps {ident.first_step} to {ident.last_step})" if ident.first_step is not None else ""

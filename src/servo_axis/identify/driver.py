@@ -2,7 +2,7 @@
 
 :func:`identify` takes the excitation runs (the ``measure_frf_*`` scenarios),
 optionally a slow-reversal run (friction) and a held-out run (validation),
-and returns an :class:`Identification`: the plant section to write (the
+and returns an :class:`OfflineIdentification`: the plant section to write (the
 model's own key names), each key's value, standard error and where it came
 from, what could not be identified and why, the measured and fitted
 responses and the validation figures. Nothing here imports rclpy.
@@ -90,8 +90,12 @@ class BodeFit:
 
 
 @dataclass
-class Identification:
-    """What :func:`identify` found."""
+class OfflineIdentification:
+    """What :func:`identify` found: the keys of a plant model fitted offline, from an axis's runs.
+
+    Not the summary of paper 003's online identifier during a run
+    (:class:`servo_axis.analysis.identification.OnlineIdentification`).
+    """
 
     model: str
     shared: dict[str, Any]
@@ -255,7 +259,7 @@ def _template(record: Record, model: str) -> dict[str, Any]:
 
 
 def _ball_screw(
-    record: Record, exc: Excitation, ident: Identification, template: dict[str, Any]
+    record: Record, exc: Excitation, ident: OfflineIdentification, template: dict[str, Any]
 ) -> None:
     t = exc.control_period_s
     frf = responses(record, exc, ("encoder",))["encoder"]
@@ -325,7 +329,7 @@ def _ball_screw(
 
 
 def _elastic(
-    record: Record, exc: Excitation, ident: Identification, template: dict[str, Any]
+    record: Record, exc: Excitation, ident: OfflineIdentification, template: dict[str, Any]
 ) -> None:
     _require_scale(record, "elastic_ball_screw")
     t = exc.control_period_s
@@ -384,7 +388,7 @@ def _elastic(
 
 
 def _tilting(
-    record: Record, exc: Excitation, ident: Identification, template: dict[str, Any]
+    record: Record, exc: Excitation, ident: OfflineIdentification, template: dict[str, Any]
 ) -> None:
     t = exc.control_period_s
     fit = sysfit.fit_tilting_table(
@@ -464,7 +468,7 @@ def _friction_data(
 
 
 def _friction_curve(
-    ident: Identification,
+    ident: OfflineIdentification,
     runs: list[Record],
     angles: list[np.ndarray],
     directions: list[np.ndarray],
@@ -486,7 +490,7 @@ def _friction_curve(
 
 
 def _friction_ball_screw(
-    runs: list[Record], ident: Identification, template: dict[str, Any]
+    runs: list[Record], ident: OfflineIdentification, template: dict[str, Any]
 ) -> None:
     r = runs[0].lead_m_per_rad
     angles, directions, torques = _friction_data(
@@ -520,7 +524,9 @@ def _friction_ball_screw(
     _friction_curve(ident, runs, angles, directions, torques, fit, elements)
 
 
-def _friction_elastic(runs: list[Record], ident: Identification, template: dict[str, Any]) -> None:
+def _friction_elastic(
+    runs: list[Record], ident: OfflineIdentification, template: dict[str, Any]
+) -> None:
     """Nut and guide friction: the total from the motor torque, the guide's share from the deformation."""
     for rec in runs:
         _require_scale(rec, "elastic_ball_screw")
@@ -610,7 +616,7 @@ def identify(
     *,
     friction: list[Record] | None = None,
     validation: Record | None = None,
-) -> Identification:
+) -> OfflineIdentification:
     """Identify ``model``'s keys from the excitation run, the friction run and validate.
 
     Raises IdentifyError (one line) for input that cannot be used.
@@ -626,7 +632,9 @@ def identify(
         for k, v in record.plant_values().items()
         if k in ("control_period_s", "lead_m_per_rad", "axis")
     }
-    ident = Identification(model=model, shared=shared, plant=dict(template), keys=[], notes=[])
+    ident = OfflineIdentification(
+        model=model, shared=shared, plant=dict(template), keys=[], notes=[]
+    )
     ident.plant["model"] = model
     try:
         if model == "ball_screw":
@@ -671,7 +679,7 @@ def identify(
     return ident
 
 
-def fitted_scenario(ident: Identification, base: Record) -> dict[str, Any]:
+def fitted_scenario(ident: OfflineIdentification, base: Record) -> dict[str, Any]:
     """``base``'s scenario with its plant section replaced by the identified one."""
     import copy
 
@@ -706,7 +714,7 @@ def _set(tree: dict[str, Any], dotted: str, value: Any) -> None:
     tree[parts[-1]] = value
 
 
-def validate(ident: Identification, held_out: Record) -> Validation:
+def validate(ident: OfflineIdentification, held_out: Record) -> Validation:
     """Run ``held_out``'s scenario on the identified plant (plain calls) and compare."""
     import tempfile
 

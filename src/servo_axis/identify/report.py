@@ -24,7 +24,7 @@ from servo_axis.analysis.units import (
     QUANTITIES,
     position_error,
 )
-from servo_axis.identify.driver import BodeFit, Identification, well_measured
+from servo_axis.identify.driver import BodeFit, OfflineIdentification, well_measured
 
 #: What each sensor's response is, torque to ...: its magnitude in dB is re 1 of this unit.
 RESPONSE_UNITS = {"encoder": "rad/(N m)", "scale": "m/(N m)"}
@@ -33,7 +33,7 @@ RESPONSE_UNITS = {"encoder": "rad/(N m)", "scale": "m/(N m)"}
 DB_PER_RELATIVE = 20.0 / math.log(10.0)
 
 
-def table(ident: Identification) -> str:
+def table(ident: OfflineIdentification) -> str:
     """The parameter table as text (one row per key, in the key's own unit)."""
     rows = [f"{'key':<32} {'value':>14} {'std':>11}  source"]
     for k in ident.keys:
@@ -52,7 +52,7 @@ def bode_claim(fit: BodeFit) -> str:
     )
 
 
-def summary_text(ident: Identification) -> str:
+def summary_text(ident: OfflineIdentification) -> str:
     """Table, Bode errors, validation and notes, as the command prints them."""
     out = [table(ident), ""]
     for sensor, fit in ident.bode.items():
@@ -72,7 +72,7 @@ def summary_text(ident: Identification) -> str:
     return "\n".join(out)
 
 
-def bode_figure(ident: Identification, sensor: str) -> Any:
+def bode_figure(ident: OfflineIdentification, sensor: str) -> Any:
     """The Bode figure of one sensor's response (a matplotlib figure; the caller closes it).
 
     Five panels sharing the frequency axis (Hz, log): the magnitude (dB)
@@ -172,7 +172,7 @@ def bode_figure(ident: Identification, sensor: str) -> Any:
     return fig
 
 
-def write_report(folder: Path, ident: Identification) -> list[Path]:
+def write_report(folder: Path, ident: OfflineIdentification) -> list[Path]:
     """Figures and ``report.md`` into ``folder`` (made if missing); the files written."""
     import matplotlib
 

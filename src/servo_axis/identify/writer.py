@@ -9,10 +9,10 @@ from typing import Any
 import yaml
 
 from servo_axis.identify.data import Record
-from servo_axis.identify.driver import Identification, absolute_files, fitted_scenario
+from servo_axis.identify.driver import OfflineIdentification, absolute_files, fitted_scenario
 
 
-def scenario_of(ident: Identification, base: Record, *, name: str) -> dict[str, Any]:
+def scenario_of(ident: OfflineIdentification, base: Record, *, name: str) -> dict[str, Any]:
     """The scenario: ``base``'s (the held-out run's, else the excitation run's) with the
     identified plant section, the excitation off and ``scenario.name`` set.
 
@@ -35,7 +35,7 @@ def scenario_of(ident: Identification, base: Record, *, name: str) -> dict[str, 
     return scenario
 
 
-def header(ident: Identification, command: str) -> str:
+def header(ident: OfflineIdentification, command: str) -> str:
     """The comment block at the top of the file: the command, each key with its error, the notes."""
     lines = [
         f"# {ident.model} identified by python -m servo_axis identify (docs/how-to/identify-your-axis.md):",
@@ -55,7 +55,7 @@ def header(ident: Identification, command: str) -> str:
 
 
 def write_scenario(
-    path: Path, ident: Identification, base: Record, *, command: str
+    path: Path, ident: OfflineIdentification, base: Record, *, command: str
 ) -> dict[str, Any]:
     """Write the scenario file (header and YAML) and return the scenario."""
     scenario = scenario_of(ident, base, name=Path(path).stem)

@@ -33,7 +33,7 @@ from servo_axis.analysis.summary import (
     DeformationStop,
     DeformationWindow,
     ErrorStats,
-    Identification,
+    OnlineIdentification,
     ParameterValues,
     Realtime,
     ReferenceStop,
@@ -52,7 +52,7 @@ SHIPPED = sorted(DATA.glob("*.json"))
 #: Every dataclass of ``summary.json``: the round trip must meet each one.
 SUMMARY_CLASSES = {
     AxesSummary, ContourSummary, ContourCycle, CycleStats, Deformation, DeformationStop,
-    DeformationWindow, ErrorStats, FaultRecord, Identification, NodeDeath, ParameterValues,
+    DeformationWindow, ErrorStats, FaultRecord, OnlineIdentification, NodeDeath, ParameterValues,
     Realtime, ReferenceStop, RunHealth, RunSummary, SampleStats, TrackingError, UpdateCounts,
 }  # fmt: skip
 
@@ -341,7 +341,7 @@ def test_summary_false_fields_are_neither_written_nor_read() -> None:
 
 def test_identification_values_come_back_as_numbers_not_strings() -> None:
     ident = shipped("dlpid_tilt_lpf2_short").identification
-    assert isinstance(ident, Identification)
+    assert isinstance(ident, OnlineIdentification)
     assert isinstance(ident.final, ParameterValues) and isinstance(ident.updates, UpdateCounts)
     assert all(isinstance(v, float) for v in ident.final.values())
     assert isinstance(ident.updates.inertia_kgm2, int)
