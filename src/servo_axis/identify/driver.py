@@ -19,6 +19,7 @@ import numpy as np
 
 from servo_axis.core.errors import ConfigError
 from servo_axis.core.identification.offline import fit as sysfit
+from servo_axis.core.identification.offline import friction_fit
 from servo_axis.core.identification.offline.excitation import Excitation
 from servo_axis.core.identification.offline.frf import FrequencyResponse, closed_loop_frf
 from servo_axis.identify import MODELS
@@ -477,7 +478,7 @@ def _friction_curve(
     elements: int,
 ) -> None:
     r = runs[0].lead_m_per_rad
-    model = sysfit.maxwell_slip_torque(
+    model = friction_fit.maxwell_slip_torque(
         angles[0],
         directions[0],
         rolling_coulomb_Nm=fit.value("rolling_coulomb_Nm"),
@@ -497,7 +498,7 @@ def _friction_ball_screw(
         runs, ident.plant["inertia_kgm2"], ident.plant["damping_Nms_per_rad"]
     )
     elements = int(template["friction.elements"])
-    fit = sysfit.fit_maxwell_slip(
+    fit = friction_fit.fit_maxwell_slip(
         angle_rad=angles,
         direction=directions,
         torque_Nm=torques,
@@ -556,7 +557,7 @@ def _friction_elastic(
         )
     guide = max(0.5 * float(np.mean(up) - np.mean(down)), 0.0)
     guide_std = 0.5 * math.sqrt(np.var(up) / up.size + np.var(down) / down.size)
-    fit = sysfit.fit_nut_and_guide(
+    fit = friction_fit.fit_nut_and_guide(
         angle_rad=angles,
         table_m=[rec.scale_m for rec in runs],
         torque_Nm=torques,
@@ -584,7 +585,7 @@ def _friction_elastic(
         "together, so one pre-sliding width is fitted for both (the nut's set on the motor "
         "angle, the guide's on the table position)"
     )
-    model = sysfit.maxwell_slip_torque(
+    model = friction_fit.maxwell_slip_torque(
         angles[0],
         np.zeros(angles[0].size),
         rolling_coulomb_Nm=nut,
@@ -592,7 +593,7 @@ def _friction_elastic(
         coulomb_Nm=0.0,
         lead_m_per_rad=r,
         elements=elements,
-    ) + sysfit.maxwell_slip_torque(
+    ) + friction_fit.maxwell_slip_torque(
         runs[0].scale_m / r,
         np.zeros(angles[0].size),
         rolling_coulomb_Nm=r * guide,

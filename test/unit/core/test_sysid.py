@@ -12,6 +12,7 @@ from scipy.signal import cont2discrete, dlsim
 from servo_axis.core.errors import ConfigError
 from servo_axis.core.friction.maxwell_slip import MaxwellSlip
 from servo_axis.core.identification.offline import fit as sysfit
+from servo_axis.core.identification.offline import friction_fit
 from servo_axis.core.identification.offline.excitation import Excitation
 from servo_axis.core.identification.offline.frf import closed_loop_frf, remove_trend
 from servo_axis.core.identification.offline.models import rigid_modes, sampled_response, two_inertia
@@ -283,7 +284,7 @@ def test_maxwell_slip_fit_recovers_level_and_width() -> None:
     ms = MaxwellSlip(coulomb_Nm=2.0, width_rad=9e-6 / r, elements=8)
     torque = np.array([ms.move(d) for d in np.diff(angle, prepend=angle[0])]) + 0.3 * direction
     torque = torque + 0.01 * np.random.default_rng(6).standard_normal(k.size)
-    fit = sysfit.fit_maxwell_slip(
+    fit = friction_fit.fit_maxwell_slip(
         angle_rad=[angle], direction=[direction], torque_Nm=[torque], lead_m_per_rad=r, elements=8
     )
     assert_allclose(fit.values, [2.0, 9e-6, 0.3], rtol=0.01)

@@ -5,7 +5,8 @@
 instrument, its coherence and its uncertainty per line), ``models`` (the
 frequency responses of the shipped plant models' linear parts, sampled with
 a zero-order hold), ``fit`` (weighted least squares on the models' own keys
-with standard errors; the tilting table's time-domain fit; the friction
-fits). numpy and scipy only; the bag reading, the fit driver and the
-scenario writing are in :mod:`servo_axis.identify`.
+with standard errors; the tilting table's time-domain fit),
+``friction_fit`` (the friction of a slow reversal by the plants' own laws).
+numpy and scipy only; the bag reading, the fit driver and the scenario
+writing are in :mod:`servo_axis.identify`.
 """
