@@ -14,7 +14,7 @@ class Realtime(Serial):
 
     A realtime run is never deterministic: which commands miss their
     deadline depends on the host. These figures say how far it was from
-    the lockstep result (:mod:`servo_axis.core.deadlines`).
+    the lockstep result (:mod:`servo_axis.realtime.deadlines`).
 
     Attributes
     ----------
@@ -78,7 +78,7 @@ class Realtime(Serial):
     measured_from : str or None
         Where the figures come from when the plant is not the suite's (an
         outside plant: the feedback's arrival and send times,
-        :func:`servo_axis.core.deadlines.loop_from_times`); None: the suite's
+        :func:`servo_axis.realtime.deadlines.loop_from_times`); None: the suite's
         plant's clock.
     """
 

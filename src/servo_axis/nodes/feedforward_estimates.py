@@ -25,7 +25,7 @@ held back past its sample's deadline makes the feedback hold the last one
 while the axis moves on (measured: ``dlpid_tilt_lpf2``, 4 s at 0.4 ms, the
 identifier some 4 ms late at step ~8,650: 0.43 rad of tracking error, 165
 times lockstep's RMS). So when the plant's clock (estimated from
-``plant/status``, :func:`~servo_axis.core.deadlines.start_estimate_ns`) is
+``plant/status``, :func:`~servo_axis.realtime.deadlines.start_estimate_ns`) is
 :data:`ESTIMATE_LEAD_S` before the next estimate's ``applies_from_step`` and
 the estimate is not in, the references of one more estimate period go out
 with the model in force, and the estimate applies from the first reference
@@ -42,7 +42,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from servo_axis.core.deadlines import start_estimate_ns
+from servo_axis.realtime.deadlines import start_estimate_ns
 from servo_axis.core.errors import ServoAxisError, SignalError
 from servo_axis.core.feedforward.generator import FeedforwardGenerator
 from servo_axis.nodes.base import ServoNode

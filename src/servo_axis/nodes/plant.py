@@ -41,7 +41,7 @@ drive holds its last set-point (:class:`~servo_axis.nodes.realtime.HeldSetPoint`
 a command that arrives after its deadline is not applied for its own step
 but replaces the held value (it is newer than what is held), and the miss
 was counted at the tick. A tick that wakes more than a period late runs at
-once with those that are due (:mod:`servo_axis.core.deadlines`). The
+once with those that are due (:mod:`servo_axis.realtime.deadlines`). The
 command arrives in the executor's thread: the state both threads touch is
 guarded by a lock. The plant's report (``realtime``) holds the ticks, the
 misses and the lateness of ticks and commands (p50, p99, max;

@@ -1,6 +1,6 @@
 """What a node does in realtime mode: its scheduling, the plant's clock, deadlines kept.
 
-Nothing here imports rclpy (the numbers are :mod:`servo_axis.core.deadlines`'):
+Nothing here imports rclpy (the numbers are :mod:`servo_axis.realtime.deadlines`'):
 
 * :class:`RealtimeScheduling`: which threads of a node get a realtime
   priority, and when (:func:`realtime_priority`, :func:`fifo_this_thread`).
@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from servo_axis.core import deadlines
+from servo_axis.realtime import deadlines
 from servo_axis.core.errors import SignalError
 
 #: The clock thread sleeps until this long before a deadline, then spins to
@@ -419,7 +419,7 @@ class ClockRecord:
     Tick ``j`` is due at ``d_j = start + j T``; the input that answers state
     ``k`` (the plant's command ``k``) is late by its arrival minus ``d_k``,
     so that later than one period is a missed deadline
-    (:mod:`servo_axis.core.deadlines`).
+    (:mod:`servo_axis.realtime.deadlines`).
 
     Parameters
     ----------
@@ -492,7 +492,7 @@ class LoopTimes:
     """When each state came and each command went, at a feedback whose plant is outside.
 
     Such a plant (a drive, a user's node) reports no clock, so the feedback
-    measures the loop (:func:`~servo_axis.core.deadlines.loop_from_times`):
+    measures the loop (:func:`~servo_axis.realtime.deadlines.loop_from_times`):
     misses, lateness, states never answered; the summary's ``realtime``
     block is made of it.
 
@@ -667,12 +667,12 @@ class CatchUp:
 
     Every state goes through the loop, in order, but a state whose answer
     could no longer reach the plant in time to be used
-    (:func:`~servo_axis.core.deadlines.answer_useful`: after a stall, while
+    (:func:`~servo_axis.realtime.deadlines.answer_useful`: after a stall, while
     newer states wait in the queue) is not answered, so that the node
     catches up with the clock instead of answering a backlog; it still
     answers at least every ``gap`` steps, and always ``last_step``. The
     deadlines are those of the plant's clock as the states' arrivals show
-    it (:func:`~servo_axis.core.deadlines.start_estimate_ns`: never before
+    it (:func:`~servo_axis.realtime.deadlines.start_estimate_ns`: never before
     its start, so a useful answer is never skipped).
 
     Parameters

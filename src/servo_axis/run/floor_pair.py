@@ -11,7 +11,7 @@ at the absolute deadline ``d_k = start + k T`` of the monotonic clock
 (sleeping until :data:`~servo_axis.nodes.realtime.SPIN_NS` before it, then
 spinning to it, as the plant node's clock does) and waits for its echo
 until ``d_{k+1}``: an echo later than the next tick is a deadline miss, the
-rule of the plant node (:func:`servo_axis.core.deadlines.misses_of`). It
+rule of the plant node (:func:`servo_axis.realtime.deadlines.misses_of`). It
 writes its result, one JSON object, to ``--result``.
 
 Both end by themselves: the plant after its ticks (or when no controller
@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from servo_axis.core import deadlines
+from servo_axis.realtime import deadlines
 from servo_axis.nodes.realtime import (
     SPIN_FIFO_NS,
     SPIN_NS,

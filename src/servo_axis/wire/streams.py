@@ -22,7 +22,7 @@ import time
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any, TypeVar
 
-from servo_axis.core import deadlines
+from servo_axis.realtime import deadlines
 from servo_axis.core.errors import SignalError
 from servo_axis.wire import cdr, layouts
 from servo_axis.wire.layouts import ArrayLayout, JointLayout
@@ -54,7 +54,7 @@ class StreamGate:
         ahead than ``window`` is then taken too when it is plausible by the
         wall clock: not beyond where the stream's clock is now, as the
         arrivals of the steps taken show its start
-        (:func:`~servo_axis.core.deadlines.start_estimate_ns`: never before
+        (:func:`~servo_axis.realtime.deadlines.start_estimate_ns`: never before
         it), plus ``window`` samples. A node that fell behind (a stall, a
         reader's history that overflowed) takes the newest sample and goes
         on, while a stranger's ``step + 1000`` or ``1e9 s`` stamp is still

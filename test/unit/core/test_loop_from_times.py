@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from servo_axis.core.deadlines import loop_from_times
+from servo_axis.realtime.deadlines import loop_from_times
 from servo_axis.nodes.realtime import MEASURED_AT_FEEDBACK, LoopTimes
 
 T = 1_000_000  # ns

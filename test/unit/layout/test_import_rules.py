@@ -8,6 +8,8 @@ hidden inside a function is still a circle.
   holds: ``analysis`` -> ``friction_id`` -> ``analysis`` was one);
 * no node module imports a role's node module (the composed container aside),
   and a role's parts (``nodes/<role>_*.py``) are imported by that role only;
+* ``servo_axis.realtime`` imports nothing of the project but ``core``, and
+  nothing but numpy and the standard library;
 * ``servo_axis.core`` imports nothing of the project outside ``core``, and
   nothing but numpy, scipy, numba (only ``core.kernels``, which compiles the
   kernels) and the standard library;
@@ -279,6 +281,24 @@ def test_core_imports_only_core_numpy_scipy_numba_and_the_standard_library() -> 
                 )
 
 
+def test_realtime_imports_only_core_numpy_and_the_standard_library() -> None:
+    # Realtime mode's parts are importable wherever the core is: the nodes, the
+    # runner and the wire's stream gates use them, and they use none of those.
+    names = sorted(m for m in MODULES if m.startswith("servo_axis.realtime"))
+    assert "servo_axis.realtime.deadlines" in names
+    for name in names:
+        for imported in imports_of(name):
+            top = imported.split(".")[0]
+            if top == PACKAGE:
+                assert imported.startswith(("servo_axis.core", "servo_axis.realtime")), (
+                    f"{name} imports {imported}"
+                )
+            else:
+                assert top == "numpy" or top in sys.stdlib_module_names, (
+                    f"{name} imports {imported}"
+                )
+
+
 def test_a_kernel_module_imports_only_the_compiler() -> None:
     # numba checks a cached kernel against its own file only: a kernel that
     # called a kernel of another file would keep that kernel's old code after
@@ -351,6 +371,7 @@ ROS_FREE = [
                 "servo_axis.identify",
                 "servo_axis.params",
                 "servo_axis.plugins",
+                "servo_axis.realtime",
                 "servo_axis.sweep",
             )
         )

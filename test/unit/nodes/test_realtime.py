@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from host_load import RunQueueWait, said
-from servo_axis.core import deadlines
+from servo_axis.realtime import deadlines
 from servo_axis.core.errors import SignalError
 from servo_axis.nodes import realtime
 from servo_axis.nodes.realtime import (

@@ -1,4 +1,4 @@
-"""The realtime clock's scheduling arithmetic (servo_axis.core.deadlines), without ROS."""
+"""The realtime clock's scheduling arithmetic (servo_axis.realtime.deadlines), without ROS."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 from numpy.testing import assert_allclose
 
-from servo_axis.core import deadlines as dl
+from servo_axis.realtime import deadlines as dl
 
 P = 1_000_000  # 1 ms in ns
 START = 5_000_000_000
