@@ -25,7 +25,7 @@ import yaml
 
 from servo_axis.nodes.feedback import ANSWER_GAP
 from servo_axis.nodes.plant import LOOP_OPEN_S
-from servo_axis.nodes.realtime import thread_policies
+from servo_axis.realtime.clock import thread_policies
 from servo_axis.params.scenario import load_scenario
 from servo_axis.recording.deserialize import read_messages
 from servo_axis.run.processes import pids_of
@@ -55,7 +55,7 @@ def start_run(scenario: Path, run_dir: Path, domain: int) -> subprocess.Popen[st
 
 
 def clock_running(pid: int) -> bool:
-    """The plant's clock thread exists (it is named, :class:`~servo_axis.nodes.realtime.ClockThread`)."""
+    """The plant's clock thread exists (it is named, :class:`~servo_axis.realtime.clock.ClockThread`)."""
     return any("plant-clock" in names for names in thread_policies(pid).values())
 
 

@@ -56,13 +56,13 @@ class Realtime(Serial):
     clock_slips, slipped_periods : int or None
         Times the plant's clock woke so late that it re-based its deadlines
         rather than run the missed ticks back to back, and the periods it
-        skipped so (:class:`~servo_axis.nodes.realtime.ClockThread`).
+        skipped so (:class:`~servo_axis.realtime.clock.ClockThread`).
     states_skipped : int or None
         States the feedback never took: its stream jumped after it fell
         behind (:class:`~servo_axis.wire.streams.StreamGate`).
     answers_skipped : int or None
         States the feedback took but did not answer, to catch up with the
-        clock (:class:`~servo_axis.nodes.realtime.CatchUp`).
+        clock (:class:`~servo_axis.realtime.clock.CatchUp`).
     identifier_samples_held : int or None
         Steps the identifier ran with the last angle or torque held (a
         sample that never came).

@@ -26,7 +26,7 @@
     matches it, each message decoded and gated before the role sees it;
     whether a peer lives;
   - :attr:`~ServoNode.realtime`
-    (:class:`~servo_axis.nodes.realtime.RealtimeScheduling`): the realtime
+    (:class:`~servo_axis.realtime.clock.RealtimeScheduling`): the realtime
     priority a role asks for with :attr:`~ServoNode.realtime_below`.
 
 * Strangers: twice a second (:data:`~servo_axis.nodes.graph.STRANGER_CHECK_S`)
@@ -58,7 +58,7 @@ from servo_axis.nodes.diagnostics import (
 from servo_axis.nodes.graph import STRANGER_CHECK_S, GraphWatch
 from servo_axis.nodes.inputs import Inputs
 from servo_axis.nodes.parameters import descriptor
-from servo_axis.nodes.realtime import RealtimeScheduling, realtime_priority
+from servo_axis.realtime.clock import RealtimeScheduling, realtime_priority
 from servo_axis.nodes.reporting import Reporter
 from servo_axis.nodes.runtime import (  # noqa: F401  (the table's QoS and types, imported from here)
     MESSAGE_CLASSES,
@@ -85,7 +85,7 @@ class ServoNode(Node):
     """
 
     #: In realtime mode, how far below ``thread_priority`` the role's threads
-    #: run (:func:`~servo_axis.nodes.realtime.realtime_priority`); None: the
+    #: run (:func:`~servo_axis.realtime.clock.realtime_priority`); None: the
     #: default scheduler always.
     realtime_below: int | None = None
 

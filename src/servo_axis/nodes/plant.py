@@ -33,11 +33,11 @@ it switch flow control off (a fallback).
 Realtime: the plant publishes state 0 and, once its command is in (the loop
 has closed once, every node has its inputs: a clock started earlier counts
 misses of a loop still starting up), a thread of the plant's own
-(:class:`~servo_axis.nodes.realtime.ClockThread`) steps at absolute
+(:class:`~servo_axis.realtime.clock.ClockThread`) steps at absolute
 deadlines ``d_j = start + j T_u`` of the monotonic clock (``start``: the
 arrival of command 0). A command that has not arrived by its tick's
 deadline is a deadline miss and the newest current received is held, as a
-drive holds its last set-point (:class:`~servo_axis.nodes.realtime.HeldSetPoint`):
+drive holds its last set-point (:class:`~servo_axis.realtime.clock.HeldSetPoint`):
 a command that arrives after its deadline is not applied for its own step
 but replaces the held value (it is newer than what is held), and the miss
 was counted at the tick. A tick that wakes more than a period late runs at
@@ -45,14 +45,14 @@ once with those that are due (:mod:`servo_axis.realtime.deadlines`). The
 command arrives in the executor's thread: the state both threads touch is
 guarded by a lock. The plant's report (``realtime``) holds the ticks, the
 misses and the lateness of ticks and commands (p50, p99, max;
-:class:`~servo_axis.nodes.realtime.ClockRecord`).
+:class:`~servo_axis.realtime.clock.ClockRecord`).
 With ``command_source: drive_setpoint`` (realtime only) the plant is a
 drive behind ros2_control's topic-based hardware interface: a command is a
 set-point of no step, the newest one whatever its stamp
 (:func:`~servo_axis.wire.setpoint.setpoint_torque`), held until the next;
 NaN (no command yet) is counted and never applied; the clock starts with
 the first finite one; misses are judged against the commander's own period
-(:class:`~servo_axis.nodes.realtime.DriveSetPoint`).
+(:class:`~servo_axis.realtime.clock.DriveSetPoint`).
 
 Run: ``python -m servo_axis.nodes.plant --ros-args --params-file config/<scenario>.yaml``
 """
@@ -70,7 +70,7 @@ from servo_axis.core.errors import ParameterFileError, SignalError
 from servo_axis.core.models.base import Plant, PlantOutput
 from servo_axis.nodes.base import ServoNode
 from servo_axis.nodes.lockstep import FlowControl, PeerWatch
-from servo_axis.nodes.realtime import (
+from servo_axis.realtime.clock import (
     ClockRecord,
     ClockThread,
     DriveSetPoint,
@@ -94,7 +94,7 @@ FINISH_TIMEOUT_S = 10.0
 ZERO_STEPS_PER_LOOK = 100
 #: Realtime: wall time without a tick of the clock after which the run ends
 #: with the fault ``clock_stalled``, s (a clock stopped longer than a few
-#: hundred ms slips and goes on: :data:`~servo_axis.nodes.realtime.SLIP_PERIODS`).
+#: hundred ms slips and goes on: :data:`~servo_axis.realtime.clock.SLIP_PERIODS`).
 CLOCK_STALL_S = 2.0
 #: Realtime: wall time without any command after which the run ends with
 #: the fault ``loop_open``, s: far beyond a 0.3 s stall of the feedback,

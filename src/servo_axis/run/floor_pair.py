@@ -8,7 +8,7 @@ least any pair of rclpy nodes on this host, with this middleware, misses.
 The controller echoes each ``sensor_msgs/JointState`` it takes on
 ``floor/state`` back on ``floor/command``. The plant publishes state ``k``
 at the absolute deadline ``d_k = start + k T`` of the monotonic clock
-(sleeping until :data:`~servo_axis.nodes.realtime.SPIN_NS` before it, then
+(sleeping until :data:`~servo_axis.realtime.clock.SPIN_NS` before it, then
 spinning to it, as the plant node's clock does) and waits for its echo
 until ``d_{k+1}``: an echo later than the next tick is a deadline miss, the
 rule of the plant node (:func:`servo_axis.realtime.deadlines.misses_of`). It
@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from servo_axis.realtime import deadlines
-from servo_axis.nodes.realtime import (
+from servo_axis.realtime.clock import (
     SPIN_FIFO_NS,
     SPIN_NS,
     favour_middleware_threads,
@@ -83,7 +83,7 @@ def _percentiles(values_us: np.ndarray, qs: tuple[float, ...]) -> dict[str, floa
 def scheduling(priority: int) -> dict[str, object]:
     """The calling thread under ``SCHED_FIFO`` at ``priority`` (0: none), the middleware's
     receive threads just below it, as a realtime node's (``thread_priority``,
-    ``realtime.middleware_priority``: :class:`~servo_axis.nodes.realtime.RealtimeScheduling`)."""
+    ``realtime.middleware_priority``: :class:`~servo_axis.realtime.clock.RealtimeScheduling`)."""
     got = fifo_this_thread(priority)
     if got["policy"] == "fifo":
         receive = max(0, priority - 1)

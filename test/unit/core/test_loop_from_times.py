@@ -7,7 +7,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from servo_axis.realtime.deadlines import loop_from_times
-from servo_axis.nodes.realtime import MEASURED_AT_FEEDBACK, LoopTimes
+from servo_axis.realtime.clock import MEASURED_AT_FEEDBACK, LoopTimes
 
 T = 1_000_000  # ns
 T0 = 5_000_000_000  # a monotonic clock's reading

@@ -20,11 +20,11 @@ hidden inside a function is still a circle.
 * ``run`` imports none of the scenario's queries: it reads the plan (``params.run_plan``);
 * nothing outside ``servo_axis.plugins`` imports a module of it: the suite
   finds its own extensions by entry point, as it finds an outside package's;
-* ``simulate``, ``analysis``, ``identify``, ``params``,
-  ``plugins``, ``sweep``, ``wire.topics``, ``wire.layouts``, ``wire.checks``, ``wire.streams``,
-  ``wire.cdr``, ``wire.sample_cdr``, ``wire.setpoint``, ``recording.reader``, ``nodes.lockstep`` and
-  ``nodes.realtime`` reach no rclpy and no ROS message
-  package, directly or through other modules of the project.
+* ``simulate``, ``analysis``, ``identify``, ``params``, ``plugins``, ``realtime``,
+  ``sweep``, ``wire.topics``, ``wire.layouts``, ``wire.checks``, ``wire.streams``,
+  ``wire.cdr``, ``wire.sample_cdr``, ``wire.setpoint``, ``recording.reader`` and
+  ``nodes.lockstep`` reach no rclpy and no ROS message package, directly or through
+  other modules of the project.
 """
 
 from __future__ import annotations
@@ -361,7 +361,6 @@ ROS_FREE = [
     "servo_axis.wire.joint_states",
     "servo_axis.recording.reader",
     "servo_axis.nodes.lockstep",
-    "servo_axis.nodes.realtime",
     *sorted(
         m
         for m in MODULES

@@ -14,8 +14,8 @@ import pytest
 from host_load import RunQueueWait, said
 from servo_axis.realtime import deadlines
 from servo_axis.core.errors import SignalError
-from servo_axis.nodes import realtime
-from servo_axis.nodes.realtime import (
+from servo_axis.realtime import clock as realtime
+from servo_axis.realtime.clock import (
     RECEIVE_THREAD,
     SLIP_MIN_NS,
     SLIP_PERIODS,
