@@ -25,8 +25,8 @@ import yaml
 
 from servo_axis.nodes.feedback import ANSWER_GAP
 from servo_axis.nodes.plant import LOOP_OPEN_S
-from servo_axis.realtime.clock import thread_policies
 from servo_axis.params.scenario import load_scenario
+from servo_axis.realtime.scheduling import thread_policies
 from servo_axis.recording.deserialize import read_messages
 from servo_axis.run.processes import pids_of
 

@@ -10,7 +10,7 @@ import sys
 # Run in a child: the test process itself must not end up under SCHED_FIFO.
 PROBE = """
 import json, os, sys, threading
-from servo_axis.realtime.clock import fifo_this_thread, thread_policies
+from servo_axis.realtime.scheduling import fifo_this_thread, thread_policies
 before = threading.Thread(target=threading.Event().wait, args=(5,), name="before", daemon=True)
 before.start()
 got = fifo_this_thread(int(sys.argv[1]))

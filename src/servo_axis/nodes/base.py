@@ -26,7 +26,7 @@
     matches it, each message decoded and gated before the role sees it;
     whether a peer lives;
   - :attr:`~ServoNode.realtime`
-    (:class:`~servo_axis.realtime.clock.RealtimeScheduling`): the realtime
+    (:class:`~servo_axis.realtime.scheduling.RealtimeScheduling`): the realtime
     priority a role asks for with :attr:`~ServoNode.realtime_below`.
 
 * Strangers: twice a second (:data:`~servo_axis.nodes.graph.STRANGER_CHECK_S`)
@@ -58,7 +58,6 @@ from servo_axis.nodes.diagnostics import (
 from servo_axis.nodes.graph import STRANGER_CHECK_S, GraphWatch
 from servo_axis.nodes.inputs import Inputs
 from servo_axis.nodes.parameters import descriptor
-from servo_axis.realtime.clock import RealtimeScheduling, realtime_priority
 from servo_axis.nodes.reporting import Reporter
 from servo_axis.nodes.runtime import (  # noqa: F401  (the table's QoS and types, imported from here)
     MESSAGE_CLASSES,
@@ -70,6 +69,7 @@ from servo_axis.nodes.runtime import (  # noqa: F401  (the table's QoS and types
 )
 from servo_axis.params.factories import checked_values, external_roles, node_schema
 from servo_axis.params.param import BUILTIN, Param
+from servo_axis.realtime.scheduling import RealtimeScheduling, realtime_priority
 from servo_axis.wire import topics
 
 
@@ -85,7 +85,7 @@ class ServoNode(Node):
     """
 
     #: In realtime mode, how far below ``thread_priority`` the role's threads
-    #: run (:func:`~servo_axis.realtime.clock.realtime_priority`); None: the
+    #: run (:func:`~servo_axis.realtime.scheduling.realtime_priority`); None: the
     #: default scheduler always.
     realtime_below: int | None = None
 

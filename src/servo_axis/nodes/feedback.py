@@ -85,9 +85,9 @@ from servo_axis.nodes.lockstep import (
     SampleBuffer,
     stream_gate,
 )
-from servo_axis.realtime.clock import CatchUp, LoopTimes
 from servo_axis.nodes.runtime import run_main, steady_clock
 from servo_axis.params.factories import build_deformation, build_loop, run_steps
+from servo_axis.realtime.clock import CatchUp, LoopTimes
 from servo_axis.wire import messages as msgs
 from servo_axis.wire.streams import StampOrigin, StreamGate
 

@@ -42,13 +42,13 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from servo_axis.realtime.deadlines import start_estimate_ns
 from servo_axis.core.errors import ServoAxisError, SignalError
 from servo_axis.core.feedforward.generator import FeedforwardGenerator
 from servo_axis.nodes.base import ServoNode
 from servo_axis.nodes.lockstep import PeerWatch, waited_too_long
 from servo_axis.nodes.runtime import steady_clock
 from servo_axis.params.factories import estimate_schedule, run_steps
+from servo_axis.realtime.deadlines import start_estimate_ns
 from servo_axis.wire import messages as msgs
 
 #: Realtime: how long before the next estimate's first sample is due the

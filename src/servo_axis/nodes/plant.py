@@ -70,16 +70,16 @@ from servo_axis.core.errors import ParameterFileError, SignalError
 from servo_axis.core.models.base import Plant, PlantOutput
 from servo_axis.nodes.base import ServoNode
 from servo_axis.nodes.lockstep import FlowControl, PeerWatch
+from servo_axis.nodes.reporting import Throttle
+from servo_axis.nodes.runtime import run_main, steady_clock
+from servo_axis.params.factories import build_plant, plant_model, run_steps
 from servo_axis.realtime.clock import (
     ClockRecord,
     ClockThread,
     DriveSetPoint,
     HeldSetPoint,
-    thread_policies,
 )
-from servo_axis.nodes.reporting import Throttle
-from servo_axis.nodes.runtime import run_main, steady_clock
-from servo_axis.params.factories import build_plant, plant_model, run_steps
+from servo_axis.realtime.scheduling import thread_policies
 from servo_axis.wire import messages as msgs
 from servo_axis.wire.cdr import decode_joint_state
 from servo_axis.wire.setpoint import setpoint_torque

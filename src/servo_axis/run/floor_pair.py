@@ -33,12 +33,8 @@ from typing import Any
 import numpy as np
 
 from servo_axis.realtime import deadlines
-from servo_axis.realtime.clock import (
-    SPIN_FIFO_NS,
-    SPIN_NS,
-    favour_middleware_threads,
-    fifo_this_thread,
-)
+from servo_axis.realtime.clock import SPIN_FIFO_NS, SPIN_NS
+from servo_axis.realtime.scheduling import favour_middleware_threads, fifo_this_thread
 from servo_axis.stop_signals import catch_stop_signals
 
 #: Seconds the plant waits for the controller to appear (exit 3 after).
@@ -83,7 +79,7 @@ def _percentiles(values_us: np.ndarray, qs: tuple[float, ...]) -> dict[str, floa
 def scheduling(priority: int) -> dict[str, object]:
     """The calling thread under ``SCHED_FIFO`` at ``priority`` (0: none), the middleware's
     receive threads just below it, as a realtime node's (``thread_priority``,
-    ``realtime.middleware_priority``: :class:`~servo_axis.realtime.clock.RealtimeScheduling`)."""
+    ``realtime.middleware_priority``: :class:`~servo_axis.realtime.scheduling.RealtimeScheduling`)."""
     got = fifo_this_thread(priority)
     if got["policy"] == "fifo":
         receive = max(0, priority - 1)

@@ -22,8 +22,8 @@ import time
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any, TypeVar
 
-from servo_axis.realtime import deadlines
 from servo_axis.core.errors import SignalError
+from servo_axis.realtime import deadlines
 from servo_axis.wire import cdr, layouts
 from servo_axis.wire.layouts import ArrayLayout, JointLayout
 from servo_axis.wire.sample_cdr import ArrayCodec, JointCodec

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from servo_axis.realtime.deadlines import loop_from_times
 from servo_axis.realtime.clock import MEASURED_AT_FEEDBACK, LoopTimes
+from servo_axis.realtime.deadlines import loop_from_times
 
 T = 1_000_000  # ns
 T0 = 5_000_000_000  # a monotonic clock's reading

@@ -12,11 +12,10 @@ import numpy as np
 import pytest
 
 from host_load import RunQueueWait, said
-from servo_axis.realtime import deadlines
 from servo_axis.core.errors import SignalError
-from servo_axis.realtime import clock as realtime
+from servo_axis.realtime import deadlines
+from servo_axis.realtime import scheduling as scheduling_module
 from servo_axis.realtime.clock import (
-    RECEIVE_THREAD,
     SLIP_MIN_NS,
     SLIP_PERIODS,
     CatchUp,
@@ -24,9 +23,8 @@ from servo_axis.realtime.clock import (
     ClockThread,
     DriveSetPoint,
     HeldSetPoint,
-    RealtimeScheduling,
-    realtime_priority,
 )
+from servo_axis.realtime.scheduling import RECEIVE_THREAD, RealtimeScheduling, realtime_priority
 
 
 def test_only_a_realtime_run_asks_for_a_priority_and_each_role_below_the_pair() -> None:
@@ -327,7 +325,7 @@ def test_the_receive_threads_get_the_priority_below_the_executor_not_the_one_ask
         given.append(receive_priority)
         return 4
 
-    monkeypatch.setattr(realtime, "favour_middleware_threads", favour)
+    monkeypatch.setattr(scheduling_module, "favour_middleware_threads", favour)
     scheduling = RealtimeScheduling(
         10,
         warn=print,
