@@ -62,7 +62,7 @@ class Realtime(Serial):
         behind (:class:`~servo_axis.wire.streams.StreamGate`).
     answers_skipped : int or None
         States the feedback took but did not answer, to catch up with the
-        clock (:class:`~servo_axis.realtime.clock.CatchUp`).
+        clock (:class:`~servo_axis.realtime.late.CatchUp`).
     identifier_samples_held : int or None
         Steps the identifier ran with the last angle or torque held (a
         sample that never came).

@@ -56,7 +56,7 @@ its reference.
 
 Catching up (realtime): every state goes through the loop, in order, but a
 state whose command could no longer reach the plant in time to be used is
-not answered (:class:`~servo_axis.realtime.clock.CatchUp`), so that the node
+not answered (:class:`~servo_axis.realtime.late.CatchUp`), so that the node
 catches up with the clock instead of answering a backlog; it still answers
 at least every :data:`ANSWER_GAP` steps, and always the last state of the
 run. The skipped ones are counted (``skipped_answers`` on
@@ -87,7 +87,8 @@ from servo_axis.nodes.lockstep import (
 )
 from servo_axis.nodes.runtime import run_main, steady_clock
 from servo_axis.params.factories import build_deformation, build_loop, run_steps
-from servo_axis.realtime.clock import CatchUp, LoopTimes
+from servo_axis.realtime.clock import LoopTimes
+from servo_axis.realtime.late import CatchUp
 from servo_axis.wire import messages as msgs
 from servo_axis.wire.streams import StampOrigin, StreamGate
 

@@ -37,7 +37,7 @@ misses of a loop still starting up), a thread of the plant's own
 deadlines ``d_j = start + j T_u`` of the monotonic clock (``start``: the
 arrival of command 0). A command that has not arrived by its tick's
 deadline is a deadline miss and the newest current received is held, as a
-drive holds its last set-point (:class:`~servo_axis.realtime.clock.HeldSetPoint`):
+drive holds its last set-point (:class:`~servo_axis.realtime.late.HeldSetPoint`):
 a command that arrives after its deadline is not applied for its own step
 but replaces the held value (it is newer than what is held), and the miss
 was counted at the tick. A tick that wakes more than a period late runs at
@@ -52,7 +52,7 @@ set-point of no step, the newest one whatever its stamp
 (:func:`~servo_axis.wire.setpoint.setpoint_torque`), held until the next;
 NaN (no command yet) is counted and never applied; the clock starts with
 the first finite one; misses are judged against the commander's own period
-(:class:`~servo_axis.realtime.clock.DriveSetPoint`).
+(:class:`~servo_axis.realtime.late.DriveSetPoint`).
 
 Run: ``python -m servo_axis.nodes.plant --ros-args --params-file config/<scenario>.yaml``
 """
@@ -73,12 +73,8 @@ from servo_axis.nodes.lockstep import FlowControl, PeerWatch
 from servo_axis.nodes.reporting import Throttle
 from servo_axis.nodes.runtime import run_main, steady_clock
 from servo_axis.params.factories import build_plant, plant_model, run_steps
-from servo_axis.realtime.clock import (
-    ClockRecord,
-    ClockThread,
-    DriveSetPoint,
-    HeldSetPoint,
-)
+from servo_axis.realtime.clock import ClockRecord, ClockThread
+from servo_axis.realtime.late import DriveSetPoint, HeldSetPoint
 from servo_axis.realtime.scheduling import thread_policies
 from servo_axis.wire import messages as msgs
 from servo_axis.wire.cdr import decode_joint_state

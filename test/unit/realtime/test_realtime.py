@@ -18,12 +18,10 @@ from servo_axis.realtime import scheduling as scheduling_module
 from servo_axis.realtime.clock import (
     SLIP_MIN_NS,
     SLIP_PERIODS,
-    CatchUp,
     ClockRecord,
     ClockThread,
-    DriveSetPoint,
-    HeldSetPoint,
 )
+from servo_axis.realtime.late import CatchUp, DriveSetPoint, HeldSetPoint
 from servo_axis.realtime.scheduling import RECEIVE_THREAD, RealtimeScheduling, realtime_priority
 
 
