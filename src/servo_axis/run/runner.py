@@ -43,6 +43,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from servo_axis.analysis.health import RunHealth
+from servo_axis.realtime.supervisor import OvertimeCheck
 from servo_axis.run.deaths import NodeDeaths
 from servo_axis.run.live_view import LiveView, live_axis
 from servo_axis.run.options import RunOptions as RunOptions
@@ -56,7 +57,6 @@ from servo_axis.run.summarise import interruption, summarise_run, summary_of_the
 from servo_axis.run.watch import (
     OutsidePlantGone,
     OutsideWait,
-    OvertimeCheck,
     StallCheck,
     Watch,
 )

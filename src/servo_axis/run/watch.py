@@ -10,7 +10,7 @@ the checks of a running run (:attr:`Watch.checks`: the stall check
 run stops (:attr:`~servo_axis.run.state.RunState.failure`); a SIGINT or
 SIGTERM stops it too. A check is anything with ``failure(state) -> str |
 None``: a realtime supervisor (a watchdog on the plant's clock, on the
-loop's commands) joins the run as one more.
+loop's commands; :mod:`servo_axis.realtime.supervisor`) joins the run as one more.
 """
 
 from __future__ import annotations
@@ -52,32 +52,6 @@ class StallCheck:
         """``no progress for N s`` once the steps stood still that long."""
         if time.monotonic() - self.last_change > self.timeout_s:
             return f"no progress for {self.timeout_s:.0f} s (see {self.run_dir})"
-        return None
-
-
-class OvertimeCheck:
-    """Realtime: the run stops when it has lasted far longer than its simulated time.
-
-    The last resort of a run that must end by itself (the plant ends a run
-    whose clock stalled or whose loop is open on its own: ``clock_stalled``,
-    ``loop_open``): from its first step, at most ``factor`` times its
-    simulated time plus ``margin_s`` of wall time.
-    """
-
-    def __init__(self, simulated_s: float, *, factor: float = 3.0, margin_s: float = 60.0) -> None:
-        self.limit_s = factor * simulated_s + margin_s
-        self.simulated_s = simulated_s
-
-    def failure(self, state: RunState) -> str | None:
-        """``overtime`` once the run has lasted :attr:`limit_s` since its first step."""
-        if state.t_first is None:
-            return None
-        lasted = time.monotonic() - state.t_first
-        if lasted > self.limit_s:
-            return (
-                f"overtime: a realtime run of {self.simulated_s:.3g} s simulated still ran "
-                f"after {lasted:.0f} s of wall time (limit {self.limit_s:.0f} s)"
-            )
         return None
 
 
