@@ -20,7 +20,7 @@ keeps working):
   (:class:`OnlineIdentification`, paper 003);
 * :mod:`~servo_axis.analysis.deformation_summary`: ``d_r`` at the stops of
   the reference (:class:`Deformation`, paper 004);
-* :mod:`~servo_axis.analysis.realtime`: a realtime run's deadline misses
+* :mod:`~servo_axis.analysis.realtime_summary`: a realtime run's deadline misses
   (:class:`Realtime`);
 * :mod:`~servo_axis.analysis.contour_summary`: the contour error of two axes
   (:class:`ContourSummary`).
@@ -78,7 +78,7 @@ from servo_axis.analysis.identification import (
 )
 from servo_axis.analysis.learning_summary import ilc_convergence
 from servo_axis.analysis.metrics import ContourCycle, ContourResult, contour_error, error_statistics
-from servo_axis.analysis.realtime import Realtime
+from servo_axis.analysis.realtime_summary import Realtime
 from servo_axis.analysis.serial import Serial
 from servo_axis.analysis.signals import (
     IDENTIFIER_SECTION,

@@ -109,7 +109,7 @@ def test_a_realtime_loop_not_closed_never_reports_success() -> None:
     """Misses over realtime.max_miss_fraction, or a plant that ended the run because no
     command came, exit 5 with the reason first (issue 30); within the limit, 0."""
     from servo_axis.analysis.health import EXIT_LOOP_NOT_CLOSED, loop_not_closed
-    from servo_axis.analysis.realtime import Realtime
+    from servo_axis.analysis.realtime_summary import Realtime
 
     def block(misses: int) -> Realtime:
         return Realtime(

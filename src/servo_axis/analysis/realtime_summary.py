@@ -1,4 +1,7 @@
-"""How the plant's clock kept time in a realtime run (``summary.json``'s ``realtime``)."""
+"""How the plant's clock kept time in a realtime run (``summary.json``'s ``realtime`` block).
+
+The block only: realtime mode itself is :mod:`servo_axis.realtime`.
+"""
 
 from __future__ import annotations
 
