@@ -16,7 +16,7 @@ keeps working):
   (:class:`TrackingError`) and its unit (:func:`error_unit`);
 * :mod:`~servo_axis.analysis.learning_summary`: the ILC convergence measure
   of a trial law (:func:`ilc_convergence`, asked of the law's registry entry);
-* :mod:`~servo_axis.analysis.identification`: the online identification
+* :mod:`~servo_axis.analysis.identification_summary`: the online identification
   (:class:`OnlineIdentification`, paper 003);
 * :mod:`~servo_axis.analysis.deformation_summary`: ``d_r`` at the stops of
   the reference (:class:`Deformation`, paper 004);
@@ -67,7 +67,7 @@ from servo_axis.analysis.deformation_summary import (
     window_mask,
 )
 from servo_axis.analysis.health import RunHealth
-from servo_axis.analysis.identification import (
+from servo_axis.analysis.identification_summary import (
     IDENTIFIED,
     OnlineIdentification,
     ParameterValues,

@@ -95,7 +95,7 @@ class OfflineIdentification:
     """What :func:`identify` found: the keys of a plant model fitted offline, from an axis's runs.
 
     Not the summary of paper 003's online identifier during a run
-    (:class:`servo_axis.analysis.identification.OnlineIdentification`).
+    (:class:`servo_axis.analysis.identification_summary.OnlineIdentification`).
     """
 
     model: str

@@ -12,5 +12,5 @@ method: :class:`~servo_axis.core.identification.online.base.OnlineIdentifier`).
 A method is a module here plus its entry (an entry point; the suite's is
 :mod:`servo_axis.plugins.dlpid`); the node that runs it is
 :mod:`servo_axis.nodes.identifier`, the summary's block of its estimates
-:mod:`servo_axis.analysis.identification`.
+:mod:`servo_axis.analysis.identification_summary`.
 """
