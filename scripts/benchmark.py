@@ -98,7 +98,7 @@ RT_HEADER = (
 
 def table_count(counts: dict[str, int], name: str) -> int:
     """Messages of table topic ``name`` in a summary's counts, whatever the run's namespace."""
-    from servo_axis.analysis.signals import table_name
+    from servo_axis.analysis.bag_streams import table_name
 
     return sum(n for topic, n in counts.items() if table_name(topic) == name)
 

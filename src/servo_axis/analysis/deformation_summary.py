@@ -17,8 +17,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from servo_axis.analysis.bag_streams import table_name
 from servo_axis.analysis.serial import Serial
-from servo_axis.analysis.signals import Signals, table_name
+from servo_axis.analysis.signals import Signals
 from servo_axis.analysis.tracking import axis_values
 from servo_axis.core.deformation import DeformationTrace
 from servo_axis.params.factories import build_reference

@@ -14,8 +14,9 @@ from typing import Any
 
 import numpy as np
 
+from servo_axis.analysis.bag_streams import table_name
 from servo_axis.analysis.serial import Serial
-from servo_axis.analysis.signals import IDENTIFIER_SECTION, Signals, table_name
+from servo_axis.analysis.signals import IDENTIFIER_SECTION, Signals
 from servo_axis.analysis.tracking import axis_values
 from servo_axis.wire.cdr import EstimateData
 

@@ -40,9 +40,9 @@ per topic beyond its layout (:class:`StreamRules`, :func:`stream_for`):
   section. Estimates carry no stamp and a restarted identifier may publish
   again one that was already recorded, so there is no gate: the first
   estimate of each step is kept, a later one with the same values is a
-  repeat (counted in :attr:`BagStreams.repeated`, not junk) and one with
-  other values is dropped like junk. :attr:`Signals.estimates` are in order
-  of step.
+  repeat (counted in :attr:`~servo_axis.analysis.bag_streams.BagStreams.repeated`,
+  not junk) and one with other values is dropped like junk.
+  :attr:`Signals.estimates` are in order of step.
 
 The rules come from the run's parameters: the scenario if given, else the
 run's ``params.yaml`` next to the bag (what the nodes ran with), else the
@@ -56,12 +56,23 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 import yaml
 from numpy.typing import NDArray
 
+from servo_axis.analysis.bag_streams import (
+    AfterTheEnd,
+    BagStreams,
+    Check,
+    Kept,
+    Repeated,
+    Stream,
+    array_values,
+    recorded_by_topic,
+    table_name,
+)
 from servo_axis.analysis.serial import Serial
 from servo_axis.core.deformation import DeformationTrace
 from servo_axis.core.errors import ServoAxisError, SignalError
@@ -77,10 +88,9 @@ from servo_axis.params.factories import (
 )
 from servo_axis.params.resolve import feedforward_values, node_values
 from servo_axis.params.scenario import ROLES, SHARED_SECTION
-from servo_axis.recording.reader import RawMessage, read_raw
 from servo_axis.wire import cdr, layouts, topics
 from servo_axis.wire.checks import step_of_stamp_ns
-from servo_axis.wire.layouts import ArrayLayout, EstimateData
+from servo_axis.wire.layouts import EstimateData
 from servo_axis.wire.streams import (
     StampOrigin,
     StreamGate,
@@ -323,99 +333,7 @@ def run_parameters(path: Path) -> dict[str, Any] | None:
     return out
 
 
-class Kept(NamedTuple):
-    """A recorded message that passed its topic's rules."""
-
-    step: int  #: control step (cycle number of cycle_stats, value of recorder/progress)
-    data: bytes  #: the CDR payload as recorded
-    #: the layout's sample (StateSample, DeformationSample, EstimateData, ...),
-    #: the checked values of an array topic without one, the ClockData of /clock
-    msg: Any
-
-
-@dataclass(frozen=True, eq=False)
-class BagStreams:
-    """The validated streams of a bag (:func:`read_streams`).
-
-    Attributes
-    ----------
-    kept : dict
-        Per recorded topic with rules (its name as recorded), the messages
-        kept, in recording order: one per step.
-    dropped : dict
-        Per topic with rules, how many recorded messages were dropped.
-    first_reason : dict
-        Per topic with a dropped message, why the first one was dropped.
-    counts : dict
-        Messages per topic as recorded (every topic, in order of first message).
-    repeated : dict
-        Per topic with a message that repeats one already kept
-        (:class:`Repeated`), how many: neither kept nor dropped.
-    """
-
-    kept: dict[str, list[Kept]]
-    dropped: dict[str, int]
-    first_reason: dict[str, str]
-    counts: dict[str, int]
-    repeated: dict[str, int] = field(default_factory=dict)
-
-    def by_table_name(self, name: str) -> list[Kept]:
-        """The kept messages of table topic ``name`` (``state``, ``/clock``, ...), every namespace."""
-        out: list[Kept] = []
-        for topic, kept in self.kept.items():
-            if table_name(topic) == name:
-                out.extend(kept)
-        return out
-
-
-def table_name(topic: str) -> str | None:
-    """The table name (:data:`servo_axis.wire.topics.TOPICS`) of a recorded topic, None if none.
-
-    ``/x/state``, ``/state`` and ``state`` are ``state``; ``/x/clock`` is ``/clock``.
-    """
-    best: str | None = None
-    for entry in topics.TOPICS:
-        rel = entry.name.lstrip("/")
-        if topic in (rel, "/" + rel) or topic.endswith("/" + rel):
-            if best is None or len(rel) > len(best.lstrip("/")):
-                best = entry.name
-    return best
-
-
-_Check = Callable[[bytes], tuple[int, Any, Callable[[], None] | None]]
-
-
-class Repeated(Exception):  # noqa: N818 - an outcome, not an error
-    """A message that repeats one already kept, value for value: skipped, not junk."""
-
-
-class AfterTheEnd(Exception):  # noqa: N818 - an outcome, not an error
-    """A sample of a plant that owns its clock stamped after the run's last step."""
-
-
-class _Stream:
-    """One recorded topic's rules: payload checks, then its gate (if any)."""
-
-    def __init__(self, check: _Check, gate: StreamGate | None) -> None:
-        self._check = check
-        self._gate = gate
-
-    def take(self, data: bytes) -> tuple[int, Any]:
-        step, msg, commit = self._check(data)
-        if self._gate is not None:
-            self._gate.accept(step)
-        if commit is not None:
-            commit()
-        return step, msg
-
-
-def _values(layout: ArrayLayout[Any], data: bytes) -> list[float]:
-    """The values of a recorded Float64MultiArray of ``layout``, checked by its layout."""
-    msg = cdr.decode_float64_multi_array(data)
-    return layout.values(msg.labels, msg.sizes, msg.data, msg.strides)
-
-
-def _plant_clock_stream(rules: StreamRules, name: str, origin: StampOrigin) -> _Check:
+def _plant_clock_stream(rules: StreamRules, name: str, origin: StampOrigin) -> Check:
     """``state``/``command`` stamped by the plant's clock: the step each state got in
     arrival order (:class:`StampOrigin`, one step per state), a command its state's."""
     steps = origin.steps_by_stamp
@@ -443,7 +361,7 @@ def plant_clock_steps(messages: list[Any], rules: StreamRules) -> StampOrigin:
     return origin
 
 
-def _joint_stream(rules: StreamRules, name: str) -> _Check:
+def _joint_stream(rules: StreamRules, name: str) -> Check:
     def check(data: bytes) -> tuple[int, Any, None]:
         step, sample = decode_joint_stream(name, data, axis=rules.axis, period_ns=rules.period_ns)
         return step, sample, None
@@ -451,7 +369,7 @@ def _joint_stream(rules: StreamRules, name: str) -> _Check:
     return check
 
 
-def _deformation_stream(rules: StreamRules) -> _Check:
+def _deformation_stream(rules: StreamRules) -> Check:
     def check(data: bytes) -> tuple[int, Any, None]:
         # The subscribers' own checks (the layout's: fields, finite values,
         # a whole step, valid 0 or 1).
@@ -461,18 +379,18 @@ def _deformation_stream(rules: StreamRules) -> _Check:
     return check
 
 
-def _never(reason: str) -> _Check:
+def _never(reason: str) -> Check:
     def check(data: bytes) -> tuple[int, Any, None]:
         raise SignalError(reason)
 
     return check
 
 
-def _stats_stream(rules: StreamRules) -> _Check:
+def _stats_stream(rules: StreamRules) -> Check:
     learned = [0]
 
     def check(data: bytes) -> tuple[int, Any, Callable[[], None]]:
-        values = _values(layouts.CYCLE_STATS, data)
+        values = array_values(layouts.CYCLE_STATS, data)
         step, n = int(values[0]), int(values[3])
         if n < learned[0] or n > step:
             raise SignalError(f"cycles_learned: {n} after {learned[0]}, in cycle {step}")
@@ -485,9 +403,9 @@ def _stats_stream(rules: StreamRules) -> _Check:
     return check
 
 
-def _fault_stream(rules: StreamRules) -> _Check:
+def _fault_stream(rules: StreamRules) -> Check:
     def check(data: bytes) -> tuple[int, Any, None]:
-        values = _values(layouts.FAULT, data)
+        values = array_values(layouts.FAULT, data)
         if int(values[1]) not in FAULT_NAMES:
             raise SignalError(f"code: expected one of {sorted(FAULT_NAMES)}, got {values[1]!r}")
         return int(values[0]), values, None
@@ -495,11 +413,11 @@ def _fault_stream(rules: StreamRules) -> _Check:
     return check
 
 
-def _status_stream(rules: StreamRules) -> _Check:
+def _status_stream(rules: StreamRules) -> Check:
     last = [0, 0, 0]
 
     def check(data: bytes) -> tuple[int, Any, Callable[[], None]]:
-        values = _values(layouts.STATUS, data)
+        values = array_values(layouts.STATUS, data)
         counters = [int(v) for v in values[1:]]
         if any(c < p for c, p in zip(counters, last, strict=True)):
             raise SignalError(f"counters decrease: {counters} after {last}")
@@ -512,7 +430,7 @@ def _status_stream(rules: StreamRules) -> _Check:
     return check
 
 
-def _clock_stream(rules: StreamRules) -> _Check:
+def _clock_stream(rules: StreamRules) -> Check:
     def check(data: bytes) -> tuple[int, Any, None]:
         msg = cdr.decode_clock(data)
         return step_of_stamp_ns(msg.stamp_ns, rules.period_ns), msg, None
@@ -520,11 +438,11 @@ def _clock_stream(rules: StreamRules) -> _Check:
     return check
 
 
-def _progress_stream(rules: StreamRules) -> _Check:
+def _progress_stream(rules: StreamRules) -> Check:
     last = [0]
 
     def check(data: bytes) -> tuple[int, Any, Callable[[], None]]:
-        values = _values(layouts.PROGRESS, data)
+        values = array_values(layouts.PROGRESS, data)
         done = int(values[0])
         if done < last[0] or (rules.steps is not None and done > rules.steps):
             raise SignalError(f"steps_recorded: {done} after {last[0]} (run of {rules.steps})")
@@ -537,11 +455,11 @@ def _progress_stream(rules: StreamRules) -> _Check:
     return check
 
 
-def _estimate_stream(rules: StreamRules) -> _Check:
+def _estimate_stream(rules: StreamRules) -> Check:
     seen: dict[int, list[float]] = {}
 
     def check(data: bytes) -> tuple[int, Any, Callable[[], None]]:
-        values = _values(layouts.ESTIMATES, data)
+        values = array_values(layouts.ESTIMATES, data)
         estimate = layouts.check_estimate_values(values)
         step = estimate.step
         if rules.steps is not None and step >= rules.steps:
@@ -565,7 +483,7 @@ def _estimate_stream(rules: StreamRules) -> _Check:
     return check
 
 
-def stream_for(name: str, rules: StreamRules, origin: StampOrigin | None = None) -> _Stream | None:
+def stream_for(name: str, rules: StreamRules, origin: StampOrigin | None = None) -> Stream | None:
     """The rules of table topic ``name`` (a fresh gate), None for a topic without rules.
 
     ``origin``: the steps of the states of a plant that owns its clock
@@ -579,77 +497,54 @@ def stream_for(name: str, rules: StreamRules, origin: StampOrigin | None = None)
     if name in ("state", "command") and rules.plant_clock and origin is not None:
         # The plant's timer may skip samples: any step ahead within the run.
         window = 2**62 if limit is None else max(limit, 1)
-        return _Stream(
+        return Stream(
             _plant_clock_stream(rules, name, origin),
             StreamGate(window=window, first=0, limit=limit),
         )
     if name in ("state", "command", "reference"):
-        return _Stream(_joint_stream(rules, name), StreamGate(window=w, first=0, limit=limit))
+        return Stream(_joint_stream(rules, name), StreamGate(window=w, first=0, limit=limit))
     if name == "deformation":
         if not rules.deformation:
-            return _Stream(_never("no deformation ratio in this run"), None)
+            return Stream(_never("no deformation ratio in this run"), None)
         # One per step from step 0, like state: the feedback publishes it with
         # each state it answers.
-        return _Stream(_deformation_stream(rules), StreamGate(window=w, first=0, limit=limit))
+        return Stream(_deformation_stream(rules), StreamGate(window=w, first=0, limit=limit))
     if name == "learning/correction":
         if rules.cycle_steps is None:
-            return _Stream(_never("no learning in this run"), None)
+            return Stream(_never("no learning in this run"), None)
         check = _joint_stream(rules, name)
         gate = StreamGate(window=w, first=rules.cycle_steps, limit=limit, stride=rules.ratio)
-        return _Stream(check, gate)
+        return Stream(check, gate)
     if name == "learning/input_correction":
         if rules.cycle_steps is None:
-            return _Stream(_never("no learning in this run"), None)
+            return Stream(_never("no learning in this run"), None)
         check = _joint_stream(rules, name)
-        return _Stream(check, StreamGate(window=w, first=rules.cycle_steps, limit=limit))
+        return Stream(check, StreamGate(window=w, first=rules.cycle_steps, limit=limit))
     if name == "learning/cycle_stats":
         if rules.cycle_steps is None:
-            return _Stream(_never("no learning in this run"), None)
+            return Stream(_never("no learning in this run"), None)
         cycles = None if limit is None else (limit - 1) // rules.cycle_steps + 1
-        return _Stream(_stats_stream(rules), StreamGate(window=min(w, 2), first=1, limit=cycles))
+        return Stream(_stats_stream(rules), StreamGate(window=min(w, 2), first=1, limit=cycles))
     if name == "fault":
         # Strictly later than the previous one, anywhere in the run.
-        return _Stream(_fault_stream(rules), StreamGate(window=2**62, first=0, limit=limit))
+        return Stream(_fault_stream(rules), StreamGate(window=2**62, first=0, limit=limit))
     if name == "plant/status":
         if rules.mode == "lockstep":
             gate = StreamGate(window=1, first=0, limit=limit, stride=rules.status_every_steps)
         else:  # every status_every_steps and a last one at the end
             end = None if limit is None else limit + 1
             gate = StreamGate(window=2 * rules.status_every_steps, first=0, limit=end)
-        return _Stream(_status_stream(rules), gate)
+        return Stream(_status_stream(rules), gate)
     if name == "/clock":
         gate = StreamGate(window=w, first=0, limit=limit, stride=rules.clock_every_steps)
-        return _Stream(_clock_stream(rules), gate)
+        return Stream(_clock_stream(rules), gate)
     if name == "recorder/progress":
-        return _Stream(_progress_stream(rules), None)
+        return Stream(_progress_stream(rules), None)
     if name == "identifier/estimates":
         if not rules.identifier:
-            return _Stream(_never("no identifier in this run"), None)
-        return _Stream(_estimate_stream(rules), None)
+            return Stream(_never("no identifier in this run"), None)
+        return Stream(_estimate_stream(rules), None)
     return None
-
-
-class _Recorded(NamedTuple):
-    type_name: str
-    data: bytes
-
-
-def recorded_by_topic(bag_dir: Path) -> dict[str, list[_Recorded]]:
-    """Every message of a bag per topic, in the order the recorder wrote them.
-
-    Topics in order of first message (log time). Within a topic the order is
-    the channel's sequence number: the recorder's arrival order, which is
-    what a gate must see. The log times are no such order: the recorder logs
-    a message at its stamp (simulation time), so a junk message stamped in
-    the past would sort before the real one it follows.
-    """
-    by_topic: dict[str, list[RawMessage]] = {}
-    for m in read_raw(Path(bag_dir)):  # log-time order: topics in order of first message
-        by_topic.setdefault(m.topic, []).append(m)
-    return {
-        topic: [_Recorded(m.type_name, m.data) for m in sorted(ms, key=lambda m: m.sequence)]
-        for topic, ms in by_topic.items()
-    }
 
 
 def read_streams(bag_dir: Path, rules: StreamRules) -> BagStreams:

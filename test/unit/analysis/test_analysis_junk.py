@@ -20,12 +20,12 @@ import pytest
 import yaml
 from numpy.testing import assert_allclose, assert_array_equal
 
+from servo_axis.analysis.bag_streams import table_name
 from servo_axis.analysis.signals import (
     FaultRecord,
     StreamRules,
     load_signals,
     read_streams,
-    table_name,
 )
 from servo_axis.analysis.summary import summarise
 from servo_axis.core.errors import SignalError
