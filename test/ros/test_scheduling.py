@@ -1,4 +1,4 @@
-"""Realtime scheduling of a node's threads (``nodes.realtime.fifo_this_thread``)."""
+"""Realtime scheduling of a node's threads (``realtime.scheduling.fifo_this_thread``)."""
 
 from __future__ import annotations
 
