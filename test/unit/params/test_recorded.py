@@ -144,5 +144,8 @@ def test_a_missing_table_is_named_by_its_own_path_and_nothing_is_written(
     run = tmp_path / "run"
     with pytest.raises(ParameterFileError) as err:
         prepare(sources / "ptc_friction_table.yaml", RunOptions(out_dir=run, progress=None))
-    assert str(err.value) == f"parameter 'friction_table.file': no such file {sources / TABLE}"
+    assert str(err.value) == (
+        f"scenario {sources / 'ptc_friction_table.yaml'}: "
+        f"parameter 'friction_table.file': no such file {sources / TABLE}"
+    )
     assert not run.exists()
