@@ -1,4 +1,4 @@
-"""A plant model and a feedforward term from a package outside the source tree, by entry points.
+"""A plant model from a package outside the source tree, found by its entry point.
 
 ``test/data/outside_plugin`` is a package of its own (``pyproject.toml``,
 setuptools, two entry points): the plant model ``rigid_viscous_axis`` (a
@@ -7,30 +7,23 @@ rigid axis with viscous friction, stepped exactly) and the feedforward term
 folder (``pip install --no-deps --no-build-isolation --target``, with the
 setuptools of this environment) that only the subprocesses of this test get
 on ``PYTHONPATH``: this environment is left as it was. Nothing under
-``src/`` names it; a scenario does, and runs through the plain-call loop
-(:func:`servo_axis.simulate.simulate`) and through ``python -m servo_axis run``
-(a process per node, lockstep) with identical numbers. ``list`` and the
-parameter reference show it.
+``src/`` names it. The tutorial that shows it (``docs/tutorials/own-plugin.md``)
+installs it, lists it, runs its scenario through the node graph against the
+plain-call loop and uninstalls it: ``test_docs_pages.py::test_tutorials_own_plugin``.
 """
 
 from __future__ import annotations
 
-import json
 import os
 import shutil
 import subprocess
 import sys
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
 import yaml
-from numpy.testing import assert_allclose, assert_array_equal
-
-from servo_axis.recording.reader import read_raw
-from servo_axis.run.processes import ros_environment
-from servo_axis.wire import cdr
+from numpy.testing import assert_allclose
 
 pytestmark = pytest.mark.integration
 
@@ -39,46 +32,6 @@ PLUGIN = REPO / "test" / "data" / "outside_plugin"
 PERIOD_S = 1e-3
 #: The plant of the scenario: J, b, K_T.
 J, B, KT = 0.01, 0.3, 0.715
-
-SCENARIO: dict[str, Any] = {
-    "/**": {
-        "ros__parameters": {
-            "scenario": {
-                "name": "outside_plugin",
-                "description": "a plant model and a feedforward term of an outside package",
-            },
-            "control_period_s": PERIOD_S,
-            "duration_s": 0.5,
-            "nominal": {
-                "torque_constant_Nm_per_A": KT,
-                "inertia_kgm2": J,
-                "damping_Nms_per_rad": 0.0,
-            },
-        }
-    },
-    "plant": {
-        "ros__parameters": {
-            "model": "rigid_viscous_axis",
-            "inertia_kgm2": J,
-            "viscous_Nms_per_rad": B,
-            "torque_constant_Nm_per_A": KT,
-        }
-    },
-    "feedback": {"ros__parameters": {"bandwidth_hz": 40.0}},
-    "feedforward": {
-        "ros__parameters": {
-            "reference": {
-                "kind": "sine",
-                "amplitude_m": 0.005,
-                "frequency_hz": 2.0,
-                "offset_m": 0.005,
-                "phase_rad": -1.5707963267948966,
-            },
-            "viscous_ff": {"enabled": True, "coefficient_Nms_per_rad": B},
-        }
-    },
-    "recorder": {"ros__parameters": {}},
-}
 
 
 @pytest.fixture(scope="module")
@@ -126,29 +79,6 @@ def python(site: Path, env: dict[str, str], *args: str, timeout: float = 300.0) 
     return done.stdout
 
 
-def write_scenario(path: Path, *, viscous_ff: bool = True) -> Path:
-    data = yaml.safe_load(yaml.safe_dump(SCENARIO))
-    data["feedforward"]["ros__parameters"]["viscous_ff"]["enabled"] = viscous_ff
-    path.write_text(yaml.safe_dump(data, sort_keys=False))
-    return path
-
-
-SIMULATE = """
-import sys
-from pathlib import Path
-import numpy as np
-from servo_axis.simulate import simulate
-t = simulate(Path(sys.argv[1]))
-np.savez(sys.argv[2], **{f: getattr(t, f) for f in t.__dataclass_fields__})
-"""
-
-
-def simulated(site: Path, scenario: Path, out: Path) -> dict[str, np.ndarray]:
-    python(site, dict(os.environ), "-c", SIMULATE, str(scenario), str(out))
-    with np.load(out) as data:
-        return {k: data[k] for k in data.files}
-
-
 def test_the_step_response_of_the_outside_plant_is_its_closed_form(
     plugin_site: Path, tmp_path: Path
 ) -> None:
@@ -169,85 +99,3 @@ def test_the_step_response_of_the_outside_plant_is_its_closed_form(
     assert_allclose(got, expected, rtol=1e-9, atol=1e-15)
     # the final velocity K_T i / b is approached: 0.4 s = 12 time constants
     assert_allclose(np.diff(got)[-1] / PERIOD_S, KT * 2.0 / B, rtol=1e-4)
-
-
-def test_a_scenario_naming_the_outside_extensions_runs_identically_in_nodes_and_plain_calls(
-    plugin_site: Path, ros_env: int, tmp_path: Path
-) -> None:
-    scenario = write_scenario(tmp_path / "outside_plugin.yaml")
-    core = simulated(plugin_site, scenario, tmp_path / "core.npz")
-    run_dir = tmp_path / "run"
-    env = ros_environment(ros_env, tmp_path / "ros_log")
-    python(
-        plugin_site,
-        env,
-        "-m",
-        "servo_axis",
-        "run",
-        str(scenario),
-        "--out",
-        str(run_dir),
-        "--no-plots",
-    )
-    state: dict[int, Any] = {}
-    command: dict[int, Any] = {}
-    for m in read_raw(run_dir / "bag"):
-        if m.topic in ("/x/state", "/x/command"):
-            js = cdr.decode("sensor_msgs/msg/JointState", m.data)
-            step = round(js.stamp_ns / (PERIOD_S * 1e9))
-            (state if m.topic == "/x/state" else command)[step] = js
-    steps = len(core["encoder_rad"])
-    assert steps == 500 and sorted(state) == list(range(steps)) == sorted(command)
-    # Bit for bit: the nodes and the plain calls build the same objects.
-    assert_array_equal([state[k].position[0] for k in range(steps)], core["encoder_rad"])
-    assert_array_equal([state[k].position[1] for k in range(steps)], core["scale_m"])
-    assert_array_equal([command[k].effort[0] for k in range(steps)], core["command_Nm"])
-    summary = json.loads((run_dir / "summary.json").read_text())
-    assert summary.get("error_unit") is None  # the entry says linear: an error in m
-    # The term does something: without it, the viscous friction the PTC's
-    # nominal model (D_n = 0) does not know is left to the PID.
-    bare = simulated(
-        plugin_site, write_scenario(tmp_path / "bare.yaml", viscous_ff=False), tmp_path / "b.npz"
-    )
-    lead = 1.91e-3
-
-    def rms(t: dict[str, np.ndarray]) -> float:
-        return float(np.sqrt(np.mean((lead * t["reference_rad"] - t["scale_m"]) ** 2)))
-
-    print(f"RMS error with viscous_ff {rms(core) * 1e6:.3f} um, without {rms(bare) * 1e6:.3f} um")
-    assert rms(core) < 0.2 * rms(bare), (rms(core), rms(bare))
-
-
-def test_list_and_the_parameter_reference_show_the_outside_extensions(
-    plugin_site: Path,
-) -> None:
-    listed = python(plugin_site, dict(os.environ), "-m", "servo_axis", "list")
-    assert "rigid_viscous_axis" in listed and "servo_axis_outside.rigid_axis:PLANT_MODEL" in listed
-    assert "viscous_ff.coefficient_Nms_per_rad" in listed
-    code = (
-        "import runpy\n"
-        f"print(runpy.run_path({str(REPO / 'scripts' / 'parameter_docs.py')!r})['render']())\n"
-    )
-    docs = python(plugin_site, dict(os.environ), "-c", code)
-    assert "## plant (model rigid_viscous_axis)" in docs
-    assert "| `viscous_Nms_per_rad` | `0.2` | N m s/rad |" in docs
-    assert "## feedforward (term viscous_ff)" in docs
-    assert "`viscous_ff.coefficient_Nms_per_rad`" in docs
-    # An unknown model names the installed ones, the outside one among them.
-    bad = write_scenario(Path(plugin_site).parent / "bad.yaml")
-    data = yaml.safe_load(bad.read_text())
-    data["plant"]["ros__parameters"]["model"] = "no_such_axis"
-    bad.write_text(yaml.safe_dump(data))
-    code = (
-        "import sys\n"
-        "from servo_axis.params.resolve import node_values\n"
-        "from servo_axis.params.scenario import load_scenario\n"
-        "try:\n"
-        f"    node_values(load_scenario({str(bad)!r}), 'plant')\n"
-        "except Exception as err:\n"
-        "    print(err)\n"
-    )
-    message = python(plugin_site, dict(os.environ), "-c", code).strip()
-    assert message.startswith("parameter 'model': expected one of [")
-    assert "'rigid_viscous_axis'" in message and "'ball_screw'" in message
-    assert message.endswith("got 'no_such_axis'") and "\n" not in message
