@@ -371,7 +371,8 @@ def layered_venv(venv: Path, shared: Path = REPO / ".venv") -> Path:
     Made with ``venv --without-pip``; its site-packages gets a ``.pth`` that adds
     ``shared``'s site-packages after its own (so an installed package of its own
     comes first, and pip leaves ``shared``'s packages alone: "outside environment");
-    ``shared``'s console scripts are written again for its interpreter; the ROS
+    ``shared``'s console scripts are written again for its interpreter (its programs,
+    such as ruff, are symlinks); the ROS
     wheels' libraries (``lib/``, ``site-packages/ros_*.libs``, found from
     ``sys.prefix`` by their bootstrapper) and ``share/`` are symlinks to ``shared``'s.
     ``scripts/setup.sh``'s stamp says it is installed, as the shared venv is.
@@ -402,6 +403,8 @@ def layered_venv(venv: Path, shared: Path = REPO / ".venv") -> Path:
             rest = head.partition(b"\n")[2]
             target.write_bytes(f"#!{venv}/bin/python\n".encode() + rest)
             target.chmod(0o755)
+        elif head.startswith(b"\x7fELF"):  # a program of its own (ruff): the same one
+            os.symlink(script, target)
     (venv / ".servo_axis-installed").touch()
     return venv
 

@@ -442,3 +442,104 @@ def test_how_to_friction_models(ros_env: int, clone: Clone) -> None:
     # The identified table spans the Coulomb level of the plant (3.2 N m).
     assert made.torque_Nm[0] == pytest.approx(-3.2, rel=0.15)
     assert made.torque_Nm[-1] == pytest.approx(3.2, rel=0.1)
+
+
+def test_how_to_identify_your_axis(ros_env: int, clone: Clone) -> None:
+    import re
+
+    result = run_page("how-to/identify-your-axis.md", clone, ros_env)
+    runs = clone.root / "runs"
+    shown = result.output_of(
+        ".venv/bin/python -m servo_axis identify runs/frf --model ball_screw \\"
+    )
+    printed = {
+        m.group(1): float(m.group(2))
+        for m in re.finditer(r"^(\S+)\s+(-?[\d.]+(?:e-?\d+)?)\s+\S+\s+", shown, re.MULTILINE)
+    }
+    # The page's table of the ball screw is what the node graph's runs give (it was made
+    # with the plain-call loops, which the node graph reproduces bit for bit): each key to
+    # the digits the table shows.
+    page = (clone.root / "docs" / "how-to" / "identify-your-axis.md").read_text()
+    table = page.split("**`ball_screw`**", 1)[1].split("\n\n", 2)[1]
+    rows = re.findall(r"^\| `([^`]+)` \| ([^|]+) \| (-?[\d.e-]+) \+- ", table, re.MULTILINE)
+    assert len(rows) == 12, table
+    truth = load_scenario(clone.root / "config" / "measure_frf_ball_screw.yaml")
+    for key, true_value, identified in rows:
+        digits = identified.split("e")[0].split(".")[-1]
+        exponent = int(identified.split("e")[1]) if "e" in identified else 0
+        last_digit = 10.0 ** (exponent - len(digits))
+        assert abs(printed[key] - float(identified)) <= last_digit, (key, printed[key], identified)
+        assert float(true_value) == pytest.approx(_key(truth, key), abs=1e-15), key
+    written = yaml.safe_load((runs / "my_axis.yaml").read_text())["plant"]["ros__parameters"]
+    for key in ("inertia_kgm2", "damping_Nms_per_rad"):
+        assert_allclose(written[key], printed[key], rtol=1e-5)
+        assert_allclose(written[key], _key(truth, key), rtol=0.03)
+    # The dead time is written rounded to the 10 us sim_step_s.
+    assert_allclose(written["dead_time_s"], round(printed["dead_time_s"] / 1e-5) * 1e-5, rtol=1e-12)
+    assert_allclose(written["modes"]["frequency_hz"], [printed["modes.frequency_hz[0]"],
+                    printed["modes.frequency_hz[1]"]], rtol=1e-5)  # fmt: skip
+    for name in ("report.md", "bode_encoder.png"):
+        assert (runs / "report" / name).stat().st_size > 1000
+    # The written scenario ran as it is, on the fitted axis: the measurement's move.
+    again = summary(only("my_axis-*", runs))
+    assert again["health"]["exit_code"] == 0 and again["steps"] == summary(runs / "sine")["steps"]
+    assert not (runs / "x.yaml").exists()
+
+
+def _key(scenario: dict[str, Any], key: str) -> float:
+    """The plant's value of a dotted key of the identify table (``modes.a[1]``)."""
+    plant = scenario["plant"]["ros__parameters"]
+    name, _, index = key.partition("[")
+    value: Any = plant
+    for part in name.split("."):
+        value = value.get(part, 0.0) if isinstance(value, dict) else value
+    return float(value[int(index.rstrip("]"))] if index else value)
+
+
+def test_how_to_develop(ros_env: int, clone: Clone) -> None:
+    # ruff passes on the clone; the generated parameter reference and the figure of
+    # the learning filters are the committed ones (run_page: no tracked file changed).
+    result = run_page("how-to/develop.md", clone, ros_env)
+    assert "written" in result.output_of(".venv/bin/python scripts/parameter_docs.py")
+    assert "written" in result.output_of(".venv/bin/python scripts/learning_figures.py")
+
+
+def test_how_to_reproducible_install(ros_env: int, clone: Clone) -> None:
+    # Every command is marked (network, minutes); the page is parsed and checked for it.
+    result = run_page("how-to/reproducible-install.md", clone, ros_env)
+    assert not result.ran and len(result.skipped) == 3
+
+
+def test_how_to_outside_plant(ros_env: int, clone: Clone) -> None:
+    from servo_axis.simulate import simulate
+
+    run_page("how-to/outside-plant.md", clone, ros_env)
+    out = clone.root / "runs" / "outside_plant"
+    mine = summary(out)
+    assert mine["health"]["exit_code"] == 0 and mine["health"]["deterministic"]
+    bag = out / "bag"
+    state, cmd = joint_states(bag, "/x/state"), joint_states(bag, "/x/command")
+    stamps = sorted(state)
+    assert stamps == [k * 1_000_000 for k in range(2000)] == sorted(cmd)
+    # The states are the exact replay of the recorded commands through the exact
+    # zero-order-hold solution of J w' = tau - B w (written again here).
+    inertia, damping, period, lead, limit = 0.01, 0.1, 0.001, 0.00191, 21.45
+    a = math.exp(-damping * period / inertia)
+    angle, speed = [0.0], [0.0]
+    for t in stamps[:-1]:
+        tau = max(-limit, min(limit, cmd[t].effort[0]))
+        w_inf = tau / damping
+        gained = w_inf * period + (speed[-1] - w_inf) * (1 - a) * inertia / damping
+        angle.append(angle[-1] + gained)  # the example's order of operations
+        speed.append(w_inf + (speed[-1] - w_inf) * a)
+    assert_array_equal([state[t].position[0] for t in stamps], angle)
+    assert_array_equal([state[t].velocity[0] for t in stamps], speed)
+    assert_array_equal([state[t].position[1] for t in stamps], lead * np.array(angle))
+    # The suite's own plant (the plain-call loop, which its node graph reproduces bit for
+    # bit) gives the same tracking error within 1e-6.
+    own = simulate(clone.root / "config" / "pid_nominal.yaml")
+    error = lead * (own.reference_rad - own.encoder_rad)
+    errors = mine["tracking_error"]["all_samples"]
+    assert errors["rms_m"] > 1e-6  # the PID alone: micrometres, not rounding
+    assert_allclose(errors["rms_m"], np.sqrt(np.mean(error**2)), rtol=1e-6)
+    assert_allclose(errors["max_m"], np.max(np.abs(error)), rtol=1e-6)
