@@ -33,9 +33,9 @@ source sees them, the reader of the site does not:
   no command.
 * ``not output -- REASON``: a text block that is not a command's output.
 * ``output of terminal N``: the text block is terminal N's output.
-* ``ctrl-c terminal N after terminal M`` / ``ctrl-c terminal N after "TEXT"``:
+* ``ctrl-c terminal N after terminal M`` / ``ctrl-c terminal N after "TEXT" ...``:
   the session sends SIGINT to terminal N's process group (what Ctrl-C does)
-  once terminal M has ended, or once TEXT is in terminal N's output.
+  once terminal M has ended, or once every TEXT is in terminal N's output.
 * ``instead of terminal N: COMMAND -- REASON``: terminal N's commands are all
   skipped, and the session runs COMMAND in its place (a stand-in of what the
   suite cannot install, e.g. ros2_control).
@@ -204,10 +204,11 @@ def _directive(text: str, line: int) -> Directive:
     found = re.fullmatch(r"output of terminal (\d+)", body)
     if found:
         return Directive("output of terminal", (found.group(1),), reason, line)
-    found = re.fullmatch(r'ctrl-c terminal (\d+) after (?:terminal (\d+)|"([^"]+)")', body)
+    found = re.fullmatch(r'ctrl-c terminal (\d+) after (?:terminal (\d+)|((?:"[^"]+"\s*)+))', body)
     if found:
         n, m, printed = found.groups()
-        return Directive("ctrl-c", (n, m or "", printed or ""), reason, line)
+        texts = re.findall(r'"([^"]+)"', printed or "")
+        return Directive("ctrl-c", (n, m or "", *texts), reason, line)
     found = re.fullmatch(r"instead of terminal (\d+): (.+)", body)
     if found and reason:
         return Directive("instead", found.groups(), reason, line)
@@ -285,12 +286,14 @@ def visible_lines(output: str) -> list[str]:
 
 
 def _line_pattern(expected: str) -> re.Pattern[str]:
+    pieces = [p for p in re.split(r"(\.\.\.|\s+|\d{8}-\d{6})", expected.strip()) if p]
     parts = []
-    for piece in re.split(r"(\.\.\.|\s+|\d{8}-\d{6})", expected.strip()):
+    for k, piece in enumerate(pieces):
         if piece == "...":
             parts.append(".*?")
-        elif piece and piece.isspace():
-            parts.append(r"\s+")
+        elif piece.isspace():
+            beside = pieces[k - 1 : k] + pieces[k + 1 : k + 2]
+            parts.append(r"\s*" if "..." in beside else r"\s+")
         elif _RUN_TIME.fullmatch(piece):
             parts.append(r"\d{8}-\d{6}")
         else:
@@ -305,8 +308,8 @@ def output_mismatch(expected: str, output: str) -> str | None:
     matched in order, each to a whole line of the output; consecutive expected
     lines match consecutive output lines, except across a line that is only
     ``...``, which stands for any number of lines. Within a line, ``...``
-    stands for any text (a path, a time, a count), a run of blanks for any run
-    of blanks, and a run directory's time (``20261125-232600``) for any such
+    stands for any text (a path, a time, a count; the blanks beside it
+    included), a run of blanks for any run of blanks, and a run directory's time (``20261125-232600``) for any such
     time. Everything else, every number included, is as printed.
     """
     got = visible_lines(output)
@@ -516,7 +519,7 @@ class PageRun:
         *,
         givens: Mapping[str, Given] | None = None,
         after: Mapping[str, After] | None = None,
-        timeout_s: float = 600.0,
+        timeout_s: float = 240.0,
     ) -> None:
         self.page, self.copy, self.domain = page, copy, domain
         self.env = page_environment(domain)
@@ -541,38 +544,53 @@ class PageRun:
                         raise PageError(f"{self.page.name}:{d.line}: no given {d.args[0]!r}")
                     self.givens[d.args[0]](self.copy, d.args[1], self.env)
             if block.lang == "bash" and block.terminals:
-                session = [i]
-                while (
-                    session[-1] + 1 < len(blocks)
-                    and blocks[session[-1] + 1].lang == "bash"
-                    and blocks[session[-1] + 1].terminals
-                    and not set(blocks[session[-1] + 1].terminals)
-                    & {t for s in session for t in blocks[s].terminals}
+                # The session: this block and the later bash blocks of new terminals, up
+                # to a bash block without terminals; the blocks between are shown, saved
+                # (before the terminals start) or checked (once they have ended).
+                session, seen, j = [i], set(block.terminals), i + 1
+                while j < len(blocks) and not (
+                    blocks[j].lang == "bash" and not blocks[j].terminals
                 ):
-                    session.append(session[-1] + 1)
+                    if blocks[j].lang == "bash":
+                        if set(blocks[j].terminals) & seen:
+                            break
+                        seen |= set(blocks[j].terminals)
+                        session.append(j)
+                    j += 1
+                last = session[-1]
+                between = [k for k in range(i + 1, last + 1) if k not in session]
+                for k in between:
+                    if blocks[k].title:
+                        self._save(blocks[k])
                 terminals = self._session([blocks[s] for s in session])
                 for s in session:
                     outputs[s] = "".join(terminals.get(t, "") for t in blocks[s].terminals)
-                i = session[-1] + 1
+                for k in between:
+                    if blocks[k].lang == "text":
+                        self._check_text(blocks[k], k, outputs, terminals)
+                i = last + 1
                 continue
             if block.lang == "bash":
                 outputs[i] = self._commands(block)
             elif block.lang == "text":
                 self._check_text(block, i, outputs, terminals)
             elif block.title:
-                target = (self.copy / block.title).resolve()
-                if self.copy.resolve() not in target.parents:
-                    raise PageError(
-                        f"{self.page.name}:{block.line}: {block.title} is not in the clone"
-                    )
-                target.parent.mkdir(parents=True, exist_ok=True)
-                target.write_text(block.text + "\n")
+                self._save(block)
             i += 1
         self._check_markers()
         self.result.seconds = time.monotonic() - started
         return self.result
 
     # -- the blocks
+
+    def _save(self, block: Block) -> None:
+        """Write a titled block where its title says, in the clone."""
+        assert block.title is not None
+        target = (self.copy / block.title).resolve()
+        if self.copy.resolve() not in target.parents:
+            raise PageError(f"{self.page.name}:{block.line}: {block.title} is not in the clone")
+        target.parent.mkdir(parents=True, exist_ok=True)
+        target.write_text(block.text + "\n")
 
     def _check_text(
         self, block: Block, index: int, outputs: dict[int, str], terminals: dict[int, str]
@@ -679,13 +697,13 @@ class PageRun:
                         f"{self.page.name}: the terminals did not end:\n{_tails(procs)}"
                     )
                 for d in ctrl_c:
-                    n, after, printed = int(d.args[0]), d.args[1], d.args[2]
+                    n, after, printed = int(d.args[0]), d.args[1], d.args[2:]
                     if n in sent or n not in procs or procs[n][0].poll() is not None:
                         continue
                     ready = (
                         procs[int(after)][0].poll() is not None
                         if after
-                        else printed in procs[n][1].read_text(errors="replace")
+                        else all(t in procs[n][1].read_text(errors="replace") for t in printed)
                     )
                     if ready:
                         os.killpg(procs[n][0].pid, signal.SIGINT)

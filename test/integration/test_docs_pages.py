@@ -120,6 +120,10 @@ cycle   RMS (um)       max (um)
         # a whole line, not a part of one
         ("all samples 3.68545", False),
         ("  all samples ... 18.257", True),
+        # `...` with the blanks beside it: "run ..." shows "run directory" and "run:"
+        ("servo_axis run ptc_nominal: ... steps, run ...", True),
+        ("servo_axis run ... steps, ... /tmp/x/runs ...", True),
+        ("servo_axis run ptc_nominal: 2000 steps, run directory /tmp/y/...", False),
     ],
 )
 def test_the_output_rules(expected: str, shown: bool) -> None:
@@ -543,3 +547,14 @@ def test_how_to_outside_plant(ros_env: int, clone: Clone) -> None:
     assert errors["rms_m"] > 1e-6  # the PID alone: micrometres, not rounding
     assert_allclose(errors["rms_m"], np.sqrt(np.mean(error**2)), rtol=1e-6)
     assert_allclose(errors["max_m"], np.max(np.abs(error)), rtol=1e-6)
+
+
+def test_how_to_watch_a_run(ros_env: int, clone: Clone) -> None:
+    result = run_page("how-to/watch-a-run.md", clone, ros_env)
+    watcher = result.output_of("ROS_DOMAIN_ID=42 ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST")
+    # It ended quietly on Ctrl-C (exit 0, the page's default), no traceback.
+    assert "Traceback" not in watcher and "KeyboardInterrupt" not in watcher, watcher[-2000:]
+    # The run stopped by Ctrl-C says so and keeps what it recorded.
+    watched = summary(clone.root / "runs" / "watched")
+    assert watched["health"]["outcome"] == "interrupted" and watched["health"]["exit_code"] == 130
+    assert 0 < watched["message_counts"]["/x/state"] < 60_000
