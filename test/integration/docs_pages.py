@@ -10,10 +10,11 @@ What a page holds, for this harness:
 * A ```` ```bash ```` block: commands, one per line (a line ending with ``\\``
   goes on), each run by bash from the root of the copy, stdout and stderr
   together as a terminal shows them. A command must exit 0, unless its own
-  comment says ``# exit N: ...``. ``# terminal N: ...`` lines split a block
-  into terminals: consecutive bash blocks with terminals form one session,
-  whose terminals run at the same time, each its commands in turn, as a user
-  with N terminals would.
+  comment says ``# exit N: ...`` (or ``# exit 0, 4 or 5: ...``). ``#
+  terminal N: ...`` lines split a block into terminals: a bash block with
+  terminals and the later ones with new terminal numbers form one session,
+  whose terminals run at the same time, each its commands in turn, as a
+  user with N terminals would.
 * A ```` ```text ```` block right after a bash block (no other fenced block
   between): what that block printed (see :func:`output_mismatch` for the
   rules). After a session, ``output of terminal N`` says whose output it is.
@@ -76,7 +77,7 @@ _FENCE = re.compile(r"^```([\w+-]*)(.*)$")
 _TITLE = re.compile(r'title="([^"]+)"')
 _SNIPPET = re.compile(r'^\s*--8<--\s+"([^"]+)"\s*$')
 _TERMINAL = re.compile(r"^#\s*terminal (\d+)\b")
-_EXIT = re.compile(r"^#\s*exit (\d+)\b")
+_EXIT = re.compile(r"^#\s*exit ((?:\d+(?:, | or |, or ))*\d+)\b")
 _DOMAIN = re.compile(rf"(--domain-id |ROS_DOMAIN_ID=){PAGE_DOMAIN}\b")
 _RUN_TIME = re.compile(r"\d{8}-\d{6}")
 _SENTINEL = "\x1edocs-test"
@@ -103,7 +104,7 @@ class Command:
     text: str
     line: int
     terminal: int | None
-    exit_code: int  # expected: `# exit N` in its comment, else 0
+    exit_codes: tuple[int, ...]  # expected: `# exit N[, M or K]` in its comment, else 0
 
     @property
     def bare(self) -> str:
@@ -187,7 +188,9 @@ def _commands(text: str, first_line: int) -> tuple[Command, ...]:
                 text=logical.strip(),
                 line=first_line + 1 + start,
                 terminal=terminal,
-                exit_code=int(expected.group(1)) if expected else 0,
+                exit_codes=tuple(int(n) for n in re.findall(r"\d+", expected.group(1)))
+                if expected
+                else (0,),
             )
         )
     return tuple(out)
@@ -495,9 +498,14 @@ class PageResult:
     def report(self) -> str:
         lines = [f"{self.page.name}: {self.seconds:.1f} s"]
         lines += [
-            f"  {r.seconds:6.1f} s  exit {r.exit_code}  {r.command.bare[:90]}" for r in self.ran
+            f"  {r.seconds:6.1f} s  exit {r.exit_code}  {r.command.bare.splitlines()[0][:90]}"
+            for r in self.ran
         ]
-        lines += [f"  skipped  {c.bare[:60]}  ({why})" for c, why in self.skipped]
+        reasons: dict[str, list[str]] = {}
+        for command, why in self.skipped:
+            reasons.setdefault(why, []).append(command.bare.splitlines()[0][:40])
+        for why, commands in reasons.items():
+            lines.append(f"  skipped {len(commands)}: {', '.join(commands)}  ({why})")
         return "\n".join(lines)
 
 
@@ -720,7 +728,7 @@ class PageRun:
             shown = [pieces[0]]
             commands = scripts.get(n, [])
             if n in instead:
-                commands = [*commands, Command(instead[n], 0, n, 0)]
+                commands = [*commands, Command(instead[n], 0, n, (0,))]
             for k, command in enumerate(commands):
                 if k + 1 < len(pieces):
                     status, _, rest = pieces[k + 1].partition("\n")
@@ -739,11 +747,11 @@ class PageRun:
 
     def _ran(self, ran: Ran, where: str = "") -> None:
         self.result.ran.append(ran)
-        if ran.exit_code != ran.command.exit_code:
+        if ran.exit_code not in ran.command.exit_codes:
             raise PageError(
                 f"{self.page.name}:{ran.command.line}{' (' + where + ')' if where else ''}: "
                 f"{ran.command.bare!r} exited {ran.exit_code}, the page expects "
-                f"{ran.command.exit_code}:\n{ran.output[-4000:]}"
+                f"{' or '.join(map(str, ran.command.exit_codes))}:\n{ran.output[-4000:]}"
             )
 
     def _log(self, command: Command) -> Path:

@@ -558,3 +558,148 @@ def test_how_to_watch_a_run(ros_env: int, clone: Clone) -> None:
     watched = summary(clone.root / "runs" / "watched")
     assert watched["health"]["outcome"] == "interrupted" and watched["health"]["exit_code"] == 130
     assert 0 < watched["message_counts"]["/x/state"] < 60_000
+
+
+def test_how_to_live_view(ros_env: int, clone: Clone) -> None:
+    run_page("how-to/live-view.md", clone, ros_env)
+    # The extra installed into the clone's venv: servo_axis from the clone itself.
+    site = only(".venv/lib/python*/site-packages", clone.root)
+    assert [p.name for p in site.glob("servo_axis-*.dist-info")]
+    live = summary(clone.root / "runs" / "live")
+    assert live["health"]["exit_code"] == 0 and live["health"]["deterministic"]
+    assert live["message_counts"]["/x/state"] == 2000
+
+
+ROLES = ("recorder", "plant", "feedback", "feedforward")
+
+
+def killed_run(root: Path, where: str, env: dict[str, str]) -> None:
+    """A run of ptc_nominal (600 s long) at ``root / where``, killed as a whole (SIGKILL to
+    its nodes and its runner) once its bag holds a few chunks."""
+    import os
+    import signal
+    import time
+
+    from servo_axis.run.fastdds import clean_stale_shm
+    from servo_axis.run.processes import pids_of
+
+    data = load_scenario(root / "config" / "ptc_nominal.yaml")
+    data["/**"]["ros__parameters"]["duration_s"] = 600.0
+    scenario = root.parent / "ptc_nominal.yaml"
+    scenario.write_text(yaml.safe_dump(data))
+    out, started = root / where, time.time()
+    runner = subprocess.Popen(
+        [str(root / ".venv" / "bin" / "python"), "-m", "servo_axis", "run", str(scenario),
+         "--out", str(out), "--no-plots"],
+        cwd=root, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )  # fmt: skip
+    try:
+        deadline = time.monotonic() + 90
+        while sum(f.stat().st_size for f in out.glob("bag/*.mcap")) < 300_000:
+            assert runner.poll() is None and time.monotonic() < deadline, "the run did not start"
+            time.sleep(0.05)
+        pids = [pid for role in ROLES for pid in pids_of(out, role)]
+        assert len(pids) == len(ROLES), pids
+        for pid in pids:
+            os.kill(pid, signal.SIGKILL)
+    finally:
+        os.killpg(runner.pid, signal.SIGKILL)
+        runner.wait()
+    deadline = time.monotonic() + 30
+    while any(pids_of(out, role) for role in ROLES):
+        assert time.monotonic() < deadline, "the killed nodes are still there"
+        time.sleep(0.05)
+    clean_stale_shm(since=started)
+    assert not (out / "bag" / "metadata.yaml").exists() and not (out / "summary.json").exists()
+
+
+@pytest.mark.shm
+def test_how_to_recover_a_bag(ros_env: int, clone: Clone) -> None:
+    from rosbags.rosbag2 import Reader
+
+    result = run_page("how-to/recover-a-bag.md", clone, ros_env, givens={"killed-run": killed_run})
+    bag = clone.root / "runs" / "ptc_nominal-20261125-232600" / "bag"
+    assert (bag / "metadata.yaml").is_file() and (bag / "bag_0.mcap.unfinished").is_file()
+    told = result.output_of(".venv/bin/python -m servo_axis bag recover")
+    with Reader(bag) as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+        assert reader.message_count == sum(1 for _ in reader.messages()) > 1000
+    # It printed the messages it recovered per topic.
+    for topic in ("/x/state", "/x/command"):
+        assert topic in told and str(counts[topic]) in told, told
+
+
+@pytest.mark.realtime
+def test_how_to_ros2_control(ros_env: int, clone: Clone) -> None:
+    from test_outside_plant import joint_arrays, plant_clock_steps
+    from test_ros2_control import TARGET, check_applied
+
+    run_page("how-to/ros2-control.md", clone, ros_env)
+    runs = clone.root / "runs"
+
+    # ros2_control driving the emulated axis (the plugin publishing every cycle): the run
+    # completes; the realtime block reports the misses, judged against the commander's
+    # 2 ms period, and the set-points (NaN ones counted, never applied); the states are
+    # the replay of set-points the stand-in sent.
+    setpoint, log = summary(runs / "setpoint"), json.loads((runs / "standin.json").read_text())
+    assert setpoint["health"]["outcome"] == "complete"
+    rt = setpoint["realtime"]
+    assert rt["ticks"] == 2000
+    assert rt["misses"] == rt["commands_missing"] and rt["commands_late"] == 0
+    # Exit 5 with more than 5 % misses (a starved stand-in may also go silent for 2 s:
+    # loop_open, exit 5 too); else 0: nothing else is wrong with the run.
+    code = setpoint["health"]["exit_code"]
+    assert code == 5 or rt["misses"] <= 0.05 * rt["ticks"], rt
+    if code == 5:
+        assert setpoint["health"]["reasons"][0].startswith("the loop was not closed: ")
+    points = rt["setpoints"]
+    assert points["period_ns"] == 2_000_000 and points["quiet_ticks"] == 0
+    sent = sum(v is not None for v in log["published"])
+    assert 0 < points["received"] <= sent  # none made up (and 2 s at 500 Hz: about 1000)
+    assert 0 < points["unset"] <= sum(v is None for v in log["published"])
+    assert not setpoint["health"]["nodes"]["plant"].get("rejected"), setpoint["health"]
+    angle = check_applied(runs / "setpoint", log, 2000)
+    assert abs(angle[-1] - TARGET) < 1e-3 * TARGET  # the PD settled on its target
+
+    # The suite's controllers on an axis ros2_control drives, through the bridge: the
+    # states carry the broadcaster's stamps from after the run started (its first
+    # messages are not step 0), in the suite's layout, x_table's NaN replaced as the
+    # page says; the summary's error is the bag's states' against the references of
+    # their plant-clock steps; each torque the effort controller took is a recorded
+    # command, in the order sent.
+    out, drive = runs / "drive", summary(runs / "drive")
+    standin = json.loads((runs / "drive_standin.json").read_text())
+    assert drive["health"]["outcome"] == "complete"
+    # 4: the stand-in's Python loop stalled for tens of ms and the loop tripped; 5
+    # exactly when the misses exceed realtime.max_miss_fraction.
+    code, rt = drive["health"]["exit_code"], drive["realtime"]
+    assert (code == 5) == (rt["misses"] / rt["ticks"] > 0.05 and code != 4), (code, rt)
+    steps_run, lead, limit = 2000, 0.00191, 21.45
+    bag = out / "bag"
+    stamps, position, velocity, effort = joint_arrays(bag, "/x/state")
+    published = np.array(standin["stamps"])
+    assert set(stamps.tolist()) <= set(published.tolist())  # the broadcaster's own stamps
+    assert stamps[0] - published[0] > 10**9  # not its first message: the start rule
+    assert np.all(np.diff(stamps) > 0)
+    steps = plant_clock_steps(stamps)
+    assert steps[-1] >= steps_run - 1  # the run ended on the broadcaster's clock
+    assert_allclose(position[:, 1], lead * position[:, 0], rtol=1e-12, atol=0)
+    assert_allclose(velocity[:, 1], lead * velocity[:, 0], rtol=1e-12, atol=0)  # NaN -> R w
+    assert np.all(effort[:, 1] == 0.0)  # NaN friction force -> 0
+    assert np.all(np.abs(effort[:, 0]) <= limit)  # the torque the axis held
+    ref_stamps, reference, _, _ = joint_arrays(bag, "/x/reference")
+    ref_of = dict(zip((ref_stamps // 1_000_000).tolist(), reference[:, 0], strict=True))
+    within = steps < steps_run
+    error = np.array([ref_of[k] for k in steps[within]]) - position[within, 0]
+    rms = float(np.sqrt(np.mean((lead * error) ** 2)))
+    assert_allclose(drive["tracking_error"]["all_samples"]["rms_m"], rms, rtol=1e-9)
+    assert standin["dropped"] == 0 and not standin["deactivated"]
+    command_stamps, _, _, torque = joint_arrays(bag, "/x/command")
+    taken = standin["taken"]
+    assert len(taken) >= 100, len(taken)
+    it = iter(torque[:, 0].tolist())  # each taken value is the next recorded command it equals
+    assert all(any(t == c for c in it) for t in taken), taken[:5]
+    assert set(command_stamps.tolist()) <= set(stamps.tolist())  # each answers a state
+    if code in (0, 5):  # not tripped: the axis followed the reference
+        assert np.ptp(position[:, 0]) > 0.01, code  # rad
