@@ -155,6 +155,7 @@ def raw_payloads() -> Callable[[Path], dict[str, list[bytes]]]:
 #: share (``--dist loadfile``: a module is one unit), longest first (a serial
 #: ``pytest test/ros test/integration --durations=0``); the order only.
 _LONGEST_FIRST = (
+    "test_docs_pages",
     "test_external",
     "test_determinism",
     "test_elastic_runs",
