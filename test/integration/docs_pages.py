@@ -10,11 +10,11 @@ What a page holds, for this harness:
 * A ```` ```bash ```` block: commands, one per line (a line ending with ``\\``
   goes on), each run by bash from the root of the copy, stdout and stderr
   together as a terminal shows them. A command must exit 0, unless its own
-  comment says ``# exit N: ...`` (or ``# exit 0, 4 or 5: ...``). ``#
-  terminal N: ...`` lines split a block into terminals: a bash block with
-  terminals and the later ones with new terminal numbers form one session,
-  whose terminals run at the same time, each its commands in turn, as a
-  user with N terminals would.
+  comment says ``# exit N: ...`` (or ``# exit 0, 4 or 5: ...``).
+  ``# terminal N: ...`` lines split a block into terminals: a bash block
+  with terminals and the later ones with new terminal numbers form one
+  session, whose terminals run at the same time, each its commands in turn,
+  as a user with N terminals would.
 * A ```` ```text ```` block right after a bash block (no other fenced block
   between): what that block printed (see :func:`output_mismatch` for the
   rules). After a session, ``output of terminal N`` says whose output it is.
@@ -50,8 +50,8 @@ installs stays in it); the ROS domain is the test's (``--domain-id 42`` and
 commands and in their expected output), with the suite's isolation (localhost
 discovery, UDP, a temporary ROS_LOG_DIR); pip works offline (no index, no
 build isolation: the venv's setuptools builds). Afterwards nothing may be
-left outside ``runs/`` but the tools' caches that ``.gitignore`` covers, and
-no tracked file may have changed.
+left outside ``runs/`` but the tools' caches and a package's ``*.egg-info``,
+each covered by ``.gitignore``, and no tracked file may have changed.
 """
 
 from __future__ import annotations
