@@ -52,6 +52,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+from servo_axis import numerics
 from servo_axis.analysis import ballnut as bn
 from servo_axis.core.deformation import deformation_ratio
 from servo_axis.core.feedforward.sigmoid import gamma_for_width
@@ -337,6 +338,8 @@ def _typed(row: dict[str, str]) -> dict[str, Any]:
 
 
 def main() -> int:
+    # The portable numbers (servo_axis.numerics): this process starts again in the pin.
+    numerics.restart()
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--draws", type=int, default=60)
     parser.add_argument("--seed", type=int, default=21)

@@ -24,7 +24,7 @@ newest ``--all``/``--quick`` section of each scenario in the history).
 ``--all`` runs every shipped scenario (learning, identifier and two-axis ones
 included) in lockstep as separate processes, composed and core only, and in
 realtime as separate processes, next to the real-time floor of this machine
-(the shared tools' ``rt_floor.py``, EventsExecutor, measured in the same
+(``python -m servo_axis floor``, EventsExecutor, measured in the same
 invocation at each period, or read with ``--floor FILE``: its ``--json``
 lines). ``--quick`` does the same for the four scenarios of issue 23 only.
 ``--budget`` profiles one lockstep run (separate processes) and prints where
@@ -45,7 +45,6 @@ from __future__ import annotations
 
 import argparse
 import copy
-import json
 import os
 import platform
 import re
@@ -522,8 +521,6 @@ def law_cost_ms(data: dict, scenario: Path) -> float:
 
 #: The scenarios of issue 23's realtime target (``--quick``).
 QUICK = ("ptc_nominal", "rptc_detailed", "fast_reversal_sigmoid", "dlpid_tilt_lpf2")
-#: rt_floor.py of the shared tools (the floor of a bare pair of rclpy processes).
-RT_FLOOR = REPO.parent / "shared" / "tools" / "rt_floor.py"
 
 
 def prepared(src: Path, tmp: Path, duration: float, **shared: Any) -> tuple[Path, dict]:
@@ -549,35 +546,29 @@ def prepared(src: Path, tmp: Path, duration: float, **shared: Any) -> tuple[Path
     return out, data
 
 
-def measure_floor(periods_us: list[int], ticks: int) -> dict[int, dict]:
-    """rt_floor.py (EventsExecutor) at each period: its JSON result by period in us."""
+def measure_floor(periods_us: list[int], ticks: int, domain_id: int) -> dict[int, dict]:
+    """The floor (``python -m servo_axis floor``, EventsExecutor) at each period, by period in us.
+
+    In ROS domain ``domain_id`` (the runs' when none runs meanwhile).
+    """
+    from servo_axis.run.floor import FloorError, FloorOptions, measure
+
+    options = FloorOptions(ticks=ticks, executor="events", domain_id=domain_id)
     out: dict[int, dict] = {}
-    if not RT_FLOOR.exists():
-        print(f"no {RT_FLOOR}: no floor", flush=True)
-        return out
     for p in periods_us:
-        print(f"real-time floor at {p} us (rt_floor.py, events) ...", flush=True)
-        done = subprocess.run(
-            [sys.executable, str(RT_FLOOR), "--period-us", str(p), "--ticks", str(ticks),
-             "--executor", "events", "--json"],
-            capture_output=True, text=True, check=False,
-        )  # fmt: skip
-        lines = [ln for ln in done.stdout.splitlines() if ln.startswith("{")]
-        if done.returncode == 0 and lines:
-            out[p] = json.loads(lines[-1])
-        else:
-            print(f"rt_floor.py failed at {p} us: {done.stderr[-500:]}", flush=True)
+        print(f"real-time floor at {p} us (servo_axis floor, events) ...", flush=True)
+        try:
+            out[p] = measure(p, options)
+        except FloorError as err:
+            print(f"the floor failed at {p} us: {err}", flush=True)
     return out
 
 
 def read_floor(path: Path) -> dict[int, dict]:
-    """The floor from a file of rt_floor.py ``--json`` lines, by period in us."""
-    out = {}
-    for line in path.read_text().splitlines():
-        if line.strip().startswith("{"):
-            r = json.loads(line)
-            out[int(r["period_us"])] = r
-    return out
+    """The floor from a file of ``python -m servo_axis floor --json`` lines, by period in us."""
+    from servo_axis.run.floor import read_floor as read
+
+    return read(path)
 
 
 def one_run(scenario: Path, out_dir: Path, domain: int, composed: bool = False) -> Any:
@@ -729,6 +720,7 @@ def run_all(args: argparse.Namespace) -> int:
                 row["lock_rms"] = (
                     s.tracking_error.all_samples.rms_m if hasattr(s, "tracking_error") else None
                 )
+                row["unit"] = getattr(s, "unit", "m")
                 row["around"] = around_steps(s)
         print(f"{name}: core only ...", flush=True)
         row["core"] = core_rate(lock, data)
@@ -746,7 +738,11 @@ def run_all(args: argparse.Namespace) -> int:
             )
             row["rt_factor"] = steps_per_s(s) * period
         rows.append(row)
-    floor = read_floor(Path(args.floor)) if args.floor else measure_floor(sorted(periods), 10000)
+    floor = (
+        read_floor(Path(args.floor))
+        if args.floor
+        else measure_floor(sorted(periods), 10000, domain)
+    )
     elapsed = time.monotonic() - started
 
     def rate(v: Any, period: float) -> str:
@@ -761,7 +757,7 @@ def run_all(args: argparse.Namespace) -> int:
     ]
     rt_lines = [
         "| scenario | T_u (ms) | misses | floor misses | tick late p50/p99/max (us) "
-        "| command late p50/p99/max (us) | rate | exit | RMS error rt / lockstep (um) "
+        "| command late p50/p99/max (us) | rate | exit | RMS error rt / lockstep "
         "| references held / late estimates |",
         "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
@@ -781,8 +777,12 @@ def run_all(args: argparse.Namespace) -> int:
                 f"| {row['name']} | {per * 1e3:g} | {rt or 'no figures'} | {fl_text} | | | | | | |"
             )
             continue
-        errs = "/".join(
-            "-" if v is None else f"{1e6 * v:.3g}" for v in (row.get("rt_rms"), row.get("lock_rms"))
+        from servo_axis.analysis.units import position_error
+
+        error = position_error(row.get("unit", "m"))  # um, rad on a rotary table
+        errs = (
+            "/".join(error.format(v, ".3g") for v in (row.get("rt_rms"), row.get("lock_rms")))
+            + f" {error.unit}"
         )
         rt_lines.append(
             f"| {row['name']} | {per * 1e3:g} | {rt['misses']} of {rt['ticks']} "
@@ -808,7 +808,7 @@ def run_all(args: argparse.Namespace) -> int:
         "tick = when the plant stepped after its deadline, command = arrival after the tick of "
         "the state it answers; rate = ticks per period of wall time):\n\n"
         + "\n".join(rt_lines)
-        + "\n\nFloor (rt_floor.py, EventsExecutor, "
+        + "\n\nFloor (servo_axis floor, EventsExecutor, "
         + ("read from " + Path(args.floor).name if args.floor else "measured in this invocation")
         + "):\n\n"
         + "\n".join(floor_lines)
@@ -1031,7 +1031,10 @@ def main() -> int:
     parser.add_argument(
         "--quick", action="store_true", help="as --all for the four scenarios of issue 23"
     )
-    parser.add_argument("--floor", help="rt_floor.py --json output to use instead of measuring")
+    parser.add_argument(
+        "--floor",
+        help="`python -m servo_axis floor --json` output to use instead of measuring",
+    )
     parser.add_argument("--only", help="with --all: these scenarios (comma-separated names)")
     parser.add_argument(
         "--domain-id",

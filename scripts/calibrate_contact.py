@@ -37,6 +37,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+from servo_axis import numerics
 from servo_axis.analysis import ballnut as bn
 from servo_axis.core.friction.gms_fitting import fit_gms
 from servo_axis.params.resolve import plant_fingerprint
@@ -186,6 +187,8 @@ def max_after_first_cycle(trace: bn.PlantTrace) -> float:
 
 
 def main() -> int:
+    # The portable numbers (servo_axis.numerics): this process starts again in the pin.
+    numerics.restart()
     start = time.monotonic()
     tmp = Path(tempfile.mkdtemp(prefix="calibrate_contact_"))
     plant, grid_lines = choose_contact_law(tmp)

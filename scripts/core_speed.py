@@ -15,6 +15,9 @@ compiles what is compiled); its time is the ``first s`` column. The table:
 ``--profile N`` adds a cProfile of the N slowest (by x real time) to stderr.
 
     .venv/bin/python scripts/core_speed.py [--steps 2000] [--only NAME ...] [--profile 3]
+
+It runs in the portable numeric environment (servo_axis.numerics), as a
+lockstep run does; ``SERVO_AXIS_NUMERICS=native`` measures the host's fastest paths.
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from servo_axis import numerics
 from servo_axis.params import factories, resolve
 from servo_axis.params.scenario import (
     axes_of,
@@ -76,6 +80,8 @@ def cases(names: list[str], work: Path) -> list[tuple[str, tuple[Path, str]]]:
 
 
 def main() -> int:
+    # The portable numbers (servo_axis.numerics): this process starts again in the pin.
+    numerics.restart()
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )

@@ -35,10 +35,12 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "scripts"))
 
 from scenario_hashes import bag_hashes, run_dirs_with_bags  # noqa: E402
+from servo_axis import numerics  # noqa: E402
 
 STRANGER = """
 import sys, rclpy
 from rclpy.executors import ExternalShutdownException
+from servo_axis import numerics
 from servo_axis.nodes.base import MESSAGE_CLASSES, QOS
 from servo_axis.wire.topics import TOPICS
 rclpy.init()
@@ -111,6 +113,8 @@ def _count(entry: tuple[int, str] | None) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    # The portable numbers (servo_axis.numerics): this process starts again in the pin.
+    numerics.restart()
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scenario", default="rptc_friction_table")
     parser.add_argument("--runs", type=int, default=10)

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from servo_axis import numerics
 from servo_axis.params.factories import build_reference
 from servo_axis.params.resolve import node_values
 from servo_axis.params.scenario import load_scenario
@@ -55,6 +56,8 @@ def run(path: Path) -> dict[str, object]:
 
 
 def main() -> int:
+    # The portable numbers (servo_axis.numerics): this process starts again in the pin.
+    numerics.restart()
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seconds", type=float, default=None, help="shorten the runs")
     args = parser.parse_args()

@@ -19,6 +19,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+from servo_axis import numerics
 from servo_axis.core.feedback.pid import design_pid_pole_placement
 from servo_axis.core.learning.ilc import IlcParams, convergence_gain, convergence_measure
 from servo_axis.core.models.base import NominalModel
@@ -33,6 +34,8 @@ TRUE_PLANT = NominalModel(
 
 
 def main() -> None:
+    # The portable numbers (servo_axis.numerics): this process starts again in the pin.
+    numerics.restart()
     params = IlcParams(
         samples_per_trial=4000,  # only bounds Nq; the condition does not depend on N
         nq=NQ,

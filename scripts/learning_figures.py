@@ -14,6 +14,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+from servo_axis import numerics
 from servo_axis.core.feedback.pid import design_pid_pole_placement
 from servo_axis.core.learning.filters import modelling_error_and_sensitivity, n_times_gain, q_gain
 from servo_axis.core.models.ball_screw import BALL_SCREW_MODES, ball_screw_response
@@ -24,6 +25,8 @@ NOMINAL = {"torque_constant_Nm_per_A": 0.715, "inertia_kgm2": 0.01, "damping_Nms
 
 
 def main() -> None:
+    # The portable numbers (servo_axis.numerics): this process starts again in the pin.
+    numerics.restart()
     f = np.linspace(0.1, 250.0, 2500)
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4))
     for nq in (1, 5, 20, 40):

@@ -2,7 +2,7 @@
 """Realtime deadline misses of commits (or environment variants), alternated in one invocation.
 
 A shared host's realtime figures drift from minute to minute (the bare
-pair of ``rt_floor.py`` missed 6 to 246 of 2000 deadlines within ten
+pair of ``python -m servo_axis floor`` missed 6 to 246 of 2000 deadlines within ten
 minutes), so commits are compared only run by run, back to back: each
 repetition runs a realtime copy of the scenario (``--seconds`` simulated,
 separate processes, recorder on, ``python -m servo_axis run``) once with
@@ -38,7 +38,6 @@ from typing import Any
 import yaml
 
 REPO = Path(__file__).resolve().parents[1]
-FLOOR = REPO.parent / "shared" / "tools" / "rt_floor.py"
 
 
 def git(*args: str) -> str:
@@ -123,12 +122,13 @@ def main() -> int:
     for rep in range(args.reps):
         if args.floor:
             done = subprocess.run(
-                [sys.executable, str(FLOOR), "--period-us", "1000", "--ticks", "2000",
-                 "--executor", "events", "--json"],
-                capture_output=True, text=True, check=False,
-                env={**env, "ROS_DOMAIN_ID": str(args.domain_id + 1),
-                     "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"},
+                [sys.executable, "-m", "servo_axis", "floor", "--period-us", "1000",
+                 "--ticks", "2000", "--executor", "events", "--json",
+                 "--domain-id", str(args.domain_id + 1)],
+                capture_output=True, text=True, check=False, env=env,
             )  # fmt: skip
+            if done.returncode != 0:
+                raise SystemExit(f"rt_ab.py: the floor failed: {done.stderr.strip()}")
             floor = json.loads(done.stdout.splitlines()[-1])["misses"]
             floors.append(floor)
             print(f"floor      rep {rep}: {floor} misses of 2000", flush=True)

@@ -5,8 +5,8 @@ For every shipped scenario (or those named) a short realtime copy (``--seconds``
 simulated, separate processes, recorder on) through ``python -m servo_axis run``,
 quiet and with ``--hogs`` CPU-bound processes at the default priority beside it;
 for each: the exit code, the misses against the floor of a bare rclpy pair at the
-same period measured in the same invocation with the same hogs (the shared tools'
-``rt_floor.py``, ``REPO.parent / "shared"``), the wall time and whether the run
+same period measured in the same invocation with the same hogs (``python -m
+servo_axis floor``), the wall time and whether the run
 ended by itself (not stopped by this script's time limit). Then three runs of
 ``ptc_nominal`` under the same loads: the stall (SIGSTOP of the feedback for
 0.3 s mid-run: does the loop close again after it, the misses, what was skipped),
@@ -229,7 +229,7 @@ def main() -> int:
     parser.add_argument("scenarios", nargs="*", help="scenario names (default: every shipped one)")
     parser.add_argument("--seconds", type=float, default=2.0, help="simulated s of each copy")
     parser.add_argument("--hogs", type=int, nargs="+", default=[0, 2], help="loads to measure")
-    parser.add_argument("--no-floor", action="store_true", help="skip rt_floor.py")
+    parser.add_argument("--no-floor", action="store_true", help="skip the floor (servo_axis floor)")
     parser.add_argument("--domain-id", type=int, default=77)
     parser.add_argument("--no-extra", action="store_true", help="no stall and SIGTERM runs")
     parser.add_argument(
@@ -260,7 +260,7 @@ def main() -> int:
             for rep in range(args.reps):
                 # The floor and the runs alternate, so that a drift of the host
                 # weighs on both alike.
-                floor = {} if args.no_floor else measure_floor(periods, ticks=5000)
+                floor = {} if args.no_floor else measure_floor(periods, 5000, args.domain_id)
                 floors.append(floor)
                 floor_file = None
                 if floor:

@@ -28,6 +28,9 @@ import sys
 import tempfile
 from pathlib import Path
 
+from servo_axis import numerics
+from servo_axis.numerics import MASKS
+
 REPO = Path(__file__).resolve().parents[1]
 
 
@@ -87,6 +90,8 @@ def single_axis_ns(scenario: Path) -> str:
 
 
 def main() -> int:
+    # The portable numbers (servo_axis.numerics): this process starts again in the pin.
+    numerics.restart()
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -94,7 +99,20 @@ def main() -> int:
     parser.add_argument("--composed", action="store_true", help="single-axis runs in one process")
     parser.add_argument("--check", metavar="FILE", help="compare with a committed output")
     parser.add_argument("--domain-id", type=int, default=150 + os.getpid() % 80)
+    parser.add_argument(
+        "--mask",
+        action="append",
+        default=[],
+        choices=[*MASKS, "all"],
+        help="run as if on another CPU (servo_axis.numerics.MASKS); repeatable",
+    )
     args = parser.parse_args()
+    for name in MASKS if "all" in args.mask else args.mask:
+        # Set before the runner starts any node: they inherit it.
+        for key, value in MASKS[name].items():
+            if key == "GLIBC_TUNABLES" and os.environ.get(key):
+                value = f"{os.environ[key]}:{value}"
+            os.environ[key] = value
     scenarios = [Path(s) for s in args.scenarios] or sorted((REPO / "config").glob("*.yaml"))
     lines: list[str] = []
     with tempfile.TemporaryDirectory(prefix="servo_axis_hashes_") as tmp:

@@ -30,6 +30,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import yaml
 
+from servo_axis import numerics
 from servo_axis.core.learning.ilc import StandardIlc, check_trial_signal, trial_q
 from servo_axis.params.scenario import load_scenario
 from servo_axis.simulate import simulate_learning
@@ -71,6 +72,8 @@ def _run(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def main() -> None:
+    # The portable numbers (servo_axis.numerics): this process starts again in the pin.
+    numerics.restart()
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         reversed_ref = _variant(folder, "reversed", {"amplitudes_m": [0.002, -0.003]})

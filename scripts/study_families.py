@@ -46,6 +46,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from servo_axis import numerics
 from servo_axis.core.feedback.pid import design_pid_pole_placement
 from servo_axis.core.learning.ilc import IlcParams, convergence_measure
 from servo_axis.core.models.base import NominalModel
@@ -205,7 +206,7 @@ def write() -> None:
         "backend": "plain",
         "points": [copy.deepcopy({**v, **scheme}) for v in dl for scheme in (off, on)],
         "figures": {
-            "rmsd_rad": "tracking_error.all_samples.rms_m",
+            "rmsd_rad": "tracking_error.all_samples.rms_rad",
             "J_ratio": "identification.final_ratio.inertia_kgm2",
             "D_ratio": "identification.final_ratio.damping_Nms_per_rad",
             "U_ratio": "identification.final_ratio.unbalance_Nm",
@@ -332,6 +333,8 @@ def _dlpid_table(rows: list[dict[str, Any]]) -> None:
 
 
 def main() -> None:
+    # The portable numbers (servo_axis.numerics): this process starts again in the pin.
+    numerics.restart()
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
     sub.add_parser("write", help="write the two study files")

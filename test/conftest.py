@@ -151,6 +151,42 @@ def raw_payloads() -> Callable[[Path], dict[str, list[bytes]]]:
     return read_raw_payloads
 
 
+def install_package(package: Path, site: Path) -> None:
+    """What ``pip install --target site package`` leaves: its modules and a ``*.dist-info``.
+
+    The modules of ``package/src`` are copied, and the dist-info gets the
+    name, version and entry points of its ``pyproject.toml``, which
+    ``importlib.metadata`` reads from a folder on ``sys.path`` (in a
+    subprocess with ``PYTHONPATH=site``) as from any installed package.
+    Instant, where pip builds a wheel first.
+    """
+    import shutil
+    import tomllib
+
+    project = tomllib.loads((package / "pyproject.toml").read_text())["project"]
+    for module in (package / "src").iterdir():
+        shutil.copytree(module, site / module.name)
+    info = site / f"{project['name'].replace('-', '_')}-{project['version']}.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text(
+        f"Metadata-Version: 2.1\nName: {project['name']}\nVersion: {project['version']}\n"
+    )
+    (info / "entry_points.txt").write_text(
+        "".join(
+            f"[{group}]\n" + "".join(f"{name} = {value}\n" for name, value in points.items()) + "\n"
+            for group, points in project["entry-points"].items()
+        )
+    )
+
+
+@pytest.fixture(scope="session")
+def broken_plugin_site(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A folder with ``test/data/broken_plugin`` installed (put it on PYTHONPATH of a subprocess)."""
+    site = tmp_path_factory.mktemp("broken_plugin_site")
+    install_package(REPO / "test" / "data" / "broken_plugin", site)
+    return site
+
+
 #: The modules of the longest runs of work one pytest-xdist worker cannot
 #: share (``--dist loadfile``: a module is one unit), longest first (a serial
 #: ``pytest test/ros test/integration --durations=0``); the order only.

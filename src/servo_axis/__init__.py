@@ -2,6 +2,12 @@
 
 import os as _os
 
+from servo_axis import numerics as _numerics
+
+# `python -m servo_axis[.module]` starts again in the portable numeric
+# environment before numpy loads (servo_axis.numerics); a library import never does.
+_numerics.enter()
+
 # The suite's matrices are 3x3 to 8x8: OpenBLAS's threads only contend for
 # the cores (a plain-call DLPID loop ran 10x slower with them on a loaded
 # 2-core host). A default only: effective if numpy is not yet loaded, and

@@ -8,7 +8,10 @@ is one line on stderr and exit 2.
     run a scenario end to end and record it; SCENARIO is the name of a
     shipped scenario (``rptc_detailed``) or a scenario file;
 ``python -m servo_axis list``
-    the shipped scenarios and what each runs;
+    the shipped scenarios and what each runs, the installed extensions (a broken one marked);
+``python -m servo_axis params [NAME]``
+    every key of the nodes and of the installed extensions (plugins included): default, unit,
+    range, meaning;
 ``python -m servo_axis summary RUN_DIR`` / ``compare RUN_DIR...`` / ``friction-table RUN_DIR``
     a run's summary again, runs side by side, a friction table from a run;
 ``python -m servo_axis gms-fit RUN_DIR --out FILE [--elements N] [--plot PNG]``
@@ -19,7 +22,9 @@ is one line on stderr and exit 2.
 ``python -m servo_axis identify RUN_DIR --model NAME --out SCENARIO.yaml [--friction RUN_DIR] [--validate RUN_DIR]``
     an axis identified from a measure_frf_* run, written as a scenario (docs/how-to/identify-your-axis.md);
 ``python -m servo_axis bag recover BAG_DIR``
-    make a bag whose recorder died readable again (a complete bag is left as it is).
+    make a bag whose recorder died readable again (a complete bag is left as it is);
+``python -m servo_axis floor [--period-us US ...] [--ticks N] [--json]``
+    this host's realtime floor: a bare rclpy pair's deadline misses (``run --floor FILE``).
 
 With no arguments it runs the shipped scenario ``rptc_friction_table``: the
 detailed axis (resonances, dead time, rolling friction) with the friction
@@ -36,10 +41,12 @@ import sys
 from servo_axis.cli import (
     bag_command,
     compare_command,
+    floor_command,
     friction_table_command,
     gms_fit_command,
     identify_command,
     list_command,
+    params_command,
     run_command,
     summary_command,
     sweep_command,
@@ -57,8 +64,10 @@ COMMANDS = (
     identify_command,
     summary_command,
     list_command,
+    params_command,
     compare_command,
     bag_command,
+    floor_command,
 )
 
 #: What the top-level help says first.
@@ -74,6 +83,7 @@ With no command it runs the shipped scenario {DEFAULT_SCENARIO}.
 EXAMPLES = """\
 examples:
   python -m servo_axis list
+  python -m servo_axis params friction_table
   python -m servo_axis run ptc_nominal --out runs/ptc
   python -m servo_axis run rptc_detailed --composed --namespace /x --domain-id 42
   python -m servo_axis summary runs/ptc
@@ -83,6 +93,7 @@ examples:
   python -m servo_axis gms-fit runs/friction_id_elastic --out gms.txt --plot fit.png
   python -m servo_axis identify runs/frf --model ball_screw --out my_axis.yaml
   python -m servo_axis bag recover runs/ptc/bag
+  python -m servo_axis floor --period-us 1000 --json --out runs/floor.jsonl
 (`servo-axis` is the same command as `python -m servo_axis`.)
 
 Exit codes of run: 0 complete and deterministic (realtime: complete, never
@@ -121,7 +132,7 @@ def main(argv: list[str] | None = None, prog: str = "python -m servo_axis") -> i
     if args.command is None:
         args = parser.parse_args(["run", DEFAULT_SCENARIO])
     try:
-        return int(args.func(args))
+        code = int(args.func(args))
     except BrokenPipeError:
         # The reader of our output went away (`list | head`): not an error of ours.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
@@ -130,8 +141,18 @@ def main(argv: list[str] | None = None, prog: str = "python -m servo_axis") -> i
         print("\ninterrupted", file=sys.stderr)
         return 128 + int(signal.SIGINT)
     except (ServoAxisError, OSError) as err:
+        # One line: the error (the other broken plugins are named by a command that works).
         print(f"error: {err}", file=sys.stderr)
         return 2
+    _report_broken_plugins()
+    return code
+
+
+def _report_broken_plugins() -> None:
+    """Name once each installed plugin that cannot be loaded, of those the command looked at."""
+    registry = sys.modules.get("servo_axis.params.registry")
+    if registry is not None:  # else the command read no registry (and imports none now)
+        registry.report_broken()
 
 
 def console() -> int:

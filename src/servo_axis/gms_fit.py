@@ -124,7 +124,9 @@ def plot_fit(fit: GmsFit, position_m: np.ndarray, torque_Nm: np.ndarray, path: P
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    x_um = (pos - pos[0]) * 1e6
+    from servo_axis.analysis.units import DISPLACEMENT, QUANTITIES
+
+    x_um = DISPLACEMENT.shown(pos - pos[0])
     fig, ax = plt.subplots(figsize=(6.4, 4.4))
     ax.plot(x_um, tq, "-", lw=1.0, color="tab:blue", label="measured")
     ax.plot(x_um, fit.model_torque_Nm, "--", lw=1.2, color="tab:red", label="GMS model")
@@ -134,8 +136,8 @@ def plot_fit(fit: GmsFit, position_m: np.ndarray, torque_Nm: np.ndarray, path: P
         f"RMS residual {fit.rms_residual_Nm:.3g} N m",
         fontsize=10,
     )
-    ax.set_xlabel("displacement of the table (µm)")
-    ax.set_ylabel("friction torque at the motor (N m)")
+    ax.set_xlabel(DISPLACEMENT.label("displacement of the table"))
+    ax.set_ylabel(QUANTITIES["torque"].label("friction torque at the motor"))
     ax.grid(True, alpha=0.3)
     ax.legend(loc="center")  # the middle of a reversal loop is empty
     fig.tight_layout()

@@ -61,9 +61,10 @@ def test_every_node_reports_on_diagnostics_during_a_run(ros_env: int, tmp_path: 
     assert run.returncode == 0, out
     assert f"ROS 2: ROS_DOMAIN_ID={ros_env}, namespace /x (nodes /x/plant" in out  # the header
     # --no-plots: no PNG written, and none announced.
-    assert f"run directory: {tmp_path / 'run'}  (bag/, summary.json, params.yaml, logs/)" in out, (
-        out[-800:]
-    )
+    assert (
+        f"run directory: {tmp_path / 'run'}  (bag/, summary.json, scenario.yaml, params.yaml, logs/)"
+        in out
+    ), out[-800:]
     assert not list((tmp_path / "run").rglob("*.png"))
     names = {f"/x/{role}" for role in ROLES}
     assert names <= set(seen), sorted(seen)

@@ -138,6 +138,60 @@ def test_the_four_schemes_are_their_plain_call_loops(
         assert figures[scheme] < 0.5 * figures["pid"], scheme
 
 
+def test_a_rotary_run_s_error_is_in_rad_in_every_output(
+    scheme_runs: dict[str, tuple[Path, RunResult]],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """issue 43: urad in the tables, mrad on the bar chart, rad under ``rms_m``; now rad."""
+    import json
+
+    from rosbags.highlevel import AnyReader
+
+    from servo_axis.__main__ import main
+    from servo_axis.analysis import plots
+
+    figures = {}
+    for scheme in ("pid", "lpf2"):
+        path, result = scheme_runs[scheme]
+        with AnyReader([result.run_dir / "bag"]) as reader:  # not the suite's reader
+            conns = [c for c in reader.connections if c.topic == "/tilt/state"]
+            angle = np.array(
+                [
+                    reader.deserialize(raw, c.msgtype).position[0]
+                    for c, _t, raw in reader.messages(conns)
+                ]
+            )
+        figures[scheme] = rmsd(path, angle)
+        data = json.loads((result.run_dir / "summary.json").read_text())
+        assert data["error_unit"] == "rad"
+        assert_allclose(
+            data["tracking_error"]["all_samples"]["rms_rad"], figures[scheme], rtol=1e-10
+        )
+        assert "rms_m" not in data["tracking_error"]["all_samples"]
+        assert main(["summary", str(result.run_dir)]) == 0
+        text = capsys.readouterr().out
+        row = next(x for x in text.splitlines() if x.startswith("  all samples"))
+        assert "tracking error (rad)" in text and "urad" not in text
+        assert_allclose(float(row.split()[2]), figures[scheme], rtol=1e-5)
+    kept: list[Any] = []
+    monkeypatch.setattr(plots._pyplot(), "close", kept.append)
+    dirs = [str(scheme_runs[s][1].run_dir) for s in ("pid", "lpf2")]
+    chart = tmp_path / "rmsd.png"
+    assert main(["compare", *dirs, "--bar-chart", str(chart)]) == 0
+    monkeypatch.undo()
+    out = capsys.readouterr().out
+    assert "RMSD of the tracking error over the whole run (rad)" in out and "urad" not in out
+    (bars,) = kept[0].axes
+    assert bars.get_ylabel() == "RMSD of tracking error (rad)"
+    assert_allclose(
+        [b.get_height() for b in bars.patches], [figures["pid"], figures["lpf2"]], rtol=1e-10
+    )
+    for fig in kept:
+        plots._pyplot().close(fig)
+
+
 def test_identical_bags_separate_and_composed(
     ros_env: int,
     tmp_path: Path,

@@ -40,6 +40,7 @@ def on_commands(msg):
     else:
         taken.append(list(msg.data))
 node.create_subscription(Float64MultiArray, "~/commands", on_commands, qos_profile_system_default)
+print("listening", flush=True)
 try:
     rclpy.spin(node)
 except (KeyboardInterrupt, ExternalShutdownException):
@@ -70,7 +71,12 @@ def test_the_feedback_sends_each_command_to_a_forward_effort_controller(
         ["-c", CONTROLLER, str(log)], tmp_path / "controller.log", run_profile=True
     )
     try:
-        time.sleep(1.0)
+        # Listening before the run starts (not after a fixed 1 s: its start-up
+        # is the host's); the run's own start-up leaves time for the match.
+        said, deadline = tmp_path / "controller.log", time.monotonic() + 60
+        while "listening" not in said.read_text():
+            assert controller.poll() is None and time.monotonic() < deadline, said.read_text()
+            time.sleep(0.05)
         out = tmp_path / "run"
         code = finish(start_run(path, out), RUN_TIMEOUT_S)
         time.sleep(0.5)

@@ -37,6 +37,7 @@ from test_external import (
 )
 from test_external import stop as stop_node
 
+from servo_axis.nodes.feedback import ANSWER_GAP
 from servo_axis.recording.deserialize import read_messages
 from servo_axis.run.processes import pids_of
 
@@ -303,6 +304,11 @@ def test_in_realtime_a_plant_that_owns_its_clock_is_answered_with_its_own_stamps
     assert steps[-1] >= STEPS - 1  # the run ended on the plant's clock
     assert set(command_stamps.tolist()) <= set(stamps.tolist())
     answered = np.isin(stamps[steps < STEPS], command_stamps)
-    assert answered.mean() > 0.9, answered.mean()
+    # A feedback behind its clock answers only what the plant can still use,
+    # but at least every ANSWER_GAP states; where the loop closed (measured:
+    # misses within realtime.max_miss_fraction) it answered nearly all.
+    assert answered.mean() > 0.5 / ANSWER_GAP, answered.mean()
+    if fraction <= 0.05:
+        assert answered.mean() > 0.9, (answered.mean(), fraction)
     rms = plant_clock_rms_m(bag, steps, position)
     assert_allclose(done["tracking_error"]["all_samples"]["rms_m"], rms, rtol=1e-9)

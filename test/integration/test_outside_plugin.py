@@ -8,12 +8,19 @@ folder (``pip install --no-deps --no-build-isolation --target``, with the
 setuptools of this environment) that only the subprocesses of this test get
 on ``PYTHONPATH``: this environment is left as it was. Nothing under
 ``src/`` names it. The tutorial that shows it (``docs/tutorials/own-plugin.md``)
-installs it, lists it, runs its scenario through the node graph against the
-plain-call loop and uninstalls it: ``test_docs_pages.py::test_tutorials_own_plugin``.
+installs it, lists it and its keys (``list``, ``params``), runs its scenario
+through the node graph against the plain-call loop, checks that
+docs/parameters.md, the suite's own reference, stays what it is with it
+installed, and uninstalls it: ``test_docs_pages.py::test_tutorials_own_plugin``.
+Here: its scenario runs through ``python -m servo_axis run`` (a process per
+node, lockstep) with the broken plugins of ``test/data/broken_plugin``
+installed beside it, each named once on stderr, none stopping a run that
+does not use it.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import subprocess
@@ -24,6 +31,8 @@ import numpy as np
 import pytest
 import yaml
 from numpy.testing import assert_allclose
+
+from servo_axis.run.processes import ros_environment
 
 pytestmark = pytest.mark.integration
 
@@ -63,9 +72,12 @@ def plugin_site(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return site
 
 
-def python(site: Path, env: dict[str, str], *args: str, timeout: float = 300.0) -> str:
-    """This interpreter with the plugin on PYTHONPATH: its stdout (exit code 0)."""
-    env = {**env, "PYTHONPATH": os.pathsep.join([str(site), env.get("PYTHONPATH", "")])}
+def python_run(
+    site: Path | list[Path], env: dict[str, str], *args: str, timeout: float = 300.0
+) -> subprocess.CompletedProcess[str]:
+    """This interpreter with the plugin folder(s) on PYTHONPATH (exit code 0)."""
+    sites = [str(s) for s in (site if isinstance(site, list) else [site])]
+    env = {**env, "PYTHONPATH": os.pathsep.join([*sites, env.get("PYTHONPATH", "")])}
     done = subprocess.run(
         [sys.executable, *args],
         env=env,
@@ -76,7 +88,12 @@ def python(site: Path, env: dict[str, str], *args: str, timeout: float = 300.0) 
         cwd=REPO,
     )
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
-    return done.stdout
+    return done
+
+
+def python(site: Path, env: dict[str, str], *args: str, timeout: float = 300.0) -> str:
+    """This interpreter with the plugin on PYTHONPATH: its stdout (exit code 0)."""
+    return python_run(site, env, *args, timeout=timeout).stdout
 
 
 def test_the_step_response_of_the_outside_plant_is_its_closed_form(
@@ -99,3 +116,28 @@ def test_the_step_response_of_the_outside_plant_is_its_closed_form(
     assert_allclose(got, expected, rtol=1e-9, atol=1e-15)
     # the final velocity K_T i / b is approached: 0.4 s = 12 time constants
     assert_allclose(np.diff(got)[-1] / PERIOD_S, KT * 2.0 / B, rtol=1e-4)
+
+
+def test_broken_plugins_beside_it_stop_only_the_runs_that_use_them(
+    plugin_site: Path, broken_plugin_site: Path, ros_env: int, tmp_path: Path
+) -> None:
+    run_dir = tmp_path / "run"
+    done = python_run(
+        [plugin_site, broken_plugin_site],
+        ros_environment(ros_env, tmp_path / "ros_log"),
+        "-m",
+        "servo_axis",
+        "run",
+        str(PLUGIN / "viscous_axis.yaml"),
+        "--out",
+        str(run_dir),
+        "--no-plots",
+    )
+    # The broken plant model and term are named once each, the loaded extensions not
+    # at all; the run is whole.
+    for name in ("missing_axis", "failing_term"):
+        assert done.stderr.count(f"'{name}' cannot be loaded") == 1, done.stderr
+    assert "rigid_viscous_axis" not in done.stderr and "viscous_ff" not in done.stderr
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert summary["health"]["outcome"] == "complete" and summary["health"]["exit_code"] == 0
+    assert summary["steps"] == 500 and summary["message_counts"]["/x/state"] == 500

@@ -24,6 +24,7 @@ import pytest
 import yaml
 
 from servo_axis.nodes.feedback import ANSWER_GAP
+from servo_axis.nodes.plant import LOOP_OPEN_S
 from servo_axis.nodes.realtime import thread_policies
 from servo_axis.params.scenario import load_scenario
 from servo_axis.recording.deserialize import read_messages
@@ -92,6 +93,43 @@ def fifo_permitted() -> bool:
     return subprocess.run([sys.executable, "-c", probe], capture_output=True).returncode == 0
 
 
+def settled_policies(pids: dict[str, int], timeout_s: float = 30.0) -> dict[str, Any]:
+    """The threads' policies of each role once its executor took its first sample.
+
+    Each executor thread takes its realtime priority then (and sets the
+    middleware's receive threads): where SCHED_FIFO is permitted, the policies
+    are read once the plant's clock and executor and the others' executors
+    are at it, with their receive threads, and two readings 0.1 s apart
+    agree, not after a fixed time a slow host may not have made (0.3 s).
+    """
+
+    def read() -> dict[str, Any]:
+        return {role: thread_policies(pid) for role, pid in pids.items()}
+
+    def ready(policies: dict[str, Any]) -> bool:
+        def fifo(role: str) -> list[str]:
+            return policies[role].get("fifo", [])
+
+        return all(
+            len([n for n in fifo(role) if not n.startswith("dds.")])
+            == (2 if role == "plant" else 1)
+            and any(n.startswith("dds.") for n in fifo(role))
+            for role in pids
+        )
+
+    policies = read()
+    if not fifo_permitted():
+        return policies  # nothing to wait for: every thread stays at the default
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        time.sleep(0.1)
+        again = read()
+        if ready(again) and again == policies:
+            return again
+        policies = again
+    return policies  # as they are: the test says what is missing
+
+
 @pytest.fixture(scope="module")
 def stalled_run(module_ros_env: tuple[int, Path]) -> dict[str, Any]:
     """A realtime run whose feedback is stopped for 0.3 s mid-run; its threads' policies."""
@@ -101,12 +139,7 @@ def stalled_run(module_ros_env: tuple[int, Path]) -> dict[str, Any]:
     plant = wait_for_the_clock(run_dir, proc)
     (feedback,) = pids_of(run_dir, "feedback")
     (feedforward,) = pids_of(run_dir, "feedforward")
-    time.sleep(0.3)  # the executor threads have taken their first samples
-    policies = {
-        "plant": thread_policies(plant),
-        "feedback": thread_policies(feedback),
-        "feedforward": thread_policies(feedforward),
-    }
+    policies = settled_policies({"plant": plant, "feedback": feedback, "feedforward": feedforward})
     time.sleep(0.5)
     os.kill(feedback, signal.SIGSTOP)
     stopped_at = time.monotonic()
@@ -153,7 +186,16 @@ def test_only_the_clock_the_executors_and_the_receive_threads_run_at_a_realtime_
 
 
 def test_after_a_stall_of_the_feedback_the_loop_closes_again(stalled_run: dict[str, Any]) -> None:
-    assert 0.25 < stalled_run["stall_s"] < 1.0
+    # The stall is this test's SIGSTOP .. SIGCONT: at least its 0.3 s sleep;
+    # a busy host may make it longer, harmless while it stays well under the
+    # 2 s without a command after which the plant ends the run (loop_open).
+    stall_s = stalled_run["stall_s"]
+    assert stall_s > 0.25
+    if stall_s > LOOP_OPEN_S - 0.5:
+        pytest.skip(
+            f"this host held the test for {stall_s:.2f} s between SIGSTOP and SIGCONT of a "
+            f"0.3 s stall, near the plant's {LOOP_OPEN_S} s loop_open limit"
+        )
     summary = stalled_run["summary"]
     # A 0.3 s stall of a 3 s run is 10 % of its ticks missed: more than
     # realtime.max_miss_fraction (5 %), so exit 5 for that reason (or 4: the

@@ -32,8 +32,9 @@ from pathlib import Path
 
 import pytest
 import yaml
-from run_support import shm_left_behind, shm_names
+from run_support import shm_left_behind, shm_mapped_by, shm_names
 
+from host_load import process_waits_ns, said
 from servo_axis.params.scenario import load_scenario
 from servo_axis.run.fastdds import clean_stale_shm
 from servo_axis.run.progress import ProgressWatcher
@@ -85,6 +86,8 @@ def test_sigkilled_recorder_loses_at_most_half_a_second_and_the_bag_recovers(
     )
     watcher = ProgressWatcher("/x", domain_id=ros_env)  # the run's default namespace /<axis>
     acks: list[tuple[float, int]] = []
+    recorder_waits: list[tuple[float, int]] = []  # its threads' CPU wait so far (ns)
+    recorder = None
     try:
         deadline = time.monotonic() + 90
         while watcher.steps < 4000:  # 4 s of simulation: many flushes behind us
@@ -92,7 +95,12 @@ def test_sigkilled_recorder_loses_at_most_half_a_second_and_the_bag_recovers(
             watcher.spin(0.02)
             if not acks or watcher.steps != acks[-1][1]:
                 acks.append((time.monotonic(), watcher.steps))
-        (recorder,) = live_processes_mentioning("servo_axis.nodes.recorder", str(out))
+            if recorder is None and watcher.steps > 0:
+                (recorder,) = live_processes_mentioning("servo_axis.nodes.recorder", str(out))
+            if recorder is not None:
+                recorder_waits.append((time.monotonic(), process_waits_ns(recorder)))
+        assert recorder is not None
+        killed_shm = shm_mapped_by([recorder])
         os.kill(recorder, signal.SIGKILL)
         killed_at = time.monotonic()
         # The acknowledgements the recorder published before it died.
@@ -111,7 +119,8 @@ def test_sigkilled_recorder_loses_at_most_half_a_second_and_the_bag_recovers(
         # port segment outlives it (the runner cleans only after its own).
         clean_stale_shm(since=started)
     assert left == [], "node processes outlived the runner"
-    assert shm_left_behind(shm_before) == set()
+    # Its own files (others' runs on the host may leave theirs meanwhile).
+    assert shm_left_behind(shm_before, killed_shm) == set()
     # A node died: the run failed (exit 1 today; whatever the runner's policy, not 0).
     assert runner.returncode not in (0, None), stderr
     assert "recorder" in stderr and "Traceback" not in stderr, stderr
@@ -155,8 +164,14 @@ def test_sigkilled_recorder_loses_at_most_half_a_second_and_the_bag_recovers(
     rate = (window[-1][1] - window[0][1]) / (window[-1][0] - window[0][0])
     lost_steps = last_ack + ACK_EVERY - saved  # an upper bound of the states lost
     lost_s = max(lost_steps, 0) / rate
+    # The recorder flushes every 0.25 s of wall time: 0.5 s is the promise on a
+    # host that runs it when its timer is due; a busy one delays the last
+    # flush by at most what it kept the recorder waiting (its last second).
+    recent = [(t, w) for t, w in recorder_waits if killed_at - t <= 1.0] or recorder_waits[-1:]
+    wait = (recent[-1][1] - recent[0][1]) * 1e-9
     print(
         f"\nkilled at acknowledged step {last_ack}; bag holds {saved} states; "
-        f"lost < {lost_steps} steps = {lost_s:.3f} s at {rate:.0f} steps/s"
+        f"lost < {lost_steps} steps = {lost_s:.3f} s at {rate:.0f} steps/s; "
+        f"the recorder waited {wait:.3f} s for a CPU in its last second"
     )
-    assert lost_s < 0.5
+    assert lost_s < 0.5 + wait, said(lost_s, 0.5, wait)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -20,8 +21,11 @@ import numpy as np
 import pytest
 import yaml
 from mcap.reader import make_reader
-from run_support import shm_left_behind, shm_names
+from run_support import shm_left_behind, shm_mapped_by, shm_names
 
+from host_load import RunQueueWait, said
+from servo_axis.__main__ import main as cli
+from servo_axis.analysis.summary import run_series
 from servo_axis.params.run_params import handshake_overrides, write_run_params
 from servo_axis.params.scenario import load_scenario
 from servo_axis.run.fastdds import clean_stale_shm
@@ -130,12 +134,20 @@ def test_lockstep_runs_are_identical_separate_and_composed(
     assert len(set(payloads[0]["/x/command"])) > 500
 
 
-def test_friction_table_halves_the_quadrant_glitches(ros_env: int, tmp_path: Path) -> None:
-    # With the shipped table, which friction_id and `friction-table` make
+def test_friction_table_halves_the_quadrant_glitches(
+    ros_env: int, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # With the shipped table, which friction_id and `friction-table` make, and make
+    # again once friction_id's scenario has moved and been edited
     # (test_docs_pages.py::test_how_to_friction_models).
-    plain = scenario_copy(CONFIG / "ptc_friction.yaml", tmp_path)
-    (tmp_path / "wt").mkdir()
-    wt_path = scenario_copy(CONFIG / "ptc_friction_table.yaml", tmp_path / "wt")
+    sources = tmp_path / "scenarios"  # the scenario files and the table, moved away below
+    sources.mkdir()
+    shutil.copy(CONFIG / "friction_table_ball_screw_x.csv", sources / "table.csv")
+    plain = scenario_copy(CONFIG / "ptc_friction.yaml", sources)
+    with_table = load_scenario(CONFIG / "ptc_friction_table.yaml")
+    with_table["feedforward"]["ros__parameters"]["friction_table"]["file"] = "table.csv"
+    wt_path = sources / "ptc_friction_table.yaml"
+    wt_path.write_text(yaml.safe_dump(with_table))
     a = run_scenario(
         plain, RunOptions(out_dir=tmp_path / "plain", domain_id=ros_env, progress=None, plots=False)
     )
@@ -148,6 +160,44 @@ def test_friction_table_halves_the_quadrant_glitches(ros_env: int, tmp_path: Pat
     assert peak_plain > 1e-6  # the glitches are there
     assert peak_table <= 0.5 * peak_plain
 
+    # A run directory is all a later command needs. What the commands give now ...
+    capsys.readouterr()
+    runs = [str(a.run_dir), str(b.run_dir)]
+
+    def results(tag: str) -> dict[str, Any]:
+        out = tmp_path / tag
+        out.mkdir()
+        assert cli(["summary", str(b.run_dir)]) == 0
+        figure = ["--error-out", str(out / "e.png"), "--zoom-cycle", "2"]  # reads the bags
+        assert cli(["compare", *runs, "--labels", "plain,table", *figure]) == 0
+        return {
+            "printed": capsys.readouterr().out.replace(str(out), "OUT"),
+            "errors": [run_series(d).error_m for d in (a.run_dir, b.run_dir)],
+        }
+
+    before = results("before")
+    # ... is what they give once every scenario file and the table have moved, and
+    # edited ones stand in their place: another axis (lead, inertia, sensor), another table.
+    (b.run_dir / "inputs" / "friction_table" / "table.csv").stat()  # the run's own copy
+    sources.rename(tmp_path / "moved")
+    sources.mkdir()
+    for name in ("ptc_friction.yaml", "ptc_friction_table.yaml"):
+        data = load_scenario(tmp_path / "moved" / name)
+        shared = data["/**"]["ros__parameters"]
+        shared["lead_m_per_rad"] = 0.005
+        shared.setdefault("nominal", {})["inertia_kgm2"] = 0.03
+        data.setdefault("feedback", {"ros__parameters": {}})["ros__parameters"]["sensor"] = "scale"
+        (sources / name).write_text(yaml.safe_dump(data))
+    text = (tmp_path / "moved" / "table.csv").read_text()
+    (sources / "table.csv").write_text(text.replace("-", ""))  # every torque positive
+    # A run made before runs kept their scenario is read from its params.yaml.
+    (a.run_dir / "scenario.yaml").unlink()
+    after = results("after")
+    assert after["printed"] == before["printed"]
+    for now, then in zip(after["errors"], before["errors"], strict=True):
+        np.testing.assert_array_equal(now, then)
+    assert "plain" in before["printed"] and np.abs(before["errors"][1]).max() > 0
+
 
 @pytest.mark.realtime
 def test_killed_feedforward_trips_the_feedback_and_the_bag_survives(
@@ -159,7 +209,7 @@ def test_killed_feedforward_trips_the_feedback_and_the_bag_survives(
     from rosbags.highlevel import AnyReader
     from std_msgs.msg import Float64MultiArray
 
-    from servo_axis.nodes.runtime import LATCHED_QOS
+    from servo_axis.nodes.runtime import LATCHED_QOS, LIVELINESS_LEASE_S
 
     shm_before = shm_names()
     scenario_path = scenario_copy(CONFIG / "ptc_nominal.yaml", tmp_path, duration_s=600.0)
@@ -186,25 +236,40 @@ def test_killed_feedforward_trips_the_feedback_and_the_bag_survives(
     )
     ex = SingleThreadedExecutor(context=ctx)
     ex.add_node(node)
+    progress: list[tuple[float, int]] = []
     try:
         deadline = time.monotonic() + 60
         while watcher.steps < 500 or fault_sub.get_publisher_count() < 1:
             ex.spin_once(timeout_sec=0.01)
             assert time.monotonic() < deadline, "the run did not start"
             watcher.spin(0.05)
+            progress.append((time.monotonic(), watcher.steps))
         ff = next(p for p in procs if p.role == "feedforward")
+        fb = next(p for p in procs if p.role == "feedback")
+        host = RunQueueWait(os.getpid(), fb.popen.pid)  # the trip's way, and this loop
+        killed_shm = shm_mapped_by([ff.popen.pid])
         os.killpg(ff.popen.pid, signal.SIGKILL)
         killed_at = time.monotonic()
         while not faults:
-            assert time.monotonic() - killed_at < 10, "no fault published"
+            assert time.monotonic() - killed_at < 60, "no fault published"
             ex.spin_once(timeout_sec=0.05)
-        trip_delay = faults[0][0] - killed_at
+        trip_delay, wait = faults[0][0] - killed_at, host.seconds()
         step, code, _ = faults[0][1]
         assert code == 4  # input_timeout
-        # docs/explanation/time.md: the preview left (<= 200 samples, well under 1 s) drains,
-        # then input_timeout_s (0.5 s) + one watchdog period (0.05 s).
-        print(f"trip {trip_delay:.3f} s after the kill, at step {int(step)}")
-        assert trip_delay < 2.5
+        # docs/explanation/time.md: the feedback uses the preview left (<= 200
+        # samples) while the lease lapses, then waits input_timeout_s (0.5 s) +
+        # one watchdog period (0.05 s); 0.95 s for this test. The drain goes at
+        # the loop's speed on this host (measured over the last second before
+        # the kill), and a busy host adds what it kept the threads waiting.
+        window = [(t, k) for t, k in progress if killed_at - t <= 1.0] or progress[-2:]
+        rate = (window[-1][1] - window[0][1]) / max(window[-1][0] - window[0][0], 1e-3)
+        drain_s = 200 / rate if rate > 0 else 0.0
+        bound = max(drain_s, LIVELINESS_LEASE_S) + 0.5 + 0.05 + 0.95
+        print(
+            f"trip {trip_delay:.3f} s after the kill, at step {int(step)}; "
+            f"{rate:.0f} steps/s before it, {wait:.3f} s waiting for a CPU"
+        )
+        assert trip_delay < bound + wait, said(trip_delay, bound, wait)
         # The axis keeps running (zero current) and the recorder keeps recording.
         target = int(step) + 400
         while watcher.steps < target:
@@ -219,8 +284,9 @@ def test_killed_feedforward_trips_the_feedback_and_the_bag_survives(
     assert all(p.popen.poll() is not None for p in procs)
     assert codes["feedforward"] == -signal.SIGKILL
     # The killed node's shared-memory files were cleaned up by stop_nodes
-    # (the test's own rclpy contexts are shut down cleanly above).
-    assert shm_left_behind(shm_before) == set()
+    # (the test's own rclpy contexts are shut down cleanly above; others'
+    # runs on the host may leave theirs meanwhile: only its own count).
+    assert shm_left_behind(shm_before, killed_shm) == set()
     assert codes["recorder"] == 0 and codes["plant"] == 0 and codes["feedback"] == 0
     for log in log_dir.rglob("*.log"):  # stopped mid-run, between callbacks
         text = log.read_text()
@@ -298,13 +364,32 @@ def test_realtime_mode_keeps_wall_time_and_counts_misses(ros_env: int, tmp_path:
         scenario, RunOptions(out_dir=tmp_path / "rt", domain_id=ros_env, progress=None)
     )
     s = result.summary.to_dict()
+    reasons = s["health"]["reasons"]
+    if reasons and ("(clock_stalled)" in reasons[0] or "(loop_open)" in reasons[0]):
+        # The plant ends a run whose clock or loop a starved host held for 2 s.
+        pytest.skip(f"this host did not keep the realtime clock: {reasons[0]}")
     assert s["message_counts"]["/x/state"] == 1000
     # With plots, as the command line makes them (a realtime run's summary
     # once hid the plots module behind its realtime counts and crashed here).
     assert (result.run_dir / "error.png").is_file()
-    # From state 0 to the last tick the clock keeps wall time (start-up and
-    # end are apart: with them a 1 s run was 0.6-0.8x).
-    assert 0.95 < s["realtime_factor"] < 1.01
+    # The wall time is the steps' (start-up and end are apart: with them a
+    # 1 s run was 0.6-0.8x): from state 0 out to the last tick, that is the
+    # wait for command 0 (the clock starts at it, d_0) and the clock's own
+    # span (ticks / timer_rate periods; 1.0 keeps wall time, but for the
+    # periods it skips where a busy host held it back for over 100 ms: its
+    # slips, counted).
+    rt = s["realtime"]
+    period_s = rt["period_ns"] * 1e-9
+    slipped = rt["ticks"] / (rt["ticks"] + rt["slipped_periods"])
+    clock_s = rt["ticks"] * period_s / rt["timer_rate"]
+    first_s = s["wall_time_s"] - clock_s  # state 0 out .. command 0 in
+    assert s["startup_s"] > 0 and s["finish_s"] > 0 and -period_s < first_s, (first_s, rt)
+    assert s["realtime_factor"] / slipped < 1.01, (s["realtime_factor"], rt)
+    if rt["misses"] <= 0.05 * rt["ticks"]:
+        # A host that closed the loop (measured: its misses) answers state 0
+        # about as fast as the others. One that did not answers it late too
+        # (86 ms beside two CPU hogs without SCHED_FIFO, 85 % missed: 0.92x).
+        assert 0.95 < s["realtime_factor"] / slipped, (s["realtime_factor"], first_s, rt)
     from servo_axis.recording.deserialize import read_messages
 
     status = [
@@ -314,7 +399,6 @@ def test_realtime_mode_keeps_wall_time_and_counts_misses(ros_env: int, tmp_path:
     assert status[-1][0] == 1000 and status[-1][1] >= 0  # the final status, at step N
     # The summary's realtime figures: the plant's own count, consistent with
     # the commands' lateness, percentiles in order, never "deterministic".
-    rt = s["realtime"]
     assert rt["ticks"] == 1000 and rt["period_ns"] == 1_000_000
     assert rt["misses"] == status[-1][1]
     assert rt["misses"] == rt["commands_late"] + rt["commands_missing"]
@@ -324,7 +408,7 @@ def test_realtime_mode_keeps_wall_time_and_counts_misses(ros_env: int, tmp_path:
         assert rt["command_late_us"]["max"] <= 1000.0
     else:
         assert rt["command_late_us"]["max"] > 1000.0
-    assert 0.9 < rt["timer_rate"] < 1.01
+    assert 0.9 < rt["timer_rate"] / slipped < 1.01, rt
     # The per-sample pair asked for SCHED_FIFO at the default thread_priority.
     permitted = (
         subprocess.run(

@@ -1,11 +1,14 @@
-"""The committed scenario hashes hold on this machine, for a fast subset of scenarios.
+"""The committed scenario hashes hold on this machine, and as if on another one.
 
 ``scripts/scenario_hashes.py --check`` runs each scenario through
 ``python -m servo_axis run`` and compares the SHA-256 of every recorded
 topic with ``test/data/scenario_hashes.txt``: with the versions of
-``requirements.lock`` (``scripts/setup.sh``) a fresh machine records the same
-bytes. The whole file is checked by the script itself (docs/how-to/develop.md);
-here two scenarios of 2 s each.
+``requirements.lock`` (``scripts/setup.sh``) any x86-64 machine records the
+same bytes (docs/explanation/numerics.md). Here two scenarios of 2 s each,
+as they are and with every mask of ``servo_axis.numerics.MASKS`` (numpy
+without AVX-512, libm without FMA, OpenBLAS's Haswell kernels, numba for
+Haswell: what another CPU would choose), composed; the whole file is
+checked by the script itself (docs/how-to/develop.md).
 """
 
 from __future__ import annotations
@@ -22,13 +25,16 @@ REPO = Path(__file__).resolve().parents[2]
 FAST = ("pid_disturbance", "ptc_nominal")
 
 
-def test_the_committed_hashes_of_fast_scenarios_are_reproduced(ros_env: int) -> None:
+@pytest.mark.parametrize("host", ["this", "another"])
+def test_the_committed_hashes_of_fast_scenarios_are_reproduced(ros_env: int, host: str) -> None:
+    as_if = ["--mask", "all", "--composed"] if host == "another" else []
     proc = subprocess.run(
         [
             sys.executable,
             str(REPO / "scripts" / "scenario_hashes.py"),
             "--domain-id",
             str(ros_env),
+            *as_if,
             "--check",
             str(REPO / "test" / "data" / "scenario_hashes.txt"),
             *(str(REPO / "config" / f"{name}.yaml") for name in FAST),

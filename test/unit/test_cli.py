@@ -19,7 +19,7 @@ from numpy.testing import assert_allclose
 from servo_axis.__main__ import EXAMPLES, build_parser, main
 from servo_axis.analysis.metrics import error_statistics
 from servo_axis.analysis.summary import RunSummary
-from servo_axis.analysis.text import max_error_table, reduction, rmsd_table
+from servo_axis.analysis.text import last_cycle_table, reduction, rmsd_table
 from servo_axis.core.errors import ConfigError
 from servo_axis.params.names import check_domain_id, check_namespace, namespace_problem
 
@@ -139,6 +139,27 @@ def test_summary_and_compare_of_a_directory_that_is_not_a_run(
         assert one_line_error(capsys) == f"error: {tmp_path}: not a run directory: no summary.json"
     assert main(["summary", str(tmp_path / "none")]) == 2
     assert "not a run directory: no such directory" in one_line_error(capsys)
+    # A run killed before its runner wrote the summary: what to do next, for each bag.
+    for bags in (["bag"], ["x/bag", "y/bag"]):
+        run = tmp_path / "killed" / str(len(bags))
+        for bag in bags:
+            (run / bag).mkdir(parents=True)
+        identify = [
+            "identify",
+            str(run),
+            "--model",
+            "ball_screw",
+            "--out",
+            str(tmp_path / "x.yaml"),
+        ]
+        for argv in (["summary", str(run)], identify):
+            assert main(argv) == 2
+            recover = " and ".join(f"python -m servo_axis bag recover {run / b}" for b in bags)
+            assert one_line_error(capsys) == (
+                f"error: {run}: no summary.json: the run has not ended, or was killed before its "
+                f"runner wrote it; {recover} makes its bag readable and writes the summary of "
+                "what was recorded"
+            )
     (tmp_path / "summary.json").write_text('{"steps": 3}')
     assert main(["summary", str(tmp_path)]) == 2
     assert "summary.json: not a servo_axis run summary: missing key 'scenario'" in one_line_error(
@@ -196,8 +217,9 @@ def test_every_argument_has_help_and_the_help_ends_with_examples(
         return found
 
     every = parsers(build_parser())
-    # main, run, friction-table, gms-fit, sweep, identify, summary, list, compare, bag, recover
-    assert len(every) == 11
+    # main, run, friction-table, gms-fit, sweep, identify, summary, list, params, compare,
+    # bag, recover, floor
+    assert len(every) == 13
     for p in every:
         for action in p._actions:
             assert action.help and action.help != argparse.SUPPRESS, (p.prog, action.dest)
@@ -266,7 +288,7 @@ def test_compare_refuses_runs_with_another_cycle_or_period_unless_forced(
     assert main(["compare", a, b, "--force"]) == 0
     captured = capsys.readouterr()
     assert captured.err.startswith("warning: compared anyway (--force): cycle: a 0.25 s, b 0.5 s")
-    assert captured.out.startswith("max error per cycle (um)")
+    assert captured.out.startswith("max tracking error per cycle (um)")
 
 
 def test_compare_refuses_runs_with_another_reference(
@@ -283,8 +305,9 @@ def test_compare_refuses_runs_with_another_reference(
     assert "reference.kind: a sine, steps point_to_point" in one_line_error(capsys)
     assert main(["compare", a, same]) == 0
     out = capsys.readouterr().out
+    # The headline: half the max and half the RMS of a in the last cycle.
     row = next(line for line in out.splitlines() if line.startswith("same "))
-    assert_allclose(float(row.split()[-1]), 50.0, atol=0.006)  # half the max of a
+    assert_allclose([float(x) for x in row.split()[3::2]], [50.0, 50.0], atol=0.006)
 
 
 def test_a_reduction_against_a_zero_base_is_n_a_and_columns_never_touch() -> None:
@@ -293,14 +316,37 @@ def test_a_reduction_against_a_zero_base_is_n_a_and_columns_never_touch() -> Non
     tiny = summary(scale=1e-11)  # ~1e-17 m: a PTC on its own nominal model
     big = summary(scale=5.8713e5)  # 0.587 m, a wider number than its column
     labels = ["ptc", "a_rather_long_label"]
-    table = max_error_table([tiny, big], labels)
+    table = last_cycle_table([tiny, big], labels)
     rows = table.splitlines()[2:]
-    assert [r.split() for r in rows][1][2] == "n/a"
+    assert [r.split() for r in rows][1][3] == "n/a"
     for row in rows:
-        assert len(row.split()) == 3, row  # label, max, reduction: never run together
+        assert len(row.split()) == 6, row  # label, cycle, max, cut, RMS, cut: never run together
     rmsd = rmsd_table([tiny, big], labels).splitlines()[2:]
     assert [r.split()[2] for r in rmsd] == ["base", "n/a"]
     # A value wider than its column still keeps two spaces to the next.
     huge = summary(scale=-1.234567e12)
-    for row in max_error_table([summary(), huge], ["a", "b"]).splitlines()[2:]:
-        assert len(row.split()) == 3, row
+    for row in last_cycle_table([summary(), huge], ["a", "b"]).splitlines()[2:]:
+        assert len(row.split()) == 6, row
+
+
+def test_a_zoom_cycle_outside_the_runs_cycles_is_one_line_and_writes_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`compare q q5 --zoom-cycle 9` on 6-cycle runs drew an empty panel and exited 0."""
+    a = write_run(tmp_path / "a", summary())  # 4 cycles of 0.25 s
+    b = write_run(tmp_path / "b", summary(scale=0.5))
+    out, error_out = tmp_path / "c.png", tmp_path / "e.png"
+    argv = ["compare", a, b, "--out", str(out), "--error-out", str(error_out)]
+    assert main([*argv, "--zoom-cycle", "9"]) == 2
+    assert one_line_error(capsys) == (
+        "error: --zoom-cycle 9: not a complete cycle of a, b; every run completed cycles 1 to 4"
+    )
+    assert not out.exists() and not error_out.exists()
+    assert capsys.readouterr().out == ""  # no table either
+    aperiodic = write_run(tmp_path / "n", summary(cycle_s=None))
+    assert (
+        main(["compare", aperiodic, aperiodic, "--error-out", str(error_out), "--zoom-cycle", "1"])
+        == 2
+    )
+    assert "no cycle is complete in every run" in one_line_error(capsys)
+    assert not error_out.exists()

@@ -175,6 +175,7 @@ def gms_run(tmp_path: Path) -> tuple[Path, np.ndarray, np.ndarray]:
             command = joint_state(ts, i, ["x_motor"], effort=[float(torque[i])])
             bag.write("command", command, log_time_ns=t + 2)
     path = write_scenario(tmp_path / "gms_fit.yaml")
+    (run / "scenario.yaml").write_text(path.read_text())  # what the runner records
     summarise(
         run, scenario=load_scenario(path), scenario_path=path, wall_time_s=1.0, mode="processes"
     )

@@ -30,6 +30,10 @@ serial
     :func:`~servo_axis.analysis.serial.to_dict` and
     :func:`~servo_axis.analysis.serial.from_dict`, driven by the fields and
     their type hints.
+units
+    The one unit each quantity is shown in
+    (:data:`~servo_axis.analysis.units.QUANTITIES`): a tracking error in um,
+    in rad on a rotary table, in every table and figure.
 text
     Summaries and per-cycle comparisons as plain-text tables.
 plots

@@ -5,9 +5,11 @@ their RMSD; that means something only when they followed the same reference
 at the same control period with the same cycle. :func:`differences` says
 what differs (the command refuses such runs unless ``--force``).
 
-The reference of a run is read from its ``params.yaml`` (what its nodes
-got), else from the scenario file its summary names; a run with neither is
-compared by its summary alone (period and cycle). Nothing here imports rclpy.
+The reference of a run is read from the scenario it recorded
+(``scenario.yaml``, or the ``params.yaml`` of a run made before runs kept
+it: :mod:`servo_axis.params.recorded`), never from the scenario file as it
+is now; a run with neither is compared by its summary alone (period and
+cycle). Nothing here imports rclpy.
 """
 
 from __future__ import annotations
@@ -22,19 +24,8 @@ import yaml
 from servo_axis.analysis.summary import RunSummary
 from servo_axis.core.errors import ServoAxisError
 from servo_axis.params.factories import REFERENCE_KEYS
+from servo_axis.params.recorded import recorded_scenario
 from servo_axis.params.resolve import node_values
-from servo_axis.params.scenario import load_scenario
-
-#: The run directory's parameter file (written by the runner).
-PARAMS_FILE = "params.yaml"
-
-
-def _scenario_of_params(path: Path) -> dict[str, Any]:
-    """A run's ``params.yaml`` (``/**/<role>`` sections) as a single-axis scenario."""
-    data = yaml.safe_load(path.read_text())
-    if not isinstance(data, dict):
-        raise ValueError(f"{path}: not a parameter file")
-    return {key if key == "/**" else str(key).rsplit("/", 1)[-1]: v for key, v in data.items()}
 
 
 def run_reference(run_dir: Path, summary: RunSummary) -> dict[str, Any] | None:
@@ -43,22 +34,19 @@ def run_reference(run_dir: Path, summary: RunSummary) -> dict[str, Any] | None:
     Parameters
     ----------
     run_dir : Path
-        The run directory (its ``params.yaml`` is read if there).
+        The run directory (its recorded scenario is read,
+        :func:`~servo_axis.params.recorded.recorded_scenario`).
     summary : RunSummary
-        Its summary (``scenario_file`` is read when there is no ``params.yaml``).
+        Its summary.
 
     Returns
     -------
     dict or None
         ``{"reference.kind": ..., "reference.<key>": value, ...}`` (SI units as
-        in the scenario), None when neither file can be read.
+        in the scenario), None when the run recorded no scenario that reads.
     """
     try:
-        params = Path(run_dir) / PARAMS_FILE
-        if params.is_file():
-            scenario = _scenario_of_params(params)
-        else:
-            scenario = load_scenario(Path(summary.scenario_file))
+        scenario = recorded_scenario(Path(run_dir), summary.scenario_file).scenario
         if "feedforward" not in scenario:
             return None
         values = node_values(scenario, "feedforward")

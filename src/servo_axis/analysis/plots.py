@@ -18,14 +18,18 @@
 * :func:`plot_reversal_detail`: position, ``d_r``, control input and
   tracking error around one stop (004 Fig. 12).
 
-Each error axis is in the unit its data reads best in (:func:`error_scale`:
-um, nm, ... of m, or urad, nrad, ... of rad for a rotary table; positions in
-mm, mrad for a rotary table), without an offset or a multiplier above the
-axis; cycle axes have integer ticks.
+Every axis is in the one unit of its quantity (:mod:`servo_axis.analysis.units`),
+named in its label, whatever the size of the values: a tracking error in um
+(rad on a rotary axis), a position in mm (rad), a contour error in um,
+``d_r`` in um/rad. Tick labels say their value without an offset or a
+multiplier above the axis (:func:`plain_ticks`: plain numbers, or each in
+e-notation below 1e-4 and from 1e6); cycle axes have integer ticks.
 """
 
 from __future__ import annotations
 
+import itertools
+import math
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -49,6 +53,14 @@ from servo_axis.analysis.text import (
     period_word,
     reductions,
 )
+from servo_axis.analysis.units import (
+    CONTOUR_ERROR,
+    DEFORMATION_RATIO,
+    QUANTITIES,
+    TIME_FROM_STOP,
+    position,
+    position_error,
+)
 from servo_axis.core.errors import ConfigError
 from servo_axis.core.timing import SampleGrid
 from servo_axis.wire.cdr import EstimateData
@@ -67,56 +79,62 @@ DEFORMATION_FIGURE = "deformation.png"
 DEFORMATION_COLUMNS = 6
 
 
-#: SI prefixes an error axis may take: factor from the base unit, prefix.
-PREFIXES: tuple[tuple[float, str], ...] = (
-    (1e3, "m"),
-    (1e6, "u"),
-    (1e9, "n"),
-    (1e12, "p"),
-    (1e15, "f"),
-    (1e18, "a"),
-)
+def _tick_formatter() -> Any:
+    """A matplotlib formatter whose every tick label says its value (see :func:`plain_ticks`)."""
+    from matplotlib.ticker import ScalarFormatter
+
+    class SelfContained(ScalarFormatter):  # type: ignore[misc]
+        def __init__(self) -> None:
+            super().__init__(useOffset=False)
+            self.set_scientific(False)
+            self.exponent: int | None = None
+            self.decimals = 0
+
+        def set_locs(self, locs: Any) -> None:
+            super().set_locs(locs)
+            ticks = [float(v) for v in locs if math.isfinite(v)]
+            peak = max((abs(v) for v in ticks), default=0.0)
+            self.exponent = None
+            if peak and not 1e-4 <= peak < 1e6:
+                # One exponent for every tick, and the decimals that keep each exact.
+                self.exponent = math.floor(math.log10(peak))
+                scale = 10.0**self.exponent
+                ordered = sorted(ticks)
+                gaps = [b - a for a, b in itertools.pairwise(ordered) if b > a]
+                step = min(gaps, default=peak)
+                self.decimals = next(
+                    (
+                        d
+                        for d in range(9)
+                        if all(abs(round(v / scale, d) * scale - v) <= 1e-6 * step for v in ticks)
+                    ),
+                    8,
+                )
+
+        def __call__(self, x: float, pos: int | None = None) -> str:
+            if self.exponent is None:
+                return str(super().__call__(x, pos))
+            if x == 0:
+                return "0"
+            text = f"{x / 10.0**self.exponent:.{self.decimals}f}e{self.exponent}"
+            return text.replace("-", "\u2212")
+
+    return SelfContained()
 
 
-def error_scale(values: Any, unit: str = "m") -> tuple[float, str]:
-    """The factor and unit an error axis shows ``values`` (in ``unit``) in.
+def plain_ticks(ax: Any, axis: str = "y") -> None:
+    """Tick labels of a linear axis that each say their value, in the axis's unit.
 
-    The largest prefix of :data:`PREFIXES` (mm, um, nm, ...) in which the
-    largest finite ``|value|`` is at least 1, so that tick labels are plain
-    numbers from 1 up; um (urad) when there is no non-zero finite value.
-
-    Parameters
-    ----------
-    values : array_like or sequence of array_like
-        The errors, in ``unit``; a sequence of arrays of different lengths
-        (one run's cycles against another's) counts as their concatenation.
-    unit : str
-        ``m`` or ``rad``.
-
-    Returns
-    -------
-    factor : float
-        What to multiply ``values`` by.
-    label : str
-        The unit of the scaled values, e.g. ``nm``.
+    No offset and no multiplier above the axis (a label ``(um)`` over ticks
+    ``1e-6`` apart would say another unit): plain numbers from 1e-4 to 1e6
+    (``0.00125``, ``587.13``), else every tick in e-notation with one exponent
+    (``2.5e-11``).
     """
-    parts = values if isinstance(values, list | tuple) else [values]
-    flat = [np.ravel(np.asarray(part, dtype=float)) for part in parts]
-    data = np.abs(np.concatenate(flat)) if flat else np.zeros(0)
-    data = data[np.isfinite(data)]
-    peak = float(data.max()) if data.size else 0.0
-    if peak <= 0.0:
-        return 1e6, f"u{unit}"
-    for factor, prefix in PREFIXES:
-        if peak * factor >= 1.0:
-            return factor, f"{prefix}{unit}"
-    factor, prefix = PREFIXES[-1]
-    return factor, f"{prefix}{unit}"
+    target = ax.yaxis if axis == "y" else ax.xaxis
+    target.set_major_formatter(_tick_formatter())
 
 
-def _plain(ax: Any, axis: str = "y") -> None:
-    """No offset and no multiplier above a linear axis: the numbers as they are."""
-    ax.ticklabel_format(axis=axis, useOffset=False, style="plain")
+_plain = plain_ticks
 
 
 def _integer_ticks(ax: Any) -> None:
@@ -140,15 +158,13 @@ def plot_cycles(
 ) -> Path:
     """Max and RMS tracking error per cycle of one or more runs (000 Fig. 15), log scale.
 
-    Integer cycle ticks; the error in the unit of :func:`error_scale` of the largest maximum.
+    Integer cycle ticks; the error in um (rad on a rotary axis).
     """
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7, 4))
     per_run = [cycle_errors(summary) for summary in summaries]
-    factor, shown = error_scale(
-        [c["max_m"] for c in per_run if c["max_m"].size] or [0.0],
-        summaries[0].unit if summaries else "m",
-    )
+    q = position_error(summaries[0].unit if summaries else "m")
+    factor, shown = q.factor, q.unit
     for c, label, marker in zip(per_run, labels, "osd^v<>", strict=False):
         (line,) = ax.semilogy(c["cycle"], factor * c["max_m"], "-" + marker, label=f"{label}: max")
         ax.semilogy(
@@ -176,31 +192,36 @@ def plot_error_overlay(
     labels: Sequence[str],
     path: Path,
     *,
-    zoom_cycle: int,
+    zoom_cycle: int | None,
     title: str,
 ) -> Path:
     """Tracking error of several runs against time, whole run and one cycle
-    enlarged (000 Fig. 13(b)-(c), Fig. 15(b)-(c))."""
+    enlarged (000 Fig. 13(b)-(c), Fig. 15(b)-(c)); the whole run alone when
+    ``zoom_cycle`` is None. The error in um (rad on a rotary axis)."""
     plt = _pyplot()
-    fig, (whole, zoom) = plt.subplots(2, 1, figsize=(9, 6))
+    if zoom_cycle is None:
+        fig, whole = plt.subplots(1, 1, figsize=(9, 3.5))
+        panels = [whole]
+    else:
+        fig, (whole, zoom) = plt.subplots(2, 1, figsize=(9, 6))
+        panels = [whole, zoom]
     word = "cycle"
     runs = [run_series(Path(run_dir)) for run_dir in run_dirs]
-    factor, unit = error_scale(
-        np.concatenate([r.error_m for r in runs]) if runs else [0.0],
-        runs[0].summary.unit if runs else "m",
-    )
+    q = position_error(runs[0].summary.unit if runs else "m")
+    factor, unit = q.factor, q.unit
     for series, label in zip(runs, labels, strict=True):
         word = series.summary.period_name or "cycle"
         t = series.time_s
         err = series.error_m * factor
         whole.plot(t, err, lw=0.7, label=label)
         cycle_s = series.summary.reference_period_s
-        if cycle_s:
+        if cycle_s and zoom_cycle is not None:
             inside = (t >= (zoom_cycle - 1) * cycle_s) & (t < zoom_cycle * cycle_s)
             zoom.plot(t[inside], err[inside], lw=0.8, label=label)
     whole.set_title(title)
-    zoom.set_title(f"{word} {zoom_cycle} enlarged")
-    for ax in (whole, zoom):
+    if zoom_cycle is not None:
+        zoom.set_title(f"{word} {zoom_cycle} enlarged")
+    for ax in panels:
         _plain(ax)
         ax.set_xlabel("time (s)")
         ax.set_ylabel(f"tracking error ({unit})")
@@ -222,24 +243,25 @@ def plot(run_dir: Path) -> list[Path]:
     series = run_series(run_dir)
     summary, sig, y, lead = series.summary, series.signals, series.y_rad, series.lead_m_per_rad
     t = series.time_s
-    factor, shown = error_scale(series.error_m, summary.unit)
-    err = series.error_m * factor
+    q = position_error(summary.unit)
+    err = q.shown(series.error_m)
     rotary = summary.unit == "rad"
+    where = position(summary.unit)
     even = SampleGrid(control_period_s=summary.control_period_s).reference_instants(sig.step)
     figures: list[tuple[str, str, str, list[tuple[Any, Any, str, str]]]] = [
         (
             "reference_position.png",
-            "table angle (mrad)" if rotary else "table position (mm)",
+            where.label("table angle" if rotary else "table position"),
             "reference and position",
             [
-                (t, sig.reference_rad * lead * 1e3, "-", "reference r"),
-                (t, y * lead * 1e3, "--", "position y"),
+                (t, where.shown(sig.reference_rad * lead), "-", "reference r"),
+                (t, where.shown(y * lead), "--", "position y"),
             ],
         ),
         (
             "error.png",
-            f"tracking error ({shown})",
-            "tracking error e = R (r - y)",
+            q.label("tracking error"),
+            "tracking error e = r - y" if rotary else "tracking error e = R (r - y)",
             [(t, err, "-", "all samples"), (t[even], err[even], ".", "T_r instants")],
         ),
     ]
@@ -304,7 +326,7 @@ def plot_deformation(
 
     One column per stop (the first :data:`DEFORMATION_COLUMNS`), over
     ``[t_stop - before_s, t_stop + after_s]``: above, the scale ``x_t``
-    (mm, dashed) relative to its value at the stop; below, ``d_r`` (mm/rad,
+    (mm, dashed) relative to its value at the stop; below, ``d_r`` (um/rad,
     solid) at its valid samples only, with the windows of the summary
     shaded. Each column is titled with the kind of stop and the reference's
     deceleration into it (m/s^2).
@@ -328,8 +350,9 @@ def plot_deformation(
     """
     plt = _pyplot()
     t = series.time_s
-    scale_mm = 1e3 * series.signals.scale_m
-    d_r = 1e3 * _valid_d_r(series)
+    mm, ms = QUANTITIES["position"], TIME_FROM_STOP
+    scale_mm = mm.shown(series.signals.scale_m)
+    d_r = DEFORMATION_RATIO.shown(_valid_d_r(series))
     stops = deformation.stops[:DEFORMATION_COLUMNS]
     columns = max(1, len(stops))
     fig, axes = plt.subplots(
@@ -338,25 +361,26 @@ def plot_deformation(
     for col, stop in enumerate(stops):
         top, bottom = axes[0, col], axes[1, col]
         inside = (t >= stop.time_s - before_s) & (t <= stop.time_s + after_s)
-        rel_ms = 1e3 * (t[inside] - stop.time_s)
+        rel_ms = ms.shown(t[inside] - stop.time_s)
         # Relative to the stop: the columns' moves are of different sizes.
         x_stop = float(np.interp(stop.time_s, t, scale_mm)) if t.size else 0.0
         top.plot(rel_ms, scale_mm[inside] - x_stop, "--", lw=0.9)
         bottom.plot(rel_ms, d_r[inside], "-", lw=0.9)
         for w in stop.windows:
-            bottom.axvspan(1e3 * w.start_s, 1e3 * w.end_s, color="0.85", lw=0)
+            bottom.axvspan(ms.shown(w.start_s), ms.shown(w.end_s), color="0.85", lw=0)
         for ax in (top, bottom):
+            plain_ticks(ax)
             ax.axvline(0.0, color="k", lw=0.5)
             ax.grid(True, lw=0.3)
         top.set_title(
             f"{_stop_kind(stop.kind)} at {stop.time_s:.3g} s\n{stop.deceleration_m_s2:.3g} m/s^2",
             fontsize="small",
         )
-        bottom.set_xlabel("t - t_stop (ms)")
+        bottom.set_xlabel(ms.label("t - t_stop"))
     if not stops:
         axes[0, 0].set_title("no stop of the reference", fontsize="small")
-    axes[0, 0].set_ylabel("x_t - x_t(stop) (mm)")
-    axes[1, 0].set_ylabel("d_r (mm/rad)")
+    axes[0, 0].set_ylabel(mm.label("x_t - x_t(stop)"))
+    axes[1, 0].set_ylabel(DEFORMATION_RATIO.label("d_r"))
     more = len(deformation.stops) - len(stops)
     shown = f" (first {len(stops)} of {len(deformation.stops)} stops)" if more > 0 else ""
     fig.suptitle(
@@ -377,9 +401,9 @@ def plot_reversal_detail(
 
     A 2 x 2 figure over ``[t_stop - before_s, t_stop + after_s]``: the
     reference ``R r`` and the scale ``x_t`` (mm); ``d_r`` at its valid
-    samples (mm/rad); the motor torque reference ``K_T u`` of the feedback
+    samples (um/rad); the motor torque reference ``K_T u`` of the feedback
     and the feedforward torque ``K_T u_ff`` (N m, as the bag has them); the
-    tracking error ``R (r - y)`` (in the unit of :func:`error_scale`).
+    tracking error ``R (r - y)`` (um).
     A dotted line marks ``t_stop``.
 
     Parameters
@@ -405,7 +429,8 @@ def plot_reversal_detail(
         in the span.
     """
     series = run_series(Path(run_dir))
-    d_r = 1e3 * _valid_d_r(series)
+    d_r = DEFORMATION_RATIO.shown(_valid_d_r(series))
+    mm = QUANTITIES["position"]
     t = series.time_s
     inside = (t >= t_stop - before_s) & (t <= t_stop + after_s)
     if not np.any(inside):
@@ -417,19 +442,19 @@ def plot_reversal_detail(
     plt = _pyplot()
     fig, axes = plt.subplots(2, 2, figsize=(10, 6), sharex=True)
     (pos, torque), (ratio, error) = axes
-    pos.plot(ts, 1e3 * lead * sig.reference_rad[inside], "-", lw=0.9, label="reference R r")
-    pos.plot(ts, 1e3 * sig.scale_m[inside], "--", lw=0.9, label="scale x_t")
-    pos.set_ylabel("position (mm)")
+    pos.plot(ts, mm.shown(lead * sig.reference_rad[inside]), "-", lw=0.9, label="reference R r")
+    pos.plot(ts, mm.shown(sig.scale_m[inside]), "--", lw=0.9, label="scale x_t")
+    pos.set_ylabel(mm.label("position"))
     pos.legend(fontsize="small")
     ratio.plot(ts, d_r[inside], "-", lw=0.9)
-    ratio.set_ylabel("d_r (mm/rad)")
+    ratio.set_ylabel(DEFORMATION_RATIO.label("d_r"))
     torque.plot(ts, sig.command_Nm[inside], "-", lw=0.9, label="K_T u (command)")
     torque.plot(ts, sig.feedforward_Nm[inside], ":", lw=0.9, label="K_T u_ff (feedforward)")
-    torque.set_ylabel("control input, torque (N m)")
+    torque.set_ylabel(QUANTITIES["torque"].label("control input, torque"))
     torque.legend(fontsize="small")
-    factor, shown = error_scale(series.error_m[inside], series.summary.unit)
-    error.plot(ts, factor * series.error_m[inside], "-", lw=0.9)
-    error.set_ylabel(f"tracking error ({shown})")
+    q = position_error(series.summary.unit)
+    error.plot(ts, q.shown(series.error_m[inside]), "-", lw=0.9)
+    error.set_ylabel(q.label("tracking error"))
     for ax in axes.flat:
         _plain(ax)
         ax.axvline(t_stop, color="k", ls=":", lw=0.8)
@@ -504,10 +529,8 @@ def plot_rmsd_bars(
     plt = _pyplot()
     base = baseline_index(summaries, labels)
     cuts = reductions(summaries, base)
-    factor, unit = error_scale(
-        [s.rmsd for s in summaries] or [0.0], summaries[0].unit if summaries else "m"
-    )
-    heights = [factor * s.rmsd for s in summaries]
+    q = position_error(summaries[0].unit if summaries else "m")
+    heights = [q.shown(s.rmsd) for s in summaries]
     fig, ax = plt.subplots(figsize=(max(4.0, 1.2 * len(summaries) + 2), 4))
     bars = ax.bar(range(len(summaries)), heights, color="tab:blue")
     for i, (bar, cut) in enumerate(zip(bars, cuts, strict=True)):
@@ -521,7 +544,7 @@ def plot_rmsd_bars(
         )
     ax.set_xticks(range(len(summaries)), list(labels))
     _plain(ax)
-    ax.set_ylabel(f"RMSD of tracking error ({unit})")
+    ax.set_ylabel(q.label("RMSD of tracking error"))
     ax.set_title(title)
     ax.grid(True, axis="y", lw=0.3)
     fig.tight_layout()
@@ -548,11 +571,12 @@ def plot_contour(run_dir: Path) -> Path:
     per_cycle = round(first.reference_period_s / first.control_period_s)
     gain = 0.2 * radius / max(c.max_radial_m, 1e-15)
     fig, (xy, bars) = plt.subplots(1, 2, figsize=(11, 5))
+    mm = QUANTITIES["position"]
     angle = np.arctan2(*(measured - centre).T[::-1])
     phi = np.linspace(0, 2 * np.pi, 400)
     xy.plot(
-        1e3 * (centre[0] + radius * np.cos(phi)),
-        1e3 * (centre[1] + radius * np.sin(phi)),
+        mm.shown(centre[0] + radius * np.cos(phi)),
+        mm.shown(centre[1] + radius * np.sin(phi)),
         "k:",
         lw=0.8,
         label="target",
@@ -562,25 +586,24 @@ def plot_contour(run_dir: Path) -> Path:
         inside = (steps >= cycle * per_cycle) & (steps < (cycle + 1) * per_cycle)
         r = radius + gain * radial[inside]
         xy.plot(
-            1e3 * (centre[0] + r * np.cos(angle[inside])),
-            1e3 * (centre[1] + r * np.sin(angle[inside])),
+            mm.shown(centre[0] + r * np.cos(angle[inside])),
+            mm.shown(centre[1] + r * np.sin(angle[inside])),
             style,
             lw=0.9,
             label=f"cycle {cycle + 1}",
         )
     xy.set_aspect("equal")
-    xy.set_xlabel(f"{axes[0]} (mm)")
-    xy.set_ylabel(f"{axes[1]} (mm)")
+    xy.set_xlabel(mm.label(axes[0]))
+    xy.set_ylabel(mm.label(axes[1]))
     xy.set_title(f"radial error x {gain:,.0f}")
     xy.legend(fontsize="small")
     rows = summary.contour.cycles
     deviations = [r.circular_deviation_m for r in rows]
-    factor, shown = error_scale(deviations or [0.0])
-    bars.bar([r.cycle for r in rows], [factor * d for d in deviations])
+    bars.bar([r.cycle for r in rows], [CONTOUR_ERROR.shown(d) for d in deviations])
     _integer_ticks(bars)
     _plain(bars)
     bars.set_xlabel("cycle")
-    bars.set_ylabel(f"circular deviation ({shown})")
+    bars.set_ylabel(CONTOUR_ERROR.label("circular deviation"))
     bars.set_title(f"{summary.scenario}: circularity per cycle")
     bars.grid(True, lw=0.3)
     fig.tight_layout()

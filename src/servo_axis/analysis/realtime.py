@@ -38,8 +38,9 @@ class Realtime(Serial):
         plant stepped after the deadline) and of the commands' (arrival after
         the tick of the state they answer: more than one period is a miss).
     floor : dict or None
-        The floor of the host at this period (``rt_floor.py --json``'s result,
-        ``run --floor FILE``); None (not written) if not given.
+        The floor of the host at this period (a result of ``python -m
+        servo_axis floor --json``, ``run --floor FILE``); None (not written)
+        if not given.
     scheduling : dict or None
         The plant process's scheduling: ``policy`` (``fifo`` or ``other``),
         ``priority`` and, where the system refused ``thread_priority``,

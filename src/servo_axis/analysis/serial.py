@@ -15,6 +15,12 @@ The layout is the one ``summary.json`` has always had:
 * a field with ``metadata={"omit_none": True}`` is not written while it is
   None; missing, it reads as its default.
 
+A dataclass may rename its keys: a method ``serial_out(self, mapping) ->
+mapping`` is applied to what is written, a classmethod ``serial_in(cls,
+mapping) -> mapping`` to what is read before the fields are (a rotary run's
+summary writes its errors as ``rms_rad``, ``max_rad``:
+:class:`~servo_axis.analysis.summary.RunSummary`).
+
 Reading: a key that is missing takes the field's default, else the field's
 ``metadata["missing"]`` (an older file's layout: a key added later), else it
 is a :class:`KeyError` naming the key. A field declared ``int`` or ``float``
@@ -59,7 +65,8 @@ def to_plain(obj: Any) -> Any:
             if value is None and f.metadata.get(OMIT_NONE, False):
                 continue
             out[f.name] = to_plain(value)
-        return out
+        rename = getattr(obj, "serial_out", None)
+        return rename(out) if callable(rename) else out
     if isinstance(obj, tuple | list):
         return [to_plain(v) for v in obj]
     if isinstance(obj, dict):
@@ -153,6 +160,9 @@ def from_dict(cls: type[T], data: Mapping[str, Any]) -> T:
         raise TypeError(f"from_dict: expected a dataclass, got {cls!r}")
     if not isinstance(data, Mapping):
         raise TypeError(f"{cls.__name__}: expected a mapping, got {type(data).__name__}")
+    rename = getattr(cls, "serial_in", None)
+    if callable(rename):
+        data = rename(data)
     hints = _hints(cls)
     values: dict[str, Any] = {}
     for f in dataclasses.fields(cls):

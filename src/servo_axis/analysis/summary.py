@@ -33,16 +33,18 @@ Units follow the plant model: the tracking error is the error of the table's
 position, ``R (r - y)`` in m for a table that moves along a line (a ball
 screw), ``r - y`` in rad for one that turns (a plant model whose registry
 entry says ``rotary``: the tilting table of paper 003, whose position is its
-angle); the keys keep
-their ``_m`` names and a rotary run's summary says ``"error_unit": "rad"``.
-The RMS over every sample of the run (``tracking_error.all_samples.rms_m``)
-is the RMSD paper 003 compares (Figs. 7, 9).
+angle). A rotary run's summary says ``"error_unit": "rad"`` and its
+tracking-error keys are ``rms_rad``, ``max_rad`` (the attributes keep their
+``rms_m``, ``max_m`` names: :func:`~servo_axis.analysis.tracking.unit_keys`).
+The RMS over every sample of the run (``tracking_error.all_samples.rms_m``,
+``rms_rad`` on a rotary table) is the RMSD paper 003 compares (Figs. 7, 9).
 """
 
 from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -94,11 +96,12 @@ from servo_axis.analysis.tracking import (
     axis_values,
     error_unit,
     position_scale,
+    unit_keys,
 )
 from servo_axis.core.errors import ConfigError
 from servo_axis.params.factories import build_reference
+from servo_axis.params.recorded import recorded_scenario
 from servo_axis.params.resolve import feedforward_values, node_values
-from servo_axis.params.scenario import load_scenario
 
 __all__ = [
     "DEFORMATION_WINDOWS_S",
@@ -170,7 +173,9 @@ class RunSummary(Serial):
     scenario, description : str
         The scenario's name (the file stem if it has none) and description.
     scenario_file : str
-        Path of the scenario file the run used.
+        Path of the scenario file the run was started from (what it held
+        then is the run directory's ``scenario.yaml``, which every later
+        command reads: :mod:`servo_axis.params.recorded`).
     processes : str
         How the nodes ran (``processes``, ``composed``, ...).
     time_mode : str
@@ -213,7 +218,8 @@ class RunSummary(Serial):
         (``plant``); None (not written) otherwise.
     error_unit : str or None
         ``rad`` for a plant whose table turns (its model's ``rotary``): every
-        ``*_m`` error is then in rad of table angle; None (not written): m.
+        ``*_m`` attribute of ``tracking_error`` is then in rad of table angle,
+        and its key in ``summary.json`` ``*_rad``; None (not written): m.
     identification : Identification or None
         With an identifier whose estimates the bag holds (paper 003); None
         (not written) otherwise.
@@ -222,7 +228,10 @@ class RunSummary(Serial):
         written) otherwise.
     realtime : Realtime or None
         A realtime run's deadline misses and lateness (the plant's report);
-        None (not written) in lockstep or without the report.
+        None (not written) in lockstep or without the report.    overrides : tuple of str or None
+        The ``--set SECTION.KEY=VALUE`` overrides of the scenario's keys the
+        run was given, in order (its ``params.yaml`` holds the result); None
+        (not written) for none.
     """
 
     scenario: str
@@ -251,11 +260,25 @@ class RunSummary(Serial):
     realtime: Realtime | None = field(default=None, metadata={"omit_none": True})
     startup_s: float | None = field(default=None, metadata={"omit_none": True})
     finish_s: float | None = field(default=None, metadata={"omit_none": True})
+    overrides: tuple[str, ...] | None = field(default=None, metadata={"omit_none": True})
 
     @property
     def unit(self) -> str:
         """The unit of the tracking error: ``m``, or ``rad`` for a rotary table."""
         return self.error_unit or "m"
+
+    def serial_out(self, data: dict[str, Any]) -> dict[str, Any]:
+        """The mapping written: a rotary run's error keys named ``*_rad``."""
+        data["tracking_error"] = unit_keys(data["tracking_error"], self.unit)
+        return data
+
+    @classmethod
+    def serial_in(cls, data: Mapping[str, Any]) -> Mapping[str, Any]:
+        """The mapping read: ``*_rad`` error keys back to the attributes' ``*_m``."""
+        unit = data.get("error_unit") or "m"
+        if "tracking_error" not in data:
+            return data
+        return {**data, "tracking_error": unit_keys(data["tracking_error"], unit, reading=True)}
 
     @property
     def rmsd(self) -> float:
@@ -289,7 +312,9 @@ class AxesSummary(Serial):
     contour : ContourSummary or None
         For two axes, their contour error.
     health : RunHealth or None
-        The whole run's health (each axis's summary has its own as well).
+        The whole run's health (each axis's summary has its own as well).    overrides : tuple of str or None
+        The run's ``--set`` overrides, as each axis's summary has them; None
+        (not written) for none.
     """
 
     scenario: str
@@ -298,6 +323,7 @@ class AxesSummary(Serial):
     axes: dict[str, RunSummary]
     contour: ContourSummary | None = field(default=None, metadata={"omit_none": True})
     health: RunHealth | None = field(default=None, metadata={"omit_none": True})
+    overrides: tuple[str, ...] | None = field(default=None, metadata={"omit_none": True})
 
     def to_json(self) -> str:
         """The text of ``summary.json``."""
@@ -321,7 +347,9 @@ def load_summary(run_dir: Path) -> RunSummary | AxesSummary:
     ------
     ConfigError
         If ``run_dir`` is not a directory with a ``summary.json``
-        (``<dir>: not a run directory: no summary.json``), or the file is not
+        (``<dir>: not a run directory: no summary.json``; for a run directory
+        whose runner was killed before it wrote one, what ``bag recover``
+        does for it), or the file is not
         a summary this version reads (the message names the file and what is
         wrong).
     """
@@ -329,7 +357,7 @@ def load_summary(run_dir: Path) -> RunSummary | AxesSummary:
     if not Path(run_dir).is_dir():
         raise ConfigError(f"{run_dir}: not a run directory: no such directory")
     if not path.is_file():
-        raise ConfigError(f"{run_dir}: not a run directory: no {SUMMARY_FILE}")
+        raise ConfigError(f"{run_dir}: {_no_summary(Path(run_dir))}")
     try:
         return summary_from_dict(_read(path))
     except OSError as err:
@@ -337,6 +365,18 @@ def load_summary(run_dir: Path) -> RunSummary | AxesSummary:
     except (ValueError, KeyError, TypeError, AttributeError) as err:
         what = f"missing key {err}" if isinstance(err, KeyError) else str(err)
         raise ConfigError(f"{path}: not a servo_axis run summary: {what}") from None
+
+
+def _no_summary(run_dir: Path) -> str:
+    """Why ``run_dir`` has no summary, and what to do: a run killed before it wrote one."""
+    bags = [run_dir / "bag"] if (run_dir / "bag").is_dir() else sorted(run_dir.glob("*/bag"))
+    if not bags:
+        return f"not a run directory: no {SUMMARY_FILE}"
+    command = " and ".join(f"python -m servo_axis bag recover {b}" for b in bags)
+    return (
+        f"no {SUMMARY_FILE}: the run has not ended, or was killed before its runner wrote it; "
+        f"{command} makes its bag readable and writes the summary of what was recorded"
+    )
 
 
 def cycle_errors(summary: RunSummary) -> dict[str, NDArray[Any]]:
@@ -362,6 +402,7 @@ def summarise(
     wall_time_s: float,
     mode: str,
     health: RunHealth | None = None,
+    source_file: Path | None = None,
 ) -> RunSummary:
     """Compute the summary of a run, write ``summary.json`` and return it.
 
@@ -372,7 +413,12 @@ def summarise(
     scenario : dict
         The (single-axis) scenario the run used.
     scenario_path : Path
-        Its file (relative friction-table paths are relative to its directory).
+        Its file (relative friction-table paths are relative to its
+        directory): a run's ``scenario.yaml``.
+    source_file : Path or None
+        The scenario file the run was started from (the summary's
+        ``scenario_file`` and, without ``scenario.name``, its name);
+        ``scenario_path`` if None.
     wall_time_s : float
         Wall time of the run, s.
     mode : str
@@ -395,10 +441,11 @@ def summarise(
     cycle = ff["learning.cycle_s"] if learning else reference_period
     steps = int(sig.step.size)
     sim_time = steps * period
+    source = Path(source_file) if source_file is not None else Path(scenario_path)
     summary = RunSummary(
-        scenario=common["scenario.name"] or scenario_path.stem,
+        scenario=common["scenario.name"] or source.stem,
         description=common["scenario.description"],
-        scenario_file=str(scenario_path),
+        scenario_file=str(source),
         processes=mode,
         time_mode=common["mode"],
         control_period_s=period,
@@ -464,11 +511,14 @@ class RunSeries:
 
 
 def run_series(run_dir: Path) -> RunSeries:
-    """Summary, recorded signals, target and controlled output of a run directory."""
+    """Summary, recorded signals, target and controlled output of a run directory.
+
+    The scenario is the run's own (:func:`~servo_axis.params.recorded.recorded_scenario`).
+    """
     run_dir = Path(run_dir)
     summary = RunSummary.from_json(run_dir / SUMMARY_FILE)
-    scenario_path = Path(summary.scenario_file)
-    scenario = load_scenario(scenario_path)
+    recorded = recorded_scenario(run_dir, summary.scenario_file)
+    scenario, scenario_path = recorded.scenario, recorded.path
     lead = position_scale(axis_values(scenario))
     sig = load_signals(run_dir / "bag", summary.control_period_s, scenario=scenario)
     target, y = tracking(scenario, scenario_path, sig)
@@ -511,10 +561,12 @@ def summarise_axes(
     axes: dict[str, RunSummary],
     wall_time_s: float,
     health: RunHealth | None = None,
+    overrides: tuple[str, ...] | None = None,
 ) -> AxesSummary:
     """Summary of a multi-axis run: the axes' summaries and, for two, the contour.
 
-    Writes ``run_dir / "summary.json"`` and returns it.
+    Writes ``run_dir / "summary.json"`` and returns it (``overrides``: the
+    run's ``--set`` overrides).
     """
     run_dir = Path(run_dir)
     common = axis_values(scenario)
@@ -529,6 +581,7 @@ def summarise_axes(
         axes=dict(axes),
         contour=contour_summary,
         health=health,
+        overrides=overrides,
     )
     (run_dir / SUMMARY_FILE).write_text(summary.to_json())
     return summary

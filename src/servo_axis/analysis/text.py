@@ -1,16 +1,20 @@
 """Summaries and comparisons of runs as plain-text tables.
 
-Errors are shown in um, or in urad for a rotary table (a summary with
-``error_unit: rad``, the plant model's ``rotary``).
-Runs are compared per cycle (:func:`compare_table`, 000 Fig. 15) or, when
-cycles do not apply (a rotary table, an identifier, no periodic reference),
-by the RMSD of the whole run (:func:`rmsd_table`, 003 Fig. 9).
+Every value is shown in the unit of :mod:`servo_axis.analysis.units`, named
+in its header: a tracking error in um on a linear axis and in rad on a
+rotary one (a summary with ``error_unit: rad``, the plant model's
+``rotary``), a contour error in um, ``d_r`` in um/rad.
+Runs are compared per cycle (:func:`compare_table`, 000 Fig. 15; the last
+cycle every run completed as the headline, :func:`last_cycle_table`) or,
+when cycles do not apply (a rotary table, an identifier, no periodic
+reference), by the RMSD of the whole run (:func:`rmsd_table`, 003 Fig. 9).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from shlex import quote
 
 from servo_axis.analysis.health import RunHealth
 from servo_axis.analysis.summary import (
@@ -22,22 +26,18 @@ from servo_axis.analysis.summary import (
     RunSummary,
     cycle_errors,
 )
-
-#: The unit errors are shown in, per unit of the summary (both scaled by 1e6).
-MICRO: dict[str, str] = {"m": "um", "rad": "urad"}
-
-
-def micro(unit: str) -> str:
-    """The micro unit errors in ``unit`` are shown in: ``um`` for m, ``urad`` for rad."""
-    return MICRO.get(unit, f"u{unit}")
-
-
-def _um(x: float) -> str:
-    return "-" if not math.isfinite(x) else f"{x * 1e6:.6g}"
+from servo_axis.analysis.units import (
+    CONTOUR_ERROR,
+    DEFORMATION_RATIO,
+    QUANTITIES,
+    TIME_FROM_STOP,
+    Quantity,
+    position_error,
+)
 
 
-def _row(label: str, stats: ErrorStats) -> str:
-    return f"  {label:<21}{_um(stats.rms_m):>12} {_um(stats.max_m):>14}"
+def _row(label: str, stats: ErrorStats, q: Quantity) -> str:
+    return f"  {label:<21}{q.format(stats.rms_m):>12} {q.format(stats.max_m):>14}"
 
 
 def _g(x: float | None, spec: str = ".6g") -> str:
@@ -104,10 +104,11 @@ def deformation_lines(deformation: Deformation) -> list[str]:
     """The deformation ratio of a run (004 Sect. III-C): settings, counts, then a row per stop.
 
     Each row: the stop's time (s), kind, deceleration into it (m/s^2) and,
-    per window before it, the mean ``d_r`` in um/rad (``-`` without a valid
-    sample) and its number of valid samples.
+    per window before it (ms from the stop), the mean ``d_r`` in um/rad
+    (``-`` without a valid sample) and its number of valid samples.
     """
     d = deformation
+    ms, ratio = TIME_FROM_STOP, DEFORMATION_RATIO
     lines = [
         f"deformation d_r   p = {d.window_samples} samples, min rotation "
         f"{d.min_rotation_rad:g} rad; {d.samples} samples, {d.valid_samples} valid, "
@@ -116,14 +117,13 @@ def deformation_lines(deformation: Deformation) -> list[str]:
     if not d.stops:
         return [*lines, "  no stop of the reference"]
     heads = [
-        f"{f'[{1e3 * w.start_s:g}, {1e3 * w.end_s:g}] ms (um/rad, n)':>30}"
+        f"{f'[{ms.shown(w.start_s):g}, {ms.shown(w.end_s):g}] {ms.unit} ({ratio.unit}, n)':>30}"
         for w in d.stops[0].windows
     ]
     lines.append(f"  {'stop (s)':>9}  {'kind':<13}{'decel (m/s^2)':>14}" + "".join(heads))
     for stop in d.stops:
         cells = "".join(
-            f"{_g(None if w.mean_d_r_m_per_rad is None else 1e6 * w.mean_d_r_m_per_rad, '.4g'):>24}"
-            f" ({w.valid_samples:>3})"
+            f"{ratio.format(w.mean_d_r_m_per_rad, '.4g'):>24} ({w.valid_samples:>3})"
             for w in stop.windows
         )
         lines.append(
@@ -137,6 +137,16 @@ def _around(startup_s: float | None, finish_s: float | None) -> str:
     if startup_s is None or finish_s is None:
         return ""
     return f" (steps only; start-up {startup_s:.2f} s, end {finish_s:.2f} s)"
+
+
+def _wall_time_line(s: RunSummary) -> str:
+    """The wall time and rate; not known for a summary made after the run (``bag recover``)."""
+    if math.isnan(s.wall_time_s):
+        return "wall time         not known (this summary was made after the run, from its bag)"
+    return (
+        f"wall time         {s.wall_time_s:.2f} s  ->  {s.steps_per_s:,.0f} steps/s, "
+        f"{s.realtime_factor:.2f}x real time" + _around(s.startup_s, s.finish_s)
+    )
 
 
 def _health_lines(health: RunHealth | None, realtime: bool = False) -> list[str]:
@@ -209,7 +219,7 @@ def _realtime_lines(rt: Realtime | None) -> list[str]:
         f = rt.floor
         trip = f.get("round_trip_us") or {}
         lines.append(
-            f"floor (rt_floor)  {f['miss_pct']:.2f} % misses at {f['period_us']} us "
+            f"floor             {f['miss_pct']:.2f} % misses at {f['period_us']} us "
             f"({f.get('executor', '?')}), round trip p50 {trip.get('p50')}  p99 {trip.get('p99')}"
             f"  max {trip.get('max')}"
         )
@@ -217,15 +227,20 @@ def _realtime_lines(rt: Realtime | None) -> list[str]:
 
 
 def format_summary(summary: RunSummary) -> str:
-    """A single-axis summary as a plain-text table (errors in um, urad for a rotary table)."""
+    """A single-axis summary as a plain-text table (errors in um, rad for a rotary table)."""
     s = summary
     te = s.tracking_error
-    mu = micro(s.unit)
+    q = position_error(s.unit)
+    mu = q.unit
     lines = [
         f"scenario          {s.scenario}  ({s.processes}, {s.time_mode})",
+        *(
+            ["overrides         " + " ".join(f"--set {quote(o)}" for o in s.overrides)]
+            if s.overrides
+            else []
+        ),
         f"steps             {s.steps}  ({s.sim_time_s:.3f} s simulated)",
-        f"wall time         {s.wall_time_s:.2f} s  ->  {s.steps_per_s:,.0f} steps/s, "
-        f"{s.realtime_factor:.2f}x real time" + _around(s.startup_s, s.finish_s),
+        _wall_time_line(s),
         "messages          " + ", ".join(f"{k}: {v}" for k, v in sorted(s.message_counts.items())),
         "faults            "
         + (", ".join(f"{f.name} at step {f.step}" for f in s.faults) or "none"),
@@ -241,31 +256,28 @@ def format_summary(summary: RunSummary) -> str:
             else []
         ),
         *(
-            [
-                f"error unit        rad of table angle (rotary table), shown in {mu}; "
-                "RMSD = RMS over all samples"
-            ]
+            ["error unit        rad of table angle (rotary table); RMSD = RMS over all samples"]
             if s.unit == "rad"
             else []
         ),
         "",
         f"{'tracking error (' + mu + ')':<29}RMS            max",
-        _row("all samples", te.all_samples),
-        _row("at T_r instants", te.reference_instants),
+        _row("all samples", te.all_samples, q),
+        _row("at T_r instants", te.reference_instants, q),
     ]
     if te.after_first_cycle is not None:
         a = te.after_first_cycle
         name = s.period_name or "cycle"
         lines += [
-            _row(f"after {name} 1", a.all_samples),
-            _row("... at T_r instants", a.reference_instants),
+            _row(f"after {name} 1", a.all_samples, q),
+            _row("... at T_r instants", a.reference_instants, q),
             "",
             f"{name:<5}   {'RMS (' + mu + ')':<15}{'max (' + mu + ')':<15}max at T_r ({mu})",
         ]
         for c in te.cycles:
             lines.append(
-                f"{c.cycle:>5} {_um(c.rms_m):>12} {_um(c.max_m):>14} "
-                f"{_um(c.reference_instants.max_m):>18}"
+                f"{c.cycle:>5} {q.format(c.rms_m):>12} {q.format(c.max_m):>14} "
+                f"{q.format(c.reference_instants.max_m):>18}"
             )
     if s.identification is not None:
         lines += ["", *identification_lines(s.identification)]
@@ -286,17 +298,20 @@ def format_axes_summary(summary: AxesSummary) -> str:
         lines += ["", f"== axis {axis}", format_summary(s)]
     c = summary.contour
     if c is not None:
+        q, mm = CONTOUR_ERROR, QUANTITIES["circle_radius"]
+        um = q.unit
         lines += [
             "",
-            f"== contour: circle of radius {1e3 * c.radius_m:.3f} mm "
-            f"(target off the circle by {_um(c.target_radial_deviation_m)} um)",
-            f"circular deviation {_um(c.circular_deviation_m)} um, "
-            f"max radial error {_um(c.max_radial_m)} um",
-            "cycle   circular deviation (um)   max radial error (um)",
+            f"== contour: circle of radius {mm.format(c.radius_m, '.3f')} {mm.unit} "
+            f"(target off the circle by {q.format(c.target_radial_deviation_m)} {um})",
+            f"circular deviation {q.format(c.circular_deviation_m)} {um}, "
+            f"max radial error {q.format(c.max_radial_m)} {um}",
+            f"cycle   circular deviation ({um})   max radial error ({um})",
         ]
         for row in c.cycles:
             lines.append(
-                f"{row.cycle:>5} {_um(row.circular_deviation_m):>25} {_um(row.max_radial_m):>23}"
+                f"{row.cycle:>5} {q.format(row.circular_deviation_m):>25} "
+                f"{q.format(row.max_radial_m):>23}"
             )
     return "\n".join(lines)
 
@@ -313,55 +328,130 @@ def period_word(summaries: Sequence[RunSummary]) -> str:
     return (summaries[0].period_name if summaries else None) or "cycle"
 
 
+def _counts(summaries: Sequence[RunSummary]) -> list[int]:
+    """The last complete cycle (or trial) of each run, from 1 (0: none)."""
+    return [max((c.cycle for c in s.tracking_error.cycles), default=0) for s in summaries]
+
+
+def last_common_cycle(summaries: Sequence[RunSummary]) -> int:
+    """The last cycle every run completed (from 1); 0 when no cycle is complete in every run.
+
+    The cycle ``compare --error-out`` enlarges unless told.
+    """
+    if not summaries:
+        return 0
+    common = set.intersection(*({c.cycle for c in s.tracking_error.cycles} for s in summaries))
+    return max(common, default=0)
+
+
+def _unit_of(summaries: Sequence[RunSummary]) -> Quantity:
+    """The tracking error's quantity of runs that share one unit.
+
+    Raises
+    ------
+    ValueError
+        When the runs' errors are in different units (m and rad).
+    """
+    units = sorted({s.unit for s in summaries})
+    if len(units) > 1:
+        raise ValueError(f"runs with errors in different units ({', '.join(units)})")
+    return position_error(units[0] if units else "m")
+
+
 def compare_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> str:
     """Max and RMS tracking error per cycle of several runs side by side (000 Fig. 15).
 
-    Two blocks, ``max error per cycle (um)`` and ``RMS error per cycle (um)``,
-    a row per cycle and a column per run; 6 significant digits.
+    Two blocks, ``max tracking error per cycle (um)`` and ``RMS ...`` (rad on
+    a rotary axis), a row per cycle and a column per run (6 significant
+    digits); after each run but the first, its reduction against the first
+    run in the same cycle, ``100 (1 - run / first)`` in % (2 decimals, ``n/a``
+    against a base below :data:`TINY_BASE`, ``-`` where the first run has no
+    such cycle). Columns are two spaces apart.
     """
-    per_run = [cycle_errors(s) for s in summaries]
-    n = max((len(c["cycle"]) for c in per_run), default=0)
+    q = _unit_of(summaries)
+    per_run = [
+        {int(n): (m, r) for n, m, r in zip(c["cycle"], c["max_m"], c["rms_m"], strict=True)}
+        for c in (cycle_errors(s) for s in summaries)
+    ]
+    cycles = sorted(set().union(*per_run)) if per_run else []
     width = max(12, *(len(label) for label in labels))
+    cut = len("reduction (%)")
     word = period_word(summaries)
+    head = f"{word:<5}" + "".join(
+        f"{GAP}{x:>{width}}" + (f"{GAP}{'reduction (%)':>{cut}}" if i else "")
+        for i, x in enumerate(labels)
+    )
     lines: list[str] = []
-    for title, key in (("max", "max_m"), ("RMS", "rms_m")):
+    for title, key in (("max", 0), ("RMS", 1)):
         if lines:
             lines.append("")
         lines += [
-            f"{title} error per {word} (um)",
-            f"{word:<5}" + "".join(f"{GAP}{x:>{width}}" for x in labels),
+            f"{q.label(f'{title} tracking error per {word}')}; reduction (%) = "
+            f"100 (1 - run / {labels[0]}) in the same {word}",
+            head,
         ]
-        for k in range(n):
-            cells = [
-                f"{GAP}{1e6 * c[key][k]:>{width}.6g}" if k < len(c[key]) else GAP + " " * width
-                for c in per_run
-            ]
-            lines.append(f"{k + 1:>5}" + "".join(cells).rstrip())
+        for k in cycles:
+            base = per_run[0][k][key] if k in per_run[0] else None
+            cells = []
+            for i, c in enumerate(per_run):
+                value = c[k][key] if k in c else None
+                cells.append(f"{GAP}{'' if value is None else q.format(value):>{width}}")
+                if i:
+                    if value is None:
+                        cut_text = ""
+                    else:  # "-": the first run has no such cycle to compare with
+                        cut_text = "-" if base is None else _cut(reduction(value, base))
+                    cells.append(f"{GAP}{cut_text:>{cut}}")
+            lines.append(f"{k:>5}" + "".join(cells).rstrip())
     return "\n".join(lines)
 
 
-def max_error_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> str:
-    """The max tracking error after the first cycle of each run and its reduction (004 Sect. V).
+def last_cycle_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> str:
+    """The headline of a per-cycle comparison: each run's last cycle against the first run's.
 
-    After the first cycle, so that the start from rest does not count: what
-    is left are the periodic reversals. The reduction is
-    ``100 (1 - max / max_base)`` against the first run (the conventional
-    method: ``compare runs/fast_reversal_gms runs/fast_reversal_sigmoid``),
-    ``n/a`` against a base below :data:`TINY_BASE`. Runs without a complete
-    first cycle use all their samples. Columns are two spaces apart.
+    What learning and compensation leave once they have acted: the max and
+    RMS tracking error (um; rad on a rotary axis) of each run's last complete
+    cycle and its reduction against the first run's last complete cycle,
+    ``100 (1 - run / first)`` in % (``base`` for the first, ``n/a`` against a
+    base below :data:`TINY_BASE`). The header names the cycles compared (one
+    number when every run's last cycle is the same); a run without a complete
+    cycle shows ``-``. Columns are two spaces apart.
     """
-    maxima = [
-        (s.tracking_error.after_first_cycle or s.tracking_error).all_samples.max_m
-        for s in summaries
+    q = _unit_of(summaries)
+    word = period_word(summaries)
+    counts = _counts(summaries)
+    rows = [
+        next((c for c in s.tracking_error.cycles if c.cycle == n), None)
+        for s, n in zip(summaries, counts, strict=True)
     ]
+    if len(set(counts)) == 1:
+        which = f"{word} {counts[0]} of every run" if counts[0] else f"no complete {word}"
+    else:
+        which = ", ".join(
+            f"{label} {word} {n}" if n else f"{label} none"
+            for label, n in zip(labels, counts, strict=True)
+        )
     width = max(12, *(len(label) for label in labels))
+    cut = len("reduction (%)")
     lines = [
-        f"max tracking error after cycle 1 (um); reduction against {labels[0]}",
-        f"{'run':<{width}}{GAP}{'max (um)':>12}{GAP}{'reduction (%)':>13}",
+        f"last {word} of each run ({which}); reduction (%) = 100 (1 - run / {labels[0]}), "
+        f"each against the last {word} of {labels[0]}",
+        f"{'run':<{width}}{GAP}{word:>5}{GAP}{'max (' + q.unit + ')':>12}{GAP}"
+        f"{'reduction (%)':>{cut}}{GAP}{'RMS (' + q.unit + ')':>12}{GAP}{'reduction (%)':>{cut}}",
     ]
-    for i, (label, peak) in enumerate(zip(labels, maxima, strict=True)):
-        cut = "base" if i == 0 else _cut(reduction(peak, maxima[0]))
-        lines.append(f"{label:<{width}}{GAP}{_um(peak):>12}{GAP}{cut:>13}")
+    base = rows[0]
+    for i, (label, row) in enumerate(zip(labels, rows, strict=True)):
+        peak, rms = (row.max_m, row.rms_m) if row is not None else (math.nan, math.nan)
+        if i == 0:
+            peak_cut = rms_cut = "base"
+        else:
+            peak_cut = _cut(reduction(peak, base.max_m if base else math.nan))
+            rms_cut = _cut(reduction(rms, base.rms_m if base else math.nan))
+        number = str(row.cycle) if row is not None else "-"
+        lines.append(
+            f"{label:<{width}}{GAP}{number:>5}{GAP}{q.format(peak):>12}{GAP}{peak_cut:>{cut}}"
+            f"{GAP}{q.format(rms):>12}{GAP}{rms_cut:>{cut}}"
+        )
     return "\n".join(lines)
 
 
@@ -399,7 +489,7 @@ def rmsd_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> str:
     baseline (:func:`baseline_index`), plus the final estimate / true value of
     each identified parameter when a run has them (003 Figs. 7, 9).
 
-    One row per run: label, RMSD (um or urad, 6 significant digits), reduction
+    One row per run: label, RMSD (um, or rad on a rotary axis; 6 significant digits), reduction
     (%, 2 decimals; ``base`` for the baseline, ``n/a`` against a baseline
     below :data:`TINY_BASE`) and, if any run identified
     parameters, ``J/true``, ``D/true``, ``U/true``, ``C/true`` (``-`` for a
@@ -410,10 +500,8 @@ def rmsd_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> str:
     ValueError
         When the runs' errors are in different units (m and rad).
     """
-    units = {s.unit for s in summaries}
-    if len(units) > 1:
-        raise ValueError(f"runs with errors in different units ({', '.join(sorted(units))})")
-    mu = micro(units.pop() if units else "m")
+    q = _unit_of(summaries)
+    mu = q.unit
     base = baseline_index(summaries, labels)
     width = max(12, *(len(label) for label in labels))
     ident = any(s.identification is not None for s in summaries)
@@ -427,7 +515,7 @@ def rmsd_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> str:
         zip(summaries, labels, reductions(summaries, base), strict=True)
     ):
         shown = "base" if i == base else _cut(cut)
-        row = f"{label:<{width}}{GAP}{_um(s.rmsd):>14}{GAP}{shown:>13}"
+        row = f"{label:<{width}}{GAP}{q.format(s.rmsd):>14}{GAP}{shown:>13}"
         if ident:
             ratios = s.identification.final_ratio.values() if s.identification else (None,) * 4
             row += "".join(f"{GAP}{_g(r, '.5g'):>8}" for r in ratios)

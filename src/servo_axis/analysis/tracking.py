@@ -5,6 +5,10 @@
 largest magnitude of ``R (r - y)`` (m; ``r - y`` in rad for a rotary table,
 :func:`error_unit`) over every sample and over the reference instants, per
 complete cycle of a periodic reference and from the second cycle on.
+
+The attributes are named ``rms_m``, ``max_m`` whatever the unit; in
+``summary.json`` a rotary run's are ``rms_rad``, ``max_rad``
+(:func:`unit_keys`), so that every key names the unit of its value.
 """
 
 from __future__ import annotations
@@ -91,3 +95,25 @@ def error_unit(plant_values: dict[str, Any]) -> str:
 def position_scale(plant_values: dict[str, Any]) -> float:
     """Table position per rad of controlled output: ``R`` (m/rad), 1 for a rotary table."""
     return 1.0 if error_unit(plant_values) == "rad" else float(plant_values["lead_m_per_rad"])
+
+
+def unit_keys(block: Any, unit: str, *, reading: bool = False) -> Any:
+    """A ``tracking_error`` mapping with its ``_m`` keys named for ``unit``.
+
+    Writing (``reading`` false): for ``unit`` ``rad`` every key ending in
+    ``_m`` (``rms_m``, ``max_m``) of the block and its nested mappings and
+    lists ends in ``_rad``; reading: the inverse, so that the dataclasses
+    read either (a summary written before the keys were named for rad has
+    ``_m`` keys and ``error_unit: rad``). ``m`` leaves the block as it is.
+    """
+    if unit == "m":
+        return block
+    old, new = (f"_{unit}", "_m") if reading else ("_m", f"_{unit}")
+    if isinstance(block, dict):
+        return {
+            (k[: -len(old)] + new if k.endswith(old) else k): unit_keys(v, unit, reading=reading)
+            for k, v in block.items()
+        }
+    if isinstance(block, list):
+        return [unit_keys(v, unit, reading=reading) for v in block]
+    return block

@@ -18,11 +18,12 @@ def add_parser(commands: Subparsers) -> None:
     """The ``compare`` command and its options."""
     cmp = commands.add_parser(
         "compare",
-        help="max/RMS error per cycle of several runs (e.g. Q vs Q~n, 000 Fig. 15); for "
-        "runs where cycles do not apply (a rotary table, an identifier, no periodic "
-        "reference) the RMSD of each run and its reduction against the run labelled pid "
-        "(else the scenario *_pid, else the first), with the final estimates / true values "
-        "(003 Fig. 9)",
+        help="max/RMS error per cycle of several runs, each run's reduction against the first "
+        "in the same cycle, and the headline: each run's last cycle against the first run's "
+        "last cycle (e.g. Q vs Q~n, 000 Fig. 15); for runs where cycles do not apply (a rotary "
+        "table, an identifier, no periodic reference) the RMSD of each run and its reduction "
+        "against the run labelled pid (else the scenario *_pid, else the first), with the final "
+        "estimates / true values (003 Fig. 9)",
     )
     cmp.add_argument(
         "run_dirs",
@@ -40,8 +41,8 @@ def add_parser(commands: Subparsers) -> None:
     cmp.add_argument(
         "--zoom-cycle",
         type=int_at_least(1),
-        default=3,
-        help="the cycle --error-out enlarges, from 1 (default 3)",
+        help="the cycle --error-out enlarges, from 1; a complete cycle of every run (default: "
+        "the last cycle every run completed)",
     )
     cmp.add_argument(
         "--title",
@@ -65,7 +66,7 @@ def add_parser(commands: Subparsers) -> None:
 def handle(args: argparse.Namespace) -> int:
     """Print the table, write the figures asked for; a run that does not compare is refused."""
     from servo_axis.analysis.comparison import differences
-    from servo_axis.analysis.text import compare_table, max_error_table, rmsd_applies, rmsd_table
+    from servo_axis.analysis.text import compare_table, last_cycle_table, rmsd_applies, rmsd_table
 
     summaries = _single_axis_summaries(args.run_dirs)
     labels = _labels(args.labels, args.run_dirs)
@@ -77,19 +78,43 @@ def handle(args: argparse.Namespace) -> int:
         raise ConfigError(
             f"the runs do not compare: {'; '.join(differ)} (--force compares them anyway)"
         )
+    zoom = _zoom_cycle(args.zoom_cycle, summaries, labels) if args.error_out else None
     if differ:
         print(f"warning: compared anyway (--force): {'; '.join(differ)}", file=sys.stderr)
     by_rmsd = args.rmsd or rmsd_applies(summaries)
-    try:
-        rmsd = rmsd_table(summaries, labels) if by_rmsd or args.bar_chart else ""
-    except ValueError as err:  # errors in m and in rad
-        raise ConfigError(str(err)) from None
+    rmsd = rmsd_table(summaries, labels) if by_rmsd or args.bar_chart else ""
     print(rmsd if by_rmsd else compare_table(summaries, labels))
     if not by_rmsd:
         print()
-        print(max_error_table(summaries, labels))
-    _write_figures(args, summaries, labels)
+        print(last_cycle_table(summaries, labels))
+    _write_figures(args, summaries, labels, zoom if zoom else None)
     return 0
+
+
+def _zoom_cycle(given: int | None, summaries: list[RunSummary], labels: list[str]) -> int:
+    """The cycle ``--error-out`` enlarges: ``--zoom-cycle``, checked against every run's
+    complete cycles, else the last cycle every run completed; 0 for runs without cycles."""
+    from servo_axis.analysis.text import last_common_cycle, period_word
+
+    last = last_common_cycle(summaries)
+    if given is None:
+        return last
+    word = period_word(summaries)
+    missing = [
+        label
+        for label, s in zip(labels, summaries, strict=True)
+        if given not in {c.cycle for c in s.tracking_error.cycles}
+    ]
+    if missing:
+        have = (
+            f"every run completed {word}s 1 to {last}"
+            if last
+            else f"no {word} is complete in every run"
+        )
+        raise ConfigError(
+            f"--zoom-cycle {given}: not a complete {word} of {', '.join(missing)}; {have}"
+        )
+    return given
 
 
 def _single_axis_summaries(run_dirs: list[str]) -> list[RunSummary]:
@@ -119,7 +144,7 @@ def _labels(given: str | None, run_dirs: list[str]) -> list[str]:
 
 
 def _write_figures(
-    args: argparse.Namespace, summaries: list[RunSummary], labels: list[str]
+    args: argparse.Namespace, summaries: list[RunSummary], labels: list[str], zoom: int | None
 ) -> None:
     """The figures of ``--bar-chart``, ``--out`` and ``--error-out``, each when asked for."""
     from servo_axis.analysis.plots import plot_cycles, plot_error_overlay, plot_rmsd_bars
@@ -138,7 +163,7 @@ def _write_figures(
                 [Path(d) for d in args.run_dirs],
                 labels,
                 Path(args.error_out),
-                zoom_cycle=args.zoom_cycle,
+                zoom_cycle=zoom,
                 title=args.title,
             )
         print(f"figure written to {args.error_out}")

@@ -38,6 +38,7 @@ def add_parser(commands: Subparsers) -> None:
 
 def handle(args: argparse.Namespace) -> int:
     """Fit, write the parameter file (and the figure), print the elements."""
+    from servo_axis.analysis.units import DISPLACEMENT
     from servo_axis.gms_fit import fit_run_data, load_fit_data, plot_fit
     from servo_axis.storage import save_gms_parameters
 
@@ -53,9 +54,10 @@ def handle(args: argparse.Namespace) -> int:
         )
     print(f"GMS model with {p.elements} elements written to {args.out} ({data.plant_fingerprint})")
     print(f"  F_c = {p.coulomb_Nm:.6g} N m")
-    print(f"  {'element':>7}  {'k_i (N m/m)':>12}  {'alpha_i':>8}  {'break-away (um)':>15}")
+    um = DISPLACEMENT
+    print(f"  {'element':>7}  {'k_i (N m/m)':>12}  {'alpha_i':>8}  {um.label('break-away'):>15}")
     for i, (k, a, b) in enumerate(zip(p.stiffness_Nm_per_m, p.weights, p.breakaway_m, strict=True)):
-        print(f"  {i + 1:>7}  {k:>12.6g}  {a:>8.4f}  {b * 1e6:>15.4g}")
+        print(f"  {i + 1:>7}  {k:>12.6g}  {a:>8.4f}  {um.format(b, '.4g'):>15}")
     print(f"  RMS residual = {fit.rms_residual_Nm:.4g} N m (samples from the first reversal on)")
     if args.plot:
         with writing("--plot", args.plot):

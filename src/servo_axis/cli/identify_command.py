@@ -7,7 +7,7 @@ import shlex
 import sys
 from pathlib import Path
 
-from servo_axis.cli.options import Subparsers, output_file
+from servo_axis.cli.options import Parser, Subparsers, output_file
 from servo_axis.core.errors import ConfigError
 from servo_axis.identify import MODELS
 
@@ -25,10 +25,10 @@ def add_parser(commands: Subparsers) -> None:
         "See docs/how-to/identify-your-axis.md.",
     )
     p.add_argument(
-        "run_dirs",
-        nargs="+",
+        "run_dir",
         metavar="RUN_DIR",
-        help="the excitation run (measure_frf_*, measure_tilting_table)",
+        help="the excitation run (measure_frf_*, measure_tilting_table): one; the slow-reversal "
+        "runs go with --friction, a held-out run with --validate",
     )
     p.add_argument(
         "--model", required=True, choices=MODELS, help="the plant model whose keys are fitted"
@@ -48,6 +48,10 @@ def add_parser(commands: Subparsers) -> None:
     )
     p.add_argument("--report", metavar="DIR", help="folder for report.md and the figures")
     p.set_defaults(func=handle)
+    Parser.extra_hints["identify"] = (
+        "identify takes one excitation run, RUN_DIR; a slow-reversal run goes with "
+        "--friction RUN_DIR (repeatable), a held-out run with --validate RUN_DIR"
+    )
 
 
 def handle(args: argparse.Namespace) -> int:
@@ -57,7 +61,7 @@ def handle(args: argparse.Namespace) -> int:
     from servo_axis.identify.report import summary_text, write_report
     from servo_axis.identify.writer import write_scenario
 
-    runs = [from_run(Path(d)) for d in args.run_dirs]
+    runs = [from_run(Path(args.run_dir))]
     friction = [from_run(Path(d)) for d in args.friction]
     validation = from_run(Path(args.validate)) if args.validate else None
     ident = identify(args.model, runs, friction=friction, validation=validation)

@@ -1,4 +1,8 @@
-"""``list``: the shipped scenarios, then the installed extensions with their keys."""
+"""``list``: the shipped scenarios, then the installed extensions with their keys.
+
+An installed extension that cannot be loaded is listed as ``broken`` with
+its error (:attr:`servo_axis.params.registry.Registry.broken`).
+"""
 
 from __future__ import annotations
 
@@ -33,9 +37,10 @@ def handle(args: argparse.Namespace) -> int:
     found = sorted(folder.glob("*.yaml"))
     if not found:
         raise ConfigError(f"--config-dir {folder}: no scenario files (*.yaml) there")
+    width = max(len(p.stem) for p in found)
     for path in found:
         about = shared(load_scenario(path)).get("scenario", {})
-        print(f"{path.stem:<24} {about.get('description', '')}")
+        print(f"{path.stem:<{width}}  {about.get('description', '')}")
     _list_extensions()
     return 0
 
@@ -50,10 +55,24 @@ def _list_extensions() -> None:
         "learning law": "learning.law",
         "identification method": "identifier.method",
     }
+    width = max(len(name) for registry in REGISTRIES.values() for name in registry)
     for kind, registry in REGISTRIES.items():
         print(f"\n{kind}s (selected by {selected_by[kind]}; entry points {registry.group}):")
-        for name in sorted(registry):
+        broken = registry.broken
+        for name in sorted([*registry, *broken]):
+            if name in broken:
+                # Listed, so that a user sees it is installed and why it does not work.
+                plugin = broken[name]
+                of = f", {plugin.distribution}" if plugin.distribution else ""
+                print(f"  {name:<22} broken: {plugin.error} [{plugin.value}{of}]")
+                continue
             entry = registry[name]
-            print(f"  {name:<22} {entry.description} [{registry.source(name)}]")
+            dist = registry.distribution(name)
+            of = f", {dist}" if dist and not registry.shipped(name) else ""
+            print(f"  {name:<{width}}  {entry.description} [{registry.source(name)}{of}]")
             if entry.schema:
-                print(f"  {'':<22} keys: {', '.join(entry.schema)}")
+                print(f"  {'':<{width}}  keys: {', '.join(entry.schema)}")
+    print(
+        "\nEach key's default, unit, range and meaning: python -m servo_axis params NAME "
+        "(a node or an extension); every installed one: python -m servo_axis params"
+    )

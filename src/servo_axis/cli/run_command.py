@@ -5,16 +5,16 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import Any
 
 from servo_axis.cli.options import (
+    Parser,
     Subparsers,
     domain_id,
     int_at_least,
     namespace,
+    override,
     positive_float,
 )
-from servo_axis.core.errors import ConfigError
 
 
 def add_parser(commands: Subparsers) -> None:
@@ -33,6 +33,19 @@ def add_parser(commands: Subparsers) -> None:
     run.add_argument(
         "--out",
         help="run directory to create; must be empty or not exist (default runs/<name>-<time>)",
+    )
+    run.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        type=override,
+        default=[],
+        metavar="SECTION.KEY=VALUE",
+        help="override a key of the scenario (repeatable, the last one of a key wins): "
+        "SECTION is shared (the /** keys), a node (plant, feedback, feedforward, learning, "
+        "identifier, recorder) or /<axis>/<node> of a multi-axis scenario; KEY is dotted "
+        "where the file nests (plant.friction.elements=8); VALUE is YAML. Checked as the "
+        "file is; params.yaml shows the result, summary.json the overrides",
     )
     run.add_argument(
         "--composed", action="store_true", help="all nodes in one process on one executor"
@@ -54,8 +67,9 @@ def add_parser(commands: Subparsers) -> None:
     run.add_argument(
         "--floor",
         metavar="FILE",
-        help="a realtime run's summary shows this host's floor next to its misses: the "
-        "output of the shared tools' rt_floor.py --json (one result a line, by period)",
+        help="a realtime run's summary shows this host's floor next to its misses: what "
+        "`python -m servo_axis floor --json` printed (one result a line, by period), "
+        "measured in the same session",
     )
     run.add_argument(
         "--respawn-limit",
@@ -65,6 +79,29 @@ def add_parser(commands: Subparsers) -> None:
     )
     _add_outside_options(run)
     run.set_defaults(func=handle)
+    Parser.option_hints["run"] = _key_for_option
+
+
+def _key_for_option(option: str) -> str:
+    """For an option ``run`` does not have that looks like a scenario key: its ``--set``."""
+    from servo_axis.core.errors import closest
+    from servo_axis.params import schemas
+
+    sections = {
+        "shared": schemas.SHARED,
+        "plant": schemas.PLANT,
+        "feedback": schemas.FEEDBACK,
+        "feedforward": schemas.FEEDFORWARD,
+        "learning": schemas.LEARNING,
+        "identifier": schemas.IDENTIFIER,
+        "recorder": schemas.RECORDER,
+    }
+    name = option.lstrip("-").replace("-", "_")
+    for section, schema in sections.items():
+        found = closest(name, schema)
+        if found:
+            return f"a key of the scenario? --set {section}.{found[0]}=VALUE"
+    return ""
 
 
 def _add_outside_options(run: argparse.ArgumentParser) -> None:
@@ -99,17 +136,6 @@ def _add_outside_options(run: argparse.ArgumentParser) -> None:
     )
 
 
-def _read_floor(path: str) -> dict[int, dict[str, Any]]:
-    """rt_floor.py ``--json`` results by period in us (one clear line if the file is not that)."""
-    import json
-
-    try:
-        rows = [json.loads(ln) for ln in Path(path).read_text().splitlines() if ln.strip()]
-        return {int(r["period_us"]): r for r in rows if {"miss_pct", "round_trip_us"} <= set(r)}
-    except (OSError, ValueError, KeyError, TypeError) as err:
-        raise ConfigError(f"--floor {path}: not rt_floor.py --json output ({err})") from err
-
-
 def handle(args: argparse.Namespace) -> int:
     """Run the scenario, print its summary and where it is; the run's exit code."""
     from servo_axis.analysis.health import (
@@ -125,7 +151,9 @@ def handle(args: argparse.Namespace) -> int:
 
     floor = None
     if args.floor:
-        floor = _read_floor(args.floor)
+        from servo_axis.run.floor import read_floor
+
+        floor = read_floor(args.floor)
     live_port = args.live_port  # --live-port implies --live
     if live_port is None and args.live:
         live_port = DEFAULT_PORT
@@ -141,6 +169,7 @@ def handle(args: argparse.Namespace) -> int:
             **({} if args.respawn_limit is None else {"respawn_limit": args.respawn_limit}),
             live_port=live_port,
             floor=floor,
+            overrides=tuple(args.overrides),
         )
         result = run_scenario(args.scenario, options)
     except RunInterruptedError as err:
@@ -153,9 +182,9 @@ def handle(args: argparse.Namespace) -> int:
     print(format_any_summary(result.summary))
     print()
     axis = (
-        "bag/, summary.json, params.yaml, *.png, logs/"
+        "bag/, summary.json, scenario.yaml, params.yaml, *.png, logs/"
         if options.plots
-        else "bag/, summary.json, params.yaml, logs/"
+        else "bag/, summary.json, scenario.yaml, params.yaml, logs/"
     )
     contents = (
         f"{', '.join(a + '/' for a in result.summary.axes)} (one axis each: {axis}), "

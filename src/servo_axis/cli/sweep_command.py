@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from servo_axis.cli.options import Subparsers, int_at_least
+from servo_axis.cli.options import Subparsers, int_at_least, override
 
 
 def add_parser(commands: Subparsers) -> None:
@@ -24,6 +24,17 @@ def add_parser(commands: Subparsers) -> None:
         help="study file (YAML; docs/reference/studies.md) or a shipped study's name, e.g. reversal_004",
     )
     sw.add_argument("--out", help="study directory (default studies/<name>)")
+    sw.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        type=override,
+        default=[],
+        metavar="SECTION.KEY=VALUE",
+        help="override a key of the study's scenario in every point, after the study's own "
+        "set (repeatable; as run --set: shared, a node or /<axis>/<node>; VALUE is YAML); "
+        "a swept key keeps its points' values",
+    )
     sw.add_argument(
         "--scheduler",
         metavar="tcp://HOST:PORT",
@@ -47,7 +58,7 @@ def handle(args: argparse.Namespace) -> int:
     from servo_axis.sweep.engine import VersionMismatchError, run_study
     from servo_axis.sweep.spec import load_study
 
-    study = load_study(args.study)
+    study = load_study(args.study, args.overrides)
     out = Path(args.out) if args.out else Path("studies") / study.name
     try:
         rows = run_study(

@@ -7,6 +7,8 @@ expected.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+from difflib import get_close_matches
 from math import isfinite as _isfinite  # at the top: the checks run per online estimate
 
 
@@ -20,6 +22,10 @@ class ConfigError(ServoAxisError):
 
 class ParameterFileError(ConfigError):
     """A parameter file has an unknown key, a wrong type or an out-of-range value."""
+
+
+class BrokenPluginError(ParameterFileError):
+    """A scenario selects an installed extension (plugin) that cannot be loaded."""
 
 
 class SignalError(ServoAxisError):
@@ -52,3 +58,23 @@ def require_nonnegative(name: str, value: float) -> float:
     if v < 0.0:
         raise ConfigError(f"{name}: expected a value >= 0, got {value!r}")
     return v
+
+
+def closest(name: object, choices: Iterable[str], n: int = 1) -> list[str]:
+    """The ``n`` choices most like ``name`` (a typo's candidates), best first; [] if none is close.
+
+    The ratio of :func:`difflib.get_close_matches` (0.6), compared without
+    case, so that ``Ptc_Nominal`` finds ``ptc_nominal``.
+    """
+    if not isinstance(name, str):
+        return []
+    by_lower = {c.lower(): c for c in choices}
+    return [by_lower[m] for m in get_close_matches(name.lower(), list(by_lower), n=n)]
+
+
+def did_you_mean(name: object, choices: Iterable[str], n: int = 1) -> str:
+    """``"did you mean 'x'?"`` (or ``'x' or 'y'``) for the closest choices; ``""`` if none is close."""
+    found = closest(name, choices, n)
+    if not found:
+        return ""
+    return "did you mean " + " or ".join(f"'{c}'" for c in found) + "?"

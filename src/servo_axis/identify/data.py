@@ -11,6 +11,7 @@ import numpy as np
 from servo_axis.core.errors import ConfigError, SignalError
 from servo_axis.core.sysid.excitation import Excitation
 from servo_axis.params import resolve
+from servo_axis.params.recorded import recorded_scenario
 from servo_axis.params.registry import feedforward_terms
 from servo_axis.params.scenario import load_scenario
 
@@ -88,7 +89,11 @@ class Record:
 
 
 def from_run(run_dir: Path) -> Record:
-    """The :class:`Record` of a recorded single-axis run directory."""
+    """The :class:`Record` of a recorded single-axis run directory.
+
+    Its scenario is the one the run recorded (``scenario.yaml`` of the run
+    directory, :func:`~servo_axis.params.recorded.recorded_scenario`).
+    """
     from servo_axis.analysis.signals import load_signals
     from servo_axis.analysis.summary import RunSummary, load_summary
 
@@ -97,8 +102,9 @@ def from_run(run_dir: Path) -> Record:
     if not isinstance(summary, RunSummary):
         axes = ", ".join(str(run_dir / a) for a in summary.axes)
         raise ConfigError(f"{run_dir}: a multi-axis run; give one of its axes: {axes}")
-    path = Path(summary.scenario_file)
-    scenario = load_scenario(path)
+    # What the run ran, from its directory: never the scenario file as it is now.
+    recorded = recorded_scenario(run_dir, summary.scenario_file)
+    scenario, path = recorded.scenario, recorded.path
     period = float(resolve.node_values(scenario, "plant")["control_period_s"])
     sig = load_signals(run_dir / "bag", period, scenario=scenario)
     if sig.step.size < 3:

@@ -131,6 +131,6 @@ def sysid_block(scenario: dict[str, Any], scenario_path: Path, traj: Any) -> dic
         "missing": missing,
         "spurious_hz": spurious,
         "keys": {**_unknown(plant), **keys},
-        "bode_db": max(b[0] for b in bode) if bode else math.nan,
-        "bode_deg": max(b[1] for b in bode) if bode else math.nan,
+        "bode_db": max(b.db for b in bode) if bode else math.nan,
+        "bode_deg": max(b.deg for b in bode) if bode else math.nan,
     }

@@ -140,8 +140,9 @@ def favour_middleware_threads(nice: int = MIDDLEWARE_NICE, receive_priority: int
     sample waits for one to be scheduled behind the host's default jobs before
     the ``SCHED_FIFO`` executor can take it. A 2 s realtime ``ptc_nominal``
     on a quiet 2-core host missed 461-914 of 2,000 deadlines with them at nice
-    -10, 31-111 with them under ``SCHED_FIFO`` 49 (the bare pair of
-    ``rt_floor.py``, between the runs: 32-191; docs/explanation/realtime.md).
+    -10, 31-111 with them under ``SCHED_FIFO`` 49 (the bare pair of the
+    floor, ``python -m servo_axis floor``, between the runs: 32-191;
+    docs/explanation/realtime.md).
 
     Returns how many threads got their setting (0 where the system refuses or
     there is no ``/proc``).

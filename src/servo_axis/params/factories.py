@@ -478,7 +478,14 @@ NODE_SCHEMAS: dict[str, Mapping[str, Param]] = {
 
 
 def node_schema(role: str, given: Values) -> dict[str, Param]:
-    """The full schema of node ``role`` for the keys ``given`` (the model/law chosen there)."""
+    """The full schema of node ``role`` for the keys ``given`` (the model/law chosen there).
+
+    Raises
+    ------
+    BrokenPluginError
+        When ``given`` selects an installed extension that cannot be loaded
+        (its model, law or method, a key of a feedforward term).
+    """
     schema = dict(NODE_SCHEMAS[role])
     if role == "plant":
         model = given.get("model", schema["model"].default)
@@ -492,6 +499,8 @@ def node_schema(role: str, given: Values) -> dict[str, Param]:
     elif role == "feedforward":
         for _, term in feedforward_terms():
             schema.update(term.schema)
+        # A key of a term that is installed but cannot be loaded uses that term.
+        FEEDFORWARD_TERMS.refuse_broken_keys(k for k in given if k not in schema)
     return schema
 
 

@@ -16,11 +16,11 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
-from servo_axis.core.errors import ConfigError, ParameterFileError
+from servo_axis.core.errors import ConfigError, ParameterFileError, did_you_mean
 
 T = TypeVar("T")
 
@@ -185,6 +185,7 @@ def check_values(schema: Schema, given: Mapping[str, object], node: str = "node"
     if unknown:
         raise ParameterFileError(
             f"unknown parameter '{unknown[0]}' for node '{node}'"
+            + unknown_key_hint(unknown[0], schema)
             + (f" (and {len(unknown) - 1} more: {unknown[1:]})" if len(unknown) > 1 else "")
         )
     values = defaults(schema)
@@ -192,6 +193,16 @@ def check_values(schema: Schema, given: Mapping[str, object], node: str = "node"
         if name in given:
             values[name] = param.check(name, given[name])
     return values
+
+
+def unknown_key_hint(name: str, keys: Iterable[str]) -> str:
+    """`` (did you mean 'x'?)`` for a key not among ``keys``; for a group's name, its keys."""
+    keys = list(keys)
+    group = [k for k in keys if k.startswith(f"{name}.")]
+    if group:
+        return f" ('{name}' is a group of keys: {', '.join(group)})"
+    hint = did_you_mean(name, keys)
+    return f" ({hint})" if hint else ""
 
 
 def build(

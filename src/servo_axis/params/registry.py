@@ -18,19 +18,37 @@ installed entry points the first time they are asked (a node process, the
 runner and ``simulate`` each see what is installed in their environment);
 :meth:`Registry.register` adds one in-process (tests, a script).
 
+An installed extension that cannot be used (its module is missing or fails
+to import, its object is not an entry of its kind or is refused by the
+checks of its kind, two distributions give the same name) is *broken*: it is
+left out of its registry and kept in :attr:`Registry.broken` with its error
+(:class:`BrokenPlugin`), so that it stops only what selects it. Selecting
+it (``plant.model: <name>``, a key ``<name>.*`` of a feedforward term) is a
+:class:`~servo_axis.core.errors.BrokenPluginError` naming the plugin, its
+entry point and the error; :func:`report_broken` writes each other broken
+one once, as a warning line, to stderr (the command line does at the end of
+its checks).
+
 Nothing here imports rclpy.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Mapping
+import re
+import sys
+import traceback
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from importlib import metadata
-from typing import Any, Generic, TypeVar
+from typing import IO, Any, Generic, TypeVar
 
 import numpy as np
 
-from servo_axis.core.errors import ConfigError, ParameterFileError
+from servo_axis.core.errors import (
+    BrokenPluginError,
+    ParameterFileError,
+    did_you_mean,
+)
 from servo_axis.core.feedforward.terms import FeedforwardTerm
 from servo_axis.core.identification.base import OnlineIdentifier
 from servo_axis.core.learning.base import LearningLaw
@@ -202,11 +220,89 @@ class IdentifierEntry:
     description: str = ""
 
 
+#: The distribution of the suite itself (its extensions are "shipped").
+SHIPPED_DISTRIBUTION = "servo-axis"
+
+
+def _normalized(name: str) -> str:
+    """A distribution name as PEP 503 compares them (``servo_axis`` is ``servo-axis``)."""
+    return re.sub(r"[-_.]+", "-", name).lower()
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+def _load_error(err: BaseException) -> str:
+    """``<Type>: <message>``, and where in the plugin's own code it was raised.
+
+    The innermost frame outside ``importlib`` is the line of the plugin that
+    failed (an ``import`` of a missing dependency, a ``raise``); a module
+    that is not there at all has none.
+    """
+    text = f"{type(err).__name__}: {_one_line(str(err))}"
+    frames = [
+        f
+        for f in traceback.extract_tb(err.__traceback__)
+        if "importlib" not in f.filename and not f.filename.startswith("<frozen")
+    ]
+    if len(frames) > 1:  # the first is load() itself
+        last = frames[-1]
+        text += f" (at {last.filename}:{last.lineno})"
+    return text
+
+
+@dataclass(frozen=True)
+class BrokenPlugin:
+    """An installed extension that cannot be used, and why.
+
+    Attributes
+    ----------
+    kind : str
+        ``"plant model"``, ...: a key of :data:`GROUPS`.
+    name : str
+        Its entry point's name (what a scenario would select).
+    value : str
+        Its entry point's ``module:object`` (each of them, for a name given twice).
+    group : str
+        Its entry point's group.
+    distribution : str
+        ``<name> <version>`` of the distribution that declares it (``""`` if unknown).
+    error : str
+        What went wrong, one line (the import error with its type, the type
+        of a wrong object, what the checks of its kind refuse, ...).
+    """
+
+    kind: str
+    name: str
+    value: str
+    group: str
+    distribution: str
+    error: str
+
+    @property
+    def where(self) -> str:
+        """``entry point '<name>' = '<module:object>' of group '<group>' (distribution ...)``."""
+        of = f" (distribution {self.distribution})" if self.distribution else ""
+        return f"entry point {self.name!r} = {self.value!r} of group {self.group!r}{of}"
+
+    def line(self) -> str:
+        """The one line that names it: kind, name, entry point, error."""
+        return f"{self.kind} {self.name!r} cannot be loaded: {self.where}: {self.error}"
+
+
+#: The broken plugins already named on stderr or in an error (kind, name).
+_reported: set[tuple[str, str]] = set()
+
+
 E = TypeVar("E")
 
 
 class Registry(Mapping[str, E], Generic[E]):
     """The installed extensions of one kind, by name, read from their entry points once.
+
+    The mapping holds the extensions that load; those that do not are in
+    :attr:`broken`.
 
     Parameters
     ----------
@@ -227,36 +323,69 @@ class Registry(Mapping[str, E], Generic[E]):
         self._validate = validate or (lambda name, entry: None)
         self._entries: dict[str, E] | None = None
         self._sources: dict[str, str] = {}
+        self._distributions: dict[str, str] = {}
+        self._broken: dict[str, BrokenPlugin] = {}
+
+    @property
+    def loaded(self) -> bool:
+        """Whether the entry points have been read (by any question asked of it)."""
+        return self._entries is not None
 
     def _loaded(self) -> dict[str, E]:
         if self._entries is None:
             entries: dict[str, E] = {}
-            for point in sorted(metadata.entry_points(group=self.group), key=lambda p: p.name):
-                where = f"entry point {point.name!r} = {point.value!r} of group {self.group!r}"
-                if point.name in entries:
-                    raise ConfigError(
-                        f"{where}: a {self.kind} named {point.name!r} is installed twice "
-                        f"({self._sources[point.name]})"
-                    )
+            points = sorted(metadata.entry_points(group=self.group), key=lambda p: p.name)
+            names = [p.name for p in points]
+            for point in points:
+                dist = getattr(point, "dist", None)
+                distribution = f"{dist.name} {dist.version}" if dist is not None else ""
+                if names.count(point.name) > 1:
+                    self._broken[point.name] = self._twice(point.name, points)
+                    continue
                 try:
                     entry = point.load()
-                except Exception as err:  # an outside package's import error, named
-                    raise ConfigError(f"{where}: cannot be loaded: {err}") from err
-                self._check(point.name, entry, where)
+                    self._check(point.name, entry)
+                except Exception as err:  # an outside package's failure, kept with its name
+                    error = str(err) if isinstance(err, _RefusedError) else _load_error(err)
+                    self._broken[point.name] = BrokenPlugin(
+                        self.kind, point.name, point.value, self.group, distribution, error
+                    )
+                    continue
                 entries[point.name] = entry
                 self._sources[point.name] = point.value
+                self._distributions[point.name] = distribution
             self._entries = entries
         return self._entries
 
-    def _check(self, name: str, entry: object, where: str) -> None:
+    def _twice(self, name: str, points: list[metadata.EntryPoint]) -> BrokenPlugin:
+        """The broken plugin of a name that several distributions give."""
+        same = [p for p in points if p.name == name]
+        dists = [
+            f"{d.name} {d.version}" if (d := getattr(p, "dist", None)) is not None else "?"
+            for p in same
+        ]
+        return BrokenPlugin(
+            self.kind,
+            name,
+            " and ".join(p.value for p in same),
+            self.group,
+            "",
+            f"installed {len(same)} times, by {' and '.join(dists)}; uninstall all but one",
+        )
+
+    def _check(self, name: str, entry: object) -> None:
         if not isinstance(entry, self._type):
-            raise ConfigError(
-                f"{where}: expected a {self._type.__name__}, got {type(entry).__name__}"
-            )
+            raise _RefusedError(f"expected a {self._type.__name__}, got {type(entry).__name__}")
         try:
             self._validate(name, entry)
         except ValueError as err:
-            raise ConfigError(f"{where}: {err}") from err
+            raise _RefusedError(str(err)) from err
+
+    @property
+    def broken(self) -> Mapping[str, BrokenPlugin]:
+        """The installed extensions of this kind that cannot be loaded, by name."""
+        self._loaded()
+        return dict(self._broken)
 
     def register(self, name: str, entry: E) -> None:
         """Add (or replace) ``name`` in this process, as if it were installed.
@@ -268,26 +397,70 @@ class Registry(Mapping[str, E], Generic[E]):
         """
         self._validate(name, entry)
         self._loaded()[name] = entry
+        self._broken.pop(name, None)
         self._sources[name] = "registered in-process"
+        self._distributions[name] = ""
 
     def unregister(self, name: str) -> None:
         """Remove ``name`` if it was registered in-process (an installed entry stays)."""
         if self._sources.get(name) == "registered in-process":
             del self._loaded()[name]
             del self._sources[name]
+            del self._distributions[name]
 
     def source(self, name: str) -> str:
         """Where ``name`` comes from (its entry point's ``module:object``)."""
         self._loaded()
         return self._sources[name]
 
+    def distribution(self, name: str) -> str:
+        """``<name> <version>`` of the distribution that declares ``name`` (``""``: in-process)."""
+        self._loaded()
+        return self._distributions[name]
+
+    def shipped(self, name: str) -> bool:
+        """Whether ``name`` is one of the suite's own (declared by the ``servo_axis`` distribution)."""
+        dist = self.distribution(name).rpartition(" ")[0]
+        return _normalized(dist) == SHIPPED_DISTRIBUTION
+
+    def refuse_broken(self, name: object, key: str) -> None:
+        """A BrokenPluginError naming ``key`` if ``name`` is a broken extension of this kind."""
+        if isinstance(name, str) and name in self.broken:
+            plugin = self._broken[name]
+            _reported.add((self.kind, name))
+            raise BrokenPluginError(f"parameter '{key}': {plugin.line()}")
+
+    def refuse_broken_keys(self, keys: Iterable[str]) -> None:
+        """A BrokenPluginError for the first of ``keys`` of a broken extension (``<name>.*``).
+
+        A feedforward term is switched on by its own keys, which start with
+        its name: a scenario that sets one uses the term.
+        """
+        broken = self.broken
+        for key in sorted(keys):
+            name = key.partition(".")[0]
+            if "." in key and name in broken:
+                self.refuse_broken(name, key)
+
     def lookup(self, name: object, key: str) -> E:
-        """The entry ``name``; a ParameterFileError naming ``key`` and the installed ones otherwise."""
+        """The entry ``name``; a ParameterFileError naming ``key`` and the installed ones otherwise.
+
+        Raises
+        ------
+        BrokenPluginError
+            For an installed extension that cannot be loaded (its entry
+            point and its error named).
+        ParameterFileError
+            For a name that is not installed (the installed ones listed).
+        """
         entries = self._loaded()
+        self.refuse_broken(name, key)
         if not isinstance(name, str) or name not in entries:
+            hint = did_you_mean(name, entries)
             raise ParameterFileError(
                 f"parameter '{key}': expected one of {sorted(entries)} (the installed "
                 f"{self.kind}s, entry points {self.group}), got {name!r}"
+                + (f"; {hint}" if hint else "")
             )
         return entries[name]
 
@@ -299,6 +472,10 @@ class Registry(Mapping[str, E], Generic[E]):
 
     def __len__(self) -> int:
         return len(self._loaded())
+
+
+class _RefusedError(ValueError):
+    """An entry object that loaded but is not one the suite can use (its message is the reason)."""
 
 
 def _validate_plant_model(name: str, entry: PlantModelEntry) -> None:
@@ -363,11 +540,47 @@ def term_files() -> tuple[str, ...]:
     return tuple(key for _, entry in feedforward_terms() for key in entry.files)
 
 
-def parameter_sections() -> dict[str, Mapping[str, Param]]:
+def broken_plugins(*, loaded_only: bool = False) -> list[BrokenPlugin]:
+    """Every installed extension that cannot be loaded, of every kind.
+
+    ``loaded_only``: of the registries read so far only (no plugin is
+    imported for the question).
+    """
+    return [
+        plugin
+        for registry in REGISTRIES.values()
+        if registry.loaded or not loaded_only
+        for plugin in registry.broken.values()
+    ]
+
+
+def report_broken(file: IO[str] | None = None) -> list[BrokenPlugin]:
+    """Write a warning line for each broken plugin not named yet (of the registries read so far).
+
+    Each is named once per process: here, or in the error of a scenario
+    that selects it (:meth:`Registry.refuse_broken`). Returns those written.
+    """
+    out = sys.stderr if file is None else file
+    fresh = [p for p in broken_plugins(loaded_only=True) if (p.kind, p.name) not in _reported]
+    for plugin in fresh:
+        _reported.add((plugin.kind, plugin.name))
+        print(
+            f"warning: {plugin.line()}; it is left out (only a scenario that uses it is refused)",
+            file=out,
+        )
+    if fresh:
+        out.flush()
+    return fresh
+
+
+def parameter_sections(*, shipped_only: bool = False) -> dict[str, Mapping[str, Param]]:
     """Every section of the parameter reference, by title: each node's keys, then its extensions'.
 
     An extension without keys of its own has no section; extensions with
     the same keys share one (``learning (laws pilc_bf, pilc_bfft)``).
+    ``shipped_only``: the suite's own extensions only (those of the
+    ``servo_axis`` distribution; docs/parameters.md), not the plugins
+    installed beside it.
     """
     kinds: dict[str, tuple[str, Registry[Any]]] = {
         "plant": ("model", PLANT_MODELS),
@@ -393,6 +606,8 @@ def parameter_sections() -> dict[str, Mapping[str, Param]]:
         items: list[tuple[str, Any]] = (
             list(feedforward_terms()) if node == "feedforward" else sorted(registry.items())
         )
+        if shipped_only:
+            items = [(name, entry) for name, entry in items if registry.shipped(name)]
         groups: list[tuple[list[str], Mapping[str, Param]]] = []
         for name, entry in items:
             if not entry.schema:

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from servo_axis.core.errors import ConfigError, ParameterFileError
+from servo_axis.core.errors import ConfigError, ParameterFileError, did_you_mean
 from servo_axis.params import schemas
 from servo_axis.params.factories import EXTERNAL_ROLES, checked_values
 from servo_axis.params.registry import term_files
@@ -395,7 +395,11 @@ def external_roles_of(
     roles = tuple(dict.fromkeys([*given, *listed]))
     for role in roles:
         if role not in EXTERNAL_ROLES:
-            raise ConfigError(f"--external {role}: expected one of {', '.join(EXTERNAL_ROLES)}")
+            hint = did_you_mean(role, EXTERNAL_ROLES)
+            raise ConfigError(
+                f"--external {role}: expected one of {', '.join(EXTERNAL_ROLES)}"
+                + (f"; {hint}" if hint else "")
+            )
     return roles
 
 

@@ -18,13 +18,16 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from dataclasses import replace as dataclass_replace
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
 from servo_axis.core.errors import ConfigError, ParameterFileError
 from servo_axis.params.factories import EXTERNAL_ROLES, checked_values, plant_model, run_steps
+from servo_axis.params.overrides import Override, apply_overrides, blame
+from servo_axis.params.recorded import SCENARIO_FILE, input_copies, recorded_view
 from servo_axis.params.registry import term_files
 from servo_axis.params.resolve import node_values
 from servo_axis.params.run_params import (
@@ -97,13 +100,21 @@ class AxisPlan:
         Its ROS namespace (``""``: the root).
     dir : Path
         Its directory (the run directory for a single axis): ``bag/``,
-        ``logs/``, ``params.yaml``.
+        ``logs/``, ``params.yaml``, ``scenario.yaml``, ``inputs/``.
     scenario : dict
-        The single-axis scenario it runs (for the analysis, which resolves
-        it itself; the runner does not query it).
+        The single-axis scenario it runs, as recorded in :attr:`scenario_path`
+        (for the analysis, which resolves it itself; the runner does not
+        query it): its data files are the copies of :attr:`inputs`.
     scenario_path : Path
-        Its file: the scenario's, or for one axis of several the copy in
-        :attr:`dir` (``scenario.yaml``).
+        Its recorded file, ``scenario.yaml`` in :attr:`dir`
+        (:mod:`servo_axis.params.recorded`), which the runner writes.
+    source_path : Path
+        The scenario file the run was started from (the summary's
+        ``scenario_file``).
+    inputs : mapping
+        ``{key: (source, copy)}``: each data file the scenario's terms read
+        and its copy, relative to :attr:`dir` (``inputs/<term>/<name>``),
+        which the nodes read (:func:`~servo_axis.params.recorded.input_copies`).
     remaps : tuple of str
         The ROS arguments that put its nodes in :attr:`namespace`.
     roles : tuple of RolePlan
@@ -148,6 +159,8 @@ class AxisPlan:
     lead_m_per_rad: float
     linear: bool
     max_miss_fraction: float = 0.05
+    source_path: Path = Path()
+    inputs: Mapping[str, tuple[Path, str]] = field(default_factory=lambda: MappingProxyType({}))
 
     @property
     def logs(self) -> Path:
@@ -233,7 +246,8 @@ class RunPlan:
     name : str
         The scenario's ``scenario.name`` (its file's stem if it has none).
     scenario : dict
-        The scenario as loaded (for the analysis of a multi-axis run).
+        The scenario as loaded, with the overrides applied (for the
+        analysis of a multi-axis run).
     scenario_path : Path
         Its file.
     run_dir : Path
@@ -245,6 +259,8 @@ class RunPlan:
     axes : tuple of AxisPlan
         One per axis, sorted by axis; one (``axis == ""``) for a
         single-axis scenario.
+    overrides : tuple of str
+        The ``--set`` overrides applied, as given (the summary records them).
     """
 
     name: str
@@ -254,6 +270,7 @@ class RunPlan:
     steps: int
     composed: bool
     axes: tuple[AxisPlan, ...]
+    overrides: tuple[str, ...] = ()
 
     @property
     def multi_axis(self) -> bool:
@@ -279,13 +296,17 @@ def plan_run(
     namespace: str = "",
     external: Sequence[str] = (),
     composed: bool = False,
+    overrides: Sequence[Override] = (),
 ) -> RunPlan:
     """Resolve ``scenario`` (loaded from ``scenario_path``) for a run, checking all of it.
 
     ``out_dir`` is the run directory (default ``runs/<name>-<time>``),
     ``namespace`` a checked ``--namespace`` (``""``: the axis's,
     :func:`single_axis_namespace`), ``external`` the roles of ``--external``
-    (with the scenario's ``external_roles``).
+    (with the scenario's ``external_roles``), ``overrides`` the ``--set``
+    overrides, applied to the scenario before anything is checked
+    (:mod:`servo_axis.params.overrides`); an error they cause names the one
+    at fault (``--set <its text>: ...``).
 
     Raises
     ------
@@ -299,6 +320,30 @@ def plan_run(
         key), a term's file that does not exist, an ``axis`` that cannot
         name a namespace.
     """
+    if not overrides:
+        return _plan(scenario, scenario_path, out_dir, namespace, external, composed)
+
+    def attempt(given: Sequence[Override]) -> RunPlan:
+        plan = _plan(
+            apply_overrides(scenario, given), scenario_path, out_dir, namespace, external, composed
+        )
+        return dataclass_replace(plan, overrides=tuple(o.text for o in given))
+
+    try:
+        return attempt(overrides)
+    except ConfigError as err:
+        raise blame(err, overrides, attempt) from None
+
+
+def _plan(
+    scenario: dict[str, Any],
+    scenario_path: Path,
+    out_dir: Path | None,
+    namespace: str,
+    external: Sequence[str],
+    composed: bool,
+) -> RunPlan:
+    """:func:`plan_run` of a scenario with its overrides applied."""
     name = shared(scenario).get("scenario", {}).get("name") or scenario_path.stem
     steps = run_steps(node_values(scenario, "plant"))
     run_dir = run_directory(out_dir, name)
@@ -335,7 +380,14 @@ def _axis_plan(
     axis_dir: Path,
     outside: tuple[str, ...],
 ) -> AxisPlan:
-    """The plan of one axis (``view``: its single-axis scenario); its sections checked first."""
+    """The plan of one axis (``view``: its single-axis scenario); its sections checked first.
+
+    Its data files are read from their copies in the axis's directory
+    (``inputs/``, written with ``scenario.yaml`` before any node starts):
+    the view the plan keeps and the nodes' parameter file name them.
+    """
+    inputs = input_copies(view, scenario_path.parent)
+    view = recorded_view(view, inputs, scenario_path.parent)
     roles = roles_of(view)
     for role in outside:
         if role not in roles:
@@ -349,8 +401,9 @@ def _axis_plan(
             "state by stamp, which a drive's set-point does not carry (run without the "
             "identifier section)"
         )
-    overrides = handshake_overrides(view, roles, axis_dir / "bag", scenario_path.parent, outside)
-    plans = tuple(_role_plan(view, roles, role, overrides, outside) for role in roles)
+    # Relative files are the copies, relative to the axis's directory (the others absolute).
+    overrides = handshake_overrides(view, roles, axis_dir / "bag", axis_dir, outside)
+    plans = tuple(_role_plan(view, roles, role, overrides, outside, set(inputs)) for role in roles)
     if axis:
         remaps: tuple[str, ...] = ("-r", f"__ns:={namespace}", "-r", f"/clock:={namespace}/clock")
     else:
@@ -369,7 +422,7 @@ def _axis_plan(
         namespace=namespace,
         dir=axis_dir,
         scenario=view,
-        scenario_path=axis_dir / "scenario.yaml" if axis else scenario_path,
+        scenario_path=axis_dir / SCENARIO_FILE,
         remaps=remaps,
         roles=plans,
         handshakes=shakes,
@@ -382,6 +435,8 @@ def _axis_plan(
         lead_m_per_rad=feedback["lead_m_per_rad"],
         linear=not plant_model(plant["model"], "plant.model").rotary,
         max_miss_fraction=plant["realtime.max_miss_fraction"],
+        source_path=scenario_path,
+        inputs=MappingProxyType(inputs),
     )
 
 
@@ -391,11 +446,16 @@ def _role_plan(
     role: str,
     overrides: dict[str, dict[str, Any]],
     outside: tuple[str, ...],
+    copied: set[str],
 ) -> RolePlan:
-    """One role's plan: its section checked as its node will check it (ParameterFileError naming the key)."""
+    """One role's plan: its section checked as its node will check it (ParameterFileError naming the key).
+
+    A data file in ``copied`` exists (its copy is written before the nodes start).
+    """
     values = checked_values(role, {**node_params(view, role), **overrides.get(role, {})})
     for key in term_files() if role == "feedforward" else ():
-        table = values[key] if values.get(f"{key.rpartition('.')[0]}.enabled", True) else None
+        on = values.get(f"{key.rpartition('.')[0]}.enabled", True) and key not in copied
+        table = values[key] if on else None
         if table and not Path(table).is_file():
             raise ParameterFileError(f"parameter '{key}': no such file {table}")
     publishes, subscribes = role_topics(view, roles, role)

@@ -11,14 +11,14 @@ Nothing here imports rclpy.
 
 from __future__ import annotations
 
-import difflib
+from collections.abc import Callable
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-from servo_axis.core.errors import ConfigError, ParameterFileError
+from servo_axis.core.errors import ConfigError, ParameterFileError, closest, did_you_mean
 from servo_axis.params.param import BUILTIN
 from servo_axis.params.registry import term_files
 from servo_axis.params.schemas import SHARED
@@ -52,10 +52,38 @@ def find_scenario(name_or_path: str | Path) -> Path:
     found = shipped_file(name_or_path, scenario_dir())
     if found is not None:
         return found
-    raise ConfigError(
-        f"scenario: {str(name_or_path)!r} is neither a file nor a shipped scenario "
-        f"({', '.join(scenario_names())})"
-    )
+    raise ConfigError(not_found("scenario", name_or_path, scenario_names(), "list"))
+
+
+def not_found(kind: str, name_or_path: str | Path, names: list[str], listing: str | None) -> str:
+    """Why ``name_or_path`` is no file and no shipped ``kind``: the closest names, or how to list them.
+
+    A bare name (no folder, no ``.yaml``) is taken for a shipped one's
+    name (the closest ones, or those it begins: ``ptc``), anything else for
+    a path. ``listing`` is the command that lists the shipped ones (None:
+    the names are given).
+    """
+    path = Path(name_or_path)
+    text = str(name_or_path)
+    if path.is_dir():
+        return f"{kind} {text}: is a directory, expected a {kind} file (YAML) or a shipped name"
+    if path.parent != Path(".") or path.suffix in (".yaml", ".yml"):
+        why = (
+            "no such file" if path.parent.is_dir() else f"no such file (no directory {path.parent})"
+        )
+        if path.stem in names:
+            why += f"; the shipped {kind} {path.stem} is named by its name alone"
+        return f"{kind} {text}: {why}"
+    stem = text.removesuffix(".yaml")
+    found = closest(stem, names, n=3) or [n for n in names if n.startswith(stem)][:3]
+    if found:
+        hint = "did you mean " + " or ".join(f"'{n}'" for n in found) + "?"
+    elif listing is None:
+        hint = f"the shipped ones: {', '.join(names)}"
+    else:
+        hint = f"`python -m servo_axis {listing}` shows the {len(names)} shipped ones"
+
+    return f"{kind} {text!r}: neither a file nor a shipped {kind}; {hint}"
 
 
 def shipped_file(name_or_path: str | Path, folder: Path) -> Path | None:
@@ -101,16 +129,27 @@ def load_scenario(path: Path) -> dict[str, Any]:
         raise ConfigError(f"scenario {path}: expected a mapping of node sections")
     for key, value in data.items():
         if key != SHARED_SECTION and key not in ROLES and axis_section(key) is None:
-            raise ConfigError(
-                f"scenario {path}: unknown section '{key}'; expected '/**', one of {list(ROLES)} "
-                "or '/<axis>/<node>'"
-            )
+            raise ConfigError(f"scenario {path}: unknown section '{key}'; {section_hint(key)}")
         if not isinstance(value, dict) or set(value) != {"ros__parameters"}:
             raise ConfigError(f"scenario {path}: section '{key}' must hold only 'ros__parameters'")
     if "plant" not in data:
         raise ConfigError(f"scenario {path}: a 'plant' section is required")
     check_shared_keys(data, f"scenario {path}")
     return data
+
+
+def section_hint(key: object) -> str:
+    """What an unknown section of a scenario file may have meant."""
+    text = str(key)
+    if text.startswith("/") and text.count("/") == 2:  # /<axis>/<node>
+        axis, role = text.split("/")[1:]
+        if not axis.isidentifier():
+            return f"'{axis}' is not an axis name (letters, digits, '_')"
+        hint = did_you_mean(role, ROLES)
+        return hint or f"the node of '/<axis>/<node>' is one of {', '.join(ROLES)}"
+    return did_you_mean(text, [SHARED_SECTION, *ROLES]) or (
+        f"expected '/**', one of {', '.join(ROLES)} or '/<axis>/<node>'"
+    )
 
 
 def check_shared_keys(scenario: dict[str, Any], where: str) -> None:
@@ -130,10 +169,10 @@ def check_shared_keys(scenario: dict[str, Any], where: str) -> None:
     unknown = sorted(set(flatten(shared(scenario))) - set(SHARED) - BUILTIN)
     if not unknown:
         return
-    close = difflib.get_close_matches(unknown[0], list(SHARED), n=1)
-    hint = f"did you mean '{close[0]}'?" if close else f"the shared keys: {', '.join(SHARED)}"
+    hint = did_you_mean(unknown[0], SHARED) or f"the shared keys: {', '.join(SHARED)}"
+    prefix = f"{where}: " if where else ""
     raise ParameterFileError(
-        f"{where}: unknown parameter '{unknown[0]}' in the shared section '/**', which every "
+        f"{prefix}unknown parameter '{unknown[0]}' in the shared section '/**', which every "
         f"node reads ({hint}; a node's own key goes in its section)"
     )
 
@@ -221,14 +260,28 @@ def axis_view(scenario: dict[str, Any], axis: str, scenario_dir: Path) -> dict[s
         if role in scenario or own:
             base = scenario.get(role, {}).get("ros__parameters", {})
             view[role] = {"ros__parameters": merge(base, own)}
-    ff = view.get("feedforward", {}).get("ros__parameters", {})
+    return with_term_files(view, lambda key, path: resolve_table(path, scenario_dir))
+
+
+def with_term_files(scenario: dict[str, Any], change: Callable[[str, str], str]) -> dict[str, Any]:
+    """``scenario`` with each file a feedforward term names replaced by ``change(key, path)``.
+
+    The keys are those of :func:`~servo_axis.params.registry.term_files`
+    (``friction_table.file``, ``gms.file``, an outside term's), nested
+    (``friction_table: {file: ...}``) or dotted; an empty one is left as it
+    is. The other sections are shared with ``scenario``, the feedforward's
+    is a new mapping.
+    """
+    if "feedforward" not in scenario:
+        return scenario
+    ff = dict(scenario["feedforward"].get("ros__parameters", {}))
     for key in term_files():  # friction_table.file, gms.file, an outside term's
         term, _, leaf = key.rpartition(".")
         if isinstance(ff.get(term), dict) and ff[term].get(leaf):
-            ff[term] = {**ff[term], leaf: resolve_table(ff[term][leaf], scenario_dir)}
+            ff[term] = {**ff[term], leaf: change(key, str(ff[term][leaf]))}
         elif ff.get(key):
-            ff[key] = resolve_table(ff[key], scenario_dir)
-    return view
+            ff[key] = change(key, str(ff[key]))
+    return {**scenario, "feedforward": {"ros__parameters": ff}}
 
 
 def resolve_table(path_text: str, scenario_dir: Path) -> str:

@@ -23,7 +23,10 @@ from mcap.reader import NonSeekingReader, make_reader
 
 from servo_axis.recording.errors import BagError
 
-__all__ = ["RawMessage", "read_metadata", "read_raw"]
+__all__ = ["UNFINISHED_SUFFIX", "RawMessage", "read_metadata", "read_raw"]
+
+#: Suffix of the original file of a recovered bag (:mod:`servo_axis.recording.recover`).
+UNFINISHED_SUFFIX = ".unfinished"
 
 # What the mcap readers raise at the end of a file cut short (a recorder killed
 # mid-write): EndOfFile (a McapError) between records, struct.error when the

@@ -45,13 +45,11 @@ from mcap.records import Channel, Chunk, DataEnd, Footer, Message, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk
 
 from servo_axis.recording.errors import BagError, NoBagError, NotMcapError
-from servo_axis.recording.reader import read_metadata
+from servo_axis.recording.reader import UNFINISHED_SUFFIX, read_metadata
 from servo_axis.recording.writer import DEFAULT_QOS, BagWriter
 
 __all__ = ["UNFINISHED_SUFFIX", "RecoveryReport", "recover_bag"]
 
-#: Suffix of the original file of a recovered bag.
-UNFINISHED_SUFFIX = ".unfinished"
 
 _MAGIC = b"\x89MCAP0\r\n"
 _COMPRESSIONS = {"zstd": "zstd", "lz4": "lz4", "": "none"}

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
 if TYPE_CHECKING:
+    from servo_axis.params.overrides import Override
     from servo_axis.run.processes import Proc
 
 #: Restarts per role and axis by default.
@@ -58,8 +59,12 @@ class RunOptions:
         Serve the run to Foxglove / Lichtblick on this port
         (:mod:`servo_axis.run.live`); None: no live view.
     floor : dict or None
-        ``rt_floor.py --json`` results by period in us: a realtime run's
-        summary shows the host's floor at its period.
+        ``python -m servo_axis floor --json`` results by period in us
+        (:mod:`servo_axis.run.floor`): a realtime run's summary shows the
+        host's floor at its period.
+    overrides : tuple of Override
+        ``--set SECTION.KEY=VALUE`` overrides of the scenario's keys
+        (:mod:`servo_axis.params.overrides`), applied in order.
     """
 
     out_dir: Path | None = None
@@ -76,3 +81,4 @@ class RunOptions:
     external_timeout_s: float = EXTERNAL_TIMEOUT_S
     live_port: int | None = None
     floor: dict[int, dict[str, Any]] | None = None
+    overrides: tuple[Override, ...] = ()

@@ -3,19 +3,25 @@
 :func:`prepare` checks the options, loads the scenario and resolves it once
 (:func:`~servo_axis.params.run_plan.plan_run`, which checks every node's
 section as the node will), and only then creates the run directory and
-writes each axis's ``params.yaml`` (and, for one axis of several, its
-``scenario.yaml``): nothing is written for a bad option or scenario.
+writes each axis's ``params.yaml``, its ``scenario.yaml`` (the scenario as
+it runs) and the copies of its data files (``inputs/``): nothing is written
+for a bad option or scenario.
 :func:`announce` prints what the run says before it starts: the header,
 how to reach its ROS graph, and what each outside node must serve.
 """
 
 from __future__ import annotations
 
+import os
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
-from servo_axis.core.errors import ConfigError
+from servo_axis import numerics
+from servo_axis.core.errors import ConfigError, ParameterFileError
 from servo_axis.params.names import check_domain_id, check_namespace
+from servo_axis.params.recorded import header
+from servo_axis.params.registry import report_broken
 from servo_axis.params.run_plan import AxisPlan, RunPlan, plan_run
 from servo_axis.params.scenario import dump_params, find_scenario, load_scenario
 from servo_axis.run.live_view import check_live
@@ -57,29 +63,53 @@ def prepare(scenario: str | Path, options: RunOptions) -> PreparedRun:
     data = load_scenario(path)
     if options.live_port is not None:
         check_live(options.live_port)
-    plan = plan_run(
-        data,
-        path,
-        out_dir=options.out_dir,
-        namespace=namespace,
-        external=options.external,
-        composed=options.composed,
-    )
+    try:
+        plan = plan_run(
+            data,
+            path,
+            out_dir=options.out_dir,
+            namespace=namespace,
+            external=options.external,
+            composed=options.composed,
+            overrides=options.overrides,
+        )
+    except ParameterFileError as err:
+        if str(err).startswith("--set "):
+            raise
+        # A key of the file: name the file (as given: a shipped name or a path).
+        raise ParameterFileError(f"scenario {scenario}: {err}") from None
     _write(plan)
+    # The plan selects no broken plugin (it would have been refused): name the
+    # others now, before the run's output, not after it.
+    report_broken()
     return PreparedRun(plan, domain, options)
 
 
 def _write(plan: RunPlan) -> None:
-    """Create the run directory and each axis's logs; write its parameter file (and scenario)."""
+    """Create the run directory and each axis's logs; write its scenario, data files and parameter file.
+
+    Each axis's directory gets the scenario as it runs (``scenario.yaml``)
+    and a copy of each data file it names (``inputs/``), which its nodes
+    read and every later command reads (:mod:`servo_axis.params.recorded`).
+    """
+    created = not plan.run_dir.exists()
     try:
         plan.run_dir.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise ConfigError(f"--out {plan.run_dir}: cannot create it: {err}") from None
     for axis in plan.axes:
         axis.logs.mkdir(parents=True, exist_ok=True)
-        if axis.axis:
-            # Each axis is a single-axis scenario of its own, kept in its directory.
-            axis.scenario_path.write_text(dump_params(axis.scenario))
+        for key, (source, copy) in axis.inputs.items():
+            target = axis.dir / copy
+            target.parent.mkdir(parents=True, exist_ok=True)
+            try:
+                shutil.copyfile(source, target)
+            except OSError as err:
+                if created:  # nothing left behind for what the run cannot start with
+                    shutil.rmtree(plan.run_dir, ignore_errors=True)
+                raise ConfigError(f"parameter '{key}': cannot copy {source}: {err}") from None
+        head = header(axis.source_path, axis=axis.axis)
+        axis.scenario_path.write_text(head + dump_params(axis.scenario))
         axis.params_path.write_text(dump_params(dict(axis.params_file)))
 
 
@@ -91,6 +121,8 @@ def announce(run: PreparedRun) -> None:
     print(f"servo_axis run {plan.name}: {plan.steps} steps, run directory {plan.run_dir}", file=out)
     settings = discovery_settings(plan.axes[0].logs, realtime=plan.realtime)
     header = run_header(run.domain_id, plan.namespaces, settings)
+    # What the node processes get (ros_environment), said as they will compute.
+    header.append(numerics.describe(numerics.portable_environment(os.environ)))
     print("\n".join(header), file=out, flush=True)
     for axis in plan.axes:
         for role in axis.outside:

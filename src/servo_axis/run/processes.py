@@ -23,6 +23,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from servo_axis import numerics
 from servo_axis.params.names import check_domain_id
 from servo_axis.run.fastdds import REALTIME_ANNOUNCEMENT_S, clean_stale_shm, realtime_profile
 
@@ -42,8 +43,13 @@ REALTIME_FIRST_CORE = ("plant", "identifier", "learning")
 
 
 def ros_environment(domain_id: int, log_dir: Path, *, realtime: bool = False) -> dict[str, str]:
-    """Environment of the node processes: ``os.environ`` plus the run's ROS settings."""
-    env = dict(os.environ)
+    """Environment of the node processes: ``os.environ`` plus the run's ROS settings.
+
+    The numeric paths pinned (:func:`servo_axis.numerics.portable_environment`:
+    the same numbers on any x86-64 host, in realtime too, where it costs
+    nothing measurable) unless ``SERVO_AXIS_NUMERICS=native``.
+    """
+    env = numerics.portable_environment(os.environ)
     env.update(discovery_settings(log_dir, realtime=realtime))
     env.update(ROS_DOMAIN_ID=str(domain_id), PYTHONUNBUFFERED="1")
     # The nodes' matrices are 3x3 to 8x8: OpenBLAS threads only contend for
@@ -212,15 +218,22 @@ def pids_of(run_dir: Path, role: str) -> list[int]:
 
 
 def start_process(
-    role: str, args: list[str], env: dict[str, str], log_path: Path, *, realtime: bool = False
+    role: str,
+    args: list[str],
+    env: dict[str, str],
+    log_path: Path,
+    *,
+    realtime: bool = False,
+    pinned: bool = True,
 ) -> Proc:
     """Start ``python args...`` (this interpreter) as a process of the run, logging to ``log_path``.
 
-    In its own process group, pinned like ``role`` (:func:`cpu_set`), and
-    ended by the kernel when the runner dies (:func:`_in_child`).
+    In its own process group, pinned like ``role`` (:func:`cpu_set`; not
+    with ``pinned`` false), and ended by the kernel when the runner dies
+    (:func:`_in_child`).
     """
     log = log_path.open("wb")
-    pin = os.environ.get("SERVO_AXIS_PIN", "1") == "1"
+    pin = pinned and os.environ.get("SERVO_AXIS_PIN", "1") == "1"
     cpus = cpu_set(role, realtime=realtime) if pin else None
     runner = os.getpid()
     popen = subprocess.Popen(

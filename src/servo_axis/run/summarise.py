@@ -71,7 +71,7 @@ def summarise_run(
 
     A realtime run's summary holds the plant's report on its clock
     (``realtime``), with the host's floor at its period from ``floor``
-    (``rt_floor.py --json`` results by period in us) if given.
+    (``python -m servo_axis floor --json`` results by period in us) if given.
     """
     from servo_axis.analysis import plots as figures
     from servo_axis.analysis import summary as summaries
@@ -112,6 +112,7 @@ def _summarise_axis(
         axis.plan.dir,
         scenario=axis.plan.scenario,
         scenario_path=axis.plan.scenario_path,
+        source_file=axis.plan.source_path,
         wall_time_s=state.wall_time_s if span is None else span[1] - span[0],
         mode="composed" if plan.composed else "separate processes",
     )
@@ -146,7 +147,7 @@ def _summarise_axis(
         if realtime
         else None,
     )
-    summary = dataclasses.replace(summary, health=health)
+    summary = dataclasses.replace(summary, health=health, overrides=plan.overrides or None)
     return summary, reports, span
 
 
@@ -182,6 +183,7 @@ def _summarise_axes(
         if stepped is None or len(spans) < len(plan.axes)
         else stepped,
         health=health,
+        overrides=plan.overrides or None,
     )
 
 

@@ -430,7 +430,8 @@ def plot_figures(rows: list[dict[str, Any]], study: Study, out: Path) -> list[Pa
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from servo_axis.analysis.plots import error_scale
+    from servo_axis.analysis.plots import plain_ticks
+    from servo_axis.analysis.units import summary_quantity
 
     ok = [r for r in rows if r["status"] == "ok"]
     written = []
@@ -451,11 +452,10 @@ def plot_figures(rows: list[dict[str, Any]], study: Study, out: Path) -> list[Pa
                 others = []
                 groups = {(): [pt for pts in groups.values() for pt in pts]}
             fig, ax = plt.subplots(figsize=(6.5, 4))
-            # A length or angle in a unit its values read in (um, nm, urad, ...), as the
-            # run's own error plots do; anything else as it is, without an offset.
-            unit = next((u for u in ("m", "rad") if name.endswith(f"_{u}")), None)
-            values = [v for pts in groups.values() for _, v in pts]
-            factor, shown = error_scale(values, unit) if unit else (1.0, "")
+            # In the unit of its quantity (um for a tracking error, rad on a rotary
+            # table, ...), as every table and figure of a run; a ratio as it is.
+            quantity = summary_quantity(study.figures[name])
+            factor = 1.0 if quantity is None else quantity.factor
             numeric = all(
                 isinstance(x, int | float) and not isinstance(x, bool)
                 for pts in groups.values()
@@ -468,8 +468,8 @@ def plot_figures(rows: list[dict[str, Any]], study: Study, out: Path) -> list[Pa
                 label = ", ".join(f"{p}={v}" for p, v in zip(others, key, strict=True)) or None
                 ax.plot(xs, [factor * p[1] for p in pts], style, label=label)
             ax.set_xlabel(param)
-            ax.set_ylabel(f"{name} ({shown})" if unit else name)
-            ax.ticklabel_format(axis="y", style="plain", useOffset=False)
+            ax.set_ylabel(name if quantity is None else quantity.label(name))
+            plain_ticks(ax)
             ax.set_title(f"{study.name}: {name}", fontsize=9)
             ax.grid(True, alpha=0.4)
             if others and len(groups) <= 12:

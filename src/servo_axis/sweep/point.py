@@ -51,11 +51,13 @@ def plain_summary(scenario: dict[str, Any], scenario_path: Path) -> dict[str, An
     from servo_axis.analysis.metrics import error_statistics
     from servo_axis.analysis.signals import learning_enabled, tracking
     from servo_axis.analysis.summary import (
+        error_unit,
         ilc_convergence,
         position_scale,
         summarise_estimates,
         true_parameters,
     )
+    from servo_axis.analysis.tracking import unit_keys
     from servo_axis.params.factories import build_reference
     from servo_axis.params.resolve import feedforward_values, node_values
     from servo_axis.simulate import simulate, simulate_identification, simulate_learning
@@ -97,7 +99,9 @@ def plain_summary(scenario: dict[str, Any], scenario_path: Path) -> dict[str, An
         "steps": int(steps.size),
         "sim_time_s": steps.size * period,
         "reference_period_s": cycle,
-        "tracking_error": error_statistics(error, steps, period_s=period, cycle_s=cycle),
+        "tracking_error": unit_keys(
+            error_statistics(error, steps, period_s=period, cycle_s=cycle), error_unit(plant)
+        ),
     }
     convergence = ilc_convergence(scenario, scenario_path)
     if convergence is not None:

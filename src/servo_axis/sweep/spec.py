@@ -34,20 +34,25 @@ import hashlib
 import itertools
 import json
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-from servo_axis.core.errors import ConfigError
+from servo_axis.core.errors import ConfigError, did_you_mean
+from servo_axis.params.overrides import Override
 from servo_axis.params.scenario import (
     ROLES,
     SHARED_SECTION,
     axes_of,
     axis_section,
+    check_shared_keys,
     find_scenario,
+    flatten,
     load_scenario,
+    not_found,
     resolve_table,
     shipped_file,
 )
@@ -146,12 +151,16 @@ def find_study(name_or_path: str | Path) -> Path:
     found = shipped_file(name_or_path, study_dir())
     if found is not None:
         return found
-    names = ", ".join(sorted(p.stem for p in study_dir().glob("*.yaml")))
-    raise StudyError(f"study {name_or_path}: neither a file nor a shipped study ({names})")
+    names = sorted(p.stem for p in study_dir().glob("*.yaml"))
+    raise StudyError(not_found("study", name_or_path, names, None))
 
 
-def load_study(path: Path | str) -> Study:
+def load_study(path: Path | str, extra: Sequence[Override] = ()) -> Study:
     """Read and check a study file or shipped study (each point's overrides are checked once).
+
+    ``extra`` (``sweep --set``, :mod:`servo_axis.params.overrides`) is added
+    to the study's ``set``, after it, so that it overrides the same keys of
+    every point but the swept ones; an error it causes names it.
 
     Raises
     ------
@@ -169,7 +178,12 @@ def load_study(path: Path | str) -> Study:
         raise StudyError(f"study {path}: expected a mapping")
     for key in data:
         if key not in _KEYS:
-            raise _fail(path, str(key), f"unknown key; expected one of {sorted(_KEYS)}")
+            hint = did_you_mean(key, _KEYS)
+            raise _fail(
+                path,
+                str(key),
+                f"unknown key; {hint + ' ' if hint else ''}expected one of {sorted(_KEYS)}",
+            )
     if "scenario" not in data or not isinstance(data["scenario"], str):
         raise _fail(path, "scenario", "required: a shipped scenario's name or a path")
     scenario_text = data["scenario"]
@@ -185,6 +199,13 @@ def load_study(path: Path | str) -> Study:
     fixed = data.get("set") or {}
     if not isinstance(fixed, dict) or not all(_scalar(v) for v in fixed.values()):
         raise _fail(path, "set", "expected a mapping of dotted keys to values")
+    given: dict[str, str] = {}  # study key -> the --set that gave it
+    for o in extra:
+        value = o.value
+        leaves = flatten(value, f"{o.key}.") if isinstance(value, dict) else {o.key: value}
+        for key, leaf in leaves.items():
+            given[f"{o.section}.{key}"] = o.text
+            fixed = {**fixed, f"{o.section}.{key}": leaf}
     if ("grid" in data) == ("points" in data):
         raise _fail(path, "grid", "give either 'grid' or 'points' (one of them)")
     own: list[dict[str, Any]]
@@ -213,6 +234,8 @@ def load_study(path: Path | str) -> Study:
         trial = copy.deepcopy(base)
         for key, value in point.items():
             where = f"points[{i}].{key}" if "points" in data else key
+            if key in given and key not in own[i]:
+                where = f"--set {given[key]}"
             try:
                 apply_override(trial, key, value)
                 _check_section(trial, _section_of(trial, key)[0])
@@ -221,8 +244,9 @@ def load_study(path: Path | str) -> Study:
     # Before any point runs: a figure no summary can have would only show up as a
     # failed row of every point, after all of them ran.
     summary_kind = "axes" if axes_of(base) else backend
+    unit = _error_unit(base)
     for name, where in figures.items():
-        problem = figure_problem(where, summary_kind)
+        problem = figure_problem(where, summary_kind, unit=unit)
         if problem:
             raise _fail(path, f"figures.{name}", problem)
     return Study(
@@ -254,7 +278,10 @@ def _summary_fields(kind: str) -> dict[str, Any]:
 
     fields = _dataclass_fields(AxesSummary if kind == "axes" else RunSummary)
     if kind == "plain":
-        return {k: v for k, v in fields.items() if k in PLAIN_SUMMARY_FIELDS}
+        plain = {k: v for k, v in fields.items() if k in PLAIN_SUMMARY_FIELDS}
+        # A point with the excitation on: the identification's errors (identify/study.py),
+        # a mapping whose keys the plant's model decides.
+        return {**plain, "sysid": dict[str, Any] | None}
     return fields
 
 
@@ -280,7 +307,17 @@ def _strip_none(kind: Any) -> Any:
     return kind
 
 
-def figure_problem(path: str, kind: str) -> str | None:
+def _error_unit(scenario: dict[str, Any]) -> str:
+    """``rad`` when the scenario's plant model turns its table (``rotary``), else ``m``."""
+    from servo_axis.analysis.tracking import axis_values, error_unit
+
+    try:
+        return error_unit(axis_values(scenario))
+    except ConfigError:
+        return "m"  # a multi-axis scenario: its sections are checked per point
+
+
+def figure_problem(path: str, kind: str, *, unit: str = "m") -> str | None:
     """What is wrong with a figure path for a point's summary, or None when it may be there.
 
     The path is checked against the summary's layout (the dataclasses of
@@ -296,6 +333,10 @@ def figure_problem(path: str, kind: str) -> str | None:
     kind : str
         ``plain`` (the plain-call loops' fields), ``nodes`` (``summary.json``
         of a single-axis run) or ``axes`` (of a multi-axis run).
+    unit : str
+        The tracking error's unit of the study's scenario: ``m``, or ``rad``
+        on a rotary table, whose summary names the errors ``rms_rad``,
+        ``max_rad`` (:func:`servo_axis.analysis.tracking.unit_keys`).
     """
     import dataclasses
     import typing
@@ -307,6 +348,15 @@ def figure_problem(path: str, kind: str) -> str | None:
         if fields is not None:
             if not name:
                 return f"{path!r}: [{index}] at '{done or '.'}', which is a block, not a list"
+            if unit != "m" and done.startswith("tracking_error") and name in fields:
+                if name.endswith("_m"):
+                    return (
+                        f"{path!r}: the errors of a rotary table are in {unit}: "
+                        f"did you mean '{name[:-2]}_{unit}'?"
+                    )
+            elif unit != "m" and done.startswith("tracking_error"):
+                if name.endswith(f"_{unit}") and f"{name[: -len(unit) - 1]}_m" in fields:
+                    name = f"{name[: -len(unit) - 1]}_m"
             if name not in fields:
                 close = difflib.get_close_matches(name, fields, n=1)
                 hint = f"did you mean '{close[0]}'? " if close else ""
@@ -343,6 +393,9 @@ def _section_of(scenario: dict[str, Any], key: str) -> tuple[str, str]:
     if rest and (head == SHARED_SECTION or head in ROLES or axis_section(head) is not None):
         return head, rest
     holders = [s for s, v in scenario.items() if _has(v.get("ros__parameters") or {}, key)]
+    close = did_you_mean(head, [SHARED_SECTION, *ROLES]) if rest else ""
+    if not holders and close:
+        raise ConfigError(f"unknown section '{head}'; {close}")
     if len(holders) != 1:
         raise ConfigError(
             f"in no section of the scenario; name it: '<section>.{key}' "
@@ -357,6 +410,8 @@ def _check_section(scenario: dict[str, Any], section: str) -> None:
     """Check the parameters of the roles a section sets (names, types, ranges)."""
     from servo_axis.params.resolve import node_values
 
+    if section == SHARED_SECTION:
+        check_shared_keys(scenario, "")
     roles = [r for r in ROLES if r in scenario] if section == SHARED_SECTION else [section]
     for role in roles:
         if role in ROLES and role != "recorder":

@@ -323,8 +323,16 @@ def test_rmsd_in_rad_over_the_whole_run(runs: dict[str, Any]) -> None:
     assert_allclose(s.tracking_error.all_samples.rms_m, rmsd(truth), rtol=1e-9)
     assert_allclose(s.tracking_error.all_samples.max_m, np.max(np.abs(truth.error_rad)), rtol=1e-9)
     text = format_summary(s)
-    assert "tracking error (urad)" in text
-    assert "rad of table angle (rotary table), shown in urad" in text
+    assert "tracking error (rad)" in text and "urad" not in text
+    assert (
+        "error unit        rad of table angle (rotary table); RMSD = RMS over all samples" in text
+    )
+    row = next(x for x in text.splitlines() if x.startswith("  all samples"))
+    assert_allclose(
+        [float(x) for x in row.split()[2:]],
+        [rmsd(truth), np.max(np.abs(truth.error_rad))],
+        rtol=1e-5,
+    )
     assert f"identification    {truth.est_step.size} estimates (steps 3 to {N - 1})" in text
 
 
@@ -440,23 +448,43 @@ def schemes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
 
 
 def test_compare_prints_rmsd_and_reduction_against_pid(
-    schemes: dict[str, Any], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    schemes: dict[str, Any],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     from servo_axis.__main__ import main
+    from servo_axis.analysis import plots
 
     order = ["dlpid_tilt_marc", "dlpid_tilt_lpf2", "dlpid_tilt_pid"]
-    chart = tmp_path / "fig9.png"
+    chart, error = tmp_path / "fig9.png", tmp_path / "error.png"
     dirs = [str(schemes[n][0]) for n in order]
-    assert main(["compare", *dirs, "--bar-chart", str(chart)]) == 0
+    kept: list[Any] = []  # the figures, read from matplotlib's objects
+    monkeypatch.setattr(plots._pyplot(), "close", kept.append)
+    assert main(["compare", *dirs, "--bar-chart", str(chart), "--error-out", str(error)]) == 0
+    monkeypatch.undo()
     text = capsys.readouterr().out
     assert "reduction against dlpid_tilt_pid" in text  # the scenario ending in _pid
-    assert "RMSD (urad)" in text
+    # A rotary table's error in rad, in the table and on the chart (issue 43: urad, mrad).
+    assert "RMSD of the tracking error over the whole run (rad)" in text
+    assert "RMSD (rad)" in text and "urad" not in text
+    (bars,) = kept[0].axes
+    assert bars.get_ylabel() == "RMSD of tracking error (rad)"
+    heights = [p.get_height() for p in bars.patches]
+    assert_allclose(heights, [rmsd(schemes[n][2]) for n in order], rtol=1e-9)
+    # The error against time: rad too, r - y of each run.
+    whole = kept[1].axes[0]
+    assert whole.get_ylabel() == "tracking error (rad)"
+    for line, name in zip(whole.get_lines(), order, strict=True):
+        assert_allclose(line.get_ydata(), schemes[name][2].error_rad, rtol=1e-9, atol=1e-15)
+    for fig in kept:
+        plots._pyplot().close(fig)
     rows = parse_rmsd_table(text)
     assert list(rows) == order
     base = rmsd(schemes["dlpid_tilt_pid"][2])
     for name in order:
         truth = schemes[name][2]
-        assert_allclose(float(rows[name][0]), 1e6 * rmsd(truth), rtol=1e-5)
+        assert_allclose(float(rows[name][0]), rmsd(truth), rtol=1e-5)
         if name == "dlpid_tilt_pid":
             assert rows[name][1:] == ["base", "-", "-", "-", "-"]
             continue
@@ -529,7 +557,7 @@ def test_learning_runs_keep_the_per_cycle_compare(
         dirs.append(str(tmp_path / name))
     assert main(["compare", *dirs]) == 0
     out = capsys.readouterr().out
-    assert out.startswith("max error per cycle (um)") and "RMSD" not in out
+    assert out.startswith("max tracking error per cycle (um)") and "RMSD" not in out
     # --rmsd asks for the RMSD table of any runs.
     assert main(["compare", *dirs, "--rmsd"]) == 0
     rows = parse_rmsd_table(capsys.readouterr().out)

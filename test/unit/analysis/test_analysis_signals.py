@@ -411,6 +411,7 @@ def write_circle_axis(run: Path, tmp_path: Path, col: int, d: np.ndarray) -> Pat
     scenario = load_scenario(path)
     scenario["feedback"]["ros__parameters"]["sensor"] = "encoder"
     path.write_text(yaml.safe_dump(scenario))
+    (run / "scenario.yaml").write_text(path.read_text())  # what the runner records
     summarise(run, scenario=scenario, scenario_path=path, wall_time_s=1.0, mode="processes")
     return path
 
@@ -509,6 +510,7 @@ def test_friction_table_from_run_uses_the_scenario_nominal_model(tmp_path: Path)
     nominal = {"torque_constant_Nm_per_A": 0.8, "inertia_kgm2": 0.02, "damping_Nms_per_rad": 0.05}
     scenario["/**"]["ros__parameters"]["nominal"] = nominal
     path.write_text(yaml.safe_dump(scenario))
+    (run / "scenario.yaml").write_text(path.read_text())  # what the runner records
     summarise(run, scenario=scenario, scenario_path=path, wall_time_s=1.0, mode="processes")
 
     table = table_from_run(run, bin_width_m=1e-6, max_displacement_m=10e-6)

@@ -102,8 +102,19 @@ def test_run_summary_fields_are_typed() -> None:
         "realtime",
         "startup_s",
         "finish_s",
+        "overrides",
     }
     assert summary.realtime is None and "realtime" not in summary.to_dict()
+    # overrides: written only for a run given --set, kept as given, and shown
+    assert summary.overrides is None and "overrides" not in summary.to_dict()
+    given = ("shared.duration_s=1", "feedback.dob={enabled: true}")
+    with_sets = dataclasses.replace(summary, overrides=given)
+    assert with_sets.to_dict()["overrides"] == list(given)
+    assert RunSummary.from_json(with_sets.to_json()) == with_sets
+    assert (
+        "overrides         --set shared.duration_s=1 --set 'feedback.dob={enabled: true}'"
+        in format_summary(with_sets)
+    )
     assert summary.startup_s is None and "startup_s" not in summary.to_dict()
     assert summary.ilc_convergence is None and "ilc_convergence" not in summary.to_dict()
     assert summary.period_name is None and "period_name" not in summary.to_dict()

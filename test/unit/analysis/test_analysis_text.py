@@ -6,6 +6,7 @@ import math
 from typing import Any
 
 import numpy as np
+import pytest
 from numpy.testing import assert_allclose
 
 from servo_axis.analysis.metrics import error_statistics
@@ -15,6 +16,9 @@ from servo_axis.analysis.text import (
     format_any_summary,
     format_axes_summary,
     format_summary,
+    last_common_cycle,
+    last_cycle_table,
+    rmsd_table,
 )
 
 
@@ -143,26 +147,107 @@ def test_format_axes_summary_text_is_unchanged() -> None:
     assert format_any_summary(axes) == expected
 
 
-def test_compare_table_lines_up_the_cycles_of_each_run() -> None:
-    step = np.arange(1000)
+def decaying_runs(*decays: float, cycles: int = 4) -> list[RunSummary]:
+    """Runs whose error falls by ``decay`` per cycle of 0.25 s (1 ms samples)."""
     runs = []
-    for decay in (0.5, 0.2):  # per cycle: the second run's error falls faster
-        e = decay ** (step // 250) * np.sin(2 * np.pi * step / 250 + 0.3)
+    for decay in decays:
+        step = np.arange(250 * cycles)
+        e = decay ** (step // 250) * 1e-6 * np.sin(2 * np.pi * step / 250 + 0.3)
         stats = error_statistics(e, step, period_s=1e-3, cycle_s=0.25)
         runs.append(RunSummary.from_dict(summary_dict(stats)))
-    per_cycle = cycle_errors(runs[1])
+    return runs
+
+
+def numbers(row: str) -> list[float]:
+    return [float(x) for x in row.split()]
+
+
+def test_compare_table_lines_up_the_cycles_with_each_run_s_reduction() -> None:
+    runs = decaying_runs(0.5, 0.2)  # per cycle: the second run's error falls faster
+    step = np.arange(1000)
+    e = 1e-6 * np.sin(2 * np.pi * step / 250 + 0.3)
     assert_allclose(
-        per_cycle["max_m"], [0.2**k * np.max(np.abs(e[:250])) for k in range(4)], rtol=1e-12
+        cycle_errors(runs[1])["max_m"],
+        [0.2**k * np.max(np.abs(e[:250])) for k in range(4)],
+        rtol=1e-12,
     )
     max_block, rms_block = compare_table(runs, ["Q", "Q~5"]).split("\n\n")
-    for block, key in ((max_block, "max_m"), (rms_block, "rms_m")):
+    for block, key, title in ((max_block, "max_m", "max"), (rms_block, "rms_m", "RMS")):
         rows = block.splitlines()
-        assert rows[1].split() == ["cycle", "Q", "Q~5"]
-        table = np.array([[float(x) for x in row.split()] for row in rows[2:]])
+        assert rows[0] == (
+            f"{title} tracking error per cycle (um); reduction (%) = 100 (1 - run / Q) "
+            "in the same cycle"
+        )
+        assert rows[1].split() == ["cycle", "Q", "Q~5", "reduction", "(%)"]
+        table = np.array([numbers(row) for row in rows[2:]])
         assert_allclose(table[:, 0], [1, 2, 3, 4], rtol=0)
         assert_allclose(table[:, 2], 1e6 * cycle_errors(runs[1])[key], rtol=1e-5)
         assert_allclose(table[:, 1] / table[:, 2], [2.5**k for k in range(4)], rtol=1e-5)
-    assert_allclose(float(rms_block.splitlines()[2].split()[1]), 1e6 / np.sqrt(2), rtol=1e-5)
+        # The reduction in each cycle, 100 (1 - 0.2^k / 0.5^k), to the 2 decimals shown.
+        assert_allclose(table[:, 3], [100 * (1 - 0.4**k) for k in range(4)], atol=0.006)
+    assert_allclose(numbers(rms_block.splitlines()[2])[1], 1 / np.sqrt(2), rtol=1e-5)
+
+
+def test_the_headline_is_each_run_s_last_cycle_against_the_first_run_s_last() -> None:
+    """compare's headline (issue 43): each run's last cycle, not the max over every
+    cycle after the first, which cycle 2 sets while learning has barely acted."""
+    base, faster = decaying_runs(0.9, 0.5, cycles=6)
+    shorter = decaying_runs(0.3, cycles=4)[0]
+    lines = last_cycle_table([base, faster, shorter], ["base", "fast", "short"]).splitlines()
+    assert lines[0] == (
+        "last cycle of each run (base cycle 6, fast cycle 6, short cycle 4); reduction (%) = "
+        "100 (1 - run / base), each against the last cycle of base"
+    )
+    assert lines[1].split() == [
+        "run", "cycle", "max", "(um)", "reduction", "(%)", "RMS", "(um)", "reduction", "(%)"
+    ]  # fmt: skip
+    rows = {line.split()[0]: line.split()[1:] for line in lines[2:]}
+    assert rows["base"][0] == "6" and rows["base"][2] == rows["base"][4] == "base"
+    # Independently: the last cycle's max and RMS of each run's own error.
+    last = {
+        label: s.tracking_error.cycles[-1]
+        for label, s in (("base", base), ("fast", faster), ("short", shorter))
+    }
+    for label, row in rows.items():
+        assert int(row[0]) == last[label].cycle
+        assert_allclose(float(row[1]), 1e6 * last[label].max_m, rtol=1e-5)
+        assert_allclose(float(row[3]), 1e6 * last[label].rms_m, rtol=1e-5)
+        if label != "base":
+            assert_allclose(
+                float(row[2]), 100 * (1 - last[label].max_m / last["base"].max_m), atol=0.006
+            )
+            assert_allclose(
+                float(row[4]), 100 * (1 - last[label].rms_m / last["base"].rms_m), atol=0.006
+            )
+    # Runs that end on the same cycle name it once.
+    same = last_cycle_table([base, faster], ["a", "b"]).splitlines()[0]
+    assert same.startswith("last cycle of each run (cycle 6 of every run); ")
+    assert last_common_cycle([base, faster, shorter]) == 4
+
+
+def test_a_rotary_run_s_summary_and_comparison_are_in_rad() -> None:
+    step = np.arange(1000)
+    e = 6.983e-4 * np.sin(2 * np.pi * step / 250 + 0.3)
+    stats = error_statistics(e, step, period_s=1e-3, cycle_s=0.25)
+    tilt = RunSummary.from_dict(summary_dict(stats, error_unit="rad"))
+    text = format_summary(tilt)
+    assert "tracking error (rad)         RMS            max" in text
+    assert "cycle   RMS (rad)      max (rad)      max at T_r (rad)" in text
+    assert "urad" not in text and "(um)" not in text
+    row = next(x for x in text.splitlines() if x.startswith("  all samples"))
+    assert_allclose(numbers(row.removeprefix("  all samples")), [
+        np.sqrt(np.mean(e**2)), np.max(np.abs(e))
+    ], rtol=1e-5)  # fmt: skip
+    table = rmsd_table([tilt, tilt], ["pid", "lpf2"]).splitlines()
+    assert table[0] == (
+        "RMSD of the tracking error over the whole run (rad); reduction against pid"
+    )
+    assert table[1].split()[:3] == ["run", "RMSD", "(rad)"]
+    assert_allclose(float(table[2].split()[1]), tilt.rmsd, rtol=1e-5)
+    for head in compare_table([tilt], ["a"]).split("\n\n"):
+        assert "(rad)" in head.splitlines()[0]
+    with pytest.raises(ValueError, match=r"different units \(m, rad\)"):
+        compare_table([tilt, demo_summary()], ["a", "b"])
 
 
 def test_cycle_errors_of_a_run_without_cycles_are_empty() -> None:
@@ -178,6 +263,11 @@ def test_cycle_errors_of_a_run_without_cycles_are_empty() -> None:
         "max_at_tr_m": 0,
     }
     assert compare_table([s], ["a"]).splitlines()[1].split() == ["cycle", "a"]
+    assert (
+        last_cycle_table([s], ["a"])
+        .splitlines()[0]
+        .startswith("last cycle of each run (no complete cycle)")
+    )
 
 
 REALTIME = {
@@ -218,7 +308,7 @@ def test_a_realtime_summary_reports_misses_and_lateness_and_is_never_determinist
     assert "deadline misses   7 of 1000 ticks (0.70 %), 2 command(s) never came" in text
     assert "tick late (us)    p50 3  p99 240  max 1800" in text
     assert "command late (us) p50 310  p99 980  max 4200" in text
-    assert "floor (rt_floor)  0.25 % misses at 1000 us (events)" in text
+    assert "floor             0.25 % misses at 1000 us (events)" in text
     assert "late inputs" not in text  # nothing reported by the feedback or the generator
     late = {"references_held": 5, "late_estimates": 12, "late_corrections": 0}
     s2 = RunSummary.from_dict(dict(data, realtime=dict(REALTIME, **late)))

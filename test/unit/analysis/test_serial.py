@@ -2,10 +2,13 @@
 
 The summaries under ``test/data/summaries`` are the ``summary.json`` of real
 runs (ptc_nominal, rptc_ideal, dlpid_tilt_lpf2 shortened to 2 s,
-fast_reversal_sigmoid) written by the hand-written ``to_dict`` methods this
-serialiser replaced: they must read and write back byte for byte, and every
-dataclass value in them must survive ``from_dict(to_dict(x))`` exactly (type
-for type: tuples stay tuples, ints ints).
+fast_reversal_sigmoid), three written by the hand-written ``to_dict`` methods
+this serialiser replaced: they must read and write back byte for byte, and
+every dataclass value in them must survive ``from_dict(to_dict(x))`` exactly
+(type for type: tuples stay tuples, ints ints). The rotary one,
+``dlpid_tilt_lpf2_short``, names its errors in rad (``rms_rad``, issue 43):
+it is the ``summary.json`` of ``python -m servo_axis run`` of
+``dlpid_tilt_lpf2`` with ``/**.duration_s: 2.0``.
 """
 
 from __future__ import annotations
@@ -244,6 +247,47 @@ def test_older_layouts_still_read() -> None:
     run = RunSummary.from_dict(data)
     assert run.health is None and run.realtime is None and run.deformation is None
     assert "health" not in run.to_dict()
+
+
+def _keys(node: Any) -> set[str]:
+    """Every key of a mapping and of the mappings and lists in it."""
+    if isinstance(node, dict):
+        return set(node).union(*(_keys(v) for v in node.values()))
+    if isinstance(node, list):
+        return set().union(*(_keys(v) for v in node))
+    return set()
+
+
+def test_a_rotary_run_names_its_errors_in_rad_and_an_older_one_still_reads() -> None:
+    """issue 43: a tilting table's summary had ``rms_m`` keys holding rad."""
+    text = (DATA / "dlpid_tilt_lpf2_short.json").read_text()
+    data = json.loads(text)
+    assert data["error_unit"] == "rad"
+    keys = _keys(data["tracking_error"])
+    assert {"rms_rad", "max_rad"} <= keys and not {k for k in keys if k.endswith("_m")}
+    tilt = RunSummary.from_json(text)
+    assert tilt.unit == "rad"
+    assert tilt.rmsd == data["tracking_error"]["all_samples"]["rms_rad"]
+    assert (
+        tilt.tracking_error.cycles[0].reference_instants.max_m
+        == (data["tracking_error"]["cycles"][0]["reference_instants"]["max_rad"])
+    )
+    # Written before the keys were named for rad: the same values read.
+    older = {
+        **data,
+        "tracking_error": json.loads(json.dumps(data["tracking_error"]).replace('_rad"', '_m"')),
+    }
+    assert "rms_m" in older["tracking_error"]["all_samples"]
+    same(RunSummary.from_dict(older), tilt, "older")
+    assert RunSummary.from_dict(older).to_json() == text
+    # In a multi-axis summary too; a linear axis keeps its m.
+    axes = AxesSummary.from_dict(
+        {"scenario": "two", "description": "", "wall_time_s": 1.0,
+         "axes": {"tilt": data, "x": json.loads((DATA / "ptc_nominal.json").read_text())}}
+    )  # fmt: skip
+    written = axes.to_dict()["axes"]
+    assert "rms_rad" in written["tilt"]["tracking_error"]["all_samples"]
+    assert "rms_m" in written["x"]["tracking_error"]["all_samples"]
 
 
 def test_unknown_keys_are_ignored() -> None:

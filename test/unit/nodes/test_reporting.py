@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import ast
-import time
 from pathlib import Path
+from types import SimpleNamespace
 
+import pytest
+
+from servo_axis.nodes import reporting
 from servo_axis.nodes.diagnostics import ERROR, OK, WARN
 from servo_axis.nodes.reporting import Reporter, Throttle
 from servo_axis.wire.node_report import read_health
@@ -25,7 +28,18 @@ class Lines:
         self.errors.append(message)
 
 
-def test_rejections_are_counted_per_topic_and_logged_at_most_once_a_second() -> None:
+@pytest.fixture
+def clock(monkeypatch: pytest.MonkeyPatch) -> list[float]:
+    """The module's clock, set by the test, not the host's: a test process held back
+    for a period between two calls must not make the second one a new period."""
+    now = [100.0]
+    monkeypatch.setattr(reporting, "time", SimpleNamespace(monotonic=lambda: now[0]))
+    return now
+
+
+def test_rejections_are_counted_per_topic_and_logged_at_most_once_a_second(
+    clock: list[float],
+) -> None:
     log = Lines()
     report = Reporter("feedback", report_dir=None, logger=log)
     for _ in range(3):
@@ -37,10 +51,12 @@ def test_rejections_are_counted_per_topic_and_logged_at_most_once_a_second() -> 
     assert report.status().level == WARN
 
 
-def test_the_throttle_lets_one_line_through_per_period() -> None:
-    throttle = Throttle(period_s=0.05)
+def test_the_throttle_lets_one_line_through_per_period(clock: list[float]) -> None:
+    throttle = Throttle(period_s=0.25)
     assert throttle.ready() and not throttle.ready()
-    time.sleep(0.06)
+    clock[0] += 0.125
+    assert not throttle.ready()
+    clock[0] += 0.125  # a whole period after the last line (exact in binary)
     assert throttle.ready() and not throttle.ready()
 
 

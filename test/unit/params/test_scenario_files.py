@@ -178,13 +178,32 @@ def test_shipped_scenarios_are_found_by_name_or_path(tmp_path: Path) -> None:
     assert {"ptc_nominal", "rptc_friction_table", "xy_circle"} <= set(scenario_names())
 
 
-@pytest.mark.parametrize("name", ["no_such_scenario", "elsewhere/rptc_detailed.yaml"])
-def test_a_bad_scenario_name_is_refused_with_the_names(name: str) -> None:
+@pytest.mark.parametrize(
+    ("name", "expected"),
+    [
+        (
+            "ptc_nominl",
+            "'ptc_nominl': neither a file nor a shipped scenario; did you mean 'ptc_nominal'",
+        ),
+        ("RPTC_Detailed", "did you mean 'rptc_detailed'"),
+        ("ptc", "did you mean 'ptc_friction' or 'ptc_friction_table' or 'ptc_nominal'?"),
+        (
+            "no_such_scenario",
+            f"`python -m servo_axis list` shows the {len(scenario_names())} shipped ones",
+        ),
+        (
+            "elsewhere/rptc_detailed.yaml",
+            "elsewhere/rptc_detailed.yaml: no such file (no directory elsewhere); the shipped "
+            "scenario rptc_detailed is named by its name alone",
+        ),
+    ],
+)
+def test_a_bad_scenario_name_gets_the_closest_names(name: str, expected: str) -> None:
     with pytest.raises(ConfigError) as err:
         find_scenario(name)
-    assert repr(name) in str(err.value)
-    for shipped in scenario_names():
-        assert shipped in str(err.value)
+    assert expected in str(err.value)
+    # Not all 42 names: the closest, or where to see them.
+    assert sum(shipped in str(err.value) for shipped in scenario_names()) <= 3
 
 
 def test_cli_list_shows_every_shipped_scenario() -> None:
@@ -203,9 +222,17 @@ def test_cli_list_shows_every_shipped_scenario() -> None:
     assert "plant models (selected by plant.model" in extensions
     for name in ("ball_screw", "tilting_table", "friction_table", "rptc", "pilc_bfft", "dlpid"):
         assert f"\n  {name} " in extensions
-    for name in scenario_names():
+    # One column for the descriptions, at least two spaces after the longest name
+    # (fast_reversal_contact_sigmoid_stage, 35 characters).
+    width = max(len(name) for name in scenario_names()) + 2
+    rows = [line for line in scenarios.splitlines() if line.strip()]
+    for name, row in zip(scenario_names(), rows, strict=True):
         description = shared(load_scenario(find_scenario(name)))["scenario"]["description"]
-        assert f"{name}" in done.stdout and description.split()[0] in done.stdout
+        assert row == f"{name:<{width}}{description}"
+    # The extensions' descriptions and keys in one column too.
+    entries = [ln for ln in extensions.splitlines() if ln.startswith("  ")]
+    columns = {len(ln) - len(ln[2:].split("  ", 1)[1].lstrip()) for ln in entries if "  " in ln[2:]}
+    assert len(columns) == 1, columns
 
 
 @pytest.mark.parametrize(

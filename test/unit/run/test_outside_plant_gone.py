@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 from typing import Any
 
+import pytest
+
+from servo_axis.run import watch
 from servo_axis.run.state import RunState
 from servo_axis.run.watch import OutsidePlantGone
 
@@ -37,19 +40,29 @@ class Axis:
         return role
 
 
-def test_a_plant_gone_before_the_end_stops_the_run_after_the_grace() -> None:
+@pytest.fixture
+def clock(monkeypatch: pytest.MonkeyPatch) -> list[float]:
+    """The watch's clock, set by the test: a busy host cannot stretch a grace."""
+    now = [1000.0]
+    monkeypatch.setattr(watch, "time", SimpleNamespace(monotonic=lambda: now[0]))
+    return now
+
+
+def test_a_plant_gone_before_the_end_stops_the_run_after_the_grace(clock: list[float]) -> None:
     axis = Axis()
     check = OutsidePlantGone([axis], grace_s=0.05)  # type: ignore[list-item]
     state = RunState(steps=120)
     assert check.failure(state) is None  # there
     axis.watcher.publishers = 0
     assert check.failure(state) is None  # gone, within the grace
-    time.sleep(0.06)
+    clock[0] += 0.04
+    assert check.failure(state) is None  # still within it
+    clock[0] += 0.02
     reason = check.failure(state)
     assert reason == "the outside plant is gone (no publisher on state) at step 120"
 
 
-def test_a_plant_not_yet_there_or_done_or_back_is_no_failure() -> None:
+def test_a_plant_not_yet_there_or_done_or_back_is_no_failure(clock: list[float]) -> None:
     never = Axis(watcher=Watcher(publishers=0))
     done, back = Axis(), Axis()
     check = OutsidePlantGone([never, done, back], grace_s=0.0)  # type: ignore[list-item]
@@ -59,7 +72,7 @@ def test_a_plant_not_yet_there_or_done_or_back_is_no_failure() -> None:
     back.watcher.publishers = 0
     check.failure(state)  # back seen gone ...
     back.watcher.publishers = 1
-    time.sleep(0.01)
+    clock[0] += 0.01
     assert check.failure(state) is None  # ... and back: never seen gone long enough
 
 

@@ -13,6 +13,7 @@ import pytest
 from servo_axis.__main__ import main
 from servo_axis.sweep import engine
 from servo_axis.sweep.engine import MANIFEST, plot_figures, run_study
+from servo_axis.sweep.point import run_point
 from servo_axis.sweep.spec import Study, StudyError, figure_problem, load_study
 
 BASE = "scenario: pid_disturbance\nset: {/**.duration_s: 0.2}\ngrid: {feedback.bandwidth_hz: [30.0, 40.0]}\n"
@@ -57,6 +58,47 @@ def test_a_figure_path_is_checked_against_the_summary_layout(
 ) -> None:
     found = figure_problem(path, kind)
     assert (found is None) if problem is None else (found is not None and problem in found)
+
+
+def test_a_rotary_table_s_figures_name_its_errors_in_rad(tmp_path: Path) -> None:
+    """issue 43: the tilting table's summary held rad under ``rms_m``; now ``rms_rad``."""
+    assert figure_problem("tracking_error.cycles[-1].rms_rad", "plain", unit="rad") is None
+    assert figure_problem("sysid.bode_db", "plain") is None  # the excitation's block
+    problem = figure_problem("tracking_error.all_samples.rms_m", "nodes", unit="rad")
+    assert problem is not None and "did you mean 'rms_rad'?" in problem
+    assert figure_problem("tracking_error.all_samples.rms_rad", "plain") is not None
+    tilt = tmp_path / "tilt.yaml"
+    tilt.write_text(
+        "scenario: dlpid_tilt_pid\nset: {/**.duration_s: 0.2}\n"
+        "grid: {feedback.bandwidth_hz: [5.0]}\nfigures: {rmsd: tracking_error.all_samples.rms_m}\n"
+    )
+    with pytest.raises(StudyError, match=r"'figures\.rmsd': .*rotary table are in rad"):
+        load_study(tilt)
+    tilt.write_text(tilt.read_text().replace("rms_m", "rms_rad"))
+    study = load_study(tilt)
+    row = run_point(0, study.scenario, study.points[0], study.figures)
+    assert row["status"] == "ok", row["error"]
+    # The figure is the run's RMSD in rad: the plain-call loop's r - y, independently.
+    from servo_axis.params.scenario import find_scenario, load_scenario
+    from servo_axis.simulate import simulate
+    from servo_axis.sweep.spec import apply_override, dump_scenario
+
+    data = load_scenario(find_scenario("dlpid_tilt_pid"))
+    for key, value in {"/**.duration_s": 0.2, "feedback.bandwidth_hz": 5.0}.items():
+        apply_override(data, key, value)
+    dump_scenario(data, tmp_path / "point.yaml")
+    traj = simulate(tmp_path / "point.yaml")
+    assert math.isclose(
+        row["rmsd"],
+        float(((traj.reference_rad - traj.encoder_rad) ** 2).mean() ** 0.5),
+        rel_tol=1e-9,
+    )
+
+
+def test_the_shipped_identification_study_loads() -> None:
+    """Its figures are paths into the ``sysid`` block of a plain point (refused before)."""
+    study = load_study("identification_excitation")
+    assert len(study.points) == 12 and study.figures["bode_db"] == "sysid.bode_db"
 
 
 def test_the_corrected_study_runs_in_the_same_folder(tmp_path: Path) -> None:

@@ -1,0 +1,1 @@
+"""Broken extensions of servo_axis (see the package's pyproject.toml)."""
