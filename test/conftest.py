@@ -116,6 +116,13 @@ def ros_env(
         yield domain
 
 
+@pytest.fixture
+def more_domains(ros_env: int) -> Callable[[], int]:
+    """Fresh ROS domains of the worker's slice beside ``ros_env``'s (with its isolation),
+    for runs a test starts side by side, each in a domain of its own."""
+    return next_domain_id
+
+
 @pytest.fixture(scope="module")
 def module_ros_env(
     tmp_path_factory: pytest.TempPathFactory, request: pytest.FixtureRequest

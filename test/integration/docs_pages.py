@@ -14,7 +14,9 @@ What a page holds, for this harness:
   ``# terminal N: ...`` lines split a block into terminals: a bash block
   with terminals and the later ones with new terminal numbers form one
   session, whose terminals run at the same time, each its commands in turn,
-  as a user with N terminals would.
+  as a user with N terminals would. Terminals that name the page's domain
+  (below) share it; each other one is a shell of its own, whose runs take a
+  domain of their own (as a user's runs derive theirs from their pids).
 * A ```` ```text ```` block right after a bash block (no other fenced block
   between): what that block printed (see :func:`output_mismatch` for the
   rules). After a session, ``output of terminal N`` says whose output it is.
@@ -59,6 +61,7 @@ from __future__ import annotations
 import hashlib
 import os
 import re
+import resource
 import shutil
 import signal
 import subprocess
@@ -475,12 +478,20 @@ def _ignored(rel: Path) -> bool:
 
 @dataclass
 class Ran:
-    """A command the page test ran: what it printed, its exit code (None: killed), its time."""
+    """A command the page test ran: what it printed, its exit code (None: killed), its time
+    (wall) and the CPU time of its processes (None: it ran beside others, in a session)."""
 
     command: Command
     output: str
     exit_code: int | None
     seconds: float
+    cpu_s: float | None = None
+
+
+def children_cpu_s() -> float:
+    """User and system CPU time of this process's children that have ended (reaped), s."""
+    used = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return used.ru_utime + used.ru_stime
 
 
 @dataclass
@@ -489,6 +500,7 @@ class PageResult:
     ran: list[Ran] = field(default_factory=list)
     skipped: list[tuple[Command, str]] = field(default_factory=list)
     seconds: float = 0.0
+    cpu_s: float = 0.0  # of every process the page's commands, givens and looks started
 
     def output_of(self, prefix: str) -> str:
         """The output of the one command that starts with ``prefix``."""
@@ -496,9 +508,10 @@ class PageResult:
         return found.output
 
     def report(self) -> str:
-        lines = [f"{self.page.name}: {self.seconds:.1f} s"]
+        lines = [f"{self.page.name}: {self.seconds:.1f} s, {self.cpu_s:.1f} s of CPU"]
         lines += [
-            f"  {r.seconds:6.1f} s  exit {r.exit_code}  {r.command.bare.splitlines()[0][:90]}"
+            f"  {r.seconds:6.1f} s  {'' if r.cpu_s is None else f'{r.cpu_s:5.1f} CPU s':>9}"
+            f"  exit {r.exit_code}  {r.command.bare.splitlines()[0][:90]}"
             for r in self.ran
         ]
         reasons: dict[str, list[str]] = {}
@@ -527,10 +540,12 @@ class PageRun:
         *,
         givens: Mapping[str, Given] | None = None,
         after: Mapping[str, After] | None = None,
+        more_domains: Callable[[], int] | None = None,
         timeout_s: float = 240.0,
     ) -> None:
         self.page, self.copy, self.domain = page, copy, domain
         self.env = page_environment(domain)
+        self.more_domains = more_domains
         self.givens = dict(givens or {})
         self.after = dict(after or {})
         self._looked: set[str] = set()
@@ -539,7 +554,7 @@ class PageRun:
         self.log_dir = copy.parent / "terminals"
 
     def run(self) -> PageResult:
-        started = time.monotonic()
+        started, cpu = time.monotonic(), children_cpu_s()
         blocks = self.page.blocks
         outputs: dict[int, str] = {}  # block index -> what it printed
         terminals: dict[int, str] = {}  # of the last session
@@ -587,6 +602,7 @@ class PageRun:
             i += 1
         self._check_markers()
         self.result.seconds = time.monotonic() - started
+        self.result.cpu_s = children_cpu_s() - cpu
         return self.result
 
     # -- the blocks
@@ -631,7 +647,7 @@ class PageRun:
                 self.result.skipped.append((command, why))
                 continue
             log = self._log(command)
-            started = time.monotonic()
+            started, cpu = time.monotonic(), children_cpu_s()
             with log.open("wb") as out:
                 proc = subprocess.Popen(
                     ["bash", "-c", page_domain(command.text, self.domain)],
@@ -648,7 +664,8 @@ class PageRun:
                     _stop(proc)
                     code = None
             output = log.read_text(errors="replace")
-            self._ran(Ran(command, output, code, time.monotonic() - started))
+            used = children_cpu_s() - cpu
+            self._ran(Ran(command, output, code, time.monotonic() - started, used))
             printed.append(output)
             for prefix, look in self.after.items():
                 if command.bare.startswith(prefix):
@@ -674,6 +691,26 @@ class PageRun:
                     instead[int(d.args[0])] = d.args[1]
                 elif d.kind == "ctrl-c":
                     ctrl_c.append(d)
+        # A terminal that does not name the page's domain is a shell of its own, whose runs
+        # derive a domain of their own: each such terminal gets a fresh one, but for the
+        # first when no terminal takes the test's as the page's.
+        terminals = sorted(set(scripts) | set(instead))
+        own = [
+            n
+            for n in terminals
+            if not any(
+                _DOMAIN.search(c.text) for b in blocks for c in b.commands if c.terminal == n
+            )
+            and not _DOMAIN.search(instead.get(n, ""))
+        ]
+        envs = {n: self.env for n in terminals}
+        for n in own[1:] if len(own) == len(terminals) else own:
+            if self.more_domains is None:
+                raise PageError(
+                    f"{self.page.name}: terminals {own} name no domain: each needs one of its "
+                    "own (more_domains)"
+                )
+            envs[n] = {**self.env, "ROS_DOMAIN_ID": str(self.more_domains())}
         procs: dict[int, tuple[subprocess.Popen[bytes], Path, float]] = {}
         for n in sorted(set(scripts) | set(instead)):
             lines = []
@@ -689,7 +726,7 @@ class PageRun:
                 proc = subprocess.Popen(
                     ["bash", "-c", "\n".join(lines)],
                     cwd=self.copy,
-                    env=self.env,
+                    env=envs[n],
                     stdin=subprocess.DEVNULL,
                     stdout=out,
                     stderr=subprocess.STDOUT,
