@@ -16,7 +16,7 @@ import json
 import math
 import re
 import subprocess
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -69,11 +69,15 @@ def clone(tmp_path: Path) -> Clone:
 
 
 def run_page(
-    page: str, clone: Clone, domain: int, givens: Mapping[str, Given] | None = None
+    page: str,
+    clone: Clone,
+    domain: int,
+    givens: Mapping[str, Given] | None = None,
+    more_domains: Callable[[], int] | None = None,
 ) -> PageResult:
     """The page's commands in ``clone``; nothing left behind outside ``runs/``."""
     parsed = parse_page(clone.root / "docs" / page, clone.root)
-    result = PageRun(parsed, clone.root, domain, givens=givens).run()
+    result = PageRun(parsed, clone.root, domain, givens=givens, more_domains=more_domains).run()
     print(result.report())
     assert left_behind(clone.root, clone.tracked) == []
     return result
@@ -193,6 +197,42 @@ ROS_DOMAIN_ID=42 --domain-id 42
 def test_a_page_that_does_not_run_as_written_fails(tmp_path: Path, page: str, problem: str) -> None:
     with pytest.raises(PageError, match=re.escape(problem)):
         run_synthetic(tmp_path, page)
+
+
+def test_terminals_share_the_page_s_domain_and_the_others_take_their_own(
+    tmp_path: Path,
+) -> None:
+    page = """
+```bash
+# terminal 1: names the page's domain
+echo one ROS_DOMAIN_ID=$ROS_DOMAIN_ID --domain-id 42
+# terminal 2: names none
+echo two ROS_DOMAIN_ID=$ROS_DOMAIN_ID
+# terminal 3: names none either
+echo three ROS_DOMAIN_ID=$ROS_DOMAIN_ID
+```
+
+<!-- docs-test: output of terminal 1 -->
+```text
+one ROS_DOMAIN_ID=42 --domain-id 42
+```
+"""
+    root, _ = synthetic(tmp_path, page)
+    fresh = iter([118, 119])
+    parsed = parse_page(root / "docs" / "page.md", root)
+    result = PageRun(parsed, root, 117, more_domains=lambda: next(fresh)).run()
+    shown = {r.output.split()[0]: r.output.split()[1] for r in result.ran}
+    assert shown == {"one": "ROS_DOMAIN_ID=117", "two": "ROS_DOMAIN_ID=118",
+                     "three": "ROS_DOMAIN_ID=119"}  # fmt: skip
+    # Without a terminal that names it, the first takes the test's domain.
+    page = (
+        "```bash\n# terminal 1: a\necho $ROS_DOMAIN_ID\n# terminal 2: b\necho $ROS_DOMAIN_ID\n```\n"
+    )
+    root, _ = synthetic(tmp_path / "second", page)
+    fresh = iter([118])
+    parsed = parse_page(root / "docs" / "page.md", root)
+    result = PageRun(parsed, root, 117, more_domains=lambda: next(fresh)).run()
+    assert [r.output.strip() for r in result.ran] == ["117", "118"]
 
 
 def test_what_commands_leave_outside_runs_is_named(tmp_path: Path) -> None:
