@@ -289,13 +289,22 @@ def test_tutorials_first_run(ros_env: int, clone: Clone) -> None:
     for name in ("error.png", "cycle_errors.png", "reference_position.png", "learning_memory.json"):
         assert (only("rptc_friction_table-*", runs) / name).is_file()
     assert "rptc_friction_table" in result.output_of(".venv/bin/python -m servo_axis list")
+    # The compare-runs page quotes this compare's reductions (max, per cycle).
+    compared = result.output_of(".venv/bin/python -m servo_axis compare runs/rptc_only")
+    block = compared.split("max tracking error per cycle (um)", 1)[1].split("\n\n", 1)[0]
+    reduction = {int(r.split()[0]): r.split()[-1] for r in block.splitlines()[2:]}
+    assert sorted(reduction) == [1, 2, 3, 4, 5, 6]
+    how_to = (clone.root / "docs" / "how-to" / "compare-runs.md").read_text()
+    how_to = " ".join(how_to.split())
+    assert f"{reduction[1]} % less in cycle 1" in how_to, reduction
+    assert f"and {reduction[6]} % in the last, the headline" in how_to, reduction
+    assert f"cycle 2's {reduction[2]} %" in how_to, reduction
 
 
-#: Run in the clone's venv with the package installed: the plain-call loop of a scenario,
-#: the parameter reference as scripts/parameter_docs.py renders it, and the message for a
-#: model that is not installed.
+#: Run in the clone's venv with the package installed: the plain-call loop of a scenario
+#: and the message for a model that is not installed.
 PLUGIN_CHECKS = """
-import json, runpy, sys
+import json, sys
 from pathlib import Path
 import numpy as np
 from servo_axis.params.resolve import node_values
@@ -305,7 +314,6 @@ out = {}
 for name in sys.argv[1:]:
     t = simulate(Path(name))
     out[name] = {f: getattr(t, f).tolist() for f in t.__dataclass_fields__}
-out["docs"] = runpy.run_path("scripts/parameter_docs.py")["render"]()
 bad = load_scenario(Path(sys.argv[1]))
 bad["plant"]["ros__parameters"]["model"] = "no_such_axis"
 try:
@@ -325,12 +333,17 @@ def test_tutorials_own_plugin(ros_env: int, clone: Clone, tmp_path: Path) -> Non
     looked: dict = {}
 
     def plain_calls(root: Path, env: dict[str, str]) -> None:
-        done = subprocess.run(
-            [".venv/bin/python", "-c", PLUGIN_CHECKS, str(scenario), str(bare)],
-            cwd=root, env=env, capture_output=True, text=True, timeout=300, check=False,
-        )  # fmt: skip
-        assert done.returncode == 0, done.stderr[-3000:]
-        looked.update(json.loads(done.stdout))
+        def python(*args: str) -> str:
+            done = subprocess.run(
+                [".venv/bin/python", *args],
+                cwd=root, env=env, capture_output=True, text=True, timeout=300, check=False,
+            )  # fmt: skip
+            assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
+            return done.stdout
+
+        looked.update(json.loads(python("-c", PLUGIN_CHECKS, str(scenario), str(bare))))
+        looked["params"] = python("-m", "servo_axis", "params")
+        looked["reference"] = python("scripts/parameter_docs.py", "--check")
 
     page = clone.root / "docs" / "tutorials" / "own-plugin.md"
     parsed = parse_page(page, clone.root)
@@ -367,13 +380,30 @@ def test_tutorials_own_plugin(ros_env: int, clone: Clone, tmp_path: Path) -> Non
     with_term = summary(run_dir)["tracking_error"]["all_samples"]["rms_m"] * 1e6
     assert with_term < 0.02 * rms_um
 
-    # The parameter reference as generated with the package installed, and the
-    # message for a model that is not installed.
-    docs = looked["docs"]
-    assert "## plant (model rigid_viscous_axis)" in docs
-    assert "| `viscous_Nms_per_rad` | `0.2` | N m s/rad |" in docs
-    assert "## feedforward (term viscous_ff)" in docs
-    assert "`viscous_ff.coefficient_Nms_per_rad`" in docs
+    # list and params name the package's extensions with their entry points and
+    # package; params shows each key from its schema (the page's text blocks have
+    # them whole), and every installed extension without a name.
+    listed = result.output_of(".venv/bin/python -m servo_axis list")
+    (row,) = [line for line in listed.splitlines() if line.split()[:1] == ["rigid_viscous_axis"]]
+    assert row.endswith(
+        "[servo_axis_outside.rigid_axis:PLANT_MODEL, servo-axis-outside-plugin 0.1.0]"
+    )
+    shown = result.output_of(".venv/bin/python -m servo_axis params rigid_viscous_axis")
+    (viscous,) = [r for r in shown.splitlines() if r.split()[:1] == ["viscous_Nms_per_rad"]]
+    # Param(0.2, unit="N m s/rad", above=0.0, meaning=...) of rigid_axis.py
+    assert viscous.split()[1:7] == ["0.2", "N", "m", "s/rad", ">", "0"]
+    assert viscous.endswith("b: viscous friction torque per rad/s")
+    every = looked["params"]
+    assert "\nfeedforward (term viscous_ff)  [servo_axis_outside.viscous_term:TERM, " in every
+    assert (
+        "\nplant (model rigid_viscous_axis)  [servo_axis_outside.rigid_axis:PLANT_MODEL, " in every
+    )
+    # docs/parameters.md is the shipped package's: unchanged by what is installed (so
+    # test/unit/test_docs.py passes with the package installed).
+    assert looked["reference"].strip().endswith("docs/parameters.md is up to date")
+    reference = (clone.root / "docs" / "parameters.md").read_text()
+    assert "rigid_viscous_axis" not in reference and "python -m servo_axis params" in reference
+    # The message for a model that is not installed names the installed ones.
     message = looked["unknown"]
     assert message.startswith("parameter 'model': expected one of [")
     assert "'rigid_viscous_axis'" in message and "'ball_screw'" in message
@@ -457,8 +487,8 @@ def test_tutorials_study(ros_env: int, clone: Clone) -> None:
     assert sorted(manifest["rows"], key=int) == [str(k) for k in range(6)]
 
 
-def test_how_to_compare_runs(ros_env: int, clone: Clone) -> None:
-    result = run_page("how-to/compare-runs.md", clone, ros_env)
+def test_how_to_compare_runs(ros_env: int, clone: Clone, more_domains: Callable[[], int]) -> None:
+    result = run_page("how-to/compare-runs.md", clone, ros_env, more_domains=more_domains)
     runs = clone.root / "runs"
     ptc, pid = summary(runs / "ptc_nominal"), summary(runs / "pid_nominal")
     for s in (ptc, pid):
@@ -471,7 +501,7 @@ def test_how_to_compare_runs(ros_env: int, clone: Clone) -> None:
         # within the command's own time.
         assert s["startup_s"] > 0 and s["finish_s"] > 0 and s["wall_time_s"] > 0
         assert_allclose(s["steps_per_s"], s["steps"] / s["wall_time_s"], rtol=1e-12)
-    took = result.ran[1].seconds
+    (took,) = [r.seconds for r in result.ran if "run ptc_nominal" in r.command.bare]
     assert ptc["startup_s"] + ptc["wall_time_s"] + ptc["finish_s"] < took
     for name in ("error.png", "cycle_errors.png"):
         assert (runs / "ptc_nominal" / name).stat().st_size > 10_000
