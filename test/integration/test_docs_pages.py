@@ -422,8 +422,10 @@ def joint_states(bag: Path, topic: str) -> dict[int, object]:
     }
 
 
-def test_tutorials_own_controller(ros_env: int, clone: Clone) -> None:
-    run_page("tutorials/own-controller.md", clone, ros_env)
+def test_tutorials_own_controller(
+    ros_env: int, clone: Clone, more_domains: Callable[[], int]
+) -> None:
+    run_page("tutorials/own-controller.md", clone, ros_env, more_domains=more_domains)
     mine, suite = clone.root / "runs" / "my_pd", clone.root / "runs" / "suite_pid"
     # The table of the page is the two runs' summaries.
     text = (clone.root / "docs" / "tutorials" / "own-controller.md").read_text()
