@@ -594,10 +594,19 @@ def test_how_to_friction_models(ros_env: int, clone: Clone) -> None:
     run_page("how-to/friction-models.md", clone, ros_env)
     made = load_friction_table(clone.root / "runs" / "friction_table.csv")
     shipped = load_friction_table(clone.root / "config" / "friction_table_ball_screw_x.csv")
-    # Through the command a user runs; it writes what table_from_run builds.
-    assert_array_equal(
-        made.torque_Nm, table_from_run(clone.root / "runs" / "friction_id").torque_Nm
-    )
+    # Through the command a user runs; it writes what table_from_run builds, also once
+    # the scenario file the run was made from has moved and an edited one (another
+    # axis: lead, inertia, sensor) stands in its place: the run directory is all it reads.
+    scenario = clone.root / "config" / "friction_id.yaml"
+    data = load_scenario(scenario)
+    scenario.rename(scenario.with_name("moved.yaml"))
+    data["/**"]["ros__parameters"]["lead_m_per_rad"] = 0.005
+    data["/**"]["ros__parameters"].setdefault("nominal", {})["inertia_kgm2"] = 0.03
+    data.setdefault("feedback", {"ros__parameters": {}})["ros__parameters"]["sensor"] = "scale"
+    scenario.write_text(yaml.safe_dump(data))
+    again = table_from_run(clone.root / "runs" / "friction_id")
+    assert_array_equal(made.torque_Nm, again.torque_Nm)
+    assert_allclose(made.displacement_m, again.displacement_m, rtol=0, atol=1e-15)
     # The shipped table is this one (bit for bit where it was made; rounding elsewhere).
     assert_allclose(made.displacement_m, shipped.displacement_m, rtol=0, atol=1e-15)
     assert_allclose(made.torque_Nm, shipped.torque_Nm, rtol=1e-9, atol=1e-12)
