@@ -569,6 +569,18 @@ def test_how_to_scenarios(ros_env: int, clone: Clone) -> None:
     for run_dir in (dob, pid):
         assert summary(run_dir)["health"]["exit_code"] == 0 and not summary(run_dir)["faults"]
     assert summary(pid)["scenario_file"] == str(runs / "my_scenario.yaml")
+    # --set: the nodes got the file's keys with the two overridden (params.yaml), the
+    # summary names the overrides, and the run is as long as the override says.
+    pid60 = runs / "pid60"
+    given = yaml.safe_load((pid60 / "params.yaml").read_text())
+    shipped = load_scenario(clone.root / "config" / "pid_disturbance.yaml")
+    assert shipped["feedback"]["ros__parameters"]["bandwidth_hz"] == 40.0
+    assert given["/**/feedback"]["ros__parameters"]["bandwidth_hz"] == 60
+    assert given["/**"]["ros__parameters"]["duration_s"] == 1
+    plant = given["/**/plant"]["ros__parameters"]["disturbance"]
+    assert plant == shipped["plant"]["ros__parameters"]["disturbance"]
+    assert summary(pid60)["overrides"] == ["feedback.bandwidth_hz=60", "shared.duration_s=1"]
+    assert summary(pid60)["steps"] == 1000 and summary(pid60)["health"]["exit_code"] == 0
     amplitudes = {}
     for name, run_dir in (("pid", pid), ("dob", dob)):
         angle = np.array(
