@@ -738,7 +738,8 @@ def test_how_to_watch_a_run(ros_env: int, clone: Clone) -> None:
     # The run stopped by Ctrl-C says so and keeps what it recorded.
     watched = summary(clone.root / "runs" / "watched")
     assert watched["health"]["outcome"] == "interrupted" and watched["health"]["exit_code"] == 130
-    assert 0 < watched["message_counts"]["/x/state"] < 60_000
+    assert 0 < watched["message_counts"]["/x/state"] < 600_000
+    assert watched["overrides"] == ["shared.duration_s=600"], watched.get("overrides")
 
 
 def test_how_to_live_view(ros_env: int, clone: Clone) -> None:
