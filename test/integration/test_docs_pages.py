@@ -753,63 +753,161 @@ def test_how_to_live_view(ros_env: int, clone: Clone) -> None:
 
 
 ROLES = ("recorder", "plant", "feedback", "feedforward")
+#: The measurement recover-a-bag kills: its command, as the page gives it.
+KILLED_RUN = ".venv/bin/python -m servo_axis run measure_frf_ball_screw"
 
 
-def killed_run(root: Path, where: str, env: dict[str, str]) -> None:
-    """A run of ptc_nominal (600 s long) at ``root / where``, killed as a whole (SIGKILL to
-    its nodes and its runner) once its bag holds a few chunks."""
-    import os
-    import signal
-    import time
+def killed_after(command: str, steps: int) -> Given:
+    """The page's ``command`` (a run), every process of it SIGKILLed once ``steps`` are
+    written: the given of recover-a-bag.
 
-    from servo_axis.run.fastdds import clean_stale_shm
-    from servo_axis.run.processes import pids_of
+    The recorder acknowledges the steps it has written on ``recorder/progress`` and
+    flushes every 0.25 s. Once ``steps`` are acknowledged the plant is stopped
+    (SIGSTOP: in lockstep no step is taken without it, however fast the machine, so
+    the run cannot reach its end first), 0.6 s later they are all on disk, and the
+    runner and its nodes are SIGKILLed at once.
+    """
 
-    data = load_scenario(root / "config" / "ptc_nominal.yaml")
-    data["/**"]["ros__parameters"]["duration_s"] = 600.0
-    scenario = root.parent / "ptc_nominal.yaml"
-    scenario.write_text(yaml.safe_dump(data))
-    out, started = root / where, time.time()
-    runner = subprocess.Popen(
-        [str(root / ".venv" / "bin" / "python"), "-m", "servo_axis", "run", str(scenario),
-         "--out", str(out), "--no-plots"],
-        cwd=root, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-        start_new_session=True,
-    )  # fmt: skip
-    try:
-        deadline = time.monotonic() + 90
-        while sum(f.stat().st_size for f in out.glob("bag/*.mcap")) < 300_000:
-            assert runner.poll() is None and time.monotonic() < deadline, "the run did not start"
-            time.sleep(0.05)
-        pids = [pid for role in ROLES for pid in pids_of(out, role)]
-        assert len(pids) == len(ROLES), pids
-        for pid in pids:
-            os.kill(pid, signal.SIGKILL)
-    finally:
-        os.killpg(runner.pid, signal.SIGKILL)
-        runner.wait()
-    deadline = time.monotonic() + 30
-    while any(pids_of(out, role) for role in ROLES):
-        assert time.monotonic() < deadline, "the killed nodes are still there"
-        time.sleep(0.05)
-    clean_stale_shm(since=started)
-    assert not (out / "bag" / "metadata.yaml").exists() and not (out / "summary.json").exists()
+    def given(root: Path, where: str, env: dict[str, str]) -> None:
+        import os
+        import signal
+        import time
+
+        from servo_axis.run.fastdds import clean_stale_shm
+        from servo_axis.run.processes import pids_of
+        from servo_axis.run.progress import ProgressWatcher
+
+        assert f"--out {where} " in command, (where, command)
+        out, started = root / where, time.time()
+        runner = subprocess.Popen(
+            ["bash", "-c", command], cwd=root, env=env, stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL, start_new_session=True,
+        )  # fmt: skip
+        watcher = ProgressWatcher("/x", domain_id=int(env["ROS_DOMAIN_ID"]))
+        try:
+            deadline = time.monotonic() + 240
+            while watcher.steps < steps:
+                assert runner.poll() is None and time.monotonic() < deadline, "no run went on"
+                watcher.spin(0.05)
+            (plant,) = pids_of(out, "plant")
+            os.kill(plant, signal.SIGSTOP)
+            flushed = time.monotonic() + 0.6
+            while time.monotonic() < flushed:
+                watcher.spin(0.05)
+        finally:
+            watcher.close()
+            os.killpg(runner.pid, signal.SIGKILL)  # the runner; its nodes by PR_SET_PDEATHSIG
+            runner.wait()
+        deadline = time.monotonic() + 30
+        while any(pids_of(out, role) for role in ROLES):
+            assert time.monotonic() < deadline, "node processes outlived their SIGKILLed runner"
+            time.sleep(0.1)
+        clean_stale_shm(since=started)  # what the SIGKILLed participants left in /dev/shm
+        assert not (out / "bag" / "metadata.yaml").exists() and not (out / "summary.json").exists()
+
+    return given
 
 
 @pytest.mark.shm
-def test_how_to_recover_a_bag(ros_env: int, clone: Clone) -> None:
+def test_how_to_recover_a_bag(
+    ros_env: int, clone: Clone, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import shlex
+
     from rosbags.rosbag2 import Reader
 
-    result = run_page("how-to/recover-a-bag.md", clone, ros_env, givens={"killed-run": killed_run})
-    bag = clone.root / "runs" / "ptc_nominal-20261125-232600" / "bag"
+    from servo_axis.__main__ import main
+    from servo_axis.analysis.summary import RunSummary, load_summary
+    from servo_axis.identify.data import from_simulation
+    from servo_axis.identify.driver import identify
+
+    parsed = parse_page(clone.root / "docs" / "how-to" / "recover-a-bag.md", clone.root)
+    (command,) = [
+        c.text for b in parsed.blocks for c in b.commands if c.bare.startswith(KILLED_RUN)
+    ]
+    # (the excitation ends at step 6000: 1 s + (1 + 3) x 0.5 s at T_u = 0.5 ms)
+    result = run_page(
+        "how-to/recover-a-bag.md",
+        clone,
+        ros_env,
+        givens={"killed-run": killed_after(command, 6100)},
+    )
+    run = clone.root / "runs" / "frf"
+    bag = run / "bag"
+    # Before: one line, naming what to do.
+    before, after = [
+        r for r in result.ran if r.command.bare.endswith("servo_axis summary runs/frf")
+    ]
+    assert before.exit_code == 2 and after.exit_code == 0
+    told = before.output
+    assert told.count("\n") == 1 and "python -m servo_axis bag recover runs/frf/bag" in told
+    # bag recover: the bag readable (with rosbags too), each topic's count printed,
+    # and the summary of what was recorded, said on a second line.
+    recovered = result.output_of(".venv/bin/python -m servo_axis bag recover").splitlines()
+    assert len(recovered) == 2 and recovered[1].startswith("runs/frf: summary.json written, of ")
     assert (bag / "metadata.yaml").is_file() and (bag / "bag_0.mcap.unfinished").is_file()
-    told = result.output_of(".venv/bin/python -m servo_axis bag recover")
     with Reader(bag) as reader:
         counts = {c.topic: c.msgcount for c in reader.connections}
-        assert reader.message_count == sum(1 for _ in reader.messages()) > 1000
-    # It printed the messages it recovered per topic.
+        assert reader.message_count == sum(1 for _ in reader.messages())
     for topic in ("/x/state", "/x/command"):
-        assert topic in told and str(counts[topic]) in told, told
+        assert f"{topic} {counts[topic]}," in recovered[0], recovered[0]
+    # The summary of what was recorded: every state in the bag, and why it ends there.
+    states = counts["/x/state"]
+    s = load_summary(run)
+    assert isinstance(s, RunSummary) and s.health is not None
+    assert 6100 <= s.steps == states < 8000 and s.sim_time_s == states * 5e-4
+    assert s.health.outcome == "failed" and s.health.bag_recovered
+    assert f"{states} of its 8000 steps were recorded" in s.health.reasons[0]
+    assert "this summary was made after the run" in after.output
+
+    # identify on the recovered run: the fit of the plain-call loop of the scenario the
+    # page gives (its --set keys; 3 s, the excitation), key for key, near the truth.
+    data = load_scenario(clone.root / "config" / "measure_frf_ball_screw.yaml")
+    words = shlex.split(command.replace("\\\n", " "), comments=True)
+    for value in (w for k, w in itertools.pairwise(words) if k == "--set"):
+        key, _, number = value.partition("=")
+        section, *path = key.split(".")
+        node = data["/**" if section == "shared" else section]["ros__parameters"]
+        for name in path[:-1]:
+            node = node[name]
+        node[path[-1]] = yaml.safe_load(number)
+    assert data["feedforward"]["ros__parameters"]["excitation"]["periods"] == 3
+    data["/**"]["ros__parameters"]["duration_s"] = 3.0
+    short = tmp_path / "frf_short.yaml"
+    short.write_text(yaml.safe_dump(data, sort_keys=False))
+    plain = identify("ball_screw", [from_simulation(short)])
+    out = clone.root / "runs" / "frf_axis.yaml"
+    written = yaml.safe_load(out.read_text())["plant"]["ros__parameters"]
+    assert_allclose(written["inertia_kgm2"], plain.key("inertia_kgm2").value, rtol=1e-12)
+    assert_allclose(
+        written["modes"]["frequency_hz"][0], plain.key("modes.frequency_hz[0]").value, rtol=1e-12
+    )
+    truth = data["plant"]["ros__parameters"]
+    assert_allclose(written["inertia_kgm2"], truth["inertia_kgm2"], rtol=0.03)
+    assert_allclose(written["modes"]["frequency_hz"], truth["modes"]["frequency_hz"], rtol=0.03)
+    page = " ".join((clone.root / "docs" / "how-to" / "recover-a-bag.md").read_text().split())
+    j, d, f = truth["inertia_kgm2"], truth["damping_Nms_per_rad"], truth["modes"]["frequency_hz"]
+    assert f"{j} kg m^2, {d} N m s/rad, {f[0]:g} Hz" in page, (j, d, f)
+
+    # The run directory is all identify needs: the scenario file moved, and one edited
+    # in its place (another excitation, another plant), change nothing.
+    shipped = clone.root / "config" / "measure_frf_ball_screw.yaml"
+    edited = load_scenario(shipped)
+    shipped.rename(shipped.with_name("moved.yaml"))
+    edited["feedforward"]["ros__parameters"]["excitation"]["settle_periods"] = 2
+    edited["plant"]["ros__parameters"]["current_limit_A"] = 12.3  # a key the fit copies
+    shipped.write_text(yaml.safe_dump(edited, sort_keys=False))
+    (clone.root / "runs" / "after_the_move").mkdir()
+    again = clone.root / "runs" / "after_the_move" / out.name  # the name is the file's stem
+    monkeypatch.chdir(clone.root)  # as the page's command, which the file's header names
+    command = ["identify", "runs/frf", "--model", "ball_screw", "--out", str(again)]
+    assert main(command) == 0
+    assert yaml.safe_load(again.read_text()) == yaml.safe_load(out.read_text())
+
+    def fitted(path: Path) -> list[str]:  # the header's "key = value +- error (source)" lines
+        return [s for s in path.read_text().splitlines() if s.startswith("#   ") and " = " in s]
+
+    assert len(fitted(out)) > 3 and fitted(again) == fitted(out)
 
 
 @pytest.mark.realtime
