@@ -933,6 +933,10 @@ def test_how_to_ros2_control(ros_env: int, clone: Clone) -> None:
     assert code == 5 or rt["misses"] <= 0.05 * rt["ticks"], rt
     if code == 5:
         assert setpoint["health"]["reasons"][0].startswith("the loop was not closed: ")
+    # The host's floor, measured before it, beside its misses.
+    (floor,) = [json.loads(line) for line in (runs / "floor.jsonl").read_text().splitlines()]
+    assert rt["floor"] == floor and floor["period_us"] == 1000 and floor["ticks"] == 2000
+    assert 0 <= floor["misses"] <= floor["ticks"]
     points = rt["setpoints"]
     assert points["period_ns"] == 2_000_000 and points["quiet_ticks"] == 0
     sent = sum(v is not None for v in log["published"])
