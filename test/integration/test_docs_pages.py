@@ -629,10 +629,12 @@ def test_how_to_friction_models(ros_env: int, clone: Clone) -> None:
     assert made.torque_Nm[-1] == pytest.approx(3.2, rel=0.1)
 
 
-def test_how_to_identify_your_axis(ros_env: int, clone: Clone) -> None:
+def test_how_to_identify_your_axis(
+    ros_env: int, clone: Clone, more_domains: Callable[[], int]
+) -> None:
     import re
 
-    result = run_page("how-to/identify-your-axis.md", clone, ros_env)
+    result = run_page("how-to/identify-your-axis.md", clone, ros_env, more_domains=more_domains)
     runs = clone.root / "runs"
     shown = result.output_of(
         ".venv/bin/python -m servo_axis identify runs/frf --model ball_screw \\"
