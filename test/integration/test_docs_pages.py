@@ -902,8 +902,7 @@ def test_how_to_recover_a_bag(
     (clone.root / "runs" / "after_the_move").mkdir()
     again = clone.root / "runs" / "after_the_move" / out.name  # the name is the file's stem
     monkeypatch.chdir(clone.root)  # as the page's command, which the file's header names
-    command = ["identify", "runs/frf", "--model", "ball_screw", "--out", str(again)]
-    assert main(command) == 0
+    assert main(["identify", "runs/frf", "--model", "ball_screw", "--out", str(again)]) == 0
     assert yaml.safe_load(again.read_text()) == yaml.safe_load(out.read_text())
 
     def fitted(path: Path) -> list[str]:  # the header's "key = value +- error (source)" lines
