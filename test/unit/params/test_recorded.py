@@ -7,8 +7,9 @@ Then :func:`servo_axis.params.recorded.recorded_scenario` on such a
 directory, on one made before runs kept their scenario (a ``params.yaml``
 as the runner wrote it then) and on what is not a run. The commands on a
 real run whose scenario and table moved and were edited:
-``test/integration/test_runs.py`` (friction-table, summary, compare) and
-``test/integration/test_identify.py``.
+``test/integration/test_runs.py`` (summary, compare) and
+``test/integration/test_docs_pages.py`` (friction-table on the
+friction-models page's run, identify on recover-a-bag's).
 """
 
 from __future__ import annotations
