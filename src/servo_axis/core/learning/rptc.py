@@ -68,11 +68,6 @@ class LearningParams:
                 f"Nd = {self.samples_per_cycle}"
             )
 
-    @property
-    def delay_samples(self) -> int:
-        """Delay compensation of the realised filter, ``n Nq`` (eq. (3), (28))."""
-        return self.n * self.nq
-
 
 class PeriodicSignalGenerator:
     """The PSG of 000 Fig. 6 / Fig. 10: memory, learning filter, state-variable generator.

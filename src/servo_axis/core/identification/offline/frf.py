@@ -78,16 +78,6 @@ class FrequencyResponse:
     sensitivity: ComplexArray
     periods: int
 
-    @property
-    def magnitude_db(self) -> FloatArray:
-        """``20 log10 |P|``, dB."""
-        return np.asarray(20.0 * np.log10(np.abs(self.response)), dtype=np.float64)
-
-    @property
-    def phase_deg(self) -> FloatArray:
-        """Phase of ``P``, unwrapped from the first line, degrees."""
-        return np.asarray(np.degrees(np.unwrap(np.angle(self.response))), dtype=np.float64)
-
 
 def _periods(name: str, x: ArrayLike, period: int, count: int) -> FloatArray:
     a = np.asarray(x, dtype=np.float64)
