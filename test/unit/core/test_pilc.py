@@ -33,7 +33,7 @@ from servo_axis.core.learning.ilc import (
     process_sensitivity,
 )
 from servo_axis.core.learning.pilc import (
-    FrictionTable,
+    LearnedFrictionTable,
     ProjectionIlc,
     ProjectionParams,
     basis,
@@ -146,7 +146,7 @@ def test_friction_table_reproduces_a_known_curve() -> None:
     f_np = theta[0] * acc + theta[1] * vel + t_rf / KT
     estimate = estimate_friction(f_np, acc, vel, theta=theta, torque_constant_Nm_per_A=KT)
     assert_allclose(estimate, t_rf, atol=1e-12)
-    table = FrictionTable.from_trial(x_r, vel, estimate, threshold_m=threshold)
+    table = LearnedFrictionTable.from_trial(x_r, vel, estimate, threshold_m=threshold)
     x_tab, t_tab = table.arrays()
     keep = (x_r <= threshold) & (vel != 0.0)
     # One entry per displacement any reversal of the trial was sampled at.
@@ -168,12 +168,12 @@ def test_friction_table_reproduces_a_known_curve() -> None:
 
 
 def test_friction_table_closest_entry_by_hand() -> None:
-    table = FrictionTable([3e-5, 0.0, 1e-5], [1.0, -1.0, 0.0])  # sorted on construction
+    table = LearnedFrictionTable([3e-5, 0.0, 1e-5], [1.0, -1.0, 0.0])  # sorted on construction
     assert_allclose(table.arrays()[0], [0.0, 1e-5, 3e-5], atol=0)
     got = table.lookup(np.array([0.4e-5, 0.6e-5, 1.9e-5, 2.1e-5, 5e-5]))
     assert_allclose(got, [-1.0, 0.0, 0.0, 1.0, 1.0], atol=0)
     with pytest.raises(TableError, match="x_r_m: the friction table is empty"):
-        FrictionTable([], [])
+        LearnedFrictionTable([], [])
 
 
 # -- the laws --------------------------------------------------------------------------

@@ -290,7 +290,7 @@ def estimate_friction(
     return np.asarray((f - th[0] * acc - th[1] * vel) * kt, dtype=float)
 
 
-class FrictionTable:
+class LearnedFrictionTable:
     """The data-based friction model of 001 Fig. 8 (Takemura & Fujimoto, 001 ref. [11]).
 
     Entries ``(x_r, T)``: displacement from the last velocity reversal (m)
@@ -298,6 +298,12 @@ class FrictionTable:
     (``T = sign(r') T_rf``, N m), which runs from about ``-T_c`` right after
     a reversal to about ``+T_c``; sorted by ``x_r`` (stable: entries of
     equal ``x_r`` keep their order).
+
+    Not the feedforward's :class:`~servo_axis.core.feedforward.friction_table.FrictionTable`:
+    this one is learned by the PILC from each trial's friction estimate
+    (:meth:`from_trial`), keeps repeated displacements and lives in the
+    learning law's memory; that one is a file's strictly increasing table
+    from 0, read once and applied as a feedforward term.
 
     Parameters
     ----------
@@ -340,7 +346,7 @@ class FrictionTable:
         friction_Nm: ArrayLike,
         *,
         threshold_m: float,
-    ) -> FrictionTable:
+    ) -> LearnedFrictionTable:
         """The table of one trial (001 Sect. III-C step 4, IV-A-6).
 
         Keeps the moving samples (``r' != 0``) with ``x_r <= threshold_m``,
@@ -491,7 +497,7 @@ class ProjectionIlc:
         self.convergence = require_convergence(ilc)
         self._sensitivity = process_sensitivity(ilc)
         self._theta = np.zeros(3)
-        self._table: FrictionTable | None = None
+        self._table: LearnedFrictionTable | None = None
         self._trials_learned = 0
         self._last_trial = 0
 
@@ -577,7 +583,7 @@ class ProjectionIlc:
         f_j = self._feedforward(pos, vel, acc)
         f_np = trial_q(f_j + self.learning_filter.apply(e), self.params.nq)
         psi = basis(pos, vel, acc, x_mu_m=self.projection.x_mu_m)
-        table: FrictionTable | None = None
+        table: LearnedFrictionTable | None = None
         if self.uses_table:
             threshold = self.projection.threshold_m
             x_r = reversal_displacement(pos, vel)
@@ -590,7 +596,7 @@ class ProjectionIlc:
                 theta=theta,
                 torque_constant_Nm_per_A=self.params.nominal.torque_constant_Nm_per_A,
             )
-            table = FrictionTable.from_trial(x_r, vel, friction, threshold_m=threshold)
+            table = LearnedFrictionTable.from_trial(x_r, vel, friction, threshold_m=threshold)
         else:
             theta = estimate_parameters(f_np, psi, sensitivity=self._sensitivity)
         self._theta = theta
@@ -669,10 +675,10 @@ class ProjectionIlc:
         x_r, torque = state.get("table_x_r_m"), state.get("table_torque_Nm")
         if not isinstance(x_r, list) or not isinstance(torque, list) or len(x_r) != len(torque):
             raise SignalError("table_x_r_m, table_torque_Nm: expected two lists of one length")
-        table: FrictionTable | None = None
+        table: LearnedFrictionTable | None = None
         if self.uses_table and trials > 0:
             try:
-                table = FrictionTable(x_r, torque)
+                table = LearnedFrictionTable(x_r, torque)
             except TableError as err:
                 raise SignalError(f"table_x_r_m: {err}") from None
         elif x_r:
