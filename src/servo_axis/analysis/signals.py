@@ -13,7 +13,7 @@ joint names of the axis, one finite value per joint in each array the topic
 uses, the stamp on the control grid; the labels, finite values and each
 field's rule of a Float64MultiArray), and then one sample per step and stream
 is kept by a :class:`~servo_axis.wire.streams.StreamGate` applied in recording
-order: exactly the next step in lockstep, at most :data:`REALTIME_WINDOW`
+order: exactly the next step in lockstep, at most :data:`BAG_REALTIME_WINDOW`
 samples ahead in realtime, never beyond the run. What fails is dropped and
 counted (:attr:`Signals.dropped`): junk in a bag changes no figure. The rules
 per topic beyond its layout (:class:`StreamRules`, :func:`stream_for`):
@@ -131,8 +131,13 @@ class FaultRecord(Serial):
 
 #: How far past the last kept sample a sample of a realtime run may be, in
 #: samples of its stream (there a lost message is a deadline miss, not an
-#: error); a lockstep run takes exactly the next one.
-REALTIME_WINDOW = 100
+#: error); a lockstep run takes exactly the next one. Wider than a node's
+#: window (:data:`servo_axis.nodes.lockstep.REALTIME_WINDOW`, 10), which
+#: bounds what a junk stamp can displace in a live stream: the reader of a
+#: finished bag must keep the samples after every gap the run left (ticks a
+#: slipping clock skipped, commands never sent, which the summary counts as
+#: misses) rather than drop the rest of a stream.
+BAG_REALTIME_WINDOW = 100
 
 
 @dataclass(frozen=True, eq=False)
@@ -201,7 +206,7 @@ class StreamRules:
         The axis of the joint names (``<axis>_motor``, ``<axis>_table``).
     mode : str
         ``lockstep`` (exactly the next sample) or ``realtime`` (at most
-        :data:`REALTIME_WINDOW` samples ahead).
+        :data:`BAG_REALTIME_WINDOW` samples ahead).
     steps : int or None
         Control steps of the run (nothing at or beyond); None: unknown.
     ratio : int
@@ -249,8 +254,8 @@ class StreamRules:
 
     @property
     def window(self) -> int:
-        """The gates' window: 1 in lockstep, :data:`REALTIME_WINDOW` in realtime."""
-        return 1 if self.mode == "lockstep" else REALTIME_WINDOW
+        """The gates' window: 1 in lockstep, :data:`BAG_REALTIME_WINDOW` in realtime."""
+        return 1 if self.mode == "lockstep" else BAG_REALTIME_WINDOW
 
     @classmethod
     def defaults(cls, period_s: float) -> StreamRules:
