@@ -56,6 +56,25 @@ def test_derive_gives_each_generated_class_its_fields() -> None:
     for cls, schema in NODE_CLASSES.values():
         made = typed.derive("N", (node_values.SharedValues,), schema)
         assert typed.tree_of(made) == typed.tree_of(cls), cls.__name__
+    checked = 0
+    for kind, registry in REGISTRIES.items():
+        for name in (n for n in registry if registry.shipped(n)):
+            entry = registry[name]
+            made = typed.derive("E", (KIND_BASES[kind],), entry.schema)
+            expected = entry.values if entry.values is not None else KIND_BASES[kind]
+            assert typed.tree_of(made) == typed.tree_of(expected), name
+            checked += 1
+    assert checked >= 13
+
+
+def test_every_shipped_extension_with_keys_names_its_generated_class() -> None:
+    for registry in REGISTRIES.values():
+        for name in (n for n in registry if registry.shipped(n)):
+            entry = registry[name]
+            if entry.schema:
+                assert entry.values is not None, name
+                assert entry.values.__module__ == plugin_values.__name__, name
+                assert set(typed.keys_of(entry.values)) >= set(entry.schema), name
 
 
 def test_each_field_carries_the_unit_and_range_of_its_key() -> None:
@@ -133,3 +152,48 @@ def _schema_of(cls: type[typed.Group]) -> dict[str, Param]:
     """The schema of a generated term class (its keys beyond its node's)."""
     registry = REGISTRIES["feedforward term"]
     return dict(registry[cls.__name__.removesuffix("Values").lower()].schema)
+
+
+def test_a_node_gets_the_class_of_its_model_law_method_and_terms() -> None:
+    from servo_axis.params.factories import checked_values
+
+    assert type(checked_values("plant", {})) is plugin_values.BallScrewValues
+    tilt = checked_values("plant", {"model": "tilting_table", "unbalance_Nm": 0.2})
+    assert type(tilt) is plugin_values.TiltingTableValues and tilt.unbalance_Nm == 0.2
+    assert type(checked_values("learning", {"law": "rptc"})) is node_values.LearningValues
+    assert type(checked_values("identifier", {})) is plugin_values.DlpidValues
+    assert type(checked_values("identifier", {"method": "marc"})) is node_values.IdentifierValues
+    assert type(checked_values("recorder", {})) is node_values.RecorderValues
+    ff = checked_values("feedforward", {"mnc.enabled": True})
+    for cls in (
+        plugin_values.MncValues,
+        plugin_values.GmsValues,
+        plugin_values.SigmoidValues,
+        plugin_values.FrictionTableValues,
+        plugin_values.ExcitationValues,
+    ):
+        assert isinstance(ff, cls)
+    assert ff.mnc.enabled and not ff.gms.enabled
+
+
+def test_an_extension_without_a_class_gets_one_made_and_a_stale_class_is_refused() -> None:
+    from servo_axis.params.factories import PLANT_MODELS, checked_values
+    from servo_axis.params.registry import PlantModelEntry
+
+    schema = {
+        "torque_constant_Nm_per_A": Param(1.0, unit="N m/A", above=0.0, meaning="K_T"),
+        "spring.stiffness_N_per_m": Param(1e6, unit="N/m", above=0.0, meaning="k"),
+    }
+    PLANT_MODELS.register("made_here", PlantModelEntry(schema=schema, build=lambda v, r: None))
+    try:
+        values = checked_values("plant", {"model": "made_here", "spring.stiffness_N_per_m": 2e6})
+        assert isinstance(values, node_values.PlantValues)
+        assert values.spring.stiffness_N_per_m == 2e6  # type: ignore[attr-defined]
+        assert type(values).__name__ == "MadeHereValues"
+        stale = PlantModelEntry(
+            schema=schema, build=lambda v, r: None, values=plugin_values.TiltingTableValues
+        )
+        with pytest.raises(ValueError, match="and the schema differ in key"):
+            PLANT_MODELS.register("stale_class", stale)
+    finally:
+        PLANT_MODELS.unregister("made_here")
