@@ -31,7 +31,8 @@ from servo_axis.core.deformation import deformation_ratio
 from servo_axis.core.drive import current_from_torque, torque_from_current
 from servo_axis.core.errors import SignalError
 from servo_axis.friction_id import estimate_friction_torque
-from servo_axis.params import factories, resolve
+from servo_axis.params import factories
+from servo_axis.params.resolve import Resolved
 from servo_axis.params.scenario import load_scenario
 
 FloatArray = np.ndarray
@@ -118,21 +119,20 @@ def run_trace(scenario_path: Path, *, steps: int | None = None) -> PlantTrace:
     The same objects and the same order of calls (so the same floats); the
     plant must be ``elastic_ball_screw``.
     """
-    scenario = load_scenario(scenario_path)
-    pv = resolve.node_values(scenario, "plant")
-    if pv["model"] != "elastic_ball_screw":
-        raise SignalError(f"plant.model: expected elastic_ball_screw, got {pv['model']!r}")
-    fbv = resolve.node_values(scenario, "feedback")
-    ffv = resolve.feedforward_values(scenario, scenario_path)
+    resolved = Resolved(load_scenario(scenario_path), scenario_path)
+    pv = resolved.plant
+    if pv.model != "elastic_ball_screw":
+        raise SignalError(f"plant.model: expected elastic_ball_screw, got {pv.model!r}")
+    fbv, ffv = resolved.feedback, resolved.feedforward
     n = factories.run_steps(pv) if steps is None else steps
     sim = factories.build_plant(pv)
     loop = factories.build_loop(fbv)
     gen = factories.build_generator(ffv)
-    kt_ff = ffv["nominal.torque_constant_Nm_per_A"]
-    kt_fb = fbv["nominal.torque_constant_Nm_per_A"]
-    kt_plant = pv["torque_constant_Nm_per_A"]
+    kt_ff = ffv.nominal.torque_constant_Nm_per_A
+    kt_fb = fbv.nominal.torque_constant_Nm_per_A
+    kt_plant = factories.drive_constant(pv)
     refs = gen.samples(0, n)
-    lead = float(pv["lead_m_per_rad"])
+    lead = float(pv.lead_m_per_rad)
     cols = np.empty((n, 11))
     y = sim.output()
     for k in range(n):
@@ -161,7 +161,7 @@ def run_trace(scenario_path: Path, *, steps: int | None = None) -> PlantTrace:
         )
         y = sim.step(current_from_torque(tau, torque_constant_Nm_per_A=kt_plant))
     c = [cols[:, i].copy() for i in range(11)]
-    return PlantTrace(float(pv["control_period_s"]), lead, *c)
+    return PlantTrace(float(pv.control_period_s), lead, *c)
 
 
 @dataclass(frozen=True)
