@@ -34,7 +34,7 @@ import yaml
 from servo_axis.core.deformation import deformation_ratio
 from servo_axis.core.errors import SignalError
 from servo_axis.identify.friction import estimate_friction_torque
-from servo_axis.params import resolve
+from servo_axis.params.resolve import Resolved
 from servo_axis.params.scenario import load_scenario
 from servo_axis.simulate import simulate
 
@@ -123,9 +123,9 @@ def run_trace(scenario_path: Path, *, steps: int | None = None) -> PlantTrace:
     plant asked for its inner signals at each sample before it steps; the plant
     must be ``elastic_ball_screw``.
     """
-    pv = resolve.node_values(load_scenario(scenario_path), "plant")
-    if pv["model"] != "elastic_ball_screw":
-        raise SignalError(f"plant.model: expected elastic_ball_screw, got {pv['model']!r}")
+    pv = Resolved(load_scenario(scenario_path), scenario_path).plant
+    if pv.model != "elastic_ball_screw":
+        raise SignalError(f"plant.model: expected elastic_ball_screw, got {pv.model!r}")
     inner: list[tuple[float, ...]] = []
 
     def keep(plant: Any) -> None:
@@ -144,11 +144,11 @@ def run_trace(scenario_path: Path, *, steps: int | None = None) -> PlantTrace:
         )
 
     run = simulate(scenario_path, steps=steps, watch=keep)
-    lead = float(pv["lead_m_per_rad"])
+    lead = float(pv.lead_m_per_rad)
     cols = np.array(inner, dtype=float).reshape(-1, 7)
     c = [cols[:, i].copy() for i in range(7)]
     return PlantTrace(
-        float(pv["control_period_s"]),
+        float(pv.control_period_s),
         lead,
         lead * run.reference_rad,
         run.scale_m,

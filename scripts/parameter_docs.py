@@ -36,9 +36,12 @@ under the node's name; nested YAML maps become dotted names
 unit is in the name and in the `unit` column. `range` is what a value must
 satisfy on its own (every element of a list of numbers; numbers must also be
 finite); what depends on several keys (e.g. `sim_step_s` dividing
-`control_period_s`) is checked when the node builds its objects. Keys not
-listed here stop the node (exit code 2) with a message naming the full key;
-so do values of the wrong type and values outside their range.
+`control_period_s`) is checked with the values, by the node's and its
+extensions' checks, before `run` starts any process. Keys not listed here
+stop the node (exit code 2) with a message naming the full key; so do
+values of the wrong type and values outside their range. In code, each key
+is an attribute of the node's typed values (`values.dob.cutoff_hz`,
+`servo_axis.params.values`).
 """
 
 #: Section heading by key of SECTIONS (other sections use the key itself).

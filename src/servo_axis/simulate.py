@@ -19,10 +19,9 @@ holds the torques as the bag has them.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -30,8 +29,10 @@ from servo_axis.core.drive import current_from_torque, torque_from_current
 from servo_axis.core.feedback.loop import FeedbackLoop
 from servo_axis.core.feedback.output import controlled_output
 from servo_axis.core.models.base import Plant, PlantOutput
-from servo_axis.params import factories, resolve
+from servo_axis.params import factories
+from servo_axis.params.resolve import Resolved
 from servo_axis.params.scenario import load_scenario
+from servo_axis.params.values import FeedbackValues, FeedforwardValues, PlantValues
 
 
 @dataclass(frozen=True)
@@ -60,11 +61,11 @@ class _Drive:
     plant: float
 
     @classmethod
-    def of(cls, ffv: Mapping[str, Any], fbv: Mapping[str, Any], pv: Mapping[str, Any]) -> _Drive:
+    def of(cls, ffv: FeedforwardValues, fbv: FeedbackValues, pv: PlantValues) -> _Drive:
         return cls(
-            feedforward=ffv["nominal.torque_constant_Nm_per_A"],
-            feedback=fbv["nominal.torque_constant_Nm_per_A"],
-            plant=pv["torque_constant_Nm_per_A"],
+            feedforward=ffv.nominal.torque_constant_Nm_per_A,
+            feedback=fbv.nominal.torque_constant_Nm_per_A,
+            plant=factories.drive_constant(pv),
         )
 
     def step(
@@ -107,10 +108,8 @@ def simulate(
         state): a study's way to keep a plant's inner signals. It must not
         change the plant.
     """
-    scenario = load_scenario(scenario_path)
-    pv = resolve.node_values(scenario, "plant")
-    fbv = resolve.node_values(scenario, "feedback")
-    ffv = resolve.feedforward_values(scenario, scenario_path)
+    resolved = Resolved(load_scenario(scenario_path), scenario_path)
+    pv, fbv, ffv = resolved.plant, resolved.feedback, resolved.feedforward
     n = factories.run_steps(pv) if steps is None else steps
     sim = factories.build_plant(pv)
     loop = factories.build_loop(fbv)
@@ -162,26 +161,24 @@ def simulate_learning(scenario_path: Path, *, steps: int | None = None) -> Learn
     ``j + 1`` (the boundary protocol). Either way learning starts with
     ``start_cycle`` and the run's last period is not learned from.
     """
-    scenario = load_scenario(scenario_path)
-    pv = resolve.node_values(scenario, "plant")
-    fbv = resolve.node_values(scenario, "feedback")
-    ffv = resolve.feedforward_values(scenario, scenario_path)
-    lv = resolve.node_values(scenario, "learning")
+    resolved = Resolved(load_scenario(scenario_path), scenario_path)
+    pv, fbv, ffv = resolved.plant, resolved.feedback, resolved.feedforward
+    lv = resolved.learning
     law = factories.build_learning_law(lv)
     n = factories.run_steps(pv) if steps is None else steps
     sim = factories.build_plant(pv)
     loop = factories.build_loop(fbv)
     gen = factories.build_generator(ffv)
     reference = factories.build_reference(ffv)
-    tu = pv["control_period_s"]
-    lead = pv["lead_m_per_rad"]
-    sensor = fbv["sensor"]
+    tu = pv.control_period_s
+    lead = pv.lead_m_per_rad
+    sensor = fbv.sensor
     target_side = law.side == "target"
     # The learning unit's samples: the reference instants for a target-side law.
     stride = factories.grid(pv).ratio if target_side else 1
     period = law.samples_per_period * stride  # control samples per period
     drive = _Drive.of(ffv, fbv, pv)
-    kt_learning = lv["nominal.torque_constant_Nm_per_A"]
+    kt_learning = lv.nominal.torque_constant_Nm_per_A
     out = np.empty((n, 5))
     errors = []
     y = sim.output()
@@ -195,7 +192,7 @@ def simulate_learning(scenario_path: Path, *, steps: int | None = None) -> Learn
         )
         error = target - measured  # rad at the motor
         errors.append(lead * error)
-        if j + 2 >= lv["start_cycle"]:
+        if j + 2 >= lv.start_cycle:
             law.learn(error if target_side else lead * error, period=j + 1)
         if target_side:
             position, velocity = law.next_correction(period=j + 2)
@@ -254,15 +251,13 @@ def simulate_identification(scenario_path: Path, *, steps: int | None = None) ->
     run are not used (the node does not publish them). Without an
     identifier section it is the plain loop, with the true angle.
     """
-    scenario = load_scenario(scenario_path)
-    pv = resolve.node_values(scenario, "plant")
-    fbv = resolve.node_values(scenario, "feedback")
-    ffv = resolve.feedforward_values(scenario, scenario_path)
+    resolved = Resolved(load_scenario(scenario_path), scenario_path)
+    pv, fbv, ffv = resolved.plant, resolved.feedback, resolved.feedforward
     identifier = None
-    if "identifier" in scenario:
-        iv = resolve.node_values(scenario, "identifier")
+    if resolved.has("identifier"):
+        iv = resolved.identifier
         identifier = factories.build_identifier(iv)
-        _, latency = factories.estimate_schedule(iv, "rls_period_s", "latency_s")
+        _, latency = factories.identifier_schedule(iv)
     n = factories.run_steps(pv) if steps is None else steps
     sim = factories.build_plant(pv)
     loop = factories.build_loop(fbv)

@@ -107,6 +107,11 @@ def test_the_step_response_of_the_outside_plant_is_its_closed_form(
         f"v = checked_values('plant', {{'model': 'rigid_viscous_axis', 'inertia_kgm2': {J},"
         f" 'viscous_Nms_per_rad': {B}, 'torque_constant_Nm_per_A': {KT}}})\n"
         "p = build_plant(v)\n"
+        # Its values: a class made from its schema at run time; the term's: its own.
+        f"assert type(v).__name__ == 'RigidViscousAxisValues' and v.inertia_kgm2 == {J}\n"
+        "from servo_axis_outside.viscous_term import ViscousFfValues\n"
+        "ff = checked_values('feedforward', {'viscous_ff.coefficient_Nms_per_rad': 0.5})\n"
+        "assert isinstance(ff, ViscousFfValues) and ff.viscous_ff.coefficient_Nms_per_rad == 0.5\n"
         "print(json.dumps([p.step(2.0).angle_rad for _ in range(400)]))\n"
     )
     got = np.array(yaml.safe_load(python(plugin_site, dict(os.environ), "-c", code)))

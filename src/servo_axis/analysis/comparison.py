@@ -25,7 +25,7 @@ from servo_axis.analysis.summary import RunSummary
 from servo_axis.core.errors import ServoAxisError
 from servo_axis.params.factories import REFERENCE_KEYS
 from servo_axis.params.recorded import recorded_scenario
-from servo_axis.params.resolve import node_values
+from servo_axis.params.resolve import Resolved
 
 
 def run_reference(run_dir: Path, summary: RunSummary) -> dict[str, Any] | None:
@@ -46,16 +46,15 @@ def run_reference(run_dir: Path, summary: RunSummary) -> dict[str, Any] | None:
         in the scenario), None when the run recorded no scenario that reads.
     """
     try:
-        scenario = recorded_scenario(Path(run_dir), summary.scenario_file).scenario
-        if "feedforward" not in scenario:
+        resolved = Resolved(recorded_scenario(Path(run_dir), summary.scenario_file).scenario)
+        if not resolved.has("feedforward"):
             return None
-        values = node_values(scenario, "feedforward")
+        reference = resolved.feedforward.reference
     except (OSError, ValueError, yaml.YAMLError, ServoAxisError):
         return None
-    kind = values["reference.kind"]
     return {
-        "reference.kind": kind,
-        **{f"reference.{k}": values[f"reference.{k}"] for k in REFERENCE_KEYS.get(kind, ())},
+        "reference.kind": reference.kind,
+        **{f"reference.{k}": reference[k] for k in REFERENCE_KEYS.get(reference.kind, ())},
     }
 
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -20,10 +20,9 @@ from numpy.typing import NDArray
 from servo_axis.analysis.bag_streams import table_name
 from servo_axis.analysis.serial import Serial
 from servo_axis.analysis.signals import Signals
-from servo_axis.analysis.tracking import axis_values
 from servo_axis.core.deformation import DeformationTrace
 from servo_axis.params.factories import build_reference
-from servo_axis.params.resolve import feedforward_values, node_values
+from servo_axis.params.resolve import Resolved
 
 #: The windows of :class:`DeformationWindow`, s relative to the stop: well
 #: before it, where a fast stop's ``d_r`` still has its value of the
@@ -271,7 +270,7 @@ def deformation_windows(
 
 
 def deformation_summary(
-    scenario: dict[str, Any], scenario_path: Path, sig: Signals
+    scenario: Resolved | dict[str, Any], scenario_path: Path, sig: Signals
 ) -> Deformation | None:
     """The :class:`Deformation` block of a run whose bag has the ``deformation`` topic, else None.
 
@@ -283,10 +282,11 @@ def deformation_summary(
     trace = sig.deformation
     if trace is None:
         return None
-    period = axis_values(scenario)["control_period_s"]
-    fb = node_values(scenario, "feedback")
-    t = sig.step * period
-    _, vel, acc = build_reference(feedforward_values(scenario, scenario_path)).sample(t)
+    resolved = Resolved.of(scenario, scenario_path)
+    period = resolved.plant.control_period_s
+    fb = resolved.feedback
+    t = cast(NDArray[np.float64], sig.step * period)
+    _, vel, acc = build_reference(resolved.feedforward).sample(t)
     stops = tuple(
         DeformationStop(
             time_s=s.time_s,
@@ -298,8 +298,8 @@ def deformation_summary(
     )
     topics = [name for name in sig.counts if table_name(name) == "deformation"]
     return Deformation(
-        window_samples=int(fb["deformation.window_samples"]),
-        min_rotation_rad=float(fb["deformation.min_rotation_rad"]),
+        window_samples=int(fb.deformation.window_samples),
+        min_rotation_rad=float(fb.deformation.min_rotation_rad),
         samples=int(np.count_nonzero(~np.isnan(trace.scale_increment_m))),
         valid_samples=int(np.count_nonzero(trace.valid)),
         dropped=sum(sig.dropped.get(name, 0) for name in topics),

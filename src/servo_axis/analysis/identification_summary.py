@@ -17,7 +17,8 @@ import numpy as np
 from servo_axis.analysis.bag_streams import table_name
 from servo_axis.analysis.serial import Serial
 from servo_axis.analysis.signals import IDENTIFIER_SECTION, Signals
-from servo_axis.analysis.tracking import axis_values
+from servo_axis.params.resolve import Resolved
+from servo_axis.params.values import PlantValues
 from servo_axis.wire.cdr import EstimateData
 
 #: The parameters an identifier estimates (003 eq. (2)): ``J, D, U, C``, as
@@ -170,13 +171,14 @@ def summarise_estimates(
     )
 
 
-def true_parameters(plant_values: dict[str, Any]) -> ParameterValues:
-    """The plant's ``J, D, U, C`` (NaN for one its model does not have)."""
-    return ParameterValues(*(float(plant_values.get(name, math.nan)) for name in IDENTIFIED))
+def true_parameters(plant_values: PlantValues) -> ParameterValues:
+    """The plant's ``J, D, U, C`` (NaN for one its model does not have: each model has keys of
+    its own)."""
+    return ParameterValues(*(float(getattr(plant_values, name, math.nan)) for name in IDENTIFIED))
 
 
 def identification(
-    scenario: dict[str, Any], sig: Signals, *, period_s: float | None
+    scenario: Resolved | dict[str, Any], sig: Signals, *, period_s: float | None
 ) -> OnlineIdentification | None:
     """The identification of a run with an identifier whose estimates the bag has, else None.
 
@@ -184,13 +186,14 @@ def identification(
     repeats and the junk are those of the ``identifier/estimates`` topics.
     """
     topics = [t for t in sig.counts if table_name(t) == "identifier/estimates"]
-    if IDENTIFIER_SECTION not in scenario or not topics:
+    resolved = Resolved.of(scenario)
+    if not resolved.has(IDENTIFIER_SECTION) or not topics:
         return None
-    plant = axis_values(scenario)
+    plant = resolved.plant
     return summarise_estimates(
         sig.estimates,
         true=true_parameters(plant),
-        control_period_s=plant["control_period_s"],
+        control_period_s=plant.control_period_s,
         period_s=period_s,
         repeated=sum(sig.repeated.get(t, 0) for t in topics),
         dropped=sum(sig.dropped.get(t, 0) for t in topics),

@@ -18,7 +18,7 @@ from servo_axis.analysis.health import assess
 from servo_axis.analysis.summary import SUMMARY_FILE, RunSummary, summarise
 from servo_axis.params.factories import run_steps
 from servo_axis.params.recorded import recorded_scenario
-from servo_axis.params.resolve import node_values
+from servo_axis.params.resolve import Resolved
 from servo_axis.recording.reader import UNFINISHED_SUFFIX
 from servo_axis.wire.node_report import read_health
 
@@ -45,10 +45,11 @@ def summarise_unfinished(run_dir: Path) -> RunSummary:
     """
     run_dir = Path(run_dir)
     recorded = recorded_scenario(run_dir)
-    planned = run_steps(node_values(recorded.scenario, "plant"))
+    resolved = Resolved(recorded.scenario, recorded.path)
+    planned = run_steps(resolved.plant)
     summary = summarise(
         run_dir,
-        scenario=recorded.scenario,
+        scenario=resolved,
         scenario_path=recorded.path,
         source_file=recorded.started_from,
         wall_time_s=math.nan,

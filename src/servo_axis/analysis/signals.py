@@ -81,12 +81,12 @@ from servo_axis.core.feedback.output import controlled_output
 from servo_axis.params.factories import (
     build_generator,
     checked_values,
-    estimate_schedule,
     grid,
+    identifier_schedule,
     learning_period_steps,
     run_steps,
 )
-from servo_axis.params.resolve import feedforward_values, node_values
+from servo_axis.params.resolve import Resolved
 from servo_axis.params.scenario import ROLES, SHARED_SECTION
 from servo_axis.wire import cdr, layouts, topics
 from servo_axis.wire.checks import step_of_stamp_ns
@@ -263,45 +263,45 @@ class StreamRules:
         plant = checked_values("plant", {})
         return cls(
             period_ns=_period_ns(period_s),
-            axis=plant["axis"],
-            mode=plant["mode"],
+            axis=plant.axis,
+            mode=plant.mode,
             ratio=grid(plant).ratio,
-            status_every_steps=plant["status_every_steps"],
-            clock_every_steps=plant["clock_every_steps"],
+            status_every_steps=plant.status_every_steps,
+            clock_every_steps=plant.clock_every_steps,
         )
 
     @classmethod
-    def from_scenario(cls, scenario: dict[str, Any], period_s: float) -> StreamRules:
-        """The rules of a run of ``scenario`` (a single-axis scenario or a run's parameters)."""
-        plant = node_values(scenario, "plant")
+    def from_scenario(cls, scenario: Resolved | dict[str, Any], period_s: float) -> StreamRules:
+        """The rules of a run of ``scenario`` (a single-axis scenario or a run's parameters,
+        or either read once)."""
+        resolved = Resolved.of(scenario)
+        plant = resolved.plant
         cycle = None
-        if "feedforward" in scenario:
-            cycle = learning_period_steps(node_values(scenario, "feedforward"))
+        if resolved.has("feedforward"):
+            cycle = learning_period_steps(resolved.feedforward)
         period, latency = 1, 0
-        if IDENTIFIER_SECTION in scenario:
-            period, latency = estimate_schedule(
-                node_values(scenario, IDENTIFIER_SECTION), "rls_period_s", "latency_s"
-            )
+        if resolved.has(IDENTIFIER_SECTION):
+            period, latency = identifier_schedule(resolved.identifier)
         return cls(
             period_ns=_period_ns(period_s),
-            axis=plant["axis"],
-            mode=plant["mode"],
+            axis=plant.axis,
+            mode=plant.mode,
             steps=run_steps(plant),
             ratio=grid(plant).ratio,
             cycle_steps=cycle,
-            status_every_steps=plant["status_every_steps"],
-            clock_every_steps=plant["clock_every_steps"],
-            identifier=IDENTIFIER_SECTION in scenario,
+            status_every_steps=plant.status_every_steps,
+            clock_every_steps=plant.clock_every_steps,
+            identifier=resolved.has(IDENTIFIER_SECTION),
             estimate_period_steps=period,
             estimate_latency_steps=latency,
-            deformation=bool(node_values(scenario, "feedback")["deformation.enabled"]),
-            state_stamps=plant["state_stamps"],
-            command_source=plant["command_source"],
+            deformation=bool(resolved.feedback.deformation.enabled),
+            state_stamps=plant.state_stamps,
+            command_source=plant.command_source,
         )
 
     @classmethod
     def for_bag(
-        cls, bag_dir: Path, period_s: float, scenario: dict[str, Any] | None = None
+        cls, bag_dir: Path, period_s: float, scenario: Resolved | dict[str, Any] | None = None
     ) -> StreamRules:
         """The rules of ``scenario``, else of the run's ``params.yaml`` beside the bag, else the defaults."""
         if scenario is not None:
@@ -600,7 +600,7 @@ def read_streams(bag_dir: Path, rules: StreamRules) -> BagStreams:
 
 
 def load_signals(
-    bag_dir: Path, period_s: float, *, scenario: dict[str, Any] | None = None
+    bag_dir: Path, period_s: float, *, scenario: Resolved | dict[str, Any] | None = None
 ) -> Signals:
     """Arrays per step from a bag's validated samples (state, reference, command, deformation), faults, counts.
 
@@ -611,9 +611,10 @@ def load_signals(
     period_s : float
         Control period ``T_u``, s: a message stamped ``t`` is step ``t / T_u``
         (a stamp off that grid is dropped).
-    scenario : dict or None
-        The run's (single-axis) scenario, for the rules (:class:`StreamRules`);
-        None: the run's ``params.yaml`` beside the bag, else the defaults.
+    scenario : Resolved, dict or None
+        The run's (single-axis) scenario (or it read once), for the rules
+        (:class:`StreamRules`); None: the run's ``params.yaml`` beside the
+        bag, else the defaults.
 
     Returns
     -------
@@ -682,15 +683,14 @@ def _step(estimate: EstimateData) -> int:
     return estimate.step
 
 
-def learning_enabled(scenario: dict[str, Any]) -> bool:
+def learning_enabled(scenario: Resolved | dict[str, Any]) -> bool:
     """True when the scenario's feedforward generator applies learning corrections."""
-    return "feedforward" in scenario and bool(
-        node_values(scenario, "feedforward")["learning.enabled"]
-    )
+    resolved = Resolved.of(scenario)
+    return resolved.has("feedforward") and bool(resolved.feedforward.learning.enabled)
 
 
 def tracking(
-    scenario: dict[str, Any], scenario_path: Path, sig: Signals
+    scenario: Resolved | dict[str, Any], scenario_path: Path, sig: Signals
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Target (rad) and controlled output ``y`` (rad) per recorded step.
 
@@ -698,19 +698,20 @@ def tracking(
     (:func:`~servo_axis.core.feedback.output.controlled_output`). The target
     is the reference the feedback got, except with learning: then it is the
     original target without the learned correction (the ``r`` of 000 eq. (9)),
-    recomputed with the same generator.
+    recomputed with the same generator (its term files relative to
+    ``scenario_path``).
     """
-    fb = node_values(scenario, "feedback")
+    resolved = Resolved.of(scenario, scenario_path)
+    fb = resolved.feedback
     y = controlled_output(
-        fb["sensor"],
+        fb.sensor,
         encoder_rad=sig.encoder_rad,
         scale_m=sig.scale_m,
-        lead_m_per_rad=fb["lead_m_per_rad"],
+        lead_m_per_rad=fb.lead_m_per_rad,
     )
     target = sig.reference_rad
-    if learning_enabled(scenario) and sig.step.size:
-        values = feedforward_values(scenario, scenario_path)
-        values["learning.enabled"] = False
+    if learning_enabled(resolved) and sig.step.size:
+        values = resolved.feedforward.with_keys({"learning.enabled": False})
         rows = build_generator(values).samples(0, int(sig.step.max()) + 1)
         target = np.array([rows[k][0] for k in sig.step])
     return target, y

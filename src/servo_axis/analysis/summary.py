@@ -99,9 +99,9 @@ from servo_axis.analysis.tracking import (
     unit_keys,
 )
 from servo_axis.core.errors import ConfigError
-from servo_axis.params.factories import build_reference
+from servo_axis.params.factories import build_reference, term_on
 from servo_axis.params.recorded import recorded_scenario
-from servo_axis.params.resolve import feedforward_values, node_values
+from servo_axis.params.resolve import Resolved
 
 __all__ = [
     "DEFORMATION_WINDOWS_S",
@@ -397,7 +397,7 @@ def cycle_errors(summary: RunSummary) -> dict[str, NDArray[Any]]:
 def summarise(
     run_dir: Path,
     *,
-    scenario: dict[str, Any],
+    scenario: Resolved | dict[str, Any],
     scenario_path: Path,
     wall_time_s: float,
     mode: str,
@@ -410,8 +410,9 @@ def summarise(
     ----------
     run_dir : Path
         The run directory (its bag is ``run_dir / "bag"``).
-    scenario : dict
-        The (single-axis) scenario the run used.
+    scenario : Resolved or dict
+        The (single-axis) scenario the run used, or it read once (the
+        run's plan hands its values: :attr:`~servo_axis.params.run_plan.AxisPlan.resolved`).
     scenario_path : Path
         Its file (relative friction-table paths are relative to its
         directory): a run's ``scenario.yaml``.
@@ -427,27 +428,28 @@ def summarise(
         What the runner saw (deaths, fallbacks, strangers, exit code).
     """
     run_dir = Path(run_dir)
-    common = axis_values(scenario)
-    period = common["control_period_s"]
+    resolved = Resolved.of(scenario, scenario_path)
+    common = resolved.plant
+    period = common.control_period_s
     unit = error_unit(common)
-    ff = node_values(scenario, "feedforward")
-    sig = load_signals(run_dir / "bag", period, scenario=scenario)
-    target, y = tracking(scenario, scenario_path, sig)
+    ff = resolved.feedforward
+    sig = load_signals(run_dir / "bag", period, scenario=resolved)
+    target, y = tracking(resolved, scenario_path, sig)
     error = position_scale(common) * (target - y)
-    learning = learning_enabled(scenario)
+    learning = learning_enabled(resolved)
     reference_period: float | None = None
-    if "feedforward" in scenario and (not learning or IDENTIFIER_SECTION in scenario):
-        reference_period = build_reference(feedforward_values(scenario, scenario_path)).period_s
-    cycle = ff["learning.cycle_s"] if learning else reference_period
+    if resolved.has("feedforward") and (not learning or resolved.has(IDENTIFIER_SECTION)):
+        reference_period = build_reference(ff).period_s
+    cycle = ff.learning.cycle_s if learning else reference_period
     steps = int(sig.step.size)
     sim_time = steps * period
     source = Path(source_file) if source_file is not None else Path(scenario_path)
     summary = RunSummary(
-        scenario=common["scenario.name"] or source.stem,
-        description=common["scenario.description"],
+        scenario=common.scenario.name or source.stem,
+        description=common.scenario.description,
         scenario_file=str(source),
         processes=mode,
-        time_mode=common["mode"],
+        time_mode=common.mode,
         control_period_s=period,
         steps=steps,
         sim_time_s=sim_time,
@@ -456,18 +458,18 @@ def summarise(
         realtime_factor=sim_time / wall_time_s if wall_time_s > 0 else math.nan,
         message_counts=sig.counts,
         faults=tuple(sig.faults),
-        ptc=bool(ff["ptc.enabled"]),
-        friction_table=bool(ff["friction_table.enabled"]),
+        ptc=bool(ff.ptc.enabled),
+        friction_table=term_on(ff, "friction_table"),
         reference_period_s=cycle,
         tracking_error=TrackingError.from_dict(
             error_statistics(error, sig.step, period_s=period, cycle_s=cycle)
         ),
         health=health,
-        period_name="trial" if ff["reference.kind"] == "trials" else None,
-        ilc_convergence=ilc_convergence(scenario, scenario_path),
+        period_name="trial" if ff.reference.kind == "trials" else None,
+        ilc_convergence=ilc_convergence(resolved, scenario_path),
         error_unit=None if unit == "m" else unit,
-        identification=identification(scenario, sig, period_s=reference_period),
-        deformation=deformation_summary(scenario, scenario_path, sig),
+        identification=identification(resolved, sig, period_s=reference_period),
+        deformation=deformation_summary(resolved, scenario_path, sig),
     )
     (run_dir / SUMMARY_FILE).write_text(summary.to_json())
     return summary
@@ -518,10 +520,10 @@ def run_series(run_dir: Path) -> RunSeries:
     run_dir = Path(run_dir)
     summary = RunSummary.from_json(run_dir / SUMMARY_FILE)
     recorded = recorded_scenario(run_dir, summary.scenario_file)
-    scenario, scenario_path = recorded.scenario, recorded.path
-    lead = position_scale(axis_values(scenario))
-    sig = load_signals(run_dir / "bag", summary.control_period_s, scenario=scenario)
-    target, y = tracking(scenario, scenario_path, sig)
+    resolved = Resolved(recorded.scenario, recorded.path)
+    lead = position_scale(resolved.plant)
+    sig = load_signals(run_dir / "bag", summary.control_period_s, scenario=resolved)
+    target, y = tracking(resolved, recorded.path, sig)
     return RunSeries(summary, sig, target, y, lead)
 
 
@@ -575,8 +577,8 @@ def summarise_axes(
         names = sorted(axes)
         contour_summary = ContourSummary.from_result(names, contour(run_dir, names))
     summary = AxesSummary(
-        scenario=common["scenario.name"],
-        description=common["scenario.description"],
+        scenario=common.scenario.name,
+        description=common.scenario.description,
         wall_time_s=wall_time_s,
         axes=dict(axes),
         contour=contour_summary,

@@ -19,6 +19,7 @@ from typing import Any
 from servo_axis.analysis.serial import Serial
 from servo_axis.params.factories import plant_model
 from servo_axis.params.resolve import node_values
+from servo_axis.params.values import PlantValues
 
 
 @dataclass(frozen=True)
@@ -77,24 +78,25 @@ class TrackingError(Serial):
     after_first_cycle: SampleStats | None = field(default=None, metadata={"omit_none": True})
 
 
-def axis_values(scenario: dict[str, Any]) -> dict[str, Any]:
+def axis_values(scenario: dict[str, Any]) -> PlantValues:
     """Checked shared values of an axis (period, lead, mode, names), as its plant has them."""
-    return node_values(scenario, "plant")
+    values: PlantValues = node_values(scenario, "plant")
+    return values
 
 
-def error_unit(plant_values: dict[str, Any]) -> str:
+def error_unit(plant_values: PlantValues) -> str:
     """``rad`` for a plant model whose table turns (its registry entry's ``rotary``), else ``m``.
 
     A rotary table's position is its angle, so the tracking error is
     ``r - y`` in rad (no lead); every other model's table moves along a
     line, ``x = R theta``: the error ``R (r - y)`` is in m.
     """
-    return "rad" if plant_model(plant_values["model"], "plant.model").rotary else "m"
+    return "rad" if plant_model(plant_values.model, "plant.model").rotary else "m"
 
 
-def position_scale(plant_values: dict[str, Any]) -> float:
+def position_scale(plant_values: PlantValues) -> float:
     """Table position per rad of controlled output: ``R`` (m/rad), 1 for a rotary table."""
-    return 1.0 if error_unit(plant_values) == "rad" else float(plant_values["lead_m_per_rad"])
+    return 1.0 if error_unit(plant_values) == "rad" else float(plant_values.lead_m_per_rad)
 
 
 def unit_keys(block: Any, unit: str, *, reading: bool = False) -> Any:

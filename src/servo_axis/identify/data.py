@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -10,10 +10,12 @@ import numpy as np
 
 from servo_axis.core.errors import ConfigError, SignalError
 from servo_axis.core.identification.offline.excitation import Excitation
-from servo_axis.params import resolve
+from servo_axis.params.factories import term_on
 from servo_axis.params.recorded import recorded_scenario
 from servo_axis.params.registry import feedforward_terms
+from servo_axis.params.resolve import Resolved
 from servo_axis.params.scenario import load_scenario
+from servo_axis.params.values import PlantValues
 
 
 @dataclass(frozen=True)
@@ -34,6 +36,8 @@ class Record:
         The sensors and the feedback's reference.
     feedforward_Nm, command_Nm : ndarray
         The torques of ``reference`` and ``command`` (N m).
+    resolved : Resolved or None
+        The scenario read once (None: read from :attr:`scenario` now).
     """
 
     source: str
@@ -45,27 +49,38 @@ class Record:
     reference_rad: np.ndarray
     feedforward_Nm: np.ndarray
     command_Nm: np.ndarray
+    resolved: Resolved | None = field(default=None, compare=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.resolved is None:
+            object.__setattr__(self, "resolved", Resolved(self.scenario, self.scenario_path))
+
+    @property
+    def checked(self) -> Resolved:
+        """The run's scenario read once: its nodes' checked values (``checked.plant``, ...)."""
+        assert self.resolved is not None
+        return self.resolved
 
     @property
     def period_s(self) -> float:
         """The control period ``T_u``, s."""
-        return float(resolve.node_values(self.scenario, "plant")["control_period_s"])
+        return float(self.checked.plant.control_period_s)
 
     @property
     def lead_m_per_rad(self) -> float:
         """The lead ``R``, m/rad."""
-        return float(resolve.node_values(self.scenario, "plant")["lead_m_per_rad"])
+        return float(self.checked.plant.lead_m_per_rad)
 
-    def plant_values(self) -> dict[str, Any]:
+    def plant_values(self) -> PlantValues:
         """The run's checked plant values (its plant section: for a real axis only a template)."""
-        return resolve.node_values(self.scenario, "plant")
+        return self.checked.plant
 
     def excitation(self) -> Excitation | None:
         """The run's excitation (the ``excitation`` feedforward term), or None when it is off."""
-        if "feedforward" not in self.scenario:
+        if not self.checked.has("feedforward"):
             return None
-        values = resolve.feedforward_values(self.scenario, self.scenario_path)
-        if not values.get("excitation.enabled", False):
+        values = self.checked.feedforward
+        if not term_on(values, "excitation"):
             return None
         term = dict(feedforward_terms())["excitation"].build(values)
         excitation = getattr(term, "excitation", None)
@@ -105,8 +120,9 @@ def from_run(run_dir: Path) -> Record:
     # What the run ran, from its directory: never the scenario file as it is now.
     recorded = recorded_scenario(run_dir, summary.scenario_file)
     scenario, path = recorded.scenario, recorded.path
-    period = float(resolve.node_values(scenario, "plant")["control_period_s"])
-    sig = load_signals(run_dir / "bag", period, scenario=scenario)
+    resolved = Resolved(scenario, path)
+    period = float(resolved.plant.control_period_s)
+    sig = load_signals(run_dir / "bag", period, scenario=resolved)
     if sig.step.size < 3:
         raise SignalError(
             f"{run_dir / 'bag'}: expected a recorded run, got {sig.step.size} samples"
@@ -127,6 +143,7 @@ def from_run(run_dir: Path) -> Record:
         reference_rad=sig.reference_rad,
         feedforward_Nm=sig.feedforward_Nm,
         command_Nm=command,
+        resolved=resolved,
     )
 
 

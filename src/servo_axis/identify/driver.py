@@ -25,6 +25,7 @@ from servo_axis.core.identification.offline.frf import FrequencyResponse, closed
 from servo_axis.identify import MODELS
 from servo_axis.identify.data import Record
 from servo_axis.params.registry import PLANT_MODELS
+from servo_axis.params.values import FeedforwardValues
 
 #: A key whose standard error exceeds this fraction of its value is not determined.
 UNDETERMINED = sysfit.UNDETERMINED
@@ -254,7 +255,7 @@ def _template(record: Record, model: str) -> dict[str, Any]:
     """The run's plant values when its model is ``model`` (a template for the keys not fitted)."""
     values = record.plant_values()
     schema = PLANT_MODELS.lookup(model, "--model").schema  # a broken one: one line
-    if values.get("model") == model:
+    if values.model == model:
         return {k: values[k] for k in schema}
     return {k: p.default for k, p in schema.items()}
 
@@ -421,8 +422,8 @@ def _tilting(
     # The swing's own harmonics are periodic in the excitation's period too when the
     # two periods are commensurate: the lowest lines carry them. Compared from its
     # fourth harmonic on.
-    ref = _ff_values(record)
-    swing_hz = ref["reference.frequency_hz"] if ref["reference.kind"] == "sine" else 0.0
+    ref = _ff_values(record).reference
+    swing_hz = ref.frequency_hz if ref.kind == "sine" else 0.0
     ident.bode["encoder"] = bode_errors(
         frf,
         ident.fitted["encoder"],
@@ -605,10 +606,8 @@ def _friction_elastic(
     ident.friction = (runs[0].reference_rad * r, torques[0], model)
 
 
-def _ff_values(rec: Record) -> dict[str, Any]:
-    from servo_axis.params import resolve
-
-    return resolve.feedforward_values(rec.scenario, rec.scenario_path)
+def _ff_values(rec: Record) -> FeedforwardValues:
+    return rec.checked.feedforward
 
 
 def identify(
@@ -653,7 +652,7 @@ def identify(
                 f"({k.value:.4g} +- {k.std:.2g}): the run does not show what the model's keys "
                 "need (another --model, a wider band, more amplitude)"
             )
-    kt = float(_ff_values(record)["nominal.torque_constant_Nm_per_A"])
+    kt = float(_ff_values(record).nominal.torque_constant_Nm_per_A)
     ident.plant["torque_constant_Nm_per_A"] = kt
     ident.notes.append(
         "torque_constant_Nm_per_A: the data relate the commanded torque to the motion, not "
@@ -744,8 +743,8 @@ def validate(ident: OfflineIdentification, held_out: Record) -> Validation:
     k = held_out.step
     meas = _Sig(held_out.encoder_rad, held_out.scale_m, held_out.reference_rad)
     sim = _Sig(traj.encoder_rad[k], traj.scale_m[k], traj.reference_rad[k])
-    target_m, y_m = tracking(held_out.scenario, held_out.scenario_path, meas)  # type: ignore[arg-type]
-    target_s, y_s = tracking(held_out.scenario, held_out.scenario_path, sim)  # type: ignore[arg-type]
+    target_m, y_m = tracking(held_out.checked, held_out.scenario_path, meas)  # type: ignore[arg-type]
+    target_s, y_s = tracking(held_out.checked, held_out.scenario_path, sim)  # type: ignore[arg-type]
     # At the table, as the run's summary has it: R (r - y) in m, r - y in rad on a rotary table.
     values = held_out.plant_values()
     scale = position_scale(values)

@@ -30,7 +30,7 @@ from servo_axis.core.feedforward.friction_table import (
     build_friction_table,
 )
 from servo_axis.params.recorded import recorded_scenario
-from servo_axis.params.resolve import node_values
+from servo_axis.params.resolve import Resolved
 
 
 def estimate_friction_torque(
@@ -101,9 +101,10 @@ def measured_friction(run_dir: Path) -> MeasuredFriction:
         axes = ", ".join(str(Path(run_dir) / a) for a in summary.axes)
         raise ConfigError(f"{run_dir}: a multi-axis run; give one of its axes: {axes}")
     scenario = recorded_scenario(Path(run_dir), summary.scenario_file).scenario
-    values = node_values(scenario, "feedforward")
-    period = float(values["control_period_s"])
-    sig = load_signals(Path(run_dir) / "bag", period, scenario=scenario)
+    resolved = Resolved(scenario)
+    values = resolved.feedforward
+    period = float(values.control_period_s)
+    sig = load_signals(Path(run_dir) / "bag", period, scenario=resolved)
     if sig.step.size < 3:
         raise SignalError(
             f"{Path(run_dir) / 'bag'}: expected a recorded run, got {sig.step.size} samples "
@@ -113,8 +114,8 @@ def measured_friction(run_dir: Path) -> MeasuredFriction:
         reference_rad=sig.reference_rad,
         motor_torque_Nm=sig.command_Nm,
         period_s=period,
-        inertia_kgm2=values["nominal.inertia_kgm2"],
-        damping_Nms_per_rad=values["nominal.damping_Nms_per_rad"],
+        inertia_kgm2=values.nominal.inertia_kgm2,
+        damping_Nms_per_rad=values.nominal.damping_Nms_per_rad,
     )
     problem = slow_reversal_problem(sig.reference_rad, sig.command_Nm, torque)
     if problem is not None:
@@ -126,7 +127,7 @@ def measured_friction(run_dir: Path) -> MeasuredFriction:
     return MeasuredFriction(
         scenario=scenario,
         period_s=period,
-        position_m=sig.reference_rad * values["lead_m_per_rad"],
+        position_m=sig.reference_rad * values.lead_m_per_rad,
         torque_Nm=torque,
     )
 

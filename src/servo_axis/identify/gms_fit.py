@@ -31,7 +31,7 @@ from servo_axis.core.errors import SignalError
 from servo_axis.core.friction.gms_fitting import GmsFit, fit_gms
 from servo_axis.identify.friction import measured_friction
 from servo_axis.params import resolve
-from servo_axis.params.resolve import node_values
+from servo_axis.params.resolve import Resolved
 
 
 @dataclass(frozen=True)
@@ -77,12 +77,13 @@ def load_fit_data(run_dir: Path) -> RunFitData:
     does not set them), as for :func:`servo_axis.identify.friction.table_from_run`.
     """
     measured = measured_friction(run_dir)
+    resolved = Resolved(measured.scenario)
     return RunFitData(
         position_m=measured.position_m,
         torque_Nm=measured.torque_Nm,
         period_s=measured.period_s,
-        plant_model=str(node_values(measured.scenario, "plant")["model"]),
-        plant_fingerprint=plant_fingerprint(measured.scenario),
+        plant_model=str(resolved.plant.model),
+        plant_fingerprint=resolve.plant_fingerprint(resolved),
     )
 
 

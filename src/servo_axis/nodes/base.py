@@ -69,6 +69,7 @@ from servo_axis.nodes.runtime import (  # noqa: F401  (the table's QoS and types
 )
 from servo_axis.params.factories import checked_values, external_roles, node_schema
 from servo_axis.params.param import BUILTIN, Param
+from servo_axis.params.values import SharedValues
 from servo_axis.realtime.scheduling import RealtimeScheduling, realtime_priority
 from servo_axis.wire import topics
 
@@ -82,7 +83,16 @@ class ServoNode(Node):
         The node's name and schema (``plant``, ``feedback``, ...).
     **kwargs
         Passed to :class:`rclpy.node.Node` (``context``, ``parameter_overrides``, ...).
+
+    Attributes
+    ----------
+    values : SharedValues
+        The node's typed values (:mod:`servo_axis.params.values`; a role
+        declares its own class: ``values: FeedbackValues``), checked once,
+        read as attributes.
     """
+
+    values: SharedValues
 
     #: In realtime mode, how far below ``thread_priority`` the role's threads
     #: run (:func:`~servo_axis.realtime.scheduling.realtime_priority`); None: the
@@ -100,25 +110,25 @@ class ServoNode(Node):
             for name in self.list_parameters([], 0).names
             if name not in BUILTIN
         }
-        self.values: dict[str, Any] = checked_values(role, given)
+        self.values = checked_values(role, given)
         values = self.values
         self._describe_parameters(node_schema(role, given), set(given))
-        report_dir = Path(values["report_dir"]) if values["report_dir"] else None
+        report_dir = Path(values.report_dir) if values.report_dir else None
         self.report = Reporter(role, report_dir=report_dir, logger=self.get_logger())
         self.graph = GraphWatch(
             self,
             external_roles=external_roles(values),
-            wait_for_producers=values["wait_for_producers"],
+            wait_for_producers=values.wait_for_producers,
         )
         self.inputs = Inputs(self, self.graph, reject=self.report.reject)
         self.realtime = RealtimeScheduling(
             realtime_priority(
-                mode=values["mode"],
-                thread_priority=values["thread_priority"],
+                mode=values.mode,
+                thread_priority=values.thread_priority,
                 below=self.realtime_below,
             ),
             warn=self.get_logger().warning,
-            middleware_priority=values["realtime.middleware_priority"],
+            middleware_priority=values.realtime.middleware_priority,
         )
         self.create_timer(STRANGER_CHECK_S, self._look_for_strangers, clock=steady_clock())
         # Default QoS (reliable, volatile, keep-last 10), as ROS's diagnostics tools use.
@@ -134,12 +144,13 @@ class ServoNode(Node):
         default; an empty list, whose type rclpy cannot infer, is declared by
         its type (its value is then not set).
         """
+        declared = self.values.as_dict()  # rclpy's parameters: flat dotted keys
         for name, param in schema.items():
             desc = descriptor(name, param)
-            value = Parameter(name, Parameter.Type(desc.type), self.values[name])
+            value = Parameter(name, Parameter.Type(desc.type), declared[name])
             if name in given:
                 self.set_descriptor(name, desc, value.get_parameter_value())
-            elif isinstance(self.values[name], list) and not self.values[name]:
+            elif isinstance(declared[name], list) and not declared[name]:
                 self.declare_parameter(name, Parameter.Type(desc.type), desc)
             else:
                 self.declare_parameter(name, value.value, desc, ignore_override=True)
@@ -187,7 +198,7 @@ class ServoNode(Node):
             diagnostic_array(
                 self.diagnostic_status(),
                 name=self.get_fully_qualified_name(),
-                hardware_id=str(self.values["axis"]),
+                hardware_id=str(self.values.axis),
                 stamp_ns=self.diagnostic_stamp_ns(),
             )
         )
@@ -205,7 +216,7 @@ class ServoNode(Node):
             except Exception as err:  # the context may be going down
                 self.get_logger().warning(f"no last look for strangers: {err}")
         counts = self.realtime_counts()
-        if counts and self.values["mode"] != "lockstep":
+        if counts and self.values.mode != "lockstep":
             self.report.health.realtime = counts
         self.report.write()
         if self.context.ok():

@@ -87,6 +87,7 @@ from servo_axis.nodes.lockstep import (
 )
 from servo_axis.nodes.runtime import run_main, steady_clock
 from servo_axis.params.factories import build_deformation, build_loop, run_steps
+from servo_axis.params.values import FeedbackValues
 from servo_axis.realtime.clock import LoopTimes
 from servo_axis.realtime.late import CatchUp
 from servo_axis.wire import messages as msgs
@@ -109,22 +110,22 @@ class FeedbackNode(ServoNode):
     """Feedback loop; see the module docstring for its protocol."""
 
     realtime_below = 0  # the per-sample pair
+    values: FeedbackValues
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("feedback", **kwargs)
         values = self.values
         self.loop = build_loop(values)
-        self._v = values
-        self._axis = values["axis"]
-        self._period_ns = msgs.period_ns(values["control_period_s"])
-        self._lockstep = values["mode"] == "lockstep"
-        self._kt = values["nominal.torque_constant_Nm_per_A"]
+        self._axis = values.axis
+        self._period_ns = msgs.period_ns(values.control_period_s)
+        self._lockstep = values.mode == "lockstep"
+        self._kt = values.nominal.torque_constant_Nm_per_A
 
         # The per-sample path sends and takes CDR bytes (plant.py says why).
         self._command_codec = msgs.joint_codec(
             "command", axis=self._axis, period_ns_=self._period_ns
         )
-        self._outside_plant = values["wait_for_state_readers"] > 0
+        self._outside_plant = values.wait_for_state_readers > 0
         # An outside plant publishes state[0] once `command` has a publisher:
         # with one, the publisher comes last (_publish_command_once_read).
         self._command_pub = None if self._outside_plant else self.publisher("command")
@@ -133,9 +134,9 @@ class FeedbackNode(ServoNode):
         # ros2_control's forward command controllers subscribe with the
         # system default QoS: a reliable, volatile writer matches it either way.
         self._forward_pub = None
-        if values["forward_commands_topic"]:
+        if values.forward_commands_topic:
             self._forward_pub = self.create_publisher(
-                Float64MultiArray, values["forward_commands_topic"], QoSProfile(depth=10)
+                Float64MultiArray, values.forward_commands_topic, QoSProfile(depth=10)
             )
             self._forward_msg = Float64MultiArray(data=[0.0])
         self._deformation = build_deformation(values)
@@ -148,7 +149,7 @@ class FeedbackNode(ServoNode):
         # each command echoes its state's stamp.
         self._origin = (
             StampOrigin(self._period_ns)
-            if values["state_stamps"] == "plant_clock" and not self._lockstep
+            if values.state_stamps == "plant_clock" and not self._lockstep
             else None
         )
         self._stamps: dict[int, int] = {}  # step -> the plant's stamp, ns, until answered
@@ -187,8 +188,8 @@ class FeedbackNode(ServoNode):
         )
         self.inputs_subscribed = False
         self._flow = FlowControl(
-            enabled=values["recorder_lag_steps"] > 0,
-            max_lag_steps=max(1, values["recorder_lag_steps"]),
+            enabled=values.recorder_lag_steps > 0,
+            max_lag_steps=max(1, values.recorder_lag_steps),
             steps=run_steps(values),
         )
         self._recorder = PeerWatch()
@@ -207,10 +208,10 @@ class FeedbackNode(ServoNode):
             # only after `command` is matched with its consumers means that no
             # command is lost to a reader still being discovered.
             self.graph.after_consumers_matched(
-                [(self._command_pub, "command", values["wait_for_command_subscribers"])],
+                [(self._command_pub, "command", values.wait_for_command_subscribers)],
                 self._subscribe_inputs,
             )
-        self.create_timer(values["input_timeout_s"] / 10.0, self._watchdog, clock=steady_clock())
+        self.create_timer(values.input_timeout_s / 10.0, self._watchdog, clock=steady_clock())
 
     def diagnostic_values(self) -> list[tuple[str, Any]]:
         fault = self.loop.fault
@@ -287,7 +288,7 @@ class FeedbackNode(ServoNode):
         writer must have matched them on its side). The first answer waits
         until ``command`` has its own consumers matched too.
         """
-        wanted = self._v["wait_for_state_readers"]
+        wanted = self.values.wait_for_state_readers
         if not (self.inputs.matched("state") and self.graph.readers_settled("state", wanted)):
             # Say what the wait is for (a user's plant waits for `command` meanwhile).
             self.get_logger().info(
@@ -306,7 +307,7 @@ class FeedbackNode(ServoNode):
             self._start_answering()
             return
         self.graph.after_consumers_matched(
-            [(self._command_pub, "command", self._v["wait_for_command_subscribers"])],
+            [(self._command_pub, "command", self.values.wait_for_command_subscribers)],
             self._start_answering,
         )
 
@@ -338,7 +339,7 @@ class FeedbackNode(ServoNode):
         now_step = self._states.now_step()
         if now_step is not None:
             last_state = max(last_state, now_step)
-        if ref.step > max(last_state, 0) + self._v["max_preview_steps"]:
+        if ref.step > max(last_state, 0) + self.values.max_preview_steps:
             raise SignalError(f"step {ref.step} is too far in the future")
         return ref
 
@@ -429,7 +430,7 @@ class FeedbackNode(ServoNode):
             self._watch_recorder(now)
         if self._pending is None or self.loop.tripped:
             return
-        timeout = self._v["input_timeout_s"]
+        timeout = self.values.input_timeout_s
         if self._lockstep:
             # Wait as long as the generator lives; a gone one gets
             # input_timeout_s to come back, counted from when a state began

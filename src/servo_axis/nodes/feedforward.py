@@ -46,6 +46,7 @@ from servo_axis.nodes.feedforward_estimates import Estimates, estimates_part
 from servo_axis.nodes.lockstep import stream_gate
 from servo_axis.nodes.runtime import run_main, steady_clock
 from servo_axis.params.factories import build_generator, run_steps
+from servo_axis.params.values import FeedforwardValues
 from servo_axis.wire import messages as msgs
 from servo_axis.wire.streams import StampOrigin, StreamGate
 
@@ -68,39 +69,39 @@ class FeedforwardNode(ServoNode):
     # At 49 (one below) it competed with the pair's receive threads: worse.
     realtime_below = 2
 
+    values: FeedforwardValues
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("feedforward", **kwargs)
         values = self.values
         self.generator = build_generator(values)
-        self._lockstep = values["mode"] == "lockstep"
+        self._lockstep = values.mode == "lockstep"
         self._steps = run_steps(values)
-        self._window = values["preview_steps"]
-        self._kt = values["nominal.torque_constant_Nm_per_A"]
+        self._window = values.preview_steps
+        self._kt = values.nominal.torque_constant_Nm_per_A
         self._pub = self.publisher("reference")
         # Sent as CDR bytes, as the plant's and the feedback's per-sample streams.
         self._reference_codec = msgs.joint_codec(
-            "reference", axis=values["axis"], period_ns_=msgs.period_ns(values["control_period_s"])
+            "reference", axis=values.axis, period_ns_=msgs.period_ns(values.control_period_s)
         )
         self.started = False
         self.published = 0  # samples 0 .. published-1 are out
         self._plant_step = -1
         parts = {"published": lambda: self.published, "refill": self.refill}
         self.corrections = (
-            LearningCorrections(self, self.generator, **parts)
-            if values["learning.enabled"]
-            else None
+            LearningCorrections(self, self.generator, **parts) if values.learning.enabled else None
         )
         self.estimates: Estimates | None = (
-            estimates_part(self, self.generator, **parts) if values["adaptive.enabled"] else None
+            estimates_part(self, self.generator, **parts) if values.adaptive.enabled else None
         )
-        if values["progress_from_state"]:
+        if values.progress_from_state:
             # An outside plant need publish `state` only: each state's stamp is its step.
-            period = msgs.period_ns(values["control_period_s"])
-            if values["state_stamps"] == "plant_clock" and not self._lockstep:
+            period = msgs.period_ns(values.control_period_s)
+            if values.state_stamps == "plant_clock" and not self._lockstep:
                 # A plant that owns its clock: steps from its stamps (StampOrigin).
                 origin, by_ns = (
                     StampOrigin(period),
-                    msgs.joint_codec("state", axis=values["axis"], period_ns_=1),
+                    msgs.joint_codec("state", axis=values.axis, period_ns_=1),
                 )
 
                 def decode(data: Any) -> Any:
@@ -110,7 +111,7 @@ class FeedforwardNode(ServoNode):
                 # Such a plant goes on after the run's last step (a driver).
                 gate = StreamGate(window=self._steps, first=0)
             else:
-                codec = msgs.joint_codec("state", axis=values["axis"], period_ns_=period)
+                codec = msgs.joint_codec("state", axis=values.axis, period_ns_=period)
                 decode = codec.decode
                 gate = stream_gate(self._lockstep, first=0, limit=self._steps)
             self.inputs.subscribe(
@@ -151,7 +152,7 @@ class FeedforwardNode(ServoNode):
     def _try_start(self) -> None:
         extra = self._outside_feedback_reads()
         if extra is None or not self.graph.consumers_matched(
-            self._pub, "reference", self.values["wait_for_reference_subscribers"] + extra
+            self._pub, "reference", self.values.wait_for_reference_subscribers + extra
         ):
             return
         self._start_timer.cancel()

@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -45,6 +45,7 @@ from servo_axis.nodes.base import ServoNode
 from servo_axis.nodes.lockstep import PeerWatch, waited_too_long
 from servo_axis.nodes.runtime import steady_clock
 from servo_axis.params.factories import grid, learning_period_steps, run_steps
+from servo_axis.params.values import FeedforwardValues
 from servo_axis.wire import messages as msgs
 
 
@@ -71,17 +72,17 @@ class LearningCorrections:
         published: Callable[[], int],
         refill: Callable[[], None],
     ) -> None:
-        values = node.values
+        values = cast(FeedforwardValues, node.values)  # the feedforward node's
         self._node = node
         self._generator = generator
         self._published = published
         self._refill = refill
-        self._lockstep = values["mode"] == "lockstep"
+        self._lockstep = values.mode == "lockstep"
         self._steps = run_steps(values)
         self._cycle_steps = learning_period_steps(values) or 0
         self._ratio = grid(values).ratio
-        self._kt = values["nominal.torque_constant_Nm_per_A"]
-        self._timeout_s = values["learning.timeout_s"]
+        self._kt = values.nominal.torque_constant_Nm_per_A
+        self._timeout_s = values.learning.timeout_s
         self._parts: dict[int, dict[int, tuple[float, ...]]] = {}
         self._waiting_since: float | None = None
         self._learner = PeerWatch()
@@ -89,7 +90,7 @@ class LearningCorrections:
         self.missed = 0
         #: Realtime: corrections applied from a sample into their period.
         self.late = 0
-        axis, period_ns = values["axis"], msgs.period_ns(values["control_period_s"])
+        axis, period_ns = values.axis, msgs.period_ns(values.control_period_s)
         target = generator.learning_side == "target"
         # Target side: (position, velocity) per reference instant; input side:
         # (current,) per control sample.

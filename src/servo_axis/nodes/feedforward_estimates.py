@@ -40,14 +40,15 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, cast
 
 from servo_axis.core.errors import ServoAxisError, SignalError
 from servo_axis.core.feedforward.generator import FeedforwardGenerator
 from servo_axis.nodes.base import ServoNode
 from servo_axis.nodes.lockstep import PeerWatch, waited_too_long
 from servo_axis.nodes.runtime import steady_clock
-from servo_axis.params.factories import estimate_schedule, run_steps
+from servo_axis.params.factories import estimate_steps, run_steps
+from servo_axis.params.values import FeedforwardValues
 from servo_axis.realtime.deadlines import start_estimate_ns
 from servo_axis.wire import messages as msgs
 
@@ -80,7 +81,7 @@ class Estimates:
         published: Callable[[], int],
         refill: Callable[[], None],
     ) -> None:
-        values = node.values
+        values = cast(FeedforwardValues, node.values)  # the feedforward node's
         self._node = node
         self._generator = generator
         self._published = published
@@ -88,9 +89,9 @@ class Estimates:
         self._steps = run_steps(values)
         # Estimate period and latency (control samples); an estimate applies
         # ``latency + 1`` samples after the last one it is computed from.
-        self._estimate_period, latency = estimate_schedule(
-            values, "adaptive.rls_period_s", "adaptive.latency_s"
-        )
+        period, latency = estimate_steps(values)
+        assert period is not None  # a part of a feedforward that takes estimates
+        self._estimate_period = period
         self._lag = latency + 1
         #: The last estimate taken.
         self.last: msgs.EstimateData | None = None
@@ -165,7 +166,7 @@ class LockstepEstimates(Estimates):
         refill: Callable[[], None],
     ) -> None:
         super().__init__(node, generator, published=published, refill=refill)
-        self._timeout_s = node.values["adaptive.timeout_s"]
+        self._timeout_s = cast(FeedforwardValues, node.values).adaptive.timeout_s
         self._identifier = PeerWatch()
         self._wait_since: float | None = None
         node.create_timer(self._timeout_s / 5.0, self._watchdog, clock=steady_clock())
@@ -223,7 +224,7 @@ class RealtimeEstimates(Estimates):
     ) -> None:
         super().__init__(node, generator, published=published, refill=refill)
         generator.stop_waiting_for_estimates()
-        self._period_ns = msgs.period_ns(node.values["control_period_s"])
+        self._period_ns = msgs.period_ns(node.values.control_period_s)
         self._lead_steps = -(-round(ESTIMATE_LEAD_S * 1e9) // self._period_ns)
         self._without_until = 0  # published without their estimate up to here
         self._plant_start_ns: int | None = None  # the plant clock's d_0
@@ -288,5 +289,5 @@ def estimates_part(
     refill: Callable[[], None],
 ) -> Estimates:
     """The estimates part of the node's mode (``mode``: lockstep or realtime)."""
-    cls = LockstepEstimates if node.values["mode"] == "lockstep" else RealtimeEstimates
+    cls = LockstepEstimates if node.values.mode == "lockstep" else RealtimeEstimates
     return cls(node, generator, published=published, refill=refill)

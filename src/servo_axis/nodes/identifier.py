@@ -47,7 +47,8 @@ from servo_axis.core.identification.online.dlpid import Estimate
 from servo_axis.nodes.base import ServoNode
 from servo_axis.nodes.lockstep import stream_gate
 from servo_axis.nodes.runtime import run_main
-from servo_axis.params.factories import build_identifier, estimate_schedule, run_steps
+from servo_axis.params.factories import build_identifier, identifier_schedule, run_steps
+from servo_axis.params.values import IdentifierValues
 from servo_axis.storage import load_identifier_memory, save_identifier_memory
 from servo_axis.wire import messages as msgs
 
@@ -61,17 +62,18 @@ class IdentifierNode(ServoNode):
     # the pair's middleware threads, which stay SCHED_OTHER (issue 30).
     realtime_below = None
 
+    values: IdentifierValues
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("identifier", **kwargs)
         values = self.values
         self.identifier = build_identifier(values)
-        _, self._latency = estimate_schedule(values, "rls_period_s", "latency_s")
-        self._v = values
-        self._axis = values["axis"]
-        self._period_ns = msgs.period_ns(values["control_period_s"])
+        _, self._latency = identifier_schedule(values)
+        self._axis = values.axis
+        self._period_ns = msgs.period_ns(values.control_period_s)
         self._steps = run_steps(values)
-        self._scenario = values["scenario.name"] or "unnamed"
-        self._memory = Path(values["memory.file"]) if values["memory.file"] else None
+        self._scenario = values.scenario.name or "unnamed"
+        self._memory = Path(values.memory.file) if values.memory.file else None
         self.last_estimate: msgs.EstimateData | None = None
         self.published = 0
         self._resume_memory()
@@ -81,10 +83,10 @@ class IdentifierNode(ServoNode):
         # one without memory joins at the first step it gets.
         resumed = self.identifier.last_step
         first: int | None = 0
-        if values["late_join"]:
+        if values.late_join:
             first = None if resumed is None else resumed + 1
         self._skip_through = -1 if resumed is None else resumed
-        self._lockstep = values["mode"] == "lockstep"
+        self._lockstep = values.mode == "lockstep"
         gate = {"first": first, "limit": self._steps, "period_ns": self._period_ns}
         self._state_gate = stream_gate(self._lockstep, **gate)
         self._command_gate = stream_gate(self._lockstep, **gate)
@@ -96,21 +98,21 @@ class IdentifierNode(ServoNode):
         self._last_angle = 0.0
         self.inputs_subscribed = False
         self.graph.after_consumers_matched(
-            [(self._pub, "identifier/estimates", values["wait_for_estimate_subscribers"])],
+            [(self._pub, "identifier/estimates", values.wait_for_estimate_subscribers)],
             self._subscribe_inputs,
         )
 
     def _resume_memory(self) -> None:
-        if self._memory is None or not self._v["memory.resume"] or not self._memory.exists():
+        if self._memory is None or not self.values.memory.resume or not self._memory.exists():
             return
-        if not self._v["late_join"]:
+        if not self.values.late_join:
             # A state is the middle of a run: a fresh start (step 0) cannot
             # continue it, and overwrites it at its first estimate.
             self.get_logger().info(f"fresh start: {self._memory} not resumed (not late_join)")
             return
         try:
             state, last = load_identifier_memory(
-                self._memory, method=self._v["method"], scenario=self._scenario
+                self._memory, method=self.values.method, scenario=self._scenario
             )
             self.identifier.load_state(state)
             self.last_estimate = None if last is None else msgs.check_estimate_values(last)
@@ -232,7 +234,7 @@ class IdentifierNode(ServoNode):
                 self._memory,
                 self.identifier.state(),
                 data.values(),
-                method=self._v["method"],
+                method=self.values.method,
                 scenario=self._scenario,
             )
         self.last_estimate = data

@@ -60,6 +60,7 @@ from servo_axis.params.factories import (
     learning_law,
     run_steps,
 )
+from servo_axis.params.values import LearningValues
 from servo_axis.storage import load_memory, save_memory
 from servo_axis.wire import messages as msgs
 
@@ -73,13 +74,15 @@ class LearningNode(ServoNode):
     # the pair's middleware threads, which stay SCHED_OTHER (issue 30).
     realtime_below = None
 
+    values: LearningValues
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("learning", **kwargs)
         values = self.values
         self._grid = grid(values)
         self.law = build_learning_law(values)
-        self._kt = values["nominal.torque_constant_Nm_per_A"]
-        law_outputs = learning_law(values["law"]).outputs
+        self._kt = values.nominal.torque_constant_Nm_per_A
+        law_outputs = learning_law(values.law).outputs
         self._side = self.law.side
         # A target-side law learns from the reference instants, an input-side
         # (trial) law from every control sample.
@@ -89,23 +92,20 @@ class LearningNode(ServoNode):
         # node (the feedforward generator holds the next period until its
         # correction is out); the state stream's history must hold that much.
         if nd * self._stride > STREAM_QOS.depth - 10:
-            tu = values["control_period_s"]
+            tu = values.control_period_s
             raise ParameterFileError(
                 f"parameter 'cycle_s': at most {(STREAM_QOS.depth - 10) * tu!r} s "
-                f"({STREAM_QOS.depth - 10} control samples) per learning period, got {values['cycle_s']!r}"
+                f"({STREAM_QOS.depth - 10} control samples) per learning period, got {values.cycle_s!r}"
             )
         self.reference = build_reference(values)
-        self._v = values
         self._nd = nd
-        self._lead = values["lead_m_per_rad"]
-        self._axis = values["axis"]
-        self._period_ns = msgs.period_ns(values["control_period_s"])
-        self._state_codec = msgs.joint_codec(
-            "state", axis=values["axis"], period_ns_=self._period_ns
-        )
-        self._scenario = values["scenario.name"] or "unnamed"
+        self._lead = values.lead_m_per_rad
+        self._axis = values.axis
+        self._period_ns = msgs.period_ns(values.control_period_s)
+        self._state_codec = msgs.joint_codec("state", axis=values.axis, period_ns_=self._period_ns)
+        self._scenario = values.scenario.name or "unnamed"
         self._steps = run_steps(values)
-        self._memory = Path(values["memory.file"]) if values["memory.file"] else None
+        self._memory = Path(values.memory.file) if values.memory.file else None
         self._resume_memory()
 
         self._correction_topic = (
@@ -119,8 +119,8 @@ class LearningNode(ServoNode):
         )
         outputs = self._make_publishers(law_outputs)
         self._gate = stream_gate(
-            values["mode"] == "lockstep",
-            first=None if values["late_join"] else 0,
+            values.mode == "lockstep",
+            first=None if values.late_join else 0,
             limit=self._steps,
             stride=self._stride,
             period_ns=self._period_ns,
@@ -139,12 +139,12 @@ class LearningNode(ServoNode):
         values = self.values
         self._correction_pub = self.publisher(self._correction_topic)
         self._stats_pub = self.publisher("learning/cycle_stats")
-        stats = values["wait_for_stats_subscribers"]
+        stats = values.wait_for_stats_subscribers
         outputs = [
             (
                 self._correction_pub,
                 self._correction_topic,
-                values["wait_for_correction_subscribers"],
+                values.wait_for_correction_subscribers,
             ),
             (self._stats_pub, "learning/cycle_stats", stats),
         ]
@@ -162,7 +162,7 @@ class LearningNode(ServoNode):
         # raw: only the samples learned from are decoded; the gate sees only
         # those, once they are known valid.
         # A late joiner takes no history: it resumes from what comes next.
-        qos = LATE_JOIN_QOS if self._v["late_join"] else None
+        qos = LATE_JOIN_QOS if self.values.late_join else None
         self.inputs.subscribe(
             "state", self._decode_state, self._on_state, raw=True, gate=self._gate, qos=qos
         )
@@ -170,13 +170,13 @@ class LearningNode(ServoNode):
         self.get_logger().info("outputs matched; subscribed to state")
 
     def _resume_memory(self) -> None:
-        if self._memory is None or not self._v["memory.resume"] or not self._memory.exists():
+        if self._memory is None or not self.values.memory.resume or not self._memory.exists():
             return
         try:
             state = load_memory(self._memory, self.law, scenario=self._scenario)
             self.law.load_state(state)
         except (OSError, ServoAxisError) as err:
-            if self._v["memory.on_bad_file"] == "fail":
+            if self.values.memory.on_bad_file == "fail":
                 raise ParameterFileError(f"parameter 'memory.file': {err}") from err
             self.get_logger().warning(f"memory file not used, starting clean: {err}")
             return
@@ -213,7 +213,7 @@ class LearningNode(ServoNode):
             self._target = self.reference.sample(t)[0] / self._lead
             self._target_cycle = cycle
         y = controlled_output(
-            self._v["sensor"],
+            self.values.sensor,
             encoder_rad=state.encoder_rad,
             scale_m=state.scale_m,
             lead_m_per_rad=self._lead,
@@ -233,7 +233,7 @@ class LearningNode(ServoNode):
         scale = 1.0 if self._side == "target" else self._lead
         # Period ``cycle`` (0-based) ends; its correction is for 1-based period
         # ``cycle + 2``; learning is on from ``start_cycle`` (1-based, >= 2).
-        if cycle + 2 >= self._v["start_cycle"]:
+        if cycle + 2 >= self.values.start_cycle:
             if complete:
                 try:
                     self.law.learn(scale * error, period=cycle + 1)

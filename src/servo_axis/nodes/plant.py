@@ -72,7 +72,8 @@ from servo_axis.nodes.base import ServoNode
 from servo_axis.nodes.lockstep import FlowControl, PeerWatch
 from servo_axis.nodes.reporting import Throttle
 from servo_axis.nodes.runtime import run_main, steady_clock
-from servo_axis.params.factories import build_plant, plant_model, run_steps
+from servo_axis.params.factories import build_plant, drive_constant, plant_model, run_steps
+from servo_axis.params.values import PlantValues
 from servo_axis.realtime.clock import ClockRecord, ClockThread
 from servo_axis.realtime.late import DriveSetPoint, HeldSetPoint
 from servo_axis.realtime.scheduling import thread_policies
@@ -133,6 +134,7 @@ class PlantNode(ServoNode):
     """Plant simulator; see the module docstring for its protocol."""
 
     realtime_below = 0  # the per-sample pair
+    values: PlantValues
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("plant", **kwargs)
@@ -143,17 +145,16 @@ class PlantNode(ServoNode):
             )
         self.plant = build_plant(values)
         warm_up(self.plant)
-        for warning in plant_model(values["model"]).warnings(values):
+        for warning in plant_model(values.model).warnings(values):
             self.get_logger().warning(f"parameter check: {warning}")
-        self._axis = values["axis"]
-        self._period_ns = msgs.period_ns(values["control_period_s"])
+        self._axis = values.axis
+        self._period_ns = msgs.period_ns(values.control_period_s)
         self._steps = run_steps(values)
-        self._lockstep = values["mode"] == "lockstep"
-        self._kt = values["torque_constant_Nm_per_A"]
-        self._v = values
+        self._lockstep = values.mode == "lockstep"
+        self._kt = drive_constant(values)
         self._flow = FlowControl(
-            enabled=values["flow_control"],
-            max_lag_steps=values["max_recorder_lag_steps"],
+            enabled=values.flow_control,
+            max_lag_steps=values.max_recorder_lag_steps,
             steps=self._steps,
         )
 
@@ -162,7 +163,7 @@ class PlantNode(ServoNode):
         self._state_codec = msgs.joint_codec("state", axis=self._axis, period_ns_=self._period_ns)
         command_codec = msgs.joint_codec("command", axis=self._axis, period_ns_=self._period_ns)
         self._state_pub = self.publisher("state")
-        self._clock_pub = self.publisher("/clock") if values["publish_clock"] else None
+        self._clock_pub = self.publisher("/clock") if values.publish_clock else None
         self._status_pub = self.publisher("plant/status")
 
         self.done = False
@@ -182,10 +183,10 @@ class PlantNode(ServoNode):
         # A drive's set-point (ros2_control's topic-based hardware), or the
         # command of a stamped step (the suite's feedback).
         self._drive: DriveSetPoint | None = None
-        if values["command_source"] == "drive_setpoint":
+        if values.command_source == "drive_setpoint":
             self._drive = DriveSetPoint(
-                period_ns=msgs.period_ns(values["setpoint_period_s"] or values["control_period_s"]),
-                threshold_Nm=values["setpoint_threshold_Nm"],
+                period_ns=msgs.period_ns(values.setpoint_period_s or values.control_period_s),
+                threshold_Nm=values.setpoint_threshold_Nm,
             )
             motor = f"{self._axis}_motor"
             self.inputs.subscribe(
@@ -225,7 +226,7 @@ class PlantNode(ServoNode):
     # -- start ---------------------------------------------------------------
     def diagnostic_values(self) -> list[tuple[str, Any]]:
         return [
-            ("mode", self._v["mode"]),
+            ("mode", self.values.mode),
             ("started", self.started),
             ("done", self.done),
             ("step", self.plant.step_index),
@@ -240,11 +241,11 @@ class PlantNode(ServoNode):
 
     def _waiting_for(self) -> str | None:
         """What the plant still waits for before step 0, or None once every peer is in."""
-        v, graph = self._v, self.graph
+        v, graph = self.values, self.graph
         for pub, topic, count in (
-            (self._state_pub, "state", v["wait_for_state_subscribers"]),
-            (self._status_pub, "plant/status", v["wait_for_status_subscribers"]),
-            (self._clock_pub, "/clock", v["wait_for_clock_subscribers"]),
+            (self._state_pub, "state", v.wait_for_state_subscribers),
+            (self._status_pub, "plant/status", v.wait_for_status_subscribers),
+            (self._clock_pub, "/clock", v.wait_for_clock_subscribers),
         ):
             missing = None if pub is None else graph.consumers_missing(pub, topic, count)
             if missing is not None:
@@ -280,7 +281,7 @@ class PlantNode(ServoNode):
             return
         self._start_timer.cancel()
         self.started = True
-        self.get_logger().info(f"connected; running {self._steps} steps ({self._v['mode']})")
+        self.get_logger().info(f"connected; running {self._steps} steps ({self.values.mode})")
         if self._lockstep:
             self._publish(self.plant.output())
             self._awaiting = 0
@@ -448,7 +449,7 @@ class PlantNode(ServoNode):
     def _recorder_gone(self, now: float) -> bool:
         """Lockstep: flow control off (a fallback) once the recorder it waits for is gone."""
         gone = self._recorder.gone_for(now)
-        if not (self._waits_for_recorder() and gone > self._v["command_timeout_s"]):
+        if not (self._waits_for_recorder() and gone > self.values.command_timeout_s):
             # A gone recorder gets command_timeout_s to come back; while it
             # lives the plant waits for it however long it takes.
             return False
@@ -485,7 +486,7 @@ class PlantNode(ServoNode):
     def _answer_for_a_gone_feedback(self, now: float) -> None:
         """Lockstep: zero current (a fallback) for the steps of a feedback gone for good."""
         gone = self._feedback.gone_for(now)
-        if gone <= self._v["command_timeout_s"]:
+        if gone <= self.values.command_timeout_s:
             # While the feedback lives, wait for its command however long it takes.
             self._feedback_gone_step = None
             return
@@ -618,9 +619,9 @@ class PlantNode(ServoNode):
             self._first_step_s = time.monotonic()
         # The state first: it is what the feedback waits for.
         self._state_pub.publish(self._state_codec.encode(state_sample(out)))
-        if self._clock_pub is not None and out.step % self._v["clock_every_steps"] == 0:
+        if self._clock_pub is not None and out.step % self.values.clock_every_steps == 0:
             self._clock_pub.publish(msgs.clock_message(out.step, self._period_ns))
-        if out.step % self._v["status_every_steps"] == 0:
+        if out.step % self.values.status_every_steps == 0:
             self._publish_status()
 
     def _publish_status(self) -> None:

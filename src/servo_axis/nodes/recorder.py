@@ -47,6 +47,7 @@ from servo_axis.core.errors import ConfigError, ParameterFileError, SignalError
 from servo_axis.nodes.base import ServoNode
 from servo_axis.nodes.runtime import LATCHED_READ_QOS, STREAM_QOS, run_main, steady_clock
 from servo_axis.params.factories import run_steps
+from servo_axis.params.values import RecorderValues
 from servo_axis.recording.definitions import message_class as bag_message_class
 from servo_axis.recording.definitions import message_definition
 from servo_axis.recording.timeline import SimTimeline
@@ -110,29 +111,28 @@ class RecorderNode(ServoNode):
     #: At its process's end it writes what is still arriving (runtime.finish).
     drain_on_stop = True
 
+    values: RecorderValues
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("recorder", **kwargs)
         values = self.values
         # One type per topic, the latched and counted ones among them, one period
         # per scheduled topic: checked with the values (factories.check_recorder_topics).
-        topics, types = values["topics"], values["types"]
-        if not values["output_dir"]:
+        topics, types = values.topics, values.types
+        if not values.output_dir:
             raise ParameterFileError(
                 "parameter 'output_dir': required (the bag directory to create)"
             )
         classes = [message_class(t) for t in types]
-        self._v = values
         self._steps = run_steps(values)
         try:
-            self.writer = BagWriter(Path(values["output_dir"]), compression=values["compression"])
+            self.writer = BagWriter(Path(values.output_dir), compression=values.compression)
         except (OSError, ValueError) as err:
             raise ParameterFileError(f"parameter 'output_dir': {err}") from err
 
         self._finals = {
             self.resolve_topic_name(topic): every
-            for topic, every in zip(
-                values["final_topics"], values["final_every_steps"], strict=False
-            )
+            for topic, every in zip(values.final_topics, values.final_every_steps, strict=False)
             if topic
         }
         self._progress_pub = self.publisher("recorder/progress")
@@ -149,13 +149,13 @@ class RecorderNode(ServoNode):
         self._lapsed: dict[str, int] = {}
         #: Lapses after which a writer of the stream was alive again.
         self.lapses_recovered = 0
-        self._period_ns = msgs.period_ns(values["control_period_s"])
-        self._axis = values["axis"]
+        self._period_ns = msgs.period_ns(values.control_period_s)
+        self._axis = values.axis
         # A plant that owns its clock (realtime): state and command are
         # stamped by it; their steps count from the first state's stamp.
         self._origin = (
             StampOrigin(self._period_ns)
-            if values["state_stamps"] == "plant_clock" and values["mode"] != "lockstep"
+            if values.state_stamps == "plant_clock" and values.mode != "lockstep"
             else None
         )
         self._subs: dict[str, Any] = {}
@@ -176,21 +176,21 @@ class RecorderNode(ServoNode):
     def _record(self, topic: str, type_name: str, cls: Any) -> None:
         """Record ``topic`` (``type_name``, message class ``cls``): its bag topic, its
         count (and gate, if counted), its subscription once it is published."""
-        values = self._v
+        values = self.values
         name = self.resolve_topic_name(topic)
-        latched = topic in values["latched_topics"]
+        latched = topic in values.latched_topics
         self.writer.add_topic(
             name, type_name, qos_text=LATCHED_QOS_TEXT if latched else DEFAULT_QOS
         )
         self._counts[name] = 0
-        if topic in values["counted_topics"]:
+        if topic in values.counted_topics:
             self._counted.append(name)
             if topic not in STEP_STREAMS:
                 raise ParameterFileError(
                     f"parameter 'counted_topics': {topic!r} is not a per-sample stream "
                     f"(one of {sorted(STEP_STREAMS)})"
                 )
-            lockstep = values["mode"] == "lockstep"
+            lockstep = values.mode == "lockstep"
             window = 1 if lockstep else 100
             if self._origin is not None and topic in PLANT_CLOCK_STREAMS:
                 window = self._steps  # its timer may skip; the origin refuses junk ahead
@@ -309,7 +309,7 @@ class RecorderNode(ServoNode):
         entry = topics_table.BY_NAME.get(topic)
         if entry is None or not self.graph.is_outside(entry.producer):
             return True
-        return topic in self._v["counted_topics"] or topic in self._v["final_topics"]
+        return topic in self.values.counted_topics or topic in self.values.final_topics
 
     def _array_step_ns(self, topic: str) -> Callable[[bytes], int]:
         period_ns = self._period_ns
@@ -320,7 +320,7 @@ class RecorderNode(ServoNode):
         return step_ns
 
     def _check_ready(self) -> None:
-        if self._v["wait_for_publishers"] and not all(
+        if self.values.wait_for_publishers and not all(
             self.inputs.matched(t, self._subs.get(t)) if t in self._subs else False
             for t in self._topics
             if self._required(t)
@@ -344,7 +344,7 @@ class RecorderNode(ServoNode):
         if done == self.recorded and not force:
             return
         self.recorded = done
-        if force or done % self._v["ack_every_steps"] == 0 or done >= self._steps:
+        if force or done % self.values.ack_every_steps == 0 or done >= self._steps:
             self._progress_pub.publish(msgs.labelled_array(msgs.PROGRESS_LABELS, [done]))
 
     def _liveliness(self, name: str) -> Any:

@@ -1,12 +1,22 @@
-"""Factories: checked parameter values -> core objects, and the resolver of a scenario's sections.
+"""Factories: checked (typed) parameter values -> core objects, and the checks of each node's keys.
 
 The nodes, the headless simulation (:mod:`servo_axis.simulate`) and the
 reports build the same objects from the same checked values through these
-functions. The extension points (plant models, feedforward terms, learning
-laws, identification methods) are the installed entry points of
+functions. :func:`checked_values` turns a node's given keys into its typed
+values (:mod:`servo_axis.params.typed`; the class of each node in
+:mod:`servo_axis.params.values`), checking each key against its schema, then
+what depends on several keys (:func:`check_consistency`: the node's own
+checks here, its model's, law's, method's and terms' ``check`` in their
+modules), without building any core object to do it: a check computes only
+what the builder computes first (a period in samples, the PID's gains, a
+frozen parameter record), and the node builds its object once, from the
+same values.
+
+The extension points (plant models, feedforward terms, learning laws,
+identification methods) are the installed entry points of
 :mod:`servo_axis.params.registry`; each is one module of its own (the
-suite's in :mod:`servo_axis.plugins`), and this module only looks them up
-by the name a scenario gives (``plant.model``, ``learning.law``,
+suite's in :mod:`servo_axis.plugins`), and this module only looks them up by
+the name a scenario gives (``plant.model``, ``learning.law``,
 ``identifier.method``; every installed term is asked whether its keys switch
 it on).
 
@@ -16,15 +26,15 @@ Nothing here imports rclpy.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from servo_axis.core.deformation import DeformationRatio
 from servo_axis.core.errors import ParameterFileError
-from servo_axis.core.feedback.dob import DisturbanceObserver, OutsideObserver
+from servo_axis.core.feedback.dob import DisturbanceObserver, OutsideObserver, check_cutoff
 from servo_axis.core.feedback.loop import FeedbackLoop, SafetyLimits
-from servo_axis.core.feedback.pid import DiscretePid, design_pid_pole_placement
+from servo_axis.core.feedback.pid import DiscretePid, PidGains, design_pid_pole_placement
 from servo_axis.core.feedback.stage_sigmoid import StageSigmoid
 from servo_axis.core.feedforward.generator import FeedforwardGenerator
 from servo_axis.core.feedforward.sigmoid import SigmoidParams
@@ -36,7 +46,7 @@ from servo_axis.core.reference import Reference, make_reference
 from servo_axis.core.timing import SampleGrid
 from servo_axis.params import schemas
 from servo_axis.params.names import namespace_problem
-from servo_axis.params.param import Param, build, check_values, section
+from servo_axis.params.param import Param, build, check_values
 from servo_axis.params.registry import FEEDFORWARD_TERMS as FEEDFORWARD_TERMS
 from servo_axis.params.registry import IDENTIFIERS as IDENTIFIERS
 from servo_axis.params.registry import LEARNING_LAWS as LEARNING_LAWS
@@ -45,7 +55,18 @@ from servo_axis.params.registry import FeedforwardTermEntry as FeedforwardTermEn
 from servo_axis.params.registry import IdentifierEntry as IdentifierEntry
 from servo_axis.params.registry import LearningLawEntry as LearningLawEntry
 from servo_axis.params.registry import PlantModelEntry as PlantModelEntry
-from servo_axis.params.registry import Values, feedforward_terms
+from servo_axis.params.registry import feedforward_class, feedforward_terms
+from servo_axis.params.typed import Values, from_flat
+from servo_axis.params.values import (
+    FeedbackValues,
+    FeedforwardValues,
+    IdentifierValues,
+    LearningValues,
+    PlantValues,
+    RecorderValues,
+    ReferenceKeys,
+    SharedValues,
+)
 
 #: The keys of the ``nominal.*`` values, by the names the core constructors give them.
 NOMINAL_KEYS = {
@@ -64,19 +85,27 @@ MAX_CYCLE_INSTANTS = 1_000_000
 # --------------------------------------------------------------------------- common
 
 
-def grid(values: Values) -> SampleGrid:
+def grid(values: SharedValues) -> SampleGrid:
     """The sample grid (``T_u``, ``T_r = 2 T_u``) of a node's values."""
-    return build("", SampleGrid, control_period_s=values["control_period_s"])
+    return build("", SampleGrid, control_period_s=values.control_period_s)
 
 
-def run_steps(values: Values) -> int:
+def run_steps(values: SharedValues) -> int:
     """Control samples of the run (``duration_s / control_period_s``, at least 1)."""
-    return build("", grid(values).steps, duration_s=values["duration_s"])
+    return build("", grid(values).steps, duration_s=values.duration_s)
 
 
-def nominal_model(values: Values) -> NominalModel:
+def nominal_model(values: SharedValues) -> NominalModel:
     """The nominal model ``P_n`` of eq. (1) (the shared ``nominal.*`` keys)."""
-    return build("nominal.", NominalModel, keys=NOMINAL_KEYS, **section(values, "nominal"))
+    n = values.nominal
+    return build(
+        "nominal.",
+        NominalModel,
+        keys=NOMINAL_KEYS,
+        torque_constant_Nm_per_A=n.torque_constant_Nm_per_A,
+        inertia_kgm2=n.inertia_kgm2,
+        damping_Nms_per_rad=n.damping_Nms_per_rad,
+    )
 
 
 #: Which reference.* keys each kind takes.
@@ -96,10 +125,10 @@ REFERENCE_KEYS = {
 }
 
 
-def build_reference(values: Values) -> Reference:
+def build_reference(values: FeedforwardValues | LearningValues) -> Reference:
     """The table-side reference of the ``reference.*`` keys."""
-    ref = section(values, "reference")
-    kind = ref.pop("kind")
+    ref: ReferenceKeys = values.reference
+    kind = ref.kind
     if kind not in REFERENCE_KEYS:
         raise ParameterFileError(
             f"parameter 'reference.kind': expected one of {sorted(REFERENCE_KEYS)}, got {kind!r}"
@@ -115,6 +144,18 @@ def build_reference(values: Values) -> Reference:
     )
 
 
+def as_values(role: str, values: Values | Mapping[str, Any]) -> Any:
+    """``values`` as the typed values of node ``role``: as they are, or made from a mapping.
+
+    For a caller of the builders with values of its own (a dict of dotted
+    keys, which bypassed the schema): made into the node's class without a
+    check, so that what a constructor refuses still names the key.
+    """
+    if isinstance(values, Values):
+        return values
+    return from_flat(values_class(role, values), values)
+
+
 # --------------------------------------------------------------------------- plant models
 
 
@@ -122,8 +163,8 @@ def register_plant_model(
     name: str,
     *,
     schema: Mapping[str, Param],
-    build: Callable[[Values, np.random.Generator], Plant],
-    warnings: Callable[[Values], list[str]] | None = None,
+    build: Callable[[Any, np.random.Generator], Plant],
+    warnings: Callable[[Any], list[str]] | None = None,
     rotary: bool = False,
 ) -> None:
     """Make a plant model selectable as ``plant.model: <name>`` in this process.
@@ -134,207 +175,289 @@ def register_plant_model(
     the plant, as a drive, turns the motor torque reference of ``command``
     into its current with it (:mod:`servo_axis.core.drive`).
     """
-    entry = PlantModelEntry(schema=schema, build=build, rotary=rotary)
+    entry: PlantModelEntry[Any] = PlantModelEntry(schema=schema, build=build, rotary=rotary)
     if warnings is not None:
         entry = PlantModelEntry(schema=schema, build=build, warnings=warnings, rotary=rotary)
     PLANT_MODELS.register(name, entry)
 
 
-def plant_model(name: object, key: str = "model") -> PlantModelEntry:
+def plant_model(name: object, key: str = "model") -> PlantModelEntry[Any]:
     """The installed model ``name`` (ParameterFileError naming ``key`` and the installed ones)."""
     return PLANT_MODELS.lookup(name, key)
 
 
-def build_plant(values: Values) -> Plant:
+def drive_constant(values: PlantValues) -> float:
+    """The plant's ``K_T`` (N m/A), with which it turns the torque reference of ``command``
+    into its current: every model has the key ``torque_constant_Nm_per_A``."""
+    return float(values["torque_constant_Nm_per_A"])
+
+
+def build_plant(values: PlantValues | Mapping[str, Any]) -> Plant:
     """The plant model of checked plant values, its sensor noise seeded by ``noise_seed``."""
-    entry = plant_model(values["model"])
-    return entry.build(values, np.random.default_rng(values["noise_seed"]))
+    v: PlantValues = as_values("plant", values)
+    return plant_model(v.model).build(v, np.random.default_rng(v.noise_seed))
 
 
 # --------------------------------------------------------------------------- feedback
 
 
-def sigmoid_params(values: Values) -> SigmoidParams:
+class SigmoidConstants(Protocol):
+    """The ``sigmoid.*`` constants of 004 eq. (9): the feedback's copies and the term's keys."""
+
+    @property
+    def sigma_m2_per_rad(self) -> float: ...
+
+    @property
+    def gamma_m_per_rad(self) -> float: ...
+
+    @property
+    def coulomb_Nm(self) -> float: ...
+
+
+def sigmoid_params(keys: SigmoidConstants) -> SigmoidParams:
     """The sigmoid law's constants of 004 eq. (9) from the ``sigmoid.*`` keys (the
     feedforward term from the reference and the feedback's from the stage share them)."""
     return build(
         "sigmoid.",
         SigmoidParams,
-        sigma_m2_per_rad=values["sigmoid.sigma_m2_per_rad"],
-        gamma_m_per_rad=values["sigmoid.gamma_m_per_rad"],
-        coulomb_Nm=values["sigmoid.coulomb_Nm"],
+        sigma_m2_per_rad=keys.sigma_m2_per_rad,
+        gamma_m_per_rad=keys.gamma_m_per_rad,
+        coulomb_Nm=keys.coulomb_Nm,
     )
 
 
-def build_loop(values: Values) -> FeedbackLoop:
-    """The feedback loop (PID, optional DOB, trips) of checked feedback values."""
-    period = values["control_period_s"]
+#: What a PID's gains follow from besides the nominal model: the bandwidth.
+_FROM_BANDWIDTH = {
+    name: "bandwidth_hz" for name in ("kp_A_per_rad", "ki_A_per_rad_s", "derivative_tau_s", "a")
+}
+
+
+def pid_gains(values: FeedbackValues) -> PidGains:
+    """The PID's gains by pole placement on ``P_n`` (``bandwidth_hz`` and ``nominal.*``)."""
     nominal = nominal_model(values).as_kwargs()
-    # The gains follow from bandwidth_hz and the nominal model alone.
-    from_bandwidth = {
-        name: "bandwidth_hz" for name in ("kp_A_per_rad", "ki_A_per_rad_s", "derivative_tau_s", "a")
-    }
     try:
-        gains = build(
+        return build(
             "",
             design_pid_pole_placement,
-            keys={**NOMINAL_KEYS, **from_bandwidth},
-            bandwidth_hz=values["bandwidth_hz"],
+            keys={**NOMINAL_KEYS, **_FROM_BANDWIDTH},
+            bandwidth_hz=values.bandwidth_hz,
             **nominal,
         )
     except OverflowError as err:
         raise ParameterFileError(
             f"parameter 'bandwidth_hz': expected PID gains that are finite numbers, "
-            f"got {values['bandwidth_hz']!r}"
+            f"got {values.bandwidth_hz!r}"
         ) from err
+
+
+def safety_limits(values: FeedbackValues) -> SafetyLimits:
+    """The loop's trips (``limits.*``)."""
+    limits = values.limits
+    return build(
+        "limits.",
+        SafetyLimits,
+        following_error_m=limits.following_error_m,
+        travel_m=limits.travel_m,
+        current_A=limits.current_A,
+    )
+
+
+def stage_sigmoid(values: FeedbackValues) -> bool:
+    """Whether the loop adds 004 eq. (9) from the measured stage (``sigmoid.source: stage``)."""
+    return values.sigmoid.enabled and values.sigmoid.source == "stage"
+
+
+def check_feedback(values: FeedbackValues) -> None:
+    """What :func:`build_loop` refuses, without building the loop; and the forward topic."""
+    pid_gains(values)
+    if values.dob.enabled:
+        build(
+            "dob.",
+            check_cutoff,
+            keys=PERIOD_KEYS,
+            cutoff_hz=values.dob.cutoff_hz,
+            period_s=values.control_period_s,
+        )
+    safety_limits(values)
+    if stage_sigmoid(values):
+        sigmoid_params(values.sigmoid)
+    # deformation.*: each key's range is all the DeformationRatio asks.
+    check_forward_topic(values)
+
+
+def build_loop(values: FeedbackValues | Mapping[str, Any]) -> FeedbackLoop:
+    """The feedback loop (PID, optional DOB, trips) of checked feedback values."""
+    v: FeedbackValues = as_values("feedback", values)
+    period = v.control_period_s
+    nominal = nominal_model(v).as_kwargs()
+    gains = pid_gains(v)
     pid = build(
-        "", DiscretePid, keys={**PERIOD_KEYS, **from_bandwidth}, gains=gains, period_s=period
+        "", DiscretePid, keys={**PERIOD_KEYS, **_FROM_BANDWIDTH}, gains=gains, period_s=period
     )
     dob = (
         build(
             "dob.",
             DisturbanceObserver,
             keys={**NOMINAL_KEYS, **PERIOD_KEYS},
-            cutoff_hz=values["dob.cutoff_hz"],
+            cutoff_hz=v.dob.cutoff_hz,
             period_s=period,
             **nominal,
         )
-        if values["dob.enabled"]
+        if v.dob.enabled
         else None
     )
-    limits = build("limits.", SafetyLimits, **section(values, "limits"))
+    limits = safety_limits(v)
     compensation = None
-    if values["sigmoid.enabled"] and values["sigmoid.source"] == "stage":
+    if stage_sigmoid(v):
         # 004 eq. (9) with sgn(v) and z of the stage: the loop has the scale.
         compensation = build(
             "sigmoid.",
             StageSigmoid,
             keys=NOMINAL_KEYS,
-            params=sigmoid_params(values),
-            torque_constant_Nm_per_A=values["nominal.torque_constant_Nm_per_A"],
+            params=sigmoid_params(v.sigmoid),
+            torque_constant_Nm_per_A=v.nominal.torque_constant_Nm_per_A,
         )
     return build(
         "",
         FeedbackLoop,
         pid=pid,
         dob=dob,
-        lead_m_per_rad=values["lead_m_per_rad"],
+        lead_m_per_rad=v.lead_m_per_rad,
         limits=limits,
-        use_feedforward=values["use_feedforward"],
-        sensor=values["sensor"],
-        dob_sensor=values["dob.sensor"],
+        use_feedforward=v.use_feedforward,
+        sensor=v.sensor,
+        dob_sensor=v.dob.sensor,
         compensation=compensation,
     )
 
 
-def build_deformation(values: Values) -> DeformationRatio | None:
+def build_deformation(values: FeedbackValues) -> DeformationRatio | None:
     """The deformation ratio of 004 eqs. (5)-(7) the feedback publishes, if on."""
-    if not values["deformation.enabled"]:
+    d = values.deformation
+    if not d.enabled:
         return None
     return build(
         "deformation.",
         DeformationRatio,
         keys={"lead_m_per_rad": "lead_m_per_rad"},
-        window_samples=values["deformation.window_samples"],
-        lead_m_per_rad=values["lead_m_per_rad"],
-        min_rotation_rad=values["deformation.min_rotation_rad"],
+        window_samples=d.window_samples,
+        lead_m_per_rad=values.lead_m_per_rad,
+        min_rotation_rad=d.min_rotation_rad,
     )
 
 
 # --------------------------------------------------------------------------- feedforward
 
-TermBuilder = Callable[[Values], FeedforwardTerm | None]
 
+def term_file(enabled: bool, file: str, term: str) -> str | None:
+    """A term's ``<term>.file`` when ``<term>.enabled`` (None when off), not read.
 
-def register_feedforward_term(
-    name: str,
-    build: TermBuilder,
-    *,
-    schema: Mapping[str, Param] | None = None,
-    order: float = 100.0,
-) -> None:
-    """Add a feedforward term in this process (an installed one is an entry point).
-
-    Terms are summed in increasing ``order`` (:func:`~servo_axis.params.registry.feedforward_terms`).
+    Raises
+    ------
+    ParameterFileError
+        Naming ``<term>.file`` when the term is on and names no file.
     """
-    FEEDFORWARD_TERMS.register(
-        name, FeedforwardTermEntry(schema=schema or {}, build=build, order=order)
-    )
-
-
-def term_file(values: Values, term: str) -> str | None:
-    """``<term>.file`` when ``<term>.enabled`` (None when off), not read."""
-    if not values[f"{term}.enabled"]:
+    if not enabled:
         return None
-    path = str(values[f"{term}.file"])
-    if not path:
+    if not file:
         raise ParameterFileError(f"parameter '{term}.file': required when {term}.enabled is true")
-    return path
+    return file
 
 
-def estimate_schedule(values: Values, period_key: str, latency_key: str) -> tuple[int, int]:
+def term_on(values: FeedforwardValues, term: str) -> bool:
+    """Whether the installed feedforward term ``term`` is on (``<term>.enabled``; a term
+    without that key is on whenever it is installed, a term not installed never is)."""
+    key = f"{term}.enabled"
+    if key in values:
+        return bool(values[key])
+    return term in FEEDFORWARD_TERMS
+
+
+def estimate_schedule(values: Any, period_key: str, latency_key: str) -> tuple[int, int]:
+    """``(period, latency)`` in control samples of the estimates of ``values[period_key]``, ``values[latency_key]``.
+
+    For a caller with the dotted keys of the two periods; the suite's own
+    ask :func:`identifier_schedule` or :func:`estimate_steps`.
+    """
+    return _schedule(values, (period_key, values[period_key]), (latency_key, values[latency_key]))
+
+
+def _schedule(
+    values: SharedValues, period: tuple[str, float], latency: tuple[str, float]
+) -> tuple[int, int]:
     """``(period, latency)`` in control samples of an online estimate (003, docs/design.md section 4).
 
-    Both are whole numbers of reference periods and the latency is at least
-    one period: an estimate computed from the samples up to ``k`` applies
-    from ``k + 1 + latency``, and the feedforward's preview never runs
-    ahead of the estimates it depends on.
+    ``period``, ``latency``: each period's key and its value, s. Both are
+    whole numbers of reference periods and the latency is at least one
+    period: an estimate computed from the samples up to ``k`` applies from
+    ``k + 1 + latency``, and the feedforward's preview never runs ahead of
+    the estimates it depends on.
     """
     g = grid(values)
-    period, latency = (
-        build("", g.instants_per, keys={key: key}, period_s=values[key], name=key) * g.ratio
-        for key in (period_key, latency_key)
-    )
-    if latency < period:
+    steps = [
+        build("", g.instants_per, keys={key: key}, period_s=seconds, name=key) * g.ratio
+        for key, seconds in (period, latency)
+    ]
+    if steps[1] < steps[0]:
         raise ParameterFileError(
-            f"parameter '{latency_key}': expected at least one estimate period "
-            f"({values[period_key]!r} s), got {values[latency_key]!r}"
+            f"parameter '{latency[0]}': expected at least one estimate period "
+            f"({period[1]!r} s), got {latency[1]!r}"
         )
-    return period, latency
+    return steps[0], steps[1]
 
 
-def build_terms(values: Values) -> list[FeedforwardTerm]:
+def identifier_schedule(values: IdentifierValues) -> tuple[int, int]:
+    """``(period, latency)`` of the identifier's estimates in control samples (``rls_period_s``,
+    ``latency_s``)."""
+    return _schedule(values, ("rls_period_s", values.rls_period_s), ("latency_s", values.latency_s))
+
+
+def build_terms(values: FeedforwardValues) -> list[FeedforwardTerm]:
     """The feedforward terms the values switch on, in their order (``FeedforwardTermEntry.order``).
 
     With the feedback's DOB on (``dob.*``, copied from the feedback section),
     their sum enters outside the DOB (:class:`OutsideObserver`, 004 Fig. 5).
     """
     terms = [t for _, e in feedforward_terms() if (t := e.build(values)) is not None]
-    if terms and values["dob.enabled"]:
+    if terms and values.dob.enabled:
         outside: FeedforwardTerm = build(
             "dob.",
             OutsideObserver,
             keys=PERIOD_KEYS,
             terms=terms,
-            cutoff_hz=values["dob.cutoff_hz"],
-            period_s=values["control_period_s"],
+            cutoff_hz=values.dob.cutoff_hz,
+            period_s=values.control_period_s,
         )
         return [outside]
     return terms
 
 
-def learning_period_steps(values: Values) -> int | None:
+def learning_period_steps(values: FeedforwardValues) -> int | None:
     """Control samples per learning period of checked feedforward values (None: no learning).
 
     The cycle is a whole number (>= 4) of reference periods ``T_r``, as the
     learning unit needs it (:func:`build_learning_law`).
     """
-    if not values["learning.enabled"]:
+    learning = values.learning
+    if not learning.enabled:
         return None
-    check_trial_period("learning.cycle_s", values["learning.cycle_s"], values)
+    check_trial_period("learning.cycle_s", learning.cycle_s, values)
     g = grid(values)
     instants = build(
-        "learning.", g.instants_per, period_s=values["learning.cycle_s"], name="cycle_s", minimum=4
+        "learning.", g.instants_per, period_s=learning.cycle_s, name="cycle_s", minimum=4
     )
-    return cycle_instants("learning.cycle_s", values["learning.cycle_s"], instants) * g.ratio
+    return cycle_instants("learning.cycle_s", learning.cycle_s, instants) * g.ratio
 
 
-def check_trial_period(key: str, period_s: float, values: Values) -> None:
+def check_trial_period(
+    key: str, period_s: float, values: FeedforwardValues | LearningValues
+) -> None:
     """A learning period over a ``trials`` reference is one trial (``reference.trial_s``)."""
-    if values["reference.kind"] == "trials" and period_s != values["reference.trial_s"]:
+    ref = values.reference
+    if ref.kind == "trials" and period_s != ref.trial_s:
         raise ParameterFileError(
             f"parameter '{key}': expected one trial, reference.trial_s = "
-            f"{values['reference.trial_s']!r} s, got {period_s!r} s"
+            f"{ref.trial_s!r} s, got {period_s!r} s"
         )
 
 
@@ -348,30 +471,61 @@ def cycle_instants(key: str, cycle_s: float, instants: int) -> int:
     return instants
 
 
+def learning_side(values: FeedforwardValues, period_steps: int | None) -> str:
+    """``target`` or ``input``: where the learning law's corrections go (``target``: none).
+
+    Raises
+    ------
+    ParameterFileError
+        Naming ``learning.law`` for a law that is not installed, ``ptc.enabled``
+        for a target-side law without PTC.
+    """
+    if period_steps is None:
+        return "target"
+    side = learning_law(values.learning.law, "learning.law").side
+    if side == "target" and not values.ptc.enabled:
+        raise ParameterFileError(
+            f"parameter 'ptc.enabled': learning law {values.learning.law!r} corrects the "
+            "target, which needs PTC, got false"
+        )
+    return side
+
+
+def estimate_steps(values: FeedforwardValues) -> tuple[int | None, int]:
+    """``(period, latency)`` of the online estimates in control samples, ``(None, 0)``: none."""
+    adaptive = values.adaptive
+    if not adaptive.enabled:
+        return None, 0
+    return _schedule(
+        values,
+        ("adaptive.rls_period_s", adaptive.rls_period_s),
+        ("adaptive.latency_s", adaptive.latency_s),
+    )
+
+
+def check_feedforward(values: FeedforwardValues) -> None:
+    """What :func:`build_generator` refuses, without building the generator; each term's check."""
+    for _, term in feedforward_terms():
+        term.check(values)
+    learning_side(values, learning_period_steps(values))
+    estimate_steps(values)
+    build_reference(values)
+    grid(values)
+    nominal_model(values)
+
+
 def build_generator(
-    values: Values, *, terms: list[FeedforwardTerm] | None = None
+    values: FeedforwardValues | Mapping[str, Any], *, terms: list[FeedforwardTerm] | None = None
 ) -> FeedforwardGenerator:
     """The feedforward generator of checked feedforward values.
 
     ``terms`` replaces the terms the values switch on (:func:`build_terms`,
-    which reads their files); :func:`check_consistency` builds it with none.
+    which reads their files).
     """
-    period_steps = learning_period_steps(values)
-    side = (
-        learning_law(values["learning.law"], "learning.law").side
-        if period_steps is not None
-        else "target"
-    )
-    if period_steps is not None and side == "target" and not values["ptc.enabled"]:
-        raise ParameterFileError(
-            f"parameter 'ptc.enabled': learning law {values['learning.law']!r} corrects the "
-            "target, which needs PTC, got false"
-        )
-    period, latency = (
-        estimate_schedule(values, "adaptive.rls_period_s", "adaptive.latency_s")
-        if values["adaptive.enabled"]
-        else (None, 0)
-    )
+    v: FeedforwardValues = as_values("feedforward", values)
+    period_steps = learning_period_steps(v)
+    side = learning_side(v, period_steps)
+    period, latency = estimate_steps(v)
     return build(
         "",
         FeedforwardGenerator,
@@ -381,12 +535,12 @@ def build_generator(
             "estimate_period_steps": "adaptive.rls_period_s",
             "estimate_latency_steps": "adaptive.latency_s",
         },
-        reference=build_reference(values),
-        grid=grid(values),
-        lead_m_per_rad=values["lead_m_per_rad"],
-        nominal=nominal_model(values),
-        ptc_enabled=values["ptc.enabled"],
-        terms=build_terms(values) if terms is None else terms,
+        reference=build_reference(v),
+        grid=grid(v),
+        lead_m_per_rad=v.lead_m_per_rad,
+        nominal=nominal_model(v),
+        ptc_enabled=v.ptc.enabled,
+        terms=build_terms(v) if terms is None else terms,
         learning_period_steps=period_steps,
         learning_side=side,
         estimate_period_steps=period,
@@ -397,69 +551,29 @@ def build_generator(
 # --------------------------------------------------------------------------- learning laws
 
 
-def register_learning_law(
-    name: str,
-    *,
-    schema: Mapping[str, Param],
-    period: str,
-    side: str,
-    build: Callable[[Values], LearningLaw],
-    identifies: tuple[str, ...] = (),
-) -> None:
-    """Make a learning law selectable as ``learning.law: <name>`` in this process.
-
-    An installed package does it with an entry point of group
-    ``servo_axis.learning_laws``. ``identifies`` names what else the law
-    publishes besides its correction and the per-period stats:
-    ``"learning/parameters"`` and / or ``"learning/friction_table"``.
-    """
-    LEARNING_LAWS.register(
-        name,
-        LearningLawEntry(
-            schema=schema, period=period, side=side, build=build, identifies=identifies
-        ),
-    )
-
-
-def learning_law(name: object, key: str = "law") -> LearningLawEntry:
+def learning_law(name: object, key: str = "law") -> LearningLawEntry[Any]:
     """The installed law ``name`` (ParameterFileError naming ``key`` and the installed ones)."""
     return LEARNING_LAWS.lookup(name, key)
 
 
-def build_learning_law(values: Values) -> LearningLaw:
+def build_learning_law(values: LearningValues | Mapping[str, Any]) -> LearningLaw:
     """The learning law of checked learning values."""
-    return learning_law(values["law"]).build(values)
+    v: LearningValues = as_values("learning", values)
+    return learning_law(v.law).build(v)
 
 
 # --------------------------------------------------------------------------- identifiers
 
 
-def register_identifier(
-    name: str,
-    *,
-    schema: Mapping[str, Param],
-    build: Callable[[Values], OnlineIdentifier],
-    estimates_friction: bool,
-) -> None:
-    """Make an online identifier selectable as ``identifier.method: <name>`` in this process.
-
-    An installed package does it with an entry point of group
-    ``servo_axis.identification_methods``.
-    """
-    IDENTIFIERS.register(
-        name,
-        IdentifierEntry(schema=schema, build=build, estimates_friction=estimates_friction),
-    )
-
-
-def identifier_method(name: object, key: str = "method") -> IdentifierEntry:
+def identifier_method(name: object, key: str = "method") -> IdentifierEntry[Any]:
     """The installed method ``name`` (ParameterFileError naming ``key`` and the installed ones)."""
     return IDENTIFIERS.lookup(name, key)
 
 
-def build_identifier(values: Values) -> OnlineIdentifier:
+def build_identifier(values: IdentifierValues | Mapping[str, Any]) -> OnlineIdentifier:
     """The online identifier of checked identifier values."""
-    return identifier_method(values["method"]).build(values)
+    v: IdentifierValues = as_values("identifier", values)
+    return identifier_method(v.method).build(v)
 
 
 # --------------------------------------------------------------------------- schemas and values
@@ -476,8 +590,18 @@ NODE_SCHEMAS: dict[str, Mapping[str, Param]] = {
     "identifier": {**schemas.SHARED, **schemas.IDENTIFIER},
 }
 
+#: The class of each node's values without extensions (:mod:`servo_axis.params.values`).
+NODE_CLASSES: dict[str, type[Values]] = {
+    "plant": PlantValues,
+    "feedback": FeedbackValues,
+    "feedforward": FeedforwardValues,
+    "learning": LearningValues,
+    "recorder": RecorderValues,
+    "identifier": IdentifierValues,
+}
 
-def node_schema(role: str, given: Values) -> dict[str, Param]:
+
+def node_schema(role: str, given: Mapping[str, Any]) -> dict[str, Param]:
     """The full schema of node ``role`` for the keys ``given`` (the model/law chosen there).
 
     Raises
@@ -504,34 +628,55 @@ def node_schema(role: str, given: Values) -> dict[str, Param]:
     return schema
 
 
-def checked_values(role: str, given: Values) -> dict[str, Any]:
-    """Checked values of node ``role``: ``given`` where set, defaults elsewhere.
+def values_class(role: str, given: Mapping[str, Any]) -> type[Values]:
+    """The class of node ``role``'s values for the keys ``given``: with the chosen model's,
+    law's or method's keys, or every installed term's (:mod:`servo_axis.plugins.values`)."""
+    default = NODE_SCHEMAS[role]
+    if role == "plant":
+        return PLANT_MODELS.values_class(given.get("model", default["model"].default))
+    if role == "learning":
+        return LEARNING_LAWS.values_class(given.get("law", default["law"].default))
+    if role == "identifier":
+        return IDENTIFIERS.values_class(given.get("method", default["method"].default))
+    if role == "feedforward":
+        return feedforward_class()
+    return NODE_CLASSES[role]
+
+
+def checked_values(role: str, given: Mapping[str, Any]) -> Any:
+    """The typed values of node ``role``: ``given`` where set, defaults elsewhere, checked.
 
     Each key against its schema first (:func:`~servo_axis.params.param.check_values`),
     then what depends on several keys (:func:`check_consistency`), so that
     whoever checks a section (the node, the runner before it starts any
-    process) refuses what the node would.
+    process) refuses what the node would. The result is an instance of the
+    node's class (:func:`values_class`: ``PlantValues`` with the model's
+    keys, ...), also a read-only mapping of the dotted keys.
 
     Raises
     ------
     ParameterFileError
         Naming the full key (or keys) at fault.
     """
-    values = check_values(node_schema(role, given), given, role)
+    flat = check_values(node_schema(role, given), given, role)
+    values = from_flat(values_class(role, flat), flat)
     check_consistency(role, values)
     return values
 
 
-def check_consistency(role: str, values: Values) -> None:
-    """Build (and drop) what node ``role`` builds of its values; no file is read.
+def check_consistency(role: str, values: Any) -> None:
+    """What depends on several keys of node ``role``'s values; no file is read, nothing built.
 
     The run length (``duration_s`` against ``control_period_s``), the plant
-    model (``sim_step_s`` divides ``control_period_s``, the modes, ...), the
-    feedback loop (the DOB cut-off below Nyquist, ...), the feedforward
-    generator (``learning.cycle_s`` whole, PTC for target-side learning), the
-    learning law (``n Nq + 2 < Nd``) and the recorder's topic lists. What
-    needs a file (a friction table, a learning memory) or the node's
-    transport (the learning cycle against the stream depth) is the node's.
+    model (its entry's ``check``: ``sim_step_s`` divides ``control_period_s``,
+    the modes, ...), the feedback loop (the DOB cut-off below Nyquist, the
+    PID's gains, ...), the feedforward generator (``learning.cycle_s``
+    whole, PTC for target-side learning) and its terms' checks, the learning
+    law (``n Nq + 2 < Nd``) and the recorder's topic lists. What needs a
+    file (a friction table, a learning memory) or the node's transport (the
+    learning cycle against the stream depth) is the node's. An extension
+    from outside the suite that declares no ``check`` is built once here and
+    dropped (what its builder refuses is refused before any process starts).
 
     Raises
     ------
@@ -541,26 +686,34 @@ def check_consistency(role: str, values: Values) -> None:
     run_steps(values)
     external_roles(values)
     if role == "plant":
-        build_plant(values)
+        entry = plant_model(values.model)
+        if entry.check is not None:
+            entry.check(values)
+        else:
+            build_plant(values)
         check_command_source(values)
     elif role == "feedback":
-        build_loop(values)
-        build_deformation(values)
-        check_forward_topic(values)
+        check_feedback(values)
     elif role == "feedforward":
-        for _, term in feedforward_terms():
-            term.check(values)
-        build_generator(values, terms=[])
+        check_feedforward(values)
     elif role == "learning":
-        build_learning_law(values)
+        law = learning_law(values.law)
+        if law.check is not None:
+            law.check(values)
+        else:
+            law.build(values)
         build_reference(values)
     elif role == "recorder":
         check_recorder_topics(values)
     elif role == "identifier":
-        build_identifier(values)
+        method = identifier_method(values.method)
+        if method.check is not None:
+            method.check(values)
+        else:
+            method.build(values)
 
 
-def check_command_source(values: Values) -> None:
+def check_command_source(values: PlantValues) -> None:
     """``command_source: drive_setpoint`` only in realtime (a set-point has no step to wait for).
 
     Raises
@@ -568,7 +721,7 @@ def check_command_source(values: Values) -> None:
     ParameterFileError
         Naming ``command_source`` and ``mode``.
     """
-    if values.get("command_source") == "drive_setpoint" and values["mode"] == "lockstep":
+    if values.command_source == "drive_setpoint" and values.mode == "lockstep":
         raise ParameterFileError(
             "parameter 'command_source': drive_setpoint needs mode: realtime (a drive's "
             "set-point carries no step of the k T_u grid, which lockstep waits for; "
@@ -576,7 +729,7 @@ def check_command_source(values: Values) -> None:
         )
 
 
-def check_forward_topic(values: Values) -> None:
+def check_forward_topic(values: FeedbackValues) -> None:
     """``forward_commands_topic``: empty, or a ROS topic name (absolute or relative).
 
     Raises
@@ -584,7 +737,7 @@ def check_forward_topic(values: Values) -> None:
     ParameterFileError
         Naming ``forward_commands_topic`` and what rcl would refuse.
     """
-    topic = values.get("forward_commands_topic", "")
+    topic = values.forward_commands_topic
     if not topic:
         return
     problem = namespace_problem(topic if topic.startswith("/") else f"/{topic}")
@@ -599,7 +752,7 @@ def check_forward_topic(values: Values) -> None:
 EXTERNAL_ROLES = ("plant", "feedback", "feedforward", "learning", "identifier")
 
 
-def external_roles(values: Values) -> tuple[str, ...]:
+def external_roles(values: SharedValues) -> tuple[str, ...]:
     """The roles of ``external_roles`` (the empty placeholder dropped), checked.
 
     Raises
@@ -607,7 +760,7 @@ def external_roles(values: Values) -> tuple[str, ...]:
     ParameterFileError
         Naming ``external_roles`` for a role that is not one of :data:`EXTERNAL_ROLES`.
     """
-    roles = tuple(r for r in values.get("external_roles", [""]) if r)
+    roles = tuple(r for r in values.external_roles if r)
     for role in roles:
         if role not in EXTERNAL_ROLES:
             raise ParameterFileError(
@@ -617,19 +770,22 @@ def external_roles(values: Values) -> tuple[str, ...]:
     return roles
 
 
-def check_recorder_topics(values: Values) -> None:
+def check_recorder_topics(values: RecorderValues) -> None:
     """One type per topic; the latched and counted topics among them; a period per final topic."""
-    topics, types = values["topics"], values["types"]
+    topics, types = values.topics, values.types
     if len(topics) != len(types) or not topics:
         raise ParameterFileError(
             f"parameter 'types': expected one type per topic ({len(topics)} topics), "
             f"got {len(types)}"
         )
-    for key in ("latched_topics", "counted_topics"):
-        extra = set(values[key]) - set(topics)
+    for key, listed in (
+        ("latched_topics", values.latched_topics),
+        ("counted_topics", values.counted_topics),
+    ):
+        extra = set(listed) - set(topics)
         if extra:
             raise ParameterFileError(f"parameter '{key}': {sorted(extra)} not in 'topics'")
-    finals, every = values["final_topics"], values["final_every_steps"]
+    finals, every = values.final_topics, values.final_every_steps
     if len(finals) != len(every):
         raise ParameterFileError(
             f"parameter 'final_every_steps': expected one period per final topic "

@@ -34,7 +34,7 @@ import yaml
 
 from servo_axis.core.errors import ConfigError, ServoAxisError
 from servo_axis.params.registry import term_files
-from servo_axis.params.resolve import feedforward_values
+from servo_axis.params.resolve import Resolved
 from servo_axis.params.scenario import (
     SHARED_SECTION,
     load_scenario,
@@ -51,13 +51,16 @@ PARAMS_FILE = "params.yaml"
 INPUTS_DIR = "inputs"
 
 
-def input_copies(view: dict[str, Any], scenario_dir: Path) -> dict[str, tuple[Path, str]]:
+def input_copies(
+    view: dict[str, Any] | Resolved, scenario_dir: Path
+) -> dict[str, tuple[Path, str]]:
     """Where each data file of a single-axis scenario is copied in its run directory.
 
     Parameters
     ----------
-    view : dict
-        The single-axis scenario (file paths as its file gives them).
+    view : dict or Resolved
+        The single-axis scenario (file paths as its file gives them), or it
+        read once with its file in ``scenario_dir``.
     scenario_dir : Path
         The folder a relative file path is relative to (the scenario file's).
 
@@ -71,10 +74,11 @@ def input_copies(view: dict[str, Any], scenario_dir: Path) -> dict[str, tuple[Pa
         refuses it, naming the key); a view whose feedforward section does
         not check gives none (its error is the plan's to report).
     """
-    if "feedforward" not in view:
+    resolved = Resolved.of(view, scenario_dir / SCENARIO_FILE)
+    if not resolved.has("feedforward"):
         return {}
     try:
-        values = feedforward_values(view, scenario_dir / SCENARIO_FILE)
+        values = resolved.feedforward
     except ServoAxisError:
         return {}
     copies: dict[str, tuple[Path, str]] = {}
@@ -225,7 +229,7 @@ def _data_files(found: RecordedScenario) -> list[tuple[str, Path]]:
     """The data files the scenario's terms that are on read, absolute."""
     if "feedforward" not in found.scenario:
         return []
-    values = feedforward_values(found.scenario, found.path)
+    values = Resolved(found.scenario, found.path).feedforward
     out = []
     for key in term_files():
         term = key.rpartition(".")[0]

@@ -55,9 +55,19 @@ from servo_axis.core.learning.base import LearningLaw
 from servo_axis.core.models.base import Plant
 from servo_axis.params import schemas
 from servo_axis.params.param import Param
+from servo_axis.params.typed import Values as Values
+from servo_axis.params.typed import camel, derive, keys_of
+from servo_axis.params.values import (
+    FeedforwardValues,
+    IdentifierValues,
+    LearningValues,
+    PlantValues,
+)
 
-Values = Mapping[str, Any]
 Scenario = dict[str, Any]
+
+#: The values an extension's functions receive: its node's class with its keys added.
+V = TypeVar("V", bound=Values)
 
 #: The entry-point group of each kind of extension.
 GROUPS = {
@@ -68,20 +78,20 @@ GROUPS = {
 }
 
 
-def _no_warnings(values: Values) -> list[str]:
+def _no_warnings(values: Any) -> list[str]:
     return []
 
 
-def _no_check(values: Values) -> None:
+def _no_check(values: Any) -> None:
     return None
 
 
-def _no_overrides(scenario: Scenario, given: Values) -> dict[str, Any]:
+def _no_overrides(resolved: Any, given: Mapping[str, Any]) -> dict[str, Any]:
     return {}
 
 
 @dataclass(frozen=True)
-class PlantModelEntry:
+class PlantModelEntry(Generic[V]):
     """A plant model, selected by ``plant.model``.
 
     Attributes
@@ -92,9 +102,9 @@ class PlantModelEntry:
         ``torque_constant_Nm_per_A`` (N m/A), with which the plant, as a
         drive, turns the torque reference of ``command`` into its current.
     build : callable
-        ``build(values, rng) -> Plant`` from the checked plant values; what
-        it rejects is reported as ``parameter '<key>': ...``
-        (:func:`servo_axis.params.param.build`).
+        ``build(values, rng) -> Plant`` from the checked plant values (an
+        instance of :attr:`values`); what it rejects is reported as
+        ``parameter '<key>': ...`` (:func:`servo_axis.params.param.build`).
     warnings : callable
         ``warnings(values) -> list of str``: what is allowed but unusual
         (the plant node logs each at start).
@@ -108,18 +118,30 @@ class PlantModelEntry:
         Keys added after files were identified on the model (a GMS fit):
         in the plant's fingerprint only when set away from their default,
         so that a file fitted before names the same plant.
+    check : callable or None
+        ``check(values)``: what depends on several keys, raising
+        ParameterFileError naming a key; the runner refuses it before any
+        process starts, without building the plant. None: the runner builds
+        the plant once to check it (and drops it).
+    values : type or None
+        The class of the plant section's values with this model
+        (:class:`~servo_axis.params.values.PlantValues` with its keys added,
+        generated: :mod:`servo_axis.plugins.values`); None: made from
+        :attr:`schema` at run time (:func:`~servo_axis.params.typed.derive`).
     """
 
     schema: Mapping[str, Param]
-    build: Callable[[Values, np.random.Generator], Plant]
-    warnings: Callable[[Values], list[str]] = _no_warnings
+    build: Callable[[V, np.random.Generator], Plant]
+    warnings: Callable[[V], list[str]] = _no_warnings
     rotary: bool = False
     description: str = ""
     fingerprint_if_set: frozenset[str] = frozenset()
+    check: Callable[[V], object] | None = None
+    values: type[V] | None = None
 
 
 @dataclass(frozen=True)
-class FeedforwardTermEntry:
+class FeedforwardTermEntry(Generic[V]):
     """A feedforward term, switched on by its own keys of the ``feedforward`` section.
 
     Attributes
@@ -131,32 +153,42 @@ class FeedforwardTermEntry:
         ``build(values) -> FeedforwardTerm or None`` (None when its keys
         leave it off); may read its files.
     check : callable
-        ``check(values)``: what :func:`~servo_axis.params.factories.check_consistency`
-        checks without reading a file (the runner refuses it before any process starts).
+        ``check(values)``: what depends on several keys, checked without
+        reading a file and without building the term (the runner refuses it
+        before any process starts), raising ParameterFileError naming a key.
     files : tuple of str
         Its keys that name a file: a relative path is relative to the scenario file.
     order : float
         Terms are summed in increasing ``order`` (then name): a sum of floats
         depends on its order, a run's numbers on the sum.
     overrides : callable
-        ``overrides(scenario, given) -> dict``: values it takes from other
+        ``overrides(resolved, given) -> dict``: values it takes from other
         sections of the scenario (one source each; e.g. the plant a file
-        must have been identified on).
+        must have been identified on), given the scenario read once
+        (:class:`servo_axis.params.resolve.Resolved`: ``resolved.plant``, the
+        plant's checked values; ``resolved.given(role)``, a section's given
+        keys) and the feedforward section's given keys.
     description : str
         One line for ``list`` and the parameter reference.
+    values : type or None
+        The class of the feedforward section's values with this term and every other term installed
+        (:class:`~servo_axis.params.values.FeedforwardValues` with its keys added,
+        generated: :mod:`servo_axis.plugins.values`); None: made from
+        :attr:`schema` at run time (:func:`~servo_axis.params.typed.derive`).
     """
 
     schema: Mapping[str, Param]
-    build: Callable[[Values], FeedforwardTerm | None]
-    check: Callable[[Values], None] = _no_check
+    build: Callable[[V], FeedforwardTerm | None]
+    check: Callable[[V], object] = _no_check
     files: tuple[str, ...] = ()
     order: float = 100.0
-    overrides: Callable[[Scenario, Values], dict[str, Any]] = _no_overrides
+    overrides: Callable[[Any, Mapping[str, Any]], dict[str, Any]] = _no_overrides
     description: str = ""
+    values: type[V] | None = None
 
 
 @dataclass(frozen=True)
-class LearningLawEntry:
+class LearningLawEntry(Generic[V]):
     """A learning law, selected by ``learning.law``.
 
     Attributes
@@ -175,15 +207,26 @@ class LearningLawEntry:
         ``ilc_convergence`` block of a run with this law (None: none).
     description : str
         One line for ``list`` and the parameter reference.
+    check : callable or None
+        ``check(values)``: what depends on several keys, raising
+        ParameterFileError naming a key, without building the law; None:
+        the runner builds the law once to check it (and drops it).
+    values : type or None
+        The class of the learning section's values with this law
+        (:class:`~servo_axis.params.values.LearningValues` with its keys added,
+        generated: :mod:`servo_axis.plugins.values`); None: made from
+        :attr:`schema` at run time (:func:`~servo_axis.params.typed.derive`).
     """
 
     schema: Mapping[str, Param]
     period: str
     side: str
-    build: Callable[[Values], LearningLaw]
+    build: Callable[[V], LearningLaw]
     identifies: tuple[str, ...] = ()
-    convergence: Callable[[Values, Values], dict[str, float]] | None = None
+    convergence: Callable[[V, PlantValues], dict[str, float]] | None = None
     description: str = ""
+    check: Callable[[V], object] | None = None
+    values: type[V] | None = None
     outputs: tuple[str, ...] = field(init=False)
 
     def __post_init__(self) -> None:
@@ -197,7 +240,7 @@ class LearningLawEntry:
 
 
 @dataclass(frozen=True)
-class IdentifierEntry:
+class IdentifierEntry(Generic[V]):
     """An online identification method, selected by ``identifier.method``.
 
     Attributes
@@ -212,12 +255,23 @@ class IdentifierEntry:
         friction with it, ``mnc.friction``) or always 0.
     description : str
         One line for ``list`` and the parameter reference.
+    check : callable or None
+        ``check(values)``: what depends on several keys, raising
+        ParameterFileError naming a key, without building the identifier;
+        None: the runner builds it once to check it (and drops it).
+    values : type or None
+        The class of the identifier section's values with this method
+        (:class:`~servo_axis.params.values.IdentifierValues` with its keys added,
+        generated: :mod:`servo_axis.plugins.values`); None: made from
+        :attr:`schema` at run time (:func:`~servo_axis.params.typed.derive`).
     """
 
     schema: Mapping[str, Param]
-    build: Callable[[Values], OnlineIdentifier]
+    build: Callable[[V], OnlineIdentifier]
     estimates_friction: bool = False
     description: str = ""
+    check: Callable[[V], object] | None = None
+    values: type[V] | None = None
 
 
 #: The distribution of the suite itself (its extensions are "shipped").
@@ -310,21 +364,30 @@ class Registry(Mapping[str, E], Generic[E]):
         ``"plant model"``, ...: a key of :data:`GROUPS`.
     entry_type : type
         The class of its entries.
+    node_values : type
+        The class of the node's values its entries add their keys to
+        (:class:`~servo_axis.params.values.PlantValues`, ...).
     validate : callable
         ``validate(name, entry)`` raises ValueError on an entry the suite cannot use.
     """
 
     def __init__(
-        self, kind: str, entry_type: type[E], validate: Callable[[str, E], None] | None = None
+        self,
+        kind: str,
+        entry_type: type[E],
+        node_values: type[Values],
+        validate: Callable[[str, E], None] | None = None,
     ) -> None:
         self.kind = kind
         self.group = GROUPS[kind]
         self._type = entry_type
+        self.node_values = node_values
         self._validate = validate or (lambda name, entry: None)
         self._entries: dict[str, E] | None = None
         self._sources: dict[str, str] = {}
         self._distributions: dict[str, str] = {}
         self._broken: dict[str, BrokenPlugin] = {}
+        self._classes: dict[str, type[Values]] = {}
 
     @property
     def loaded(self) -> bool:
@@ -378,8 +441,39 @@ class Registry(Mapping[str, E], Generic[E]):
             raise _RefusedError(f"expected a {self._type.__name__}, got {type(entry).__name__}")
         try:
             self._validate(name, entry)
+            self._classes[name] = self._class_of(name, entry)
         except ValueError as err:
             raise _RefusedError(str(err)) from err
+
+    def _class_of(self, name: str, entry: Any) -> type[Values]:
+        """The class of a section's values with ``entry``: its ``values``, or one made now.
+
+        Raises
+        ------
+        ValueError
+            For a ``values`` that is not a class of the node's values with
+            exactly the entry's keys added (a generated module not written
+            again after its schema changed), or keys no class can have.
+        """
+        node = self.node_values
+        cls = entry.values
+        if cls is None:
+            return derive(f"{camel(name)}Values", (node,), entry.schema) if entry.schema else node
+        if not (isinstance(cls, type) and issubclass(cls, node)):
+            raise ValueError(f"values: expected a subclass of {node.__name__}, got {cls!r}")
+        given, own = set(keys_of(cls)) - set(keys_of(node)), set(entry.schema)
+        if given != own:
+            odd = sorted(given ^ own)[0]
+            raise ValueError(
+                f"values: {cls.__name__} and the schema differ in key {odd!r} (a generated "
+                "class not written again after its schema changed: scripts/typed_values.py)"
+            )
+        return cls
+
+    def values_class(self, name: str) -> type[Values]:
+        """The class of a section's values with the installed extension ``name``."""
+        self._loaded()
+        return self._classes[name]
 
     @property
     def broken(self) -> Mapping[str, BrokenPlugin]:
@@ -396,7 +490,9 @@ class Registry(Mapping[str, E], Generic[E]):
             When the entry is not one the suite can use.
         """
         self._validate(name, entry)
+        cls = self._class_of(name, entry)
         self._loaded()[name] = entry
+        self._classes[name] = cls
         self._broken.pop(name, None)
         self._sources[name] = "registered in-process"
         self._distributions[name] = ""
@@ -478,7 +574,7 @@ class _RefusedError(ValueError):
     """An entry object that loaded but is not one the suite can use (its message is the reason)."""
 
 
-def _validate_plant_model(name: str, entry: PlantModelEntry) -> None:
+def _validate_plant_model(name: str, entry: PlantModelEntry[Any]) -> None:
     clash = set(entry.schema) & (set(schemas.PLANT) | set(schemas.SHARED))
     if clash:
         raise ValueError(f"schema: keys {sorted(clash)} are the plant node's own")
@@ -489,7 +585,7 @@ def _validate_plant_model(name: str, entry: PlantModelEntry) -> None:
         )
 
 
-def _validate_term(name: str, entry: FeedforwardTermEntry) -> None:
+def _validate_term(name: str, entry: FeedforwardTermEntry[Any]) -> None:
     clash = set(entry.schema) & (set(schemas.FEEDFORWARD) | set(schemas.SHARED))
     if clash:
         raise ValueError(f"schema: keys {sorted(clash)} are the feedforward node's own")
@@ -508,17 +604,17 @@ def _validate_own_keys(section: str) -> Callable[[str, Any], None]:
     return validate
 
 
-PLANT_MODELS: Registry[PlantModelEntry] = Registry(
-    "plant model", PlantModelEntry, _validate_plant_model
+PLANT_MODELS: Registry[PlantModelEntry[Any]] = Registry(
+    "plant model", PlantModelEntry, PlantValues, _validate_plant_model
 )
-FEEDFORWARD_TERMS: Registry[FeedforwardTermEntry] = Registry(
-    "feedforward term", FeedforwardTermEntry, _validate_term
+FEEDFORWARD_TERMS: Registry[FeedforwardTermEntry[Any]] = Registry(
+    "feedforward term", FeedforwardTermEntry, FeedforwardValues, _validate_term
 )
-LEARNING_LAWS: Registry[LearningLawEntry] = Registry(
-    "learning law", LearningLawEntry, _validate_own_keys("learning")
+LEARNING_LAWS: Registry[LearningLawEntry[Any]] = Registry(
+    "learning law", LearningLawEntry, LearningValues, _validate_own_keys("learning")
 )
-IDENTIFIERS: Registry[IdentifierEntry] = Registry(
-    "identification method", IdentifierEntry, _validate_own_keys("identifier")
+IDENTIFIERS: Registry[IdentifierEntry[Any]] = Registry(
+    "identification method", IdentifierEntry, IdentifierValues, _validate_own_keys("identifier")
 )
 
 #: Every registry, by kind.
@@ -530,9 +626,29 @@ REGISTRIES: dict[str, Registry[Any]] = {
 }
 
 
-def feedforward_terms() -> list[tuple[str, FeedforwardTermEntry]]:
+def feedforward_terms() -> list[tuple[str, FeedforwardTermEntry[Any]]]:
     """The installed feedforward terms in the order they are summed (``order``, then name)."""
     return sorted(FEEDFORWARD_TERMS.items(), key=lambda item: (item[1].order, item[0]))
+
+
+#: The feedforward section's class of each set of installed terms' classes.
+_TERM_CLASSES: dict[tuple[type[Values], ...], type[Values]] = {}
+
+
+def feedforward_class() -> type[Values]:
+    """The class of the feedforward section's values: the node's and every installed term's keys.
+
+    One class derived from every term's (each a
+    :class:`~servo_axis.params.values.FeedforwardValues` with its keys
+    added), so that a term's functions get an instance of its own class.
+    """
+    classes = tuple(FEEDFORWARD_TERMS.values_class(name) for name, _ in feedforward_terms())
+    if not classes:
+        return FeedforwardValues
+    made = _TERM_CLASSES.get(classes)
+    if made is None:
+        made = _TERM_CLASSES[classes] = derive("FeedforwardTermsValues", classes, {})
+    return made
 
 
 def term_files() -> tuple[str, ...]:

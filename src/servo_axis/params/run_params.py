@@ -10,7 +10,9 @@ topics in :mod:`servo_axis.wire.topics` and the run's topics,
 the target and the cycle the learning unit must learn against, simulated
 time for the nodes that follow the plant's clock, the roles outside nodes
 play (:func:`external_roles_of`) and the namespace of a single-axis run
-(:func:`single_axis_namespace`). :mod:`servo_axis.params.run_plan` gathers
+(:func:`single_axis_namespace`). Each function takes the scenario read once
+(:class:`~servo_axis.params.resolve.Resolved`; a scenario dict is read into
+one) and asks its checked values; :mod:`servo_axis.params.run_plan` gathers
 all of it into the run's plan. Nothing here imports rclpy.
 """
 
@@ -22,12 +24,12 @@ from pathlib import Path
 from typing import Any
 
 from servo_axis.core.errors import ConfigError, ParameterFileError, did_you_mean
-from servo_axis.params import schemas
-from servo_axis.params.factories import EXTERNAL_ROLES, checked_values
+from servo_axis.params.factories import EXTERNAL_ROLES
 from servo_axis.params.registry import term_files
-from servo_axis.params.resolve import copied, node_values
+from servo_axis.params.resolve import Resolved
 from servo_axis.params.run_topics import (
     REQUIRED_INPUTS,
+    Scenario,
     law_outputs,
     presence_topic,
     recorder_topics,
@@ -37,14 +39,13 @@ from servo_axis.params.scenario import (
     ROLES,
     SHARED_SECTION,
     dump_params,
-    node_params,
     resolve_table,
     shared,
 )
 from servo_axis.wire.topics import subscriber_count, topic
 
 
-def scheduled_topics(scenario: dict[str, Any], recorded: list[str]) -> dict[str, list[Any]]:
+def scheduled_topics(scenario: Scenario, recorded: list[str]) -> dict[str, list[Any]]:
     """The plant's scheduled topics outside the per-sample streams, and their periods (lockstep).
 
     ``/clock`` every ``clock_every_steps`` and ``plant/status`` every
@@ -52,11 +53,11 @@ def scheduled_topics(scenario: dict[str, Any], recorded: list[str]) -> dict[str,
     step only once those up to it are written (``final_topics``,
     ``final_every_steps``).
     """
-    plant = checked_values("plant", node_params(scenario, "plant"))
-    if plant["mode"] != "lockstep":
+    plant = Resolved.of(scenario).plant
+    if plant.mode != "lockstep":
         return {}
-    every = {"/clock": plant["clock_every_steps"], "plant/status": plant["status_every_steps"]}
-    if not plant["publish_clock"]:
+    every = {"/clock": plant.clock_every_steps, "plant/status": plant.status_every_steps}
+    if not plant.publish_clock:
         every.pop("/clock")
     topics = [t for t in every if t in recorded]
     if not topics:
@@ -101,7 +102,7 @@ HANDSHAKES: tuple[tuple[str, str, str], ...] = (
 
 
 def handshakes(
-    scenario: dict[str, Any],
+    scenario: Scenario,
     roles: list[str],
     recorded: list[str],
     external: tuple[str, ...] = (),
@@ -113,18 +114,19 @@ def handshakes(
     only on the inputs its role must take (:data:`REQUIRED_INPUTS`). The
     plant's are always there; the others' only when their node runs.
     """
+    resolved = Resolved.of(scenario)
     out = []
     for role, key, name in HANDSHAKES:
         if role != "plant" and role not in roles:
             continue
-        name = name or law_outputs(scenario)[0]
+        name = name or law_outputs(resolved)[0]
         counted = [r for r in roles if r not in external or name in REQUIRED_INPUTS[r]]
         out.append(Handshake(role, key, name, subscriber_count(name, counted, recorded)))
     return out
 
 
 def handshake_overrides(
-    scenario: dict[str, Any],
+    scenario: Scenario,
     roles: list[str],
     bag_dir: Path,
     scenario_dir: Path,
@@ -134,9 +136,9 @@ def handshake_overrides(
 
     Parameters
     ----------
-    scenario : dict
+    scenario : Resolved or dict
         A single-axis scenario (a multi-axis one through
-        :func:`servo_axis.params.scenario.axis_view` first).
+        :func:`servo_axis.params.scenario.axis_view` first), read once.
     roles : list of str
         The nodes that run (:func:`servo_axis.params.scenario.roles_of`).
     bag_dir : Path
@@ -172,29 +174,31 @@ def handshake_overrides(
         health report) and ``wait_for_producers`` (it subscribes to a topic
         only once the node the run started for its producer publishes it).
     """
-    recorded = recorder_topics(scenario, roles)[0] if "recorder" in roles else []
+    # The copies are those of the nodes that run (``roles``).
+    resolved = scenario if isinstance(scenario, Resolved) else Resolved(scenario, roles=roles)
+    recorded = recorder_topics(resolved, roles)[0] if "recorder" in roles else []
     waits: dict[str, dict[str, Any]] = {}
-    for shake in handshakes(scenario, roles, recorded, external):
+    for shake in handshakes(resolved, roles, recorded, external):
         waits.setdefault(shake.role, {})[shake.key] = shake.subscribers
     out: dict[str, dict[str, Any]] = {"plant": {}}
     if "learning" in roles:
-        out["learning"] = copied(scenario, "learning", roles)
-        if "memory.file" not in node_params(scenario, "learning"):
+        out["learning"] = dict(resolved.copied("learning"))
+        if "memory.file" not in resolved.given("learning"):
             out["learning"]["memory.file"] = str(bag_dir.parent / "learning_memory.json")
     if "recorder" in roles:
-        out["recorder"] = _recorder_overrides(scenario, roles, bag_dir, external)
+        out["recorder"] = _recorder_overrides(resolved, roles, bag_dir, external)
         out["plant"]["flow_control"] = True
     if "identifier" in roles:
         out["identifier"] = dict(waits["identifier"])
-        if "memory.file" not in node_params(scenario, "identifier"):
+        if "memory.file" not in resolved.given("identifier"):
             out["identifier"]["memory.file"] = str(bag_dir.parent / "identifier_memory.json")
     if "learning" in roles:
         out["learning"].update(waits["learning"])
     out["plant"].update(waits["plant"])
     if "feedback" in roles:
-        out["feedback"] = {**waits["feedback"], **copied(scenario, "feedback", roles)}
+        out["feedback"] = {**waits["feedback"], **resolved.copied("feedback")}
     if "feedforward" in roles:
-        given = node_params(scenario, "feedforward")
+        given = resolved.given("feedforward")
         files = {
             key: resolve_table(given[key], scenario_dir)
             for key in term_files()
@@ -203,25 +207,22 @@ def handshake_overrides(
         out["feedforward"] = {
             **waits["feedforward"],
             **files,
-            **copied(scenario, "feedforward", roles),
+            **resolved.copied("feedforward"),
         }
     _for_every_node(out, roles, bag_dir, external)
     if "plant" in external:
-        _outside_plant(out, scenario, roles, recorded, external)
-    if external and "recorder" in roles and _outside_counted(scenario, recorded, external):
-        out["plant"].update(outside_flow_control(scenario))
+        _outside_plant(out, resolved, roles, recorded, external)
+    if external and "recorder" in roles and _outside_counted(resolved, recorded, external):
+        out["plant"].update(outside_flow_control(resolved))
         out["recorder"]["ack_every_steps"] = min(
-            out["plant"]["max_recorder_lag_steps"],
-            node_params(scenario, "recorder").get(
-                "ack_every_steps", schemas.RECORDER["ack_every_steps"].default
-            ),
+            out["plant"]["max_recorder_lag_steps"], resolved.recorder.ack_every_steps
         )
     return out
 
 
 def _outside_plant(
     out: dict[str, dict[str, Any]],
-    scenario: dict[str, Any],
+    resolved: Resolved,
     roles: list[str],
     recorded: list[str],
     external: tuple[str, ...],
@@ -252,27 +253,19 @@ def _outside_plant(
         out["plant"]["wait_for_status_subscribers"] = max(0, status - 1)
     if "feedback" in roles and "feedback" not in external:
         out["feedback"]["wait_for_state_readers"] = readers
-        lockstep = checked_values("plant", node_params(scenario, "plant"))["mode"] == "lockstep"
+        lockstep = resolved.plant.mode == "lockstep"
         if lockstep and "recorder" in roles:
-            lag = outside_flow_control(scenario)["max_recorder_lag_steps"]
+            lag = outside_flow_control(resolved)["max_recorder_lag_steps"]
             out["feedback"]["recorder_lag_steps"] = lag
-            out["recorder"]["ack_every_steps"] = min(
-                lag,
-                node_params(scenario, "recorder").get(
-                    "ack_every_steps", schemas.RECORDER["ack_every_steps"].default
-                ),
-            )
+            out["recorder"]["ack_every_steps"] = min(lag, resolved.recorder.ack_every_steps)
 
 
-def drive_setpoints(scenario: dict[str, Any]) -> bool:
+def drive_setpoints(scenario: Scenario) -> bool:
     """Whether the plant takes ``command`` as a drive's set-point (``command_source``)."""
-    given = node_params(scenario, "plant").get(
-        "command_source", schemas.PLANT["command_source"].default
-    )
-    return bool(given == "drive_setpoint")
+    return Resolved.of(scenario).plant.command_source == "drive_setpoint"
 
 
-def _counted(scenario: dict[str, Any], name: str, external: tuple[str, ...]) -> bool:
+def _counted(scenario: Scenario, name: str, external: tuple[str, ...]) -> bool:
     """Whether the recorder counts ``name`` in its progress.
 
     Of an outside node's streams, flow control counts only the one its role
@@ -289,20 +282,20 @@ def _counted(scenario: dict[str, Any], name: str, external: tuple[str, ...]) -> 
 
 
 def _recorder_overrides(
-    scenario: dict[str, Any], roles: list[str], bag_dir: Path, external: tuple[str, ...]
+    resolved: Resolved, roles: list[str], bag_dir: Path, external: tuple[str, ...]
 ) -> dict[str, Any]:
     """The recorder's: its topics unless its section lists them, its bag, the plant's schedule."""
-    recorded, types = recorder_topics(scenario, roles)
+    recorded, types = recorder_topics(resolved, roles)
     rec: dict[str, Any] = {}
-    if "topics" not in node_params(scenario, "recorder"):
+    if "topics" not in resolved.given("recorder"):
         rec.update(
             topics=recorded,
             types=types,
-            counted_topics=[name for name in recorded if _counted(scenario, name, external)],
+            counted_topics=[name for name in recorded if _counted(resolved, name, external)],
         )
     rec["output_dir"] = str(bag_dir)
     if "plant" not in external:  # an outside plant need publish neither
-        rec.update(scheduled_topics(scenario, recorded))
+        rec.update(scheduled_topics(resolved, recorded))
     return rec
 
 
@@ -320,14 +313,12 @@ def _for_every_node(
         out[role]["external_roles"] = list(external)
 
 
-def _outside_counted(
-    scenario: dict[str, Any], recorded: list[str], external: tuple[str, ...]
-) -> bool:
+def _outside_counted(resolved: Resolved, recorded: list[str], external: tuple[str, ...]) -> bool:
     """Whether an outside node other than the plant publishes a stream the recorder counts."""
     return any(
         topic(name).producer in external
         and topic(name).producer != "plant"
-        and _counted(scenario, name, external)
+        and _counted(resolved, name, external)
         for name in recorded
     )
 
@@ -338,7 +329,7 @@ def _outside_counted(
 OUTSIDE_PUBLISHER_DEPTH = 10
 
 
-def outside_flow_control(scenario: dict[str, Any]) -> dict[str, int]:
+def outside_flow_control(scenario: Scenario) -> dict[str, int]:
     """The plant's lead over the recorder when an outside node publishes a counted stream.
 
     An outside feedback (or feedforward) that publishes ``command`` with the
@@ -350,19 +341,18 @@ def outside_flow_control(scenario: dict[str, Any]) -> dict[str, int]:
     of its samples wait for the recorder: ``lag`` is capped at
     ``OUTSIDE_PUBLISHER_DEPTH - 2``, whatever the scenario asks.
     """
-    given = node_params(scenario, "plant").get(
-        "max_recorder_lag_steps", schemas.PLANT["max_recorder_lag_steps"].default
-    )
-    return {"max_recorder_lag_steps": min(int(given), OUTSIDE_PUBLISHER_DEPTH - 2)}
+    lag = Resolved.of(scenario).plant.max_recorder_lag_steps
+    return {"max_recorder_lag_steps": min(lag, OUTSIDE_PUBLISHER_DEPTH - 2)}
 
 
-def run_params(scenario: dict[str, Any], overrides: dict[str, dict[str, Any]]) -> dict[str, Any]:
+def run_params(scenario: Scenario, overrides: dict[str, dict[str, Any]]) -> dict[str, Any]:
     """The parameter file the nodes of a run get: the scenario plus the overrides.
 
     Node sections are keyed ``/**/<node>`` so that they apply under any
     namespace; the file is kept in the run directory as the exact record of
-    what ran.
+    what ran: each section as the scenario gives it, not its checked values.
     """
+    scenario = dict(Resolved.of(scenario).scenario)
     out: dict[str, Any] = {SHARED_SECTION: {"ros__parameters": shared(scenario)}}
     for role in ROLES:
         if role not in scenario and role not in overrides:
@@ -373,17 +363,13 @@ def run_params(scenario: dict[str, Any], overrides: dict[str, dict[str, Any]]) -
     return out
 
 
-def write_run_params(
-    scenario: dict[str, Any], overrides: dict[str, dict[str, Any]], path: Path
-) -> Path:
+def write_run_params(scenario: Scenario, overrides: dict[str, dict[str, Any]], path: Path) -> Path:
     """Write :func:`run_params` to ``path`` (every string quoted, as rcl must read it)."""
     path.write_text(dump_params(run_params(scenario, overrides)))
     return path
 
 
-def external_roles_of(
-    scenario: dict[str, Any], given: tuple[str, ...] | list[str]
-) -> tuple[str, ...]:
+def external_roles_of(scenario: Scenario, given: tuple[str, ...] | list[str]) -> tuple[str, ...]:
     """The roles outside nodes play: ``given`` (``--external``) and the scenario's ``external_roles``.
 
     Raises
@@ -391,7 +377,7 @@ def external_roles_of(
     ConfigError
         For a role that is not one an outside node can play.
     """
-    listed = [r for r in shared(scenario).get("external_roles", []) if r]
+    listed = [r for r in Resolved.of(scenario).plant.external_roles if r]
     roles = tuple(dict.fromkeys([*given, *listed]))
     for role in roles:
         if role not in EXTERNAL_ROLES:
@@ -403,7 +389,7 @@ def external_roles_of(
     return roles
 
 
-def single_axis_namespace(scenario: dict[str, Any], namespace: str = "") -> str:
+def single_axis_namespace(scenario: Scenario, namespace: str = "") -> str:
     """The namespace of a single-axis run: ``namespace`` if given, else ``/<axis>``.
 
     ``"/"`` is the root (returned as ``""``: the nodes start without a
@@ -419,7 +405,7 @@ def single_axis_namespace(scenario: dict[str, Any], namespace: str = "") -> str:
     """
     if namespace:
         return "" if namespace == "/" else namespace
-    axis = node_values(scenario, "plant")["axis"]
+    axis = Resolved.of(scenario).plant.axis
     if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*", axis):
         raise ParameterFileError(
             f"parameter 'axis': {axis!r} cannot name the run's ROS namespace /<axis> (a "

@@ -9,9 +9,12 @@ an outside node, its checked values, the topics it publishes and takes and
 which of them it must serve). Making the plan checks everything a run can
 refuse before anything is written or started (each node's section as the
 node will, the files the terms name, the outside roles); the runner
-(:mod:`servo_axis.run`) then asks only the plan. The analysis resolves the
-scenario it is handed itself (:mod:`servo_axis.params.resolve`); the plan
-carries it unchanged. Nothing here imports rclpy or writes a file.
+(:mod:`servo_axis.run`) then asks only the plan. Each axis's scenario is
+read once (:class:`~servo_axis.params.resolve.Resolved`) and each of its
+roles checked once, in start order after the plant: every later question of
+the plan (handshakes, topics, steps) reads those typed values, and the
+summary gets them (:attr:`AxisPlan.resolved`). Nothing here imports rclpy or
+writes a file.
 """
 
 from __future__ import annotations
@@ -25,11 +28,12 @@ from types import MappingProxyType
 from typing import Any
 
 from servo_axis.core.errors import ConfigError, ParameterFileError
-from servo_axis.params.factories import EXTERNAL_ROLES, checked_values, plant_model, run_steps
+from servo_axis.params.factories import EXTERNAL_ROLES, node_schema, plant_model, run_steps
 from servo_axis.params.overrides import Override, apply_overrides, blame
+from servo_axis.params.param import BUILTIN
 from servo_axis.params.recorded import SCENARIO_FILE, input_copies, recorded_view
 from servo_axis.params.registry import term_files
-from servo_axis.params.resolve import node_values
+from servo_axis.params.resolve import Resolved
 from servo_axis.params.run_params import (
     HANDSHAKES,
     Handshake,
@@ -40,7 +44,8 @@ from servo_axis.params.run_params import (
     single_axis_namespace,
 )
 from servo_axis.params.run_topics import REQUIRED_INPUTS, law_outputs, presence_topic, role_topics
-from servo_axis.params.scenario import axes_of, axis_view, node_params, roles_of, shared
+from servo_axis.params.scenario import axes_of, axis_view, resolve_table, roles_of, shared
+from servo_axis.params.typed import Values
 from servo_axis.wire.topics import Topic
 
 
@@ -56,9 +61,10 @@ class RolePlan:
     outside : bool
         A node from outside the suite plays it (``--external``,
         ``external_roles``); the runner does not start it.
-    values : mapping
-        The checked values of its section with what it copies and what the
-        run adds (what the suite's node of the role checks and runs with).
+    values : Values
+        The typed values of its section with what it copies and what the
+        run adds (what the suite's node of the role checks and runs with;
+        also a read-only mapping of the dotted keys).
     publishes, subscribes : tuple of Topic
         What a node playing it publishes and takes in this run
         (:func:`~servo_axis.params.run_topics.role_topics`).
@@ -71,7 +77,7 @@ class RolePlan:
 
     role: str
     outside: bool
-    values: Mapping[str, Any]
+    values: Values
     publishes: tuple[Topic, ...]
     subscribes: tuple[Topic, ...]
     must_publish: tuple[str, ...]
@@ -140,6 +146,10 @@ class AxisPlan:
     max_miss_fraction : float
         The shared key ``realtime.max_miss_fraction``: above it a realtime
         loop was not closed (:func:`~servo_axis.analysis.health.loop_not_closed`).
+    resolved : Resolved or None
+        :attr:`scenario` read once, with each role's checked values (those
+        of its section and copies, without what the run adds): what the
+        summary reads.
     """
 
     axis: str
@@ -161,6 +171,7 @@ class AxisPlan:
     max_miss_fraction: float = 0.05
     source_path: Path = Path()
     inputs: Mapping[str, tuple[Path, str]] = field(default_factory=lambda: MappingProxyType({}))
+    resolved: Resolved | None = field(default=None, compare=False, repr=False)
 
     @property
     def logs(self) -> Path:
@@ -209,6 +220,10 @@ class AxisPlan:
         rec = self.role("recorder")
         return tuple(rec.values["counted_topics"]) if rec is not None else ()
 
+    def summary_scenario(self) -> Resolved | dict[str, Any]:
+        """What the summary reads of the axis: :attr:`resolved`, else :attr:`scenario`."""
+        return self.resolved if self.resolved is not None else self.scenario
+
     @property
     def followed(self) -> bool:
         """The runner follows the axis's ``recorder/progress`` (a recorder or an outside node runs)."""
@@ -253,7 +268,7 @@ class RunPlan:
     run_dir : Path
         The run directory (not created yet).
     steps : int
-        Control samples of the run (of its common plant section).
+        Control samples of the run (of its longest axis).
     composed : bool
         All roles of the axis in one process.
     axes : tuple of AxisPlan
@@ -345,10 +360,15 @@ def _plan(
 ) -> RunPlan:
     """:func:`plan_run` of a scenario with its overrides applied."""
     name = shared(scenario).get("scenario", {}).get("name") or scenario_path.stem
-    steps = run_steps(node_values(scenario, "plant"))
-    run_dir = run_directory(out_dir, name)
-    outside = external_roles_of(scenario, tuple(external))
     axes = axes_of(scenario)
+    views = [(axis, axis_view(scenario, axis, scenario_path.parent)) for axis in axes] or [
+        ("", scenario)
+    ]
+    read = [(axis, Resolved(view, scenario_path)) for axis, view in views]
+    for _, resolved in read:
+        resolved.values("plant")  # first: the run's length, its mode, its outside roles
+    run_dir = run_directory(out_dir, name)
+    outside = external_roles_of(read[0][1], tuple(external))
     if axes and (composed or namespace):
         raise ConfigError(
             f"scenario {scenario_path}: a multi-axis scenario runs as separate processes, "
@@ -356,23 +376,23 @@ def _plan(
         )
     if outside and composed:
         raise ConfigError("--external: a run with outside nodes runs as separate processes")
-    places = [(axis, f"/{axis}", run_dir / axis) for axis in axes] or [("", namespace, run_dir)]
     plans = tuple(
         _axis_plan(
-            axis_view(scenario, axis, scenario_path.parent) if axis else scenario,
+            resolved,
             scenario_path,
             axis=axis,
-            namespace=ns,
-            axis_dir=axis_dir,
+            namespace=f"/{axis}" if axis else namespace,
+            axis_dir=run_dir / axis if axis else run_dir,
             outside=outside,
         )
-        for axis, ns, axis_dir in places
+        for axis, resolved in read
     )
+    steps = max(p.steps for p in plans)
     return RunPlan(name, scenario, scenario_path, run_dir, steps, composed, plans)
 
 
 def _axis_plan(
-    view: dict[str, Any],
+    resolved: Resolved,
     scenario_path: Path,
     *,
     axis: str,
@@ -380,93 +400,131 @@ def _axis_plan(
     axis_dir: Path,
     outside: tuple[str, ...],
 ) -> AxisPlan:
-    """The plan of one axis (``view``: its single-axis scenario); its sections checked first.
+    """The plan of one axis (``resolved``: its single-axis scenario, read once).
 
-    Its data files are read from their copies in the axis's directory
-    (``inputs/``, written with ``scenario.yaml`` before any node starts):
-    the view the plan keeps and the nodes' parameter file name them.
+    Its roles are checked once each, in start order. Its data files are
+    read from their copies in the axis's directory (``inputs/``, written
+    with ``scenario.yaml`` before any node starts): the view the plan keeps,
+    its values and the nodes' parameter file name them.
     """
-    inputs = input_copies(view, scenario_path.parent)
-    view = recorded_view(view, inputs, scenario_path.parent)
-    roles = roles_of(view)
+    roles = roles_of(dict(resolved.scenario))
     for role in outside:
         if role not in roles:
             raise ConfigError(
                 f"--external {role}: the scenario has no {role} section (its roles: "
                 f"{', '.join(roles)})"
             )
-    if "identifier" in roles and drive_setpoints(view):
+    if "identifier" in roles and drive_setpoints(resolved):
         raise ConfigError(
             "plant command_source: drive_setpoint: the identifier pairs each command with its "
             "state by stamp, which a drive's set-point does not carry (run without the "
             "identifier section)"
         )
+    for role in roles:
+        resolved.values(role)
+    recorded = _recorded(resolved, scenario_path, axis_dir)
     # Relative files are the copies, relative to the axis's directory (the others absolute).
-    overrides = handshake_overrides(view, roles, axis_dir / "bag", axis_dir, outside)
-    plans = tuple(_role_plan(view, roles, role, overrides, outside, set(inputs)) for role in roles)
+    overrides = handshake_overrides(recorded, roles, axis_dir / "bag", axis_dir, outside)
+    plans = tuple(_role_plan(recorded, roles, role, overrides, outside) for role in roles)
     if axis:
         remaps: tuple[str, ...] = ("-r", f"__ns:={namespace}", "-r", f"/clock:={namespace}/clock")
     else:
-        namespace = single_axis_namespace(view, namespace)
+        namespace = single_axis_namespace(recorded, namespace)
         remaps = ("-r", f"__ns:={namespace}") if namespace else ()
     values = {r.role: r.values for r in plans}
     shakes = tuple(
-        Handshake(role, key, name or law_outputs(view)[0], values[role][key])
+        Handshake(role, key, name or law_outputs(recorded)[0], values[role][key])
         for role, key, name in HANDSHAKES
         if role in values
     )
-    plant = node_values(view, "plant")
-    feedback = node_values(view, "feedback")
+    plant, feedback = recorded.plant, recorded.feedback
     return AxisPlan(
         axis=axis,
         namespace=namespace,
         dir=axis_dir,
-        scenario=view,
+        scenario=dict(recorded.scenario),
         scenario_path=axis_dir / SCENARIO_FILE,
         remaps=remaps,
         roles=plans,
         handshakes=shakes,
-        params_file=MappingProxyType(run_params(view, overrides)),
-        mode=plant["mode"],
+        params_file=MappingProxyType(run_params(recorded, overrides)),
+        mode=plant.mode,
         steps=run_steps(plant),
-        control_period_s=plant["control_period_s"],
-        joint_axis=plant["axis"],
-        sensor=feedback["sensor"],
-        lead_m_per_rad=feedback["lead_m_per_rad"],
-        linear=not plant_model(plant["model"], "plant.model").rotary,
-        max_miss_fraction=plant["realtime.max_miss_fraction"],
+        control_period_s=plant.control_period_s,
+        joint_axis=plant.axis,
+        sensor=feedback.sensor,
+        lead_m_per_rad=feedback.lead_m_per_rad,
+        linear=not plant_model(plant.model, "plant.model").rotary,
+        max_miss_fraction=plant.realtime.max_miss_fraction,
         source_path=scenario_path,
-        inputs=MappingProxyType(inputs),
+        inputs=MappingProxyType(recorded.inputs),
+        resolved=recorded,
     )
 
 
+class _Recorded(Resolved):
+    """The view an axis records (its data files named as their copies), with the values of
+    the view it was made from: read once, not checked again; and the copies."""
+
+    inputs: dict[str, tuple[Path, str]]
+
+
+def _recorded(resolved: Resolved, scenario_path: Path, axis_dir: Path) -> _Recorded:
+    """``resolved``'s view as the axis records it: its data files named as their copies.
+
+    Its values are ``resolved``'s (the feedforward's files the copies' absolute
+    paths in ``axis_dir``, what the nodes read): nothing is checked again.
+    """
+    inputs = input_copies(resolved, scenario_path.parent)
+    view = recorded_view(dict(resolved.scenario), inputs, scenario_path.parent)
+    known = resolved.known()
+    if "feedforward" in known:
+        given = _Recorded(view).given("feedforward")
+        known["feedforward"] = known["feedforward"].with_keys(
+            {key: resolve_table(given.get(key, ""), axis_dir) for key in term_files()}
+        )
+    recorded = _Recorded(view, axis_dir / SCENARIO_FILE, roles=resolved.roles, known=known)
+    recorded.inputs = inputs
+    return recorded
+
+
 def _role_plan(
-    view: dict[str, Any],
+    recorded: _Recorded,
     roles: list[str],
     role: str,
     overrides: dict[str, dict[str, Any]],
     outside: tuple[str, ...],
-    copied: set[str],
 ) -> RolePlan:
-    """One role's plan: its section checked as its node will check it (ParameterFileError naming the key).
+    """One role's plan: its checked values with what the run adds (each added key checked).
 
-    A data file in ``copied`` exists (its copy is written before the nodes start).
+    A data file among the copies exists (its copy is written before the nodes start).
     """
-    values = checked_values(role, {**node_params(view, role), **overrides.get(role, {})})
+    values = _with_additions(recorded, role, overrides.get(role, {}))
     for key in term_files() if role == "feedforward" else ():
-        on = values.get(f"{key.rpartition('.')[0]}.enabled", True) and key not in copied
+        on = values.get(f"{key.rpartition('.')[0]}.enabled", True) and key not in recorded.inputs
         table = values[key] if on else None
         if table and not Path(table).is_file():
             raise ParameterFileError(f"parameter '{key}': no such file {table}")
-    publishes, subscribes = role_topics(view, roles, role)
+    publishes, subscribes = role_topics(recorded, roles, role)
     return RolePlan(
         role=role,
         outside=role in outside,
-        values=MappingProxyType(values),
+        values=values,
         publishes=tuple(publishes),
         subscribes=tuple(subscribes),
-        must_publish=(presence_topic(view, role),) if role in EXTERNAL_ROLES else (),
+        must_publish=(presence_topic(recorded, role),) if role in EXTERNAL_ROLES else (),
         must_take=REQUIRED_INPUTS.get(role, ()),
+    )
+
+
+def _with_additions(recorded: Resolved, role: str, additions: Mapping[str, Any]) -> Values:
+    """The role's checked values with the keys the run adds (rclpy's own left out), each
+    checked against its key's schema; what depends on several keys was checked with the
+    section (the run's additions are counts, paths and the topics it derives)."""
+    values: Values = recorded.values(role)
+    schema = node_schema(role, recorded.given(role))
+    return values.with_keys(
+        {key: schema[key].check(key, v) for key, v in additions.items() if key not in BUILTIN}
     )
 
 

@@ -7,8 +7,10 @@ publishes (:func:`law_outputs`), what the recorder records by default
 (:func:`sim_time_roles`), and what a node playing each role publishes and
 takes (:func:`role_topics`), of which it must publish the topic that shows
 it is there (:func:`presence_topic`) and take :data:`REQUIRED_INPUTS`; the
-rest is optional. :mod:`servo_axis.params.run_plan` asks these once per
-axis. Nothing here imports rclpy.
+rest is optional. Each takes the scenario read once
+(:class:`~servo_axis.params.resolve.Resolved`; a scenario dict is read
+into one) and asks its checked values; :mod:`servo_axis.params.run_plan`
+asks these once per axis. Nothing here imports rclpy.
 """
 
 from __future__ import annotations
@@ -17,8 +19,11 @@ from typing import Any
 
 from servo_axis.params import schemas
 from servo_axis.params.factories import NODE_SCHEMAS, learning_law
-from servo_axis.params.scenario import node_params
+from servo_axis.params.resolve import Resolved
 from servo_axis.wire.topics import TOPICS, Topic, recorded_topics, topic
+
+#: A scenario as these functions take it: read once, or a dict to read.
+Scenario = Resolved | dict[str, Any]
 
 
 def sim_time_roles() -> tuple[str, ...]:
@@ -32,40 +37,48 @@ def sim_time_roles() -> tuple[str, ...]:
     return topic("/clock").consumers
 
 
-def recorder_topics(scenario: dict[str, Any], roles: list[str]) -> tuple[list[str], list[str]]:
+def recorder_topics(scenario: Scenario, roles: list[str]) -> tuple[list[str], list[str]]:
     """The topics (and their types) the recorder of a run of ``roles`` subscribes to.
 
     The recorder section's own ``topics`` (and ``types``) if it sets them,
     else every topic recorded by default whose producer runs, in the order
     of the table of topics.
     """
-    rec = node_params(scenario, "recorder")
-    if "topics" in rec:
-        return list(rec["topics"]), list(rec.get("types", []))
-    outputs = set(law_outputs(scenario)) if "learning" in roles else set()
+    resolved = Resolved.of(scenario)
+    given = resolved.given("recorder")
+    if "topics" in given:
+        return list(given["topics"]), list(given.get("types", []))
+    outputs = set(law_outputs(resolved)) if "learning" in roles else set()
     default = [
         t
-        for t in recorded_topics(roles, switched_on(scenario))
+        for t in recorded_topics(roles, switched_on(resolved))
         if t.producer != "learning" or t.name in outputs
     ]
     return [t.name for t in default], [t.type_name for t in default]
 
 
-def switched_on(scenario: dict[str, Any]) -> list[str]:
-    """The topics with an ``enabled_by`` switch that the scenario turns on."""
+def switched_on(scenario: Scenario) -> list[str]:
+    """The topics with an ``enabled_by`` switch that the scenario turns on.
+
+    The switch's checked value where its producer runs, else its default.
+    """
+    resolved = Resolved.of(scenario)
     return [
         t.name
         for t in TOPICS
         if t.enabled_by
-        and node_params(scenario, t.producer).get(
-            t.enabled_by, NODE_SCHEMAS[t.producer][t.enabled_by].default
+        and (
+            resolved.values(t.producer)[t.enabled_by]
+            if t.producer in resolved.roles
+            else NODE_SCHEMAS[t.producer][t.enabled_by].default
         )
     ]
 
 
-def law_outputs(scenario: dict[str, Any]) -> tuple[str, ...]:
+def law_outputs(scenario: Scenario) -> tuple[str, ...]:
     """The topics the learning unit of ``scenario`` publishes (its law's)."""
-    law = node_params(scenario, "learning").get("law", schemas.LEARNING["law"].default)
+    resolved = Resolved.of(scenario)
+    law = resolved.learning.law if resolved.has("learning") else schemas.LEARNING["law"].default
     return learning_law(law, "learning.law").outputs
 
 
@@ -94,16 +107,14 @@ PRESENCE_TOPICS = {
 }
 
 
-def presence_topic(scenario: dict[str, Any], role: str) -> str:
+def presence_topic(scenario: Scenario, role: str) -> str:
     """The output topic of ``role`` whose publisher shows that its node is there."""
     if role == "learning":
         return law_outputs(scenario)[0]
     return PRESENCE_TOPICS[role]
 
 
-def role_topics(
-    scenario: dict[str, Any], roles: list[str], role: str
-) -> tuple[list[Topic], list[Topic]]:
+def role_topics(scenario: Scenario, roles: list[str], role: str) -> tuple[list[Topic], list[Topic]]:
     """What a node playing ``role`` in a run of ``roles`` publishes and subscribes to.
 
     The table's rows whose producer (consumer) is ``role``, less the topics
@@ -112,8 +123,9 @@ def role_topics(
     producer does not run. ``recorder/progress`` (the plant's flow control)
     is left to the suite's own plant.
     """
-    on = set(switched_on(scenario))
-    laws = set(law_outputs(scenario)) if "learning" in roles else set()
+    resolved = Resolved.of(scenario)
+    on = set(switched_on(resolved))
+    laws = set(law_outputs(resolved)) if "learning" in roles else set()
 
     def live(t: Topic) -> bool:
         if t.enabled_by and t.name not in on:

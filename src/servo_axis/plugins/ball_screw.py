@@ -16,9 +16,10 @@ from servo_axis.core.friction.model import FrictionParams
 from servo_axis.core.models.ball_screw import BallScrewParams, BallScrewPlant, DisturbanceParams
 from servo_axis.core.models.base import Plant
 from servo_axis.params.factories import MAX_SIM_STEPS
-from servo_axis.params.param import Param, build, dataclass_defaults, section
-from servo_axis.params.registry import PlantModelEntry, Values
+from servo_axis.params.param import Param, build, dataclass_defaults
+from servo_axis.params.registry import PlantModelEntry
 from servo_axis.plugins.sensors import ENCODER_AND_SCALE, encoder_and_scale
+from servo_axis.plugins.values import BallScrewValues
 
 _BALL_SCREW = dataclass_defaults(BallScrewParams)
 _FRICTION = dataclass_defaults(FrictionParams)
@@ -144,9 +145,11 @@ BALL_SCREW: dict[str, Param] = {
 _NO_MODES = [0.0]
 
 
-def ball_screw_params(values: Values) -> BallScrewParams:
-    """:class:`BallScrewParams` from checked plant values."""
-    freqs, zetas, gains = (values[f"modes.{k}"] for k in ("frequency_hz", "zeta", "a"))
+def ball_screw_params(values: BallScrewValues) -> BallScrewParams:
+    """:class:`BallScrewParams` from checked plant values (also the model's check: what
+    depends on several keys, without building the plant)."""
+    modes = values.modes
+    freqs, zetas, gains = list(modes.frequency_hz), list(modes.zeta), list(modes.a)
     if freqs == _NO_MODES and zetas == _NO_MODES and gains == _NO_MODES:
         freqs, zetas, gains = [], [], []
     if not len(freqs) == len(zetas) == len(gains):
@@ -160,41 +163,60 @@ def ball_screw_params(values: Values) -> BallScrewParams:
                 f"parameter 'modes.{key}': expected every element > 0 when modes are given "
                 f"(all three lists [0.0]: no mode), got {listed!r}"
             )
-    h = values["sim_step_s"]
+    h = values.sim_step_s
     if any(f >= 0.5 / h for f in freqs):
         raise ParameterFileError(
             "parameter 'modes.frequency_hz': expected every element below the Nyquist "
             f"frequency of sim_step_s ({0.5 / h:g} Hz), got {freqs!r}"
         )
-    for key in ("control_period_s", "dead_time_s"):
-        if values[key] / h > MAX_SIM_STEPS:
+    for key, seconds in (
+        ("control_period_s", values.control_period_s),
+        ("dead_time_s", values.dead_time_s),
+    ):
+        if seconds / h > MAX_SIM_STEPS:
             raise ParameterFileError(
                 f"parameter '{key}': expected at most {MAX_SIM_STEPS} integration steps "
-                f"(sim_step_s = {h!r} s), got {values[key]!r} s"
+                f"(sim_step_s = {h!r} s), got {seconds!r} s"
             )
-    encoder, scale = encoder_and_scale(values)
+    encoder, scale = encoder_and_scale(values.encoder, values.scale)
+    friction, disturbance = values.friction, values.disturbance
     return build(
         "",
         BallScrewParams,
-        torque_constant_Nm_per_A=values["torque_constant_Nm_per_A"],
-        inertia_kgm2=values["inertia_kgm2"],
-        damping_Nms_per_rad=values["damping_Nms_per_rad"],
-        lead_m_per_rad=values["lead_m_per_rad"],
+        torque_constant_Nm_per_A=values.torque_constant_Nm_per_A,
+        inertia_kgm2=values.inertia_kgm2,
+        damping_Nms_per_rad=values.damping_Nms_per_rad,
+        lead_m_per_rad=values.lead_m_per_rad,
         modes=tuple(zip(freqs, zetas, gains, strict=True)),
-        dead_time_s=values["dead_time_s"],
-        control_period_s=values["control_period_s"],
-        sim_step_s=values["sim_step_s"],
-        current_limit_A=values["current_limit_A"],
-        initial_angle_rad=values["initial_angle_rad"],
-        initial_velocity_rad_s=values["initial_velocity_rad_s"],
-        friction=build("friction.", FrictionParams, **section(values, "friction")),
-        disturbance=build("disturbance.", DisturbanceParams, **section(values, "disturbance")),
+        dead_time_s=values.dead_time_s,
+        control_period_s=values.control_period_s,
+        sim_step_s=values.sim_step_s,
+        current_limit_A=values.current_limit_A,
+        initial_angle_rad=values.initial_angle_rad,
+        initial_velocity_rad_s=values.initial_velocity_rad_s,
+        friction=build(
+            "friction.",
+            FrictionParams,
+            rolling_coulomb_Nm=friction.rolling_coulomb_Nm,
+            presliding_width_m=friction.presliding_width_m,
+            elements=friction.elements,
+            coulomb_Nm=friction.coulomb_Nm,
+            coulomb_smoothing_rad_s=friction.coulomb_smoothing_rad_s,
+            viscous_Nms_per_rad=friction.viscous_Nms_per_rad,
+        ),
+        disturbance=build(
+            "disturbance.",
+            DisturbanceParams,
+            amplitude_Nm=disturbance.amplitude_Nm,
+            frequency_hz=disturbance.frequency_hz,
+            phase_rad=disturbance.phase_rad,
+        ),
         encoder=encoder,
         scale=scale,
     )
 
 
-def _build(values: Values, rng: np.random.Generator) -> Plant:
+def _build(values: BallScrewValues, rng: np.random.Generator) -> Plant:
     return BallScrewPlant(ball_screw_params(values), rng=rng)
 
 
@@ -202,6 +224,8 @@ def _build(values: Values, rng: np.random.Generator) -> Plant:
 PLANT_MODEL = PlantModelEntry(
     schema=BALL_SCREW,
     build=_build,
+    check=ball_screw_params,
+    values=BallScrewValues,
     rotary=False,
     description="rigid ball-screw axis with resonance modes, dead time and friction, "
     "eq. (30) of 000",

@@ -18,8 +18,9 @@ from servo_axis.core.models.elastic_ball_screw import (
     mode_warning,
 )
 from servo_axis.params.param import Param, build, dataclass_defaults
-from servo_axis.params.registry import PlantModelEntry, Values
+from servo_axis.params.registry import PlantModelEntry
 from servo_axis.plugins.sensors import ENCODER_AND_SCALE, encoder_and_scale
+from servo_axis.plugins.values import ElasticBallScrewValues
 
 _ELASTIC = dataclass_defaults(ElasticBallScrewParams)
 
@@ -178,27 +179,50 @@ ELASTIC_BALL_SCREW: dict[str, Param] = {
 }
 
 
-def elastic_ball_screw_params(values: Values) -> ElasticBallScrewParams:
-    """:class:`ElasticBallScrewParams` from checked plant values (paper 004)."""
-    own = {k: values[k] for k in ELASTIC_BALL_SCREW if "." not in k}
-    encoder, scale = encoder_and_scale(values)
+def elastic_ball_screw_params(values: ElasticBallScrewValues) -> ElasticBallScrewParams:
+    """:class:`ElasticBallScrewParams` from checked plant values (paper 004; also the model's check)."""
+    encoder, scale = encoder_and_scale(values.encoder, values.scale)
     return build(
         "",
         ElasticBallScrewParams,
-        **own,
-        lead_m_per_rad=values["lead_m_per_rad"],
-        control_period_s=values["control_period_s"],
+        torque_constant_Nm_per_A=values.torque_constant_Nm_per_A,
+        motor_inertia_kgm2=values.motor_inertia_kgm2,
+        motor_damping_Nms_per_rad=values.motor_damping_Nms_per_rad,
+        table_mass_kg=values.table_mass_kg,
+        table_damping_Ns_per_m=values.table_damping_Ns_per_m,
+        axial_stiffness_N_per_m=values.axial_stiffness_N_per_m,
+        torsional_stiffness_Nm_per_rad=values.torsional_stiffness_Nm_per_rad,
+        screw_damping_Ns_per_m=values.screw_damping_Ns_per_m,
+        contact_zone_m=values.contact_zone_m,
+        contact_stiffness_ratio=values.contact_stiffness_ratio,
+        nut_friction_Nm=values.nut_friction_Nm,
+        nut_presliding_m=values.nut_presliding_m,
+        guide_friction_N=values.guide_friction_N,
+        guide_presliding_m=values.guide_presliding_m,
+        friction_elements=values.friction_elements,
+        nut_friction=values.nut_friction,
+        contact_travel_m=values.contact_travel_m,
+        nut_preload_N=values.nut_preload_N,
+        contact_presliding_m=values.contact_presliding_m,
+        bearing_friction_Nm=values.bearing_friction_Nm,
+        bearing_presliding_m=values.bearing_presliding_m,
+        current_bandwidth_hz=values.current_bandwidth_hz,
+        sim_step_s=values.sim_step_s,
+        current_limit_A=values.current_limit_A,
+        initial_position_m=values.initial_position_m,
+        lead_m_per_rad=values.lead_m_per_rad,
+        control_period_s=values.control_period_s,
         encoder=encoder,
         scale=scale,
     )
 
 
-def _elastic_warnings(values: Values) -> list[str]:
+def _elastic_warnings(values: ElasticBallScrewValues) -> list[str]:
     warning = mode_warning(elastic_ball_screw_params(values))
     return [] if warning is None else [warning]
 
 
-def _build(values: Values, rng: np.random.Generator) -> Plant:
+def _build(values: ElasticBallScrewValues, rng: np.random.Generator) -> Plant:
     return ElasticBallScrewPlant(elastic_ball_screw_params(values), rng=rng)
 
 
@@ -206,6 +230,8 @@ def _build(values: Values, rng: np.random.Generator) -> Plant:
 PLANT_MODEL = PlantModelEntry(
     schema=ELASTIC_BALL_SCREW,
     build=_build,
+    check=elastic_ball_screw_params,
+    values=ElasticBallScrewValues,
     warnings=_elastic_warnings,
     rotary=False,
     description="two-inertia ball-screw axis with elastic screw and nonlinear ball contacts (004)",

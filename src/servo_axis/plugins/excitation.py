@@ -19,7 +19,8 @@ from servo_axis.core.errors import ParameterFileError
 from servo_axis.core.feedforward.terms import FeedforwardTerm, ReferenceBlock
 from servo_axis.core.identification.offline.excitation import PHASES, SIGNALS, Excitation
 from servo_axis.params.param import Param, build
-from servo_axis.params.registry import FeedforwardTermEntry, Values
+from servo_axis.params.registry import FeedforwardTermEntry
+from servo_axis.plugins.values import ExcitationValues
 
 SCHEMA: dict[str, Param] = {
     "excitation.enabled": Param(
@@ -71,20 +72,22 @@ SCHEMA: dict[str, Param] = {
 }
 
 
-def _samples(values: Values, key: str) -> int:
-    t = values["control_period_s"]
-    n = values[key] / t
+def _samples(values: ExcitationValues, key: str, seconds: float) -> int:
+    """``seconds`` (of ``key``) as a whole number of control periods."""
+    t = values.control_period_s
+    n = seconds / t
     if abs(n - round(n)) > 1e-6 * max(1.0, n):
         raise ParameterFileError(
             f"parameter '{key}': expected a whole number of control periods "
-            f"({t!r} s), got {values[key]!r}"
+            f"({t!r} s), got {seconds!r}"
         )
     return int(np.rint(n))
 
 
-def excitation_of(values: Values) -> Excitation | None:
+def excitation_of(values: ExcitationValues) -> Excitation | None:
     """The excitation of checked feedforward values, or None when it is off."""
-    if not values["excitation.enabled"]:
+    e = values.excitation
+    if not e.enabled:
         return None
     keys = {
         "period_samples": "excitation.period_s",
@@ -95,17 +98,17 @@ def excitation_of(values: Values) -> Excitation | None:
         "excitation.",
         Excitation,
         keys=keys,
-        signal=values["excitation.signal"],
-        amplitude_Nm=values["excitation.amplitude_Nm"],
-        min_frequency_hz=values["excitation.min_frequency_hz"],
-        max_frequency_hz=values["excitation.max_frequency_hz"],
-        period_samples=_samples(values, "excitation.period_s"),
-        periods=values["excitation.periods"],
-        settle_periods=values["excitation.settle_periods"],
-        start_step=_samples(values, "excitation.start_s"),
-        control_period_s=values["control_period_s"],
-        phases=values["excitation.phases"],
-        seed=values["excitation.seed"],
+        signal=e.signal,
+        amplitude_Nm=e.amplitude_Nm,
+        min_frequency_hz=e.min_frequency_hz,
+        max_frequency_hz=e.max_frequency_hz,
+        period_samples=_samples(values, "excitation.period_s", e.period_s),
+        periods=e.periods,
+        settle_periods=e.settle_periods,
+        start_step=_samples(values, "excitation.start_s", e.start_s),
+        control_period_s=values.control_period_s,
+        phases=e.phases,
+        seed=e.seed,
     )
 
 
@@ -126,20 +129,26 @@ class ExcitationTerm:
         return np.where(on, self._period[np.mod(k - self._start, self._n)], 0.0)
 
 
-def _build(values: Values) -> FeedforwardTerm | None:
-    excitation = excitation_of(values)
-    if excitation is None:
-        return None
-    kt = values["nominal.torque_constant_Nm_per_A"]
+def _torque_constant(values: ExcitationValues) -> float:
+    kt = values.nominal.torque_constant_Nm_per_A
     if not (math.isfinite(kt) and kt > 0):
         raise ParameterFileError(
             f"parameter 'nominal.torque_constant_Nm_per_A': expected > 0, got {kt!r}"
         )
-    return ExcitationTerm(excitation, torque_constant_Nm_per_A=kt)
+    return kt
 
 
-def _check(values: Values) -> None:
-    _build(values)
+def _build(values: ExcitationValues) -> FeedforwardTerm | None:
+    excitation = excitation_of(values)
+    if excitation is None:
+        return None
+    return ExcitationTerm(excitation, torque_constant_Nm_per_A=_torque_constant(values))
+
+
+def _check(values: ExcitationValues) -> None:
+    """The signal's settings (a frozen record; its samples are not computed) and ``K_T``."""
+    if excitation_of(values) is not None:
+        _torque_constant(values)
 
 
 #: The entry point ``servo_axis.feedforward_terms: excitation``.
@@ -147,6 +156,7 @@ TERM = FeedforwardTermEntry(
     schema=SCHEMA,
     build=_build,
     check=_check,
+    values=ExcitationValues,
     order=50.0,
     description="periodic test torque (multisine, chirp, PRBS) for a frequency-response "
     "measurement (docs/how-to/identify-your-axis.md)",

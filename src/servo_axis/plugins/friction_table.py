@@ -13,7 +13,8 @@ from servo_axis.core.errors import ParameterFileError, ServoAxisError
 from servo_axis.core.feedforward.terms import FeedforwardTerm, FrictionTableTerm
 from servo_axis.params.factories import NOMINAL_KEYS, term_file
 from servo_axis.params.param import Param, build
-from servo_axis.params.registry import FeedforwardTermEntry, Values
+from servo_axis.params.registry import FeedforwardTermEntry
+from servo_axis.plugins.values import FrictionTableValues
 from servo_axis.storage import load_friction_table
 
 SCHEMA: dict[str, Param] = {
@@ -30,12 +31,14 @@ SCHEMA: dict[str, Param] = {
 }
 
 
-def _check(values: Values) -> None:
-    term_file(values, "friction_table")
+def _file(values: FrictionTableValues) -> str | None:
+    """Its table file when it is on (the check: one is named), not read."""
+    keys = values.friction_table
+    return term_file(keys.enabled, keys.file, "friction_table")
 
 
-def _build(values: Values) -> FeedforwardTerm | None:
-    path = term_file(values, "friction_table")
+def _build(values: FrictionTableValues) -> FeedforwardTerm | None:
+    path = _file(values)
     if path is None:
         return None
     try:
@@ -47,7 +50,7 @@ def _build(values: Values) -> FeedforwardTerm | None:
         FrictionTableTerm,
         keys=NOMINAL_KEYS,
         table=table,
-        torque_constant_Nm_per_A=values["nominal.torque_constant_Nm_per_A"],
+        torque_constant_Nm_per_A=values.nominal.torque_constant_Nm_per_A,
     )
 
 
@@ -55,7 +58,8 @@ def _build(values: Values) -> FeedforwardTerm | None:
 TERM = FeedforwardTermEntry(
     schema=SCHEMA,
     build=_build,
-    check=_check,
+    check=_file,
+    values=FrictionTableValues,
     files=("friction_table.file",),
     order=10.0,
     description="data-based friction table of a friction_id run (000 Fig. 17)",

@@ -10,6 +10,7 @@ and a file of another plant is refused.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 from servo_axis.core.errors import ParameterFileError, ServoAxisError
@@ -17,8 +18,9 @@ from servo_axis.core.feedforward.gms_compensation import GmsTerm
 from servo_axis.core.feedforward.terms import FeedforwardTerm
 from servo_axis.params.factories import NOMINAL_KEYS, PERIOD_KEYS, term_file
 from servo_axis.params.param import Param, build
-from servo_axis.params.registry import FeedforwardTermEntry, Scenario, Values
-from servo_axis.params.resolve import plant_fingerprint
+from servo_axis.params.registry import FeedforwardTermEntry
+from servo_axis.params.resolve import Resolved, plant_fingerprint
+from servo_axis.plugins.values import GmsValues
 from servo_axis.storage import load_gms_parameters
 
 SCHEMA: dict[str, Param] = {
@@ -40,20 +42,21 @@ SCHEMA: dict[str, Param] = {
 }
 
 
-def _check(values: Values) -> None:
-    term_file(values, "gms")
+def _file(values: GmsValues) -> str | None:
+    """Its parameter file when it is on (the check: one is named), not read."""
+    return term_file(values.gms.enabled, values.gms.file, "gms")
 
 
-def _build(values: Values) -> FeedforwardTerm | None:
+def _build(values: GmsValues) -> FeedforwardTerm | None:
     """The GMS-model compensation (004 Sect. II-C), if on: its file read and checked."""
-    path = term_file(values, "gms")
+    path = _file(values)
     if path is None:
         return None
     try:
         params, _, fingerprint = load_gms_parameters(path)
     except (OSError, ServoAxisError) as err:
         raise ParameterFileError(f"parameter 'gms.file': {err}") from err
-    expected = values["gms.plant"]
+    expected = values.gms.plant
     if expected and fingerprint != expected:
         raise ParameterFileError(
             f"parameter 'gms.file': {path} was identified on plant {fingerprint!r}, "
@@ -64,15 +67,16 @@ def _build(values: Values) -> FeedforwardTerm | None:
         GmsTerm,
         keys={**NOMINAL_KEYS, **PERIOD_KEYS},
         params=params,
-        torque_constant_Nm_per_A=values["nominal.torque_constant_Nm_per_A"],
-        control_period_s=values["control_period_s"],
+        torque_constant_Nm_per_A=values.nominal.torque_constant_Nm_per_A,
+        control_period_s=values.control_period_s,
     )
 
 
-def _overrides(scenario: Scenario, given: Values) -> dict[str, Any]:
-    """``gms.plant``: the plant a GMS file must come from, when the term is on."""
+def _overrides(resolved: Resolved, given: Mapping[str, Any]) -> dict[str, Any]:
+    """``gms.plant``: the plant a GMS file must come from, when the term is on (and its
+    section does not name one): from the plant's checked values."""
     if given.get("gms.enabled", False) and "gms.plant" not in given:
-        return {"gms.plant": plant_fingerprint(scenario)}
+        return {"gms.plant": plant_fingerprint(resolved)}
     return {}
 
 
@@ -80,7 +84,8 @@ def _overrides(scenario: Scenario, given: Values) -> dict[str, Any]:
 TERM = FeedforwardTermEntry(
     schema=SCHEMA,
     build=_build,
-    check=_check,
+    check=_file,
+    values=GmsValues,
     files=("gms.file",),
     order=30.0,
     overrides=_overrides,

@@ -12,7 +12,7 @@ feedback loop, whose bandwidth the resolver copies from the feedback section
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -29,7 +29,12 @@ from servo_axis.params.factories import (
     nominal_model,
 )
 from servo_axis.params.param import Param, build
-from servo_axis.params.registry import LearningLawEntry, Values
+from servo_axis.params.registry import LearningLawEntry
+from servo_axis.params.values import PlantValues
+from servo_axis.plugins.values import PilcBfValues, SilcValues
+
+#: The values of a section with a trial law: the keys of ``silc``, or of ``pilc_bf``/``pilc_bfft``.
+TrialValues = SilcValues | PilcBfValues
 
 #: Keys of the trial laws of paper 001 (``silc``, ``pilc_bf``, ``pilc_bfft``).
 ILC: dict[str, Param] = {
@@ -60,13 +65,13 @@ PILC: dict[str, Param] = {
 }
 
 
-def ilc_params(values: Values) -> Any:
+def ilc_params(values: TrialValues) -> Any:
     """The :class:`~servo_axis.core.learning.ilc.IlcParams` of checked values of a trial law."""
     from servo_axis.core.learning.ilc import IlcParams
 
     g = grid(values)
-    check_trial_period("cycle_s", values["cycle_s"], values)
-    n = build("", g.steps_per, period_s=values["cycle_s"], name="cycle_s")
+    check_trial_period("cycle_s", values.cycle_s, values)
+    n = build("", g.steps_per, period_s=values.cycle_s, name="cycle_s")
     nominal = nominal_model(values)
     pid = build(
         "feedback.",
@@ -75,33 +80,42 @@ def ilc_params(values: Values) -> Any:
         inertia_kgm2=nominal.inertia_kgm2,
         damping_Nms_per_rad=nominal.damping_Nms_per_rad,
         torque_constant_Nm_per_A=nominal.torque_constant_Nm_per_A,
-        bandwidth_hz=values["feedback.bandwidth_hz"],
+        bandwidth_hz=values.feedback.bandwidth_hz,
     )
     return build(
         "",
         IlcParams,
         keys={"samples_per_trial": "cycle_s", "period_s": "control_period_s"},
         samples_per_trial=n,
-        nq=values["nq"],
+        nq=values.nq,
         period_s=g.control_period_s,
-        lead_m_per_rad=values["lead_m_per_rad"],
+        lead_m_per_rad=values.lead_m_per_rad,
         nominal=nominal,
         pid=pid,
     )
 
 
-def _silc(values: Values) -> LearningLaw:
+def _converging(values: TrialValues) -> Any:
+    """:func:`ilc_params`, with the nominal loop's eq. (7) met (every trial law's check)."""
+    from servo_axis.core.learning.ilc import require_convergence
+
+    params = ilc_params(values)
+    build("", require_convergence, params=params)
+    return params
+
+
+def _silc(values: SilcValues) -> LearningLaw:
     from servo_axis.core.learning.ilc import StandardIlc
 
     law: LearningLaw = build("", StandardIlc, params=ilc_params(values))
     return law
 
 
-def _trial_reference(values: Values) -> Callable[[int], tuple[Any, Any, Any]]:
+def _trial_reference(values: PilcBfValues) -> Callable[[int], tuple[Any, Any, Any]]:
     """``reference_of(trial)``: the reference of 1-based trial ``trial`` at its control samples (m)."""
     reference = build_reference(values)
     g = grid(values)
-    n = g.steps_per(values["cycle_s"], name="cycle_s")
+    n = g.steps_per(values.cycle_s, name="cycle_s")
     k = np.arange(n)
 
     def reference_of(trial: int) -> tuple[Any, Any, Any]:
@@ -110,21 +124,36 @@ def _trial_reference(values: Values) -> Callable[[int], tuple[Any, Any, Any]]:
     return reference_of
 
 
-def _pilc(friction_table: bool) -> Callable[[Values], LearningLaw]:
-    def make(values: Values) -> LearningLaw:
-        from servo_axis.core.learning.pilc import (
-            ProjectionIlc,
-            ProjectionParams,
-            reversal_displacement,
-            weighting,
-        )
+def _projection(values: PilcBfValues) -> Any:
+    from servo_axis.core.learning.pilc import ProjectionParams
 
-        projection = build(
-            "",
-            ProjectionParams,
-            x_mu_m=values["x_mu_m"],
-            threshold_m=values["threshold_m"],
-        )
+    return build("", ProjectionParams, x_mu_m=values.x_mu_m, threshold_m=values.threshold_m)
+
+
+def _check_weights(values: PilcBfValues) -> None:
+    """W of eq. (27) has data in every trajectory: refused before anything moves, not at
+    the end of a trial."""
+    from servo_axis.core.learning.pilc import reversal_displacement, weighting
+
+    reference_of = _trial_reference(values)
+    firsts = getattr(build_reference(values), "first_trials", (1,))
+    for trial in firsts:
+        pos, vel, _ = reference_of(trial)
+        x_r = reversal_displacement(pos, vel)
+        try:
+            weighting(x_r, threshold_m=values.threshold_m, velocity_m_s=vel)
+        except ServoAxisError as err:
+            detail = str(err).partition(": ")[2]
+            raise ParameterFileError(
+                f"parameter 'threshold_m': trial {trial} (its reference): {detail}"
+            ) from err
+
+
+def _pilc(friction_table: bool) -> Callable[[PilcBfValues], LearningLaw]:
+    def make(values: PilcBfValues) -> LearningLaw:
+        from servo_axis.core.learning.pilc import ProjectionIlc
+
+        projection = _projection(values)
         reference_of = _trial_reference(values)
         law: LearningLaw = build(
             "",
@@ -135,38 +164,61 @@ def _pilc(friction_table: bool) -> Callable[[Values], LearningLaw]:
             friction_table=friction_table,
         )
         if friction_table:
-            # W of eq. (27) must have data in every trajectory: refused here,
-            # before anything moves, not at the end of a trial.
-            reference = build_reference(values)
-            firsts = getattr(reference, "first_trials", (1,))
-            for trial in firsts:
-                pos, vel, _ = reference_of(trial)
-                x_r = reversal_displacement(pos, vel)
-                try:
-                    weighting(x_r, threshold_m=values["threshold_m"], velocity_m_s=vel)
-                except ServoAxisError as err:
-                    detail = str(err).partition(": ")[2]
-                    raise ParameterFileError(
-                        f"parameter 'threshold_m': trial {trial} (its reference): {detail}"
-                    ) from err
+            _check_weights(values)
         return law
 
     return make
 
 
-def convergence(values: Values, plant_values: Values) -> dict[str, float]:
+def _pilc_check(friction_table: bool) -> Callable[[PilcBfValues], None]:
+    def check(values: PilcBfValues) -> None:
+        _projection(values)
+        _trial_reference(values)
+        _converging(values)
+        if friction_table:
+            _check_weights(values)
+
+    return check
+
+
+@runtime_checkable
+class RigidBody(Protocol):
+    """A plant section whose model has a rigid body's ``J``, ``D`` and ``K_T`` keys."""
+
+    @property
+    def inertia_kgm2(self) -> float: ...
+
+    @property
+    def damping_Nms_per_rad(self) -> float: ...
+
+    @property
+    def torque_constant_Nm_per_A(self) -> float: ...
+
+
+def convergence(values: TrialValues, plant_values: PlantValues) -> dict[str, float]:
     """``{"nq", "nominal", "plant"}``: the measure of 001 eq. (7).
 
     ``plant`` is the plant's rigid-body part (``J``, ``D``, ``K_T`` of the
     plant section) under the same PID and ``L``.
+
+    Raises
+    ------
+    ParameterFileError
+        Naming ``plant.model`` when its model has no such keys.
     """
     from servo_axis.core.learning.ilc import convergence_measure
 
+    if not isinstance(plant_values, RigidBody):
+        raise ParameterFileError(
+            f"parameter 'plant.model': the convergence of eq. (7) needs a rigid body's "
+            f"inertia_kgm2, damping_Nms_per_rad and torque_constant_Nm_per_A, which model "
+            f"{plant_values.model!r} has not"
+        )
     params = ilc_params(values)
     plant = NominalModel(
-        inertia_kgm2=plant_values["inertia_kgm2"],
-        damping_Nms_per_rad=plant_values["damping_Nms_per_rad"],
-        torque_constant_Nm_per_A=plant_values["torque_constant_Nm_per_A"],
+        inertia_kgm2=plant_values.inertia_kgm2,
+        damping_Nms_per_rad=plant_values.damping_Nms_per_rad,
+        torque_constant_Nm_per_A=plant_values.torque_constant_Nm_per_A,
     )
     return {
         "nq": params.nq,
@@ -181,6 +233,8 @@ SILC = LearningLawEntry(
     period="trial",
     side="input",
     build=_silc,
+    check=_converging,
+    values=SilcValues,
     convergence=convergence,
     description="standard ILC with the ZPETC learning filter (001)",
 )
@@ -190,6 +244,8 @@ PILC_BF = LearningLawEntry(
     period="trial",
     side="input",
     build=_pilc(False),
+    check=_pilc_check(False),
+    values=PilcBfValues,
     identifies=("learning/parameters",),
     convergence=convergence,
     description="projection-based ILC with friction basis functions (001)",
@@ -200,6 +256,8 @@ PILC_BFFT = LearningLawEntry(
     period="trial",
     side="input",
     build=_pilc(True),
+    check=_pilc_check(True),
+    values=PilcBfValues,
     identifies=("learning/parameters", "learning/friction_table"),
     convergence=convergence,
     description="projection-based ILC with basis functions and the data-based friction table (001)",

@@ -14,7 +14,8 @@ from servo_axis.core.feedforward.mnc import MncParams, NonlinearityCompensator
 from servo_axis.core.feedforward.terms import FeedforwardTerm
 from servo_axis.params.factories import build_reference, grid
 from servo_axis.params.param import Param, build
-from servo_axis.params.registry import FeedforwardTermEntry, Values
+from servo_axis.params.registry import FeedforwardTermEntry
+from servo_axis.plugins.values import MncValues
 
 SCHEMA: dict[str, Param] = {
     "mnc.enabled": Param(
@@ -50,11 +51,10 @@ SCHEMA: dict[str, Param] = {
 }
 
 
-def _build(values: Values) -> FeedforwardTerm | None:
-    """The multirate nonlinearity compensator of 003 eqs. (12)-(15) / (17), if on."""
-    if not values["mnc.enabled"]:
-        return None
-    params = build(
+def mnc_params(values: MncValues) -> MncParams:
+    """The compensator's constants (its check: what depends on several keys, not built)."""
+    mnc = values.mnc
+    return build(
         "mnc.",
         MncParams,
         keys={
@@ -64,24 +64,37 @@ def _build(values: Values) -> FeedforwardTerm | None:
             "ratio": "control_period_s",
             "control_period_s": "control_period_s",
         },
-        unbalance_Nm=values["mnc.unbalance_Nm"],
-        coulomb_Nm=values["mnc.coulomb_Nm"],
-        friction=values["mnc.friction"],
-        alpha=values["mnc.alpha_s_per_rad"],
-        omega_th_rad_s=values["mnc.omega_th_rad_s"],
-        torque_constant_Nm_per_A=values["nominal.torque_constant_Nm_per_A"],
-        lead_m_per_rad=values["lead_m_per_rad"],
+        unbalance_Nm=mnc.unbalance_Nm,
+        coulomb_Nm=mnc.coulomb_Nm,
+        friction=mnc.friction,
+        alpha=mnc.alpha_s_per_rad,
+        omega_th_rad_s=mnc.omega_th_rad_s,
+        torque_constant_Nm_per_A=values.nominal.torque_constant_Nm_per_A,
+        lead_m_per_rad=values.lead_m_per_rad,
         ratio=grid(values).ratio,
-        control_period_s=values["control_period_s"],
+        control_period_s=values.control_period_s,
     )
+
+
+def _check(values: MncValues) -> None:
+    if values.mnc.enabled:
+        mnc_params(values)
+
+
+def _build(values: MncValues) -> FeedforwardTerm | None:
+    """The multirate nonlinearity compensator of 003 eqs. (12)-(15) / (17), if on."""
+    if not values.mnc.enabled:
+        return None
     # Its U and C follow the online estimates when adaptive.enabled.
-    return NonlinearityCompensator(params, reference=build_reference(values))
+    return NonlinearityCompensator(mnc_params(values), reference=build_reference(values))
 
 
 #: The entry point ``servo_axis.feedforward_terms: mnc``.
 TERM = FeedforwardTermEntry(
     schema=SCHEMA,
     build=_build,
+    check=_check,
+    values=MncValues,
     order=20.0,
     description="multirate nonlinearity compensator: unbalance and arctan friction (003)",
 )

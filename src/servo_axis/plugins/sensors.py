@@ -10,8 +10,8 @@ from __future__ import annotations
 import math
 
 from servo_axis.core.sensors import SensorParams
-from servo_axis.params.param import Param, build, section
-from servo_axis.params.registry import Values
+from servo_axis.params.param import Param, build
+from servo_axis.plugins.values import EncoderKeys, ScaleKeys
 
 #: The four keys: count and noise of the encoder (motor angle) and of the scale (table).
 ENCODER_AND_SCALE: dict[str, Param] = {
@@ -44,9 +44,14 @@ ENCODER_AND_SCALE: dict[str, Param] = {
 }
 
 
-def encoder_and_scale(values: Values) -> tuple[SensorParams, SensorParams]:
-    """``(encoder, scale)`` from checked plant values."""
+def encoder_and_scale(encoder: EncoderKeys, scale: ScaleKeys) -> tuple[SensorParams, SensorParams]:
+    """``(encoder, scale)`` from the checked ``encoder.*`` and ``scale.*`` keys."""
     return (
-        build("encoder.", SensorParams, **section(values, "encoder")),
-        build("scale.", SensorParams, **section(values, "scale")),
+        build(
+            "encoder.",
+            SensorParams,
+            resolution=encoder.resolution,
+            noise_std=encoder.noise_std,
+        ),
+        build("scale.", SensorParams, resolution=scale.resolution, noise_std=scale.noise_std),
     )

@@ -20,7 +20,8 @@ from servo_axis.core.feedforward.terms import FeedforwardTerm
 from servo_axis.params import schemas
 from servo_axis.params.factories import NOMINAL_KEYS, build_reference, sigmoid_params
 from servo_axis.params.param import Param, build
-from servo_axis.params.registry import FeedforwardTermEntry, Values
+from servo_axis.params.registry import FeedforwardTermEntry
+from servo_axis.plugins.values import SigmoidValues
 
 _SIGMOID_GAMMA = gamma_for_width(
     sigma_m2_per_rad=PAPER_SIGMA_M2_PER_RAD, half_width_m=PAPER_PRESLIDING_M / 2
@@ -69,24 +70,32 @@ SCHEMA: dict[str, Param] = {
 }
 
 
-def _build(values: Values) -> FeedforwardTerm | None:
+def _from_reference(values: SigmoidValues) -> bool:
+    """Whether this term computes the law: on, from the reference (from the stage: the loop's)."""
+    return values.sigmoid.enabled and values.sigmoid.source != "stage"
+
+
+def _build(values: SigmoidValues) -> FeedforwardTerm | None:
     """The sigmoid law of 004 eq. (9), if on."""
-    if not values["sigmoid.enabled"] or values["sigmoid.source"] == "stage":
+    if not _from_reference(values):
         return None  # from the stage: the feedback loop's (factories.build_loop)
     return build(
         "sigmoid.",
         SigmoidTerm,
         keys={**NOMINAL_KEYS, "control_period_s": "control_period_s"},
-        params=sigmoid_params(values),
+        params=sigmoid_params(values.sigmoid),
         reference=build_reference(values),
-        control_period_s=values["control_period_s"],
-        torque_constant_Nm_per_A=values["nominal.torque_constant_Nm_per_A"],
-        search_horizon_s=values["sigmoid.search_horizon_s"],
+        control_period_s=values.control_period_s,
+        torque_constant_Nm_per_A=values.nominal.torque_constant_Nm_per_A,
+        search_horizon_s=values.sigmoid.search_horizon_s,
     )
 
 
-def _check(values: Values) -> None:
-    _build(values)
+def _check(values: SigmoidValues) -> None:
+    """What the term's constructor refuses (its keys' ranges cover the rest), without it."""
+    if _from_reference(values):
+        sigmoid_params(values.sigmoid)
+        build_reference(values)
 
 
 #: The entry point ``servo_axis.feedforward_terms: sigmoid``.
@@ -94,6 +103,7 @@ TERM = FeedforwardTermEntry(
     schema=SCHEMA,
     build=_build,
     check=_check,
+    values=SigmoidValues,
     order=40.0,
     description="sigmoid friction compensation before reversals, eq. (9) of 004",
 )

@@ -14,7 +14,8 @@ import numpy as np
 from servo_axis.core.models.base import Plant
 from servo_axis.core.models.tilting_table import TiltingTableParams, TiltingTablePlant
 from servo_axis.params.param import Param, build, dataclass_defaults
-from servo_axis.params.registry import PlantModelEntry, Values
+from servo_axis.params.registry import PlantModelEntry
+from servo_axis.plugins.values import TiltingTableValues
 
 #: Keys of the plant model ``tilting_table`` (paper 003 eq. (2); defaults: its Table I).
 _TILT = dataclass_defaults(TiltingTableParams)
@@ -75,28 +76,28 @@ TILTING_TABLE: dict[str, Param] = {
 }
 
 
-def tilting_table_params(values: Values) -> TiltingTableParams:
-    """:class:`TiltingTableParams` from checked plant values (paper 003)."""
+def tilting_table_params(values: TiltingTableValues) -> TiltingTableParams:
+    """:class:`TiltingTableParams` from checked plant values (paper 003; also the model's check)."""
     return build(
         "",
         TiltingTableParams,
         keys={"encoder_resolution_rad": "encoder.resolution"},
-        torque_constant_Nm_per_A=values["torque_constant_Nm_per_A"],
-        inertia_kgm2=values["inertia_kgm2"],
-        damping_Nms_per_rad=values["damping_Nms_per_rad"],
-        unbalance_Nm=values["unbalance_Nm"],
-        coulomb_Nm=values["coulomb_Nm"],
-        control_period_s=values["control_period_s"],
-        sim_step_s=values["sim_step_s"],
-        current_limit_A=values["current_limit_A"],
-        initial_angle_rad=values["initial_angle_rad"],
-        initial_velocity_rad_s=values["initial_velocity_rad_s"],
-        noise_rad=values["noise_rad"],
-        encoder_resolution_rad=values["encoder.resolution"],
+        torque_constant_Nm_per_A=values.torque_constant_Nm_per_A,
+        inertia_kgm2=values.inertia_kgm2,
+        damping_Nms_per_rad=values.damping_Nms_per_rad,
+        unbalance_Nm=values.unbalance_Nm,
+        coulomb_Nm=values.coulomb_Nm,
+        control_period_s=values.control_period_s,
+        sim_step_s=values.sim_step_s,
+        current_limit_A=values.current_limit_A,
+        initial_angle_rad=values.initial_angle_rad,
+        initial_velocity_rad_s=values.initial_velocity_rad_s,
+        noise_rad=values.noise_rad,
+        encoder_resolution_rad=values.encoder.resolution,
     )
 
 
-def _build(values: Values, rng: np.random.Generator) -> Plant:
+def _build(values: TiltingTableValues, rng: np.random.Generator) -> Plant:
     return TiltingTablePlant(tilting_table_params(values), rng=rng)
 
 
@@ -104,6 +105,8 @@ def _build(values: Values, rng: np.random.Generator) -> Plant:
 PLANT_MODEL = PlantModelEntry(
     schema=TILTING_TABLE,
     build=_build,
+    check=tilting_table_params,
+    values=TiltingTableValues,
     rotary=True,
     description="tilting table with unbalance and Coulomb friction, eq. (2) of 003 (rotary)",
 )

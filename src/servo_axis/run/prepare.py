@@ -140,7 +140,7 @@ def describe_external(axis: AxisPlan, role: str) -> str:
         return name if name.startswith("/") else f"{ns}/{name}"
 
     plant = axis.role("plant")
-    setpoints = plant is not None and plant.values.get("command_source") == "drive_setpoint"
+    setpoints = plant is not None and plant.values.command_source == "drive_setpoint"
 
     def row(kind: str, t: Topic) -> str:
         optional = "" if played.required(t.name) else "(optional) "

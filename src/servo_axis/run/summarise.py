@@ -110,7 +110,7 @@ def _summarise_axis(
     span = stepping_span(reports.get("plant"), state.t_start, state.t_end)
     summary = summaries.summarise(
         axis.plan.dir,
-        scenario=axis.plan.scenario,
+        scenario=axis.plan.summary_scenario(),
         scenario_path=axis.plan.scenario_path,
         source_file=axis.plan.source_path,
         wall_time_s=state.wall_time_s if span is None else span[1] - span[0],

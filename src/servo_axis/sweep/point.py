@@ -59,18 +59,18 @@ def plain_summary(scenario: dict[str, Any], scenario_path: Path) -> dict[str, An
     )
     from servo_axis.analysis.tracking import unit_keys
     from servo_axis.params.factories import build_reference
-    from servo_axis.params.resolve import feedforward_values, node_values
+    from servo_axis.params.resolve import Resolved
     from servo_axis.simulate import simulate, simulate_identification, simulate_learning
     from servo_axis.wire.cdr import EstimateData
 
-    plant = node_values(scenario, "plant")
-    ff = node_values(scenario, "feedforward")
-    period = plant["control_period_s"]
+    resolved = Resolved(scenario, scenario_path)
+    plant, ff = resolved.plant, resolved.feedforward
+    period = plant.control_period_s
     identification = None
     reference_period: float | None = None
-    learning = learning_enabled(scenario)
+    learning = learning_enabled(resolved)
     if "feedforward" in scenario and (not learning or "identifier" in scenario):
-        reference_period = build_reference(feedforward_values(scenario, scenario_path)).period_s
+        reference_period = build_reference(ff).period_s
     if "identifier" in scenario:
         run = simulate_identification(scenario_path)
         traj = run.trajectory
@@ -92,9 +92,9 @@ def plain_summary(scenario: dict[str, Any], scenario_path: Path) -> dict[str, An
         traj = simulate(scenario_path)
     steps = np.arange(traj.encoder_rad.size)
     sig = _Signals(steps, traj.encoder_rad, traj.scale_m, traj.reference_rad)
-    target, y = tracking(scenario, scenario_path, sig)  # type: ignore[arg-type]
+    target, y = tracking(resolved, scenario_path, sig)  # type: ignore[arg-type]
     error = position_scale(plant) * (target - y)
-    cycle = ff["learning.cycle_s"] if learning else reference_period
+    cycle = ff.learning.cycle_s if learning else reference_period
     summary: dict[str, Any] = {
         "steps": int(steps.size),
         "sim_time_s": steps.size * period,
@@ -103,7 +103,7 @@ def plain_summary(scenario: dict[str, Any], scenario_path: Path) -> dict[str, An
             error_statistics(error, steps, period_s=period, cycle_s=cycle), error_unit(plant)
         ),
     }
-    convergence = ilc_convergence(scenario, scenario_path)
+    convergence = ilc_convergence(resolved, scenario_path)
     if convergence is not None:
         summary["ilc_convergence"] = convergence
     if identification is not None:

@@ -408,14 +408,15 @@ def _section_of(scenario: dict[str, Any], key: str) -> tuple[str, str]:
 
 def _check_section(scenario: dict[str, Any], section: str) -> None:
     """Check the parameters of the roles a section sets (names, types, ranges)."""
-    from servo_axis.params.resolve import node_values
+    from servo_axis.params.resolve import Resolved
 
     if section == SHARED_SECTION:
         check_shared_keys(scenario, "")
     roles = [r for r in ROLES if r in scenario] if section == SHARED_SECTION else [section]
+    resolved = Resolved(scenario)
     for role in roles:
         if role in ROLES and role != "recorder":
-            node_values(scenario, role)
+            resolved.values(role)
 
 
 def _has(params: dict[str, Any], dotted: str) -> bool:

@@ -253,8 +253,7 @@ def test_tracking_with_learning_recomputes_the_original_target(
     )
     scenario = load_scenario(path)
     target, _ = tracking(scenario, path, sig)
-    values = feedforward_values(scenario, path)
-    values["learning.enabled"] = False
+    values = feedforward_values(scenario, path).with_keys({"learning.enabled": False})
     rows = build_generator(values).samples(0, N)
     assert_allclose(target, [rows[k][0] for k in sig.step], rtol=0, atol=0)
     # The generator's target, not the recorded reference.

@@ -47,8 +47,7 @@ class DisturbanceObserver:
         kt = require_positive("torque_constant_Nm_per_A", torque_constant_Nm_per_A)
         wq = 2.0 * math.pi * require_positive("cutoff_hz", cutoff_hz)
         self.period_s = require_positive("period_s", period_s)
-        if cutoff_hz >= 0.5 / period_s:
-            raise ConfigError(f"cutoff_hz: expected below the Nyquist frequency, got {cutoff_hz!r}")
+        check_cutoff(cutoff_hz=cutoff_hz, period_s=period_s)
         self._inverse = tustin(np.array([wq * j / kt, wq * d / kt]), np.array([1.0, wq]), period_s)
         self._lpf = observer_lowpass(cutoff_hz, period_s)
         self._last_angle: float | None = None
@@ -65,6 +64,18 @@ class DisturbanceObserver:
         self._last_angle = angle_rad
         velocity = (angle_rad - last) / self.period_s
         return self._inverse.update(velocity) - self._lpf.update(previous_current_A)
+
+
+def check_cutoff(*, cutoff_hz: float, period_s: float) -> None:
+    """The observer's cut-off (Hz) below the Nyquist frequency of its period ``period_s`` (s > 0).
+
+    Raises
+    ------
+    ConfigError
+        Naming ``cutoff_hz`` when it is at or above ``0.5 / period_s``.
+    """
+    if cutoff_hz >= 0.5 / period_s:
+        raise ConfigError(f"cutoff_hz: expected below the Nyquist frequency, got {cutoff_hz!r}")
 
 
 def observer_lowpass(cutoff_hz: float, period_s: float) -> DiscreteFilter:
@@ -94,8 +105,7 @@ class ObserverBypass:
     """
 
     def __init__(self, *, cutoff_hz: float, period_s: float) -> None:
-        if cutoff_hz >= 0.5 / require_positive("period_s", period_s):
-            raise ConfigError(f"cutoff_hz: expected below the Nyquist frequency, got {cutoff_hz!r}")
+        check_cutoff(cutoff_hz=cutoff_hz, period_s=require_positive("period_s", period_s))
         self._lpf = observer_lowpass(cutoff_hz, period_s)
         self._filtered_previous = 0.0
 

@@ -21,7 +21,8 @@ import numpy as np
 
 from servo_axis.core.models.base import Plant, PlantOutput, clipped_current
 from servo_axis.params.param import Param, build
-from servo_axis.params.registry import PlantModelEntry, Values
+from servo_axis.params.registry import PlantModelEntry
+from servo_axis.params.values import PlantValues
 
 SCHEMA: dict[str, Param] = {
     "torque_constant_Nm_per_A": Param(
@@ -99,14 +100,16 @@ class RigidViscousAxis:
         return self.output()
 
 
-def _build(values: Values, rng: np.random.Generator) -> Plant:
+def _build(values: PlantValues, rng: np.random.Generator) -> Plant:
+    # The model's own keys by name (its class is made from SCHEMA when the
+    # suite loads the entry: values.inertia_kgm2 too), the node's as attributes.
     own: dict[str, Any] = {k: values[k] for k in SCHEMA}
     return build(
         "",
         RigidViscousAxis,
         **own,
-        control_period_s=values["control_period_s"],
-        lead_m_per_rad=values["lead_m_per_rad"],
+        control_period_s=values.control_period_s,
+        lead_m_per_rad=values.lead_m_per_rad,
     )
 
 
