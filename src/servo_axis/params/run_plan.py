@@ -194,11 +194,6 @@ class AxisPlan:
         return self.mode == "realtime"
 
     @property
-    def role_names(self) -> list[str]:
-        """Every role, in start order."""
-        return [r.role for r in self.roles]
-
-    @property
     def started(self) -> list[str]:
         """The roles the runner starts (those outside nodes play left out)."""
         return [r.role for r in self.roles if not r.outside]
