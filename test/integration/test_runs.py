@@ -474,6 +474,13 @@ def test_namespaced_composed_run_leaves_nothing_behind(ros_env: int, tmp_path: P
     assert leftovers == []
 
 
+def unpinned_environment() -> dict[str, str]:
+    """This environment without the numeric pin the suite runs in, as a user's shell is."""
+    from servo_axis.numerics import PINNED
+
+    return {k: v for k, v in os.environ.items() if k not in (*PINNED, "GLIBC_TUNABLES")}
+
+
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_a_signal_to_the_runner_stops_every_node_and_keeps_the_bag(
     ros_env: int, tmp_path: Path, sig: signal.Signals
@@ -483,8 +490,12 @@ def test_a_signal_to_the_runner_stops_every_node_and_keeps_the_bag(
     scenario = scenario_copy(CONFIG / "ptc_nominal.yaml", tmp_path, duration_s=600.0)
     out = tmp_path / "run"
     started = time.time()
+    # One of the two in the host's fastest numeric paths: the summary says
+    # which paths the run took (the other is pinned, as every run is).
+    numerics = "native" if sig == signal.SIGTERM else "portable"
     runner = subprocess.Popen(
         [sys.executable, "-m", "servo_axis", "run", str(scenario), "--out", str(out), "--no-plots"],
+        env={**unpinned_environment(), "SERVO_AXIS_NUMERICS": numerics},
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         text=True,
@@ -537,6 +548,7 @@ def test_a_signal_to_the_runner_stops_every_node_and_keeps_the_bag(
     assert not health["deterministic"]
     assert summary["message_counts"]["/x/state"] == len(steps["/x/state"])
     assert summary["steps"] > 500
+    assert summary["numerics"] == numerics
     assert f"summary of what was recorded: {out / 'summary.json'}" in stderr
     shown = subprocess.run(
         [sys.executable, "-m", "servo_axis", "summary", str(out)],

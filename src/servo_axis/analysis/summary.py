@@ -228,10 +228,17 @@ class RunSummary(Serial):
         written) otherwise.
     realtime : Realtime or None
         A realtime run's deadline misses and lateness (the plant's report);
-        None (not written) in lockstep or without the report.    overrides : tuple of str or None
+        None (not written) in lockstep or without the report.
+    overrides : tuple of str or None
         The ``--set SECTION.KEY=VALUE`` overrides of the scenario's keys the
         run was given, in order (its ``params.yaml`` holds the result); None
         (not written) for none.
+    numerics : str or None
+        The numeric paths the run's processes took
+        (:func:`servo_axis.numerics.mode`): ``portable`` (the pin: the same
+        bag on any x86-64 host), ``native`` (``SERVO_AXIS_NUMERICS=native``)
+        or ``host`` (started outside the pin); None (not written) for a
+        summary made from a bag alone or before this was recorded.
     """
 
     scenario: str
@@ -261,6 +268,7 @@ class RunSummary(Serial):
     startup_s: float | None = field(default=None, metadata={"omit_none": True})
     finish_s: float | None = field(default=None, metadata={"omit_none": True})
     overrides: tuple[str, ...] | None = field(default=None, metadata={"omit_none": True})
+    numerics: str | None = field(default=None, metadata={"omit_none": True})
 
     @property
     def unit(self) -> str:
@@ -312,7 +320,8 @@ class AxesSummary(Serial):
     contour : ContourSummary or None
         For two axes, their contour error.
     health : RunHealth or None
-        The whole run's health (each axis's summary has its own as well).    overrides : tuple of str or None
+        The whole run's health (each axis's summary has its own as well).
+    overrides : tuple of str or None
         The run's ``--set`` overrides, as each axis's summary has them; None
         (not written) for none.
     """

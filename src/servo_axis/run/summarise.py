@@ -18,6 +18,7 @@ import sys
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+from servo_axis import numerics
 from servo_axis.analysis.health import EXIT_LOOP_NOT_CLOSED, NodeDeath, assess, loop_not_closed
 from servo_axis.params.run_plan import RunPlan
 from servo_axis.run.state import AxisNodes, RunState
@@ -147,7 +148,9 @@ def _summarise_axis(
         if realtime
         else None,
     )
-    summary = dataclasses.replace(summary, health=health, overrides=plan.overrides or None)
+    summary = dataclasses.replace(
+        summary, health=health, overrides=plan.overrides or None, numerics=numerics.mode()
+    )
     return summary, reports, span
 
 
