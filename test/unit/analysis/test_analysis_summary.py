@@ -103,8 +103,11 @@ def test_run_summary_fields_are_typed() -> None:
         "startup_s",
         "finish_s",
         "overrides",
+        "numerics",
     }
     assert summary.realtime is None and "realtime" not in summary.to_dict()
+    # numerics: the runner's, left out of a summary made from a bag alone
+    assert summary.numerics is None and "numerics" not in summary.to_dict()
     # overrides: written only for a run given --set, kept as given, and shown
     assert summary.overrides is None and "overrides" not in summary.to_dict()
     given = ("shared.duration_s=1", "feedback.dob={enabled: true}")
