@@ -738,8 +738,9 @@ def test_the_learning_unit_listens_only_once_its_outputs_are_heard(context: Cont
 
 
 def test_stamps_ahead_of_the_stream_do_not_displace_it(context: Context, tmp_path: Path) -> None:
-    """A valid-looking state and reference stamped step + 1000 and 1e9 s, mid-run:
-    refused by the feedback; the run goes on and every step is commanded once."""
+    """A valid-looking state and reference stamped step + 1000 and 1e9 s, mid-run, from a
+    node that is not the plant: never applied (a stranger's, counted apart, before any
+    check); the run goes on and every step is commanded once."""
     scenario = CONFIG / "ptc_nominal.yaml"
     steps = 300
     data = load_scenario(scenario)
@@ -767,7 +768,8 @@ def test_stamps_ahead_of_the_stream_do_not_displace_it(context: Context, tmp_pat
             n.destroy_node()
     assert counts["/command"] == steps
     assert counts["/state"] == steps + 2  # the recorder keeps what was on the wire
-    assert feedback.report.health.rejected == {"state": 2, "reference": 2}
+    assert feedback.report.health.stranger_messages == {"state": 2, "reference": 2}
+    assert feedback.report.health.rejected == {}
     assert not feedback.loop.tripped and not plant.report.health.fallbacks
     assert plant.report.health.rejected == {}
 
