@@ -191,6 +191,17 @@ class ProgressWatcher:
             self._on_raw,
         )  # fmt: skip
         self.node.create_timer(0.05, lambda: self._take(self._senders.retry()))
+        from diagnostic_msgs.msg import DiagnosticArray
+
+        #: The nodes that have reported on ``/diagnostics`` (their fully qualified names):
+        #: a node's first status comes once it is built and spinning.
+        self.reported: set[str] = set()
+        self.node.create_subscription(
+            DiagnosticArray,
+            "/diagnostics",
+            lambda msg: self.reported.update(s.name for s in msg.status),
+            100,
+        )
         self._executor = SingleThreadedExecutor(context=self._context)
         self._executor.add_node(self.node)
 
