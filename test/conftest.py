@@ -116,6 +116,13 @@ def ros_env(
         yield domain
 
 
+@pytest.fixture
+def more_domains(ros_env: int) -> Callable[[], int]:
+    """Fresh ROS domains of the worker's slice beside ``ros_env``'s (with its isolation),
+    for runs a test starts side by side, each in a domain of its own."""
+    return next_domain_id
+
+
 @pytest.fixture(scope="module")
 def module_ros_env(
     tmp_path_factory: pytest.TempPathFactory, request: pytest.FixtureRequest
@@ -191,6 +198,7 @@ def broken_plugin_site(tmp_path_factory: pytest.TempPathFactory) -> Path:
 #: share (``--dist loadfile``: a module is one unit), longest first (a serial
 #: ``pytest test/ros test/integration --durations=0``); the order only.
 _LONGEST_FIRST = (
+    "test_docs_pages",
     "test_external",
     "test_determinism",
     "test_elastic_runs",

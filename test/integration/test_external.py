@@ -165,7 +165,6 @@ def pd_controller(bandwidth_hz: float, inertia: float) -> list[str]:
 @pytest.mark.parametrize(
     ("scenario", "duration_s", "bandwidth_hz", "inertia"),
     [
-        ("ptc_nominal", 0.5, 20.0, 0.01),  # rigid ball screw, nominal
         ("rptc_detailed", 1.0, 20.0, 0.01),  # 3 modes, dead time, friction; RPTC learning on
         ("dlpid_tilt_pid", 0.4, 10.0, 0.005),  # tilting table (003)
         ("slow_reversal_sigmoid", 0.5, 20.0, 0.0033),  # elastic ball screw (004)
@@ -182,7 +181,8 @@ def test_the_example_controller_drives_each_plant_model(
 ) -> None:
     """Twice through `run --external feedback` with examples/pd_controller.py: exit 0, the
     bags identical, and every recorded command is the PD law of the recorded state and
-    reference of its sample (computed here, independently of the example)."""
+    reference of its sample (computed here, independently of the example). (Once, on
+    ptc_friction, as the tutorial has it: test_docs_pages.py::test_tutorials_own_controller.)"""
     path = short(scenario, tmp_path, duration_s=duration_s)
     codes, hashes = [], []
     for i in range(2):

@@ -150,7 +150,9 @@ def test_killed_learning_unit_resumes_and_still_carries_over(ros_env: int, tmp_p
         "max_recorder_lag_steps", PLANT["max_recorder_lag_steps"].default
     )
     assert death.step >= 2 * N - lag, death.step
-    assert death_trial <= missed[0] and missed[-1] < back
+    # A unit back only during a trial leaves that trial on the fallback and
+    # may still learn it (it reads the whole trial's streams): back >= the last.
+    assert death_trial <= missed[0] and missed[-1] <= back
     rms, peak = per_trial(summary)
     s = SWITCH - 1
     rms_bf, peak_bf = core_only(short_trials("bf", tmp_path / "bf.yaml"))

@@ -207,19 +207,8 @@ def test_detailed_axis_learns_and_is_deterministic(
     ):
         assert a[topic] == b[topic], topic
     assert len(a["/x/learning/correction"]) == 5 * 250
-    # 000 Fig. 17/18 on one axis: the friction table takes the quadrant
-    # glitch out of cycle 1, where nothing is learned yet; RPTC goes on from
-    # there to below what RPTC alone reaches.
-    table = run_scenario(
-        CONFIG / "rptc_friction_table.yaml",
-        RunOptions(
-            out_dir=tmp_path / "table", domain_id=ros_env, composed=True, progress=None, plots=False
-        ),
-    )
-    with_table = max_per_cycle(table.summary)
-    assert with_table[0] < 0.5 * max_per_cycle(q5.summary)[0]
-    assert with_table[-1] < max_per_cycle(q5.summary)[-1]
-    assert all(b < a for a, b in itertools.pairwise(with_table)), with_table
+    # 000 Fig. 17/18 (the friction table with RPTC against RPTC alone): the first
+    # tutorial's commands, test_docs_pages.py::test_tutorials_first_run.
 
 
 @pytest.mark.shm

@@ -19,11 +19,11 @@ from contextlib import contextmanager
 from typing import Any
 
 import pytest
-from host_load import RunQueueWait, said
 from rclpy.context import Context
 from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray
 
+from host_load import RunQueueWait, said
 from servo_axis.nodes.runtime import STREAM_QOS, finish, make_executor, wait_for_acks
 
 pytestmark = pytest.mark.ros

@@ -43,7 +43,9 @@ def main() -> None:
         describe = node.create_client(DescribeParameters, name)
         while not stop and not describe.wait_for_service(timeout_sec=1.0):
             print(f"waiting for {name} ...", flush=True)
-        request = DescribeParameters.Request(names=["duration_s", "inertia_kgm2"])
+        # Keys of the shared /** block, which every plant model declares: rclpy answers a
+        # request that names one undeclared parameter with no descriptor at all.
+        request = DescribeParameters.Request(names=["duration_s", "control_period_s"])
         future = describe.call_async(request)
         while not stop and not future.done():
             rclpy.spin_once(node, timeout_sec=0.1)

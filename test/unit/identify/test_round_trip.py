@@ -3,9 +3,10 @@
 The ``measure_*`` scenarios hold an axis whose keys differ from the presets,
 with encoder (and scale) quantisation and noise on. The runs are the
 plain-call loops of :mod:`servo_axis.simulate`, which the node graph
-reproduces bit for bit (test/integration/test_identify.py runs one through
-it). Each key is compared with the scenario's own value, the fitted
-response with the true model's, the fitted scenario with the axis on a
+reproduces bit for bit (the commands of docs/how-to/identify-your-axis.md
+run the ball screw's through it: test/integration/test_docs_pages.py). Each
+key is compared with the scenario's own value, the fitted response with the
+true model's, the fitted scenario with the axis on a
 held-out run, and the suite's controllers on both.
 """
 

@@ -7,8 +7,9 @@ Then :func:`servo_axis.params.recorded.recorded_scenario` on such a
 directory, on one made before runs kept their scenario (a ``params.yaml``
 as the runner wrote it then) and on what is not a run. The commands on a
 real run whose scenario and table moved and were edited:
-``test/integration/test_runs.py`` (friction-table, summary, compare) and
-``test/integration/test_identify.py``.
+``test/integration/test_runs.py`` (summary, compare) and
+``test/integration/test_docs_pages.py`` (friction-table on the
+friction-models page's run, identify on recover-a-bag's).
 """
 
 from __future__ import annotations
@@ -144,5 +145,8 @@ def test_a_missing_table_is_named_by_its_own_path_and_nothing_is_written(
     run = tmp_path / "run"
     with pytest.raises(ParameterFileError) as err:
         prepare(sources / "ptc_friction_table.yaml", RunOptions(out_dir=run, progress=None))
-    assert str(err.value) == f"parameter 'friction_table.file': no such file {sources / TABLE}"
+    assert str(err.value) == (
+        f"scenario {sources / 'ptc_friction_table.yaml'}: "
+        f"parameter 'friction_table.file': no such file {sources / TABLE}"
+    )
     assert not run.exists()
