@@ -96,7 +96,9 @@ class OutsideWait:
 
     def __init__(self, axes: list[AxisNodes], timeout_s: float, out: TextIO | None) -> None:
         self.missing = [(axis, role) for axis in axes for role in axis.plan.outside]
-        self.own = [(axis, role) for axis in axes if axis.plan.outside for role in axis.plan.started]
+        self.own = [
+            (axis, role) for axis in axes if axis.plan.outside for role in axis.plan.started
+        ]
         self.timeout_s = timeout_s
         self.out = out
         self.t0: float | None = None
