@@ -1,4 +1,4 @@
-"""``--external-timeout`` counts from when the run's own nodes are up, not from the runner's start (no ROS)."""
+"""``--external-timeout`` counts from when the run's own nodes are up, not the runner's start."""
 
 from __future__ import annotations
 
