@@ -86,15 +86,18 @@ def main(args: list[str] | None = None) -> None:
     for number in (signal.SIGINT, signal.SIGTERM):
         signal.signal(number, lambda signum, frame: stop.append(signum))
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    node = RigidAxis()
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
     try:
-        node = RigidAxis()
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
         while not stop:
             executor.spin_once(timeout_sec=0.1)
     except ExternalShutdownException:
         pass  # rclpy.shutdown() was called (by a callback, say)
     finally:
+        # The node goes before the context, here, not in the interpreter's teardown.
+        executor.shutdown()
+        node.destroy_node()
         rclpy.try_shutdown()
 
 
