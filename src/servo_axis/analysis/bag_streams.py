@@ -49,6 +49,9 @@ class BagStreams:
     repeated : dict
         Per topic with a message that repeats one already kept
         (:class:`Repeated`), how many: neither kept nor dropped.
+    strangers : dict
+        Per topic with a stranger's channel, how many messages strangers
+        published (recorded, in ``counts``; neither kept nor dropped).
     """
 
     kept: dict[str, list[Kept]]
@@ -56,6 +59,7 @@ class BagStreams:
     first_reason: dict[str, str]
     counts: dict[str, int]
     repeated: dict[str, int] = field(default_factory=dict)
+    strangers: dict[str, int] = field(default_factory=dict)
 
     def by_table_name(self, name: str) -> list[Kept]:
         """The kept messages of table topic ``name`` (``state``, ``/clock``, ...), every namespace."""
@@ -116,6 +120,7 @@ def array_values(layout: ArrayLayout[Any], data: bytes) -> list[float]:
 class Recorded(NamedTuple):
     type_name: str
     data: bytes
+    stranger: str = ""  #: who published it, if a stranger (its channel's)
 
 
 def recorded_by_topic(bag_dir: Path) -> dict[str, list[Recorded]]:
@@ -131,6 +136,8 @@ def recorded_by_topic(bag_dir: Path) -> dict[str, list[Recorded]]:
     for m in read_raw(Path(bag_dir)):  # log-time order: topics in order of first message
         by_topic.setdefault(m.topic, []).append(m)
     return {
-        topic: [Recorded(m.type_name, m.data) for m in sorted(ms, key=lambda m: m.sequence)]
+        topic: [
+            Recorded(m.type_name, m.data, m.stranger) for m in sorted(ms, key=lambda m: m.sequence)
+        ]
         for topic, ms in by_topic.items()
     }

@@ -5,7 +5,11 @@ and decoded with :mod:`servo_axis.wire.cdr`; a topic is known by its name in
 the table of topics (:mod:`servo_axis.wire.topics`) under any namespace (so
 ``/x/state`` of a namespaced axis is ``state``, ``/x/clock`` is ``/clock``).
 
-The recorder writes every message it gets, a stranger's junk included. Only
+The recorder writes every message it gets, a stranger's included: a
+message of a publisher that does not play the topic's role is on a channel
+of its own (:data:`~servo_axis.recording.reader.STRANGER_KEY`), counted in
+:attr:`~servo_axis.analysis.bag_streams.BagStreams.strangers` and never
+part of a stream. Of the rest, only
 validated samples become signals (:func:`read_streams`): each message is
 checked as the nodes check it, by its topic's layout
 (:mod:`servo_axis.wire.layouts`, the table the nodes' conversions come from:
@@ -559,20 +563,31 @@ def read_streams(bag_dir: Path, rules: StreamRules) -> BagStreams:
     checked and offered to its topic's gate in the order the recorder got
     them (:func:`recorded_by_topic`); what fails is dropped and counted.
     Topics without rules are only counted; a message that repeats one
-    already kept (:class:`Repeated`) is counted in ``repeated``.
+    already kept (:class:`Repeated`) is counted in ``repeated``; a
+    stranger's message (on a stranger's channel) in ``strangers``.
     """
     kept: dict[str, list[Kept]] = {}
     dropped: dict[str, int] = {}
     repeated: dict[str, int] = {}
     reasons: dict[str, str] = {}
     counts: dict[str, int] = {}
+    strangers: dict[str, int] = {}
     recorded = recorded_by_topic(Path(bag_dir))
     origin = None
     if rules.plant_clock:
-        states = [m for t, ms in recorded.items() if table_name(t) == "state" for m in ms]
+        states = [
+            m
+            for t, ms in recorded.items()
+            if table_name(t) == "state"
+            for m in ms
+            if not m.stranger
+        ]
         origin = plant_clock_steps(states, rules)
     for topic, messages in recorded.items():
         counts[topic] = len(messages)
+        others = sum(1 for m in messages if m.stranger)
+        if others:
+            strangers[topic] = others
         name = table_name(topic)
         stream = stream_for(name, rules, origin) if name is not None else None
         if stream is None or name is None:
@@ -580,6 +595,8 @@ def read_streams(bag_dir: Path, rules: StreamRules) -> BagStreams:
         kept[topic], dropped[topic] = [], 0
         expected = topics.topic(name).type_name
         for m in messages:
+            if m.stranger:
+                continue
             try:
                 if m.type_name and m.type_name != expected:
                     raise SignalError(f"type: expected {expected}, got {m.type_name}")
@@ -595,7 +612,12 @@ def read_streams(bag_dir: Path, rules: StreamRules) -> BagStreams:
                 continue
             kept[topic].append(Kept(step, m.data, msg))
     return BagStreams(
-        kept=kept, dropped=dropped, first_reason=reasons, counts=counts, repeated=repeated
+        kept=kept,
+        dropped=dropped,
+        first_reason=reasons,
+        counts=counts,
+        repeated=repeated,
+        strangers=strangers,
     )
 
 

@@ -9,6 +9,16 @@ full definition text as rosbag2 builds it), one channel per topic (encoding
 ``topic_type_hash`` is the type's RIHS01 hash. Payloads are CDR bytes as
 received from a ``raw=True`` subscription or made by ``serialize_message``.
 
+A message a stranger published (a publisher that does not play the topic's
+role, :mod:`servo_axis.nodes.senders`) goes on a channel of its own: the
+same topic, schema and QoS text, and the channel metadata
+``stranger_publisher`` (:data:`STRANGER_KEY`) naming the publisher
+(``<namespace>/<node> <gid>``). Readers that merge a topic's channels
+(rosbags) see every message that was on the wire, in the topic's count of
+``metadata.yaml``; the suite's analysis leaves a stranger's channels out of
+the run's streams. The sequence numbers are the topic's, over its channels:
+the recorder's order of arrival.
+
 Independent readers that decode these bags: ``rosbags`` (``AnyReader``,
 ``rosbag2.Reader``), ``mcap-ros2-support`` (``DecoderFactory``),
 :func:`servo_axis.recording.reader.read_raw` and
@@ -23,7 +33,7 @@ from __future__ import annotations
 
 import operator
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
 from typing import Any
@@ -38,8 +48,16 @@ from servo_axis.recording.definitions import (
 )
 from servo_axis.recording.definitions import type_hash as rihs01_hash
 from servo_axis.recording.errors import BagError, BagWriteError
+from servo_axis.recording.reader import STRANGER_KEY
 
-__all__ = ["DEFAULT_QOS", "LATCHED_QOS_TEXT", "METADATA_VERSION", "BagWriter", "offered_qos_text"]
+__all__ = [
+    "DEFAULT_QOS",
+    "LATCHED_QOS_TEXT",
+    "METADATA_VERSION",
+    "STRANGER_KEY",
+    "BagWriter",
+    "offered_qos_text",
+]
 
 #: ``rosbag2_bagfile_information.version`` written (ROS 2 Jazzy).
 METADATA_VERSION = 9
@@ -81,7 +99,10 @@ _COMPRESSION = {
 class _Topic:
     channel_id: int
     metadata: dict[str, Any]
+    schema_id: int
     count: int = 0
+    #: The channel of each stranger that published on the topic, by who it is.
+    strangers: dict[str, int] = field(default_factory=dict)
 
 
 class BagWriter:
@@ -287,11 +308,48 @@ class BagWriter:
                 "offered_qos_profiles": qos_text,
                 "type_description_hash": digest,
             },
+            self._schemas[full],
         )
         return channel_id
 
+    def stranger_channel(self, topic: str, who: str) -> int:
+        """The channel of ``topic`` for the messages of stranger ``who`` (made on first use).
+
+        Same topic, schema, QoS text and type hash as the topic's channel;
+        its metadata's :data:`STRANGER_KEY` is ``who``.
+
+        Raises
+        ------
+        BagWriteError
+            If the topic is not registered or the bag is closed.
+        """
+        state = self._topics.get(topic)
+        if state is None:
+            raise BagWriteError(f"topic: {topic!r} was not registered with add_topic")
+        if self._closed:
+            raise BagWriteError(f"topic: cannot add a channel to {topic!r}, the bag is closed")
+        channel = state.strangers.get(who)
+        if channel is None:
+            channel = state.strangers[who] = self._writer.register_channel(
+                topic=topic,
+                message_encoding="cdr",
+                schema_id=state.schema_id,
+                metadata={
+                    "offered_qos_profiles": state.metadata["offered_qos_profiles"],
+                    "topic_type_hash": state.metadata["type_description_hash"],
+                    STRANGER_KEY: who,
+                },
+            )
+        return channel
+
     def write(
-        self, topic: str, data: bytes, *, log_time_ns: int, publish_time_ns: int | None = None
+        self,
+        topic: str,
+        data: bytes,
+        *,
+        log_time_ns: int,
+        publish_time_ns: int | None = None,
+        stranger: str | None = None,
     ) -> None:
         """Append one CDR-serialised message of a registered topic.
 
@@ -305,6 +363,10 @@ class BagWriter:
             Receive (log) time in ns since the epoch, >= 0.
         publish_time_ns : int or None
             Publish time in ns; ``log_time_ns`` if None.
+        stranger : str or None
+            Who published it, when that is a stranger: the message goes on
+            that stranger's channel (:meth:`stranger_channel`); None: the
+            topic's channel.
 
         Raises
         ------
@@ -330,9 +392,12 @@ class BagWriter:
                 f"log_time_ns/publish_time_ns: expected >= 0 for {topic!r}, "
                 f"got {log_time_ns}/{publish}"
             )
+        channel_id = (
+            state.channel_id if stranger is None else self.stranger_channel(topic, stranger)
+        )
         state.count += 1
         self._writer.add_message(
-            channel_id=state.channel_id,
+            channel_id=channel_id,
             log_time=log_time_ns,
             publish_time=publish,
             data=data if type(data) is bytes else bytes(data),

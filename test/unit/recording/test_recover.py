@@ -133,6 +133,38 @@ def test_flushed_messages_of_a_killed_writer_are_all_recovered(tmp_path: Path) -
     assert [list(s.position) for s in states[:2]] == [[0.0, 0.0], [1e-6, -1e-9]]
 
 
+def test_a_strangers_channel_is_recovered_with_its_metadata_and_messages(tmp_path: Path) -> None:
+    """A stranger's messages (a channel of their own, registered mid-recording) come back on
+    a stranger's channel of the same topic, in the topic's order of arrival."""
+    from servo_axis.recording.reader import read_raw
+
+    who = "/junk 010f78fd316f8cfd0000000000002303"
+    messages = batch(0, 300)
+    writer = open_writer(tmp_path / "live" / "bag", chunk_size=8 * 1024)
+    try:
+        write(writer, messages[:150])
+        for topic, t, data in messages[150:]:
+            if topic == "/state":
+                writer.write(topic, data, log_time_ns=t, stranger=who)
+            writer.write(topic, data, log_time_ns=t)
+        writer.flush()
+        flushed = (tmp_path / "live" / "bag" / "bag_0.mcap").read_bytes()
+    finally:
+        writer.close()
+    original = [
+        (m.topic, m.sequence, m.stranger, m.data) for m in read_raw(tmp_path / "live" / "bag")
+    ]
+    extra = sum(1 for topic, _, _ in messages[150:] if topic == "/state")
+    assert extra > 100
+    bag = killed_copy(flushed, tmp_path / "killed" / "bag")
+    report = recover_bag(bag)
+    assert report.message_counts["/state"] == 300 + extra
+    got = [(m.topic, m.sequence, m.stranger, m.data) for m in read_raw(bag)]
+    assert sorted(got) == sorted(original)
+    assert sum(1 for m in got if m[2] == who) == extra
+    assert len(read_rosbags(bag)) == len(messages) + extra  # the topic's channels merged
+
+
 def test_recovered_metadata_is_what_closing_the_writer_writes(tmp_path: Path) -> None:
     messages = batch(0, 400)
     writer = open_writer(tmp_path / "live" / "bag")
