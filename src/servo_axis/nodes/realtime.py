@@ -28,8 +28,6 @@ from array import array
 from collections.abc import Callable
 from typing import Any
 
-import numpy as np
-
 from servo_axis.core import deadlines
 from servo_axis.core.errors import SignalError
 
@@ -524,7 +522,8 @@ class LoopTimes:
     Such a plant (a drive, a user's node) reports no clock, so the feedback
     measures the loop (:func:`~servo_axis.core.deadlines.loop_from_times`):
     misses, lateness, states never answered; the summary's ``realtime``
-    block is made of it.
+    block is made of it. What it keeps is the same size for a run of any
+    length (streaming lateness, the last :data:`DEADLINE_RING` arrivals).
 
     Parameters
     ----------
@@ -536,31 +535,71 @@ class LoopTimes:
 
     def __init__(self, *, steps: int, period_ns: int) -> None:
         self.period_ns = period_ns
-        self._arrived = np.zeros(steps, dtype=np.int64)
-        self._sent = np.zeros(steps, dtype=np.int64)
+        self.steps = steps
+        self.tick_late = deadlines.LatenessHistogram()
+        self.command_late = deadlines.LatenessHistogram()
+        self.commands_late = 0
+        self._first: tuple[int, int] | None = None  # (step, arrival) of the first state
+        self._last: tuple[int, int] | None = None  # of the newest step
+        # The last DEADLINE_RING states' arrivals, and which of them were answered.
+        self._arrival_ns = array("q", [0]) * DEADLINE_RING
+        self._arrival_step = array("q", [-1]) * DEADLINE_RING
+        self._answered_step = array("q", [-1]) * DEADLINE_RING
 
     def arrived(self, step: int, now_ns: int) -> None:
         """``state[step]`` arrived at ``now_ns`` (monotonic; the first arrival counts)."""
-        if 0 <= step < self._arrived.size and self._arrived[step] == 0:
-            self._arrived[step] = now_ns
+        if not 0 <= step < self.steps:
+            return
+        slot = step % DEADLINE_RING
+        if self._arrival_step[slot] >= step:
+            return
+        self._arrival_step[slot] = step
+        self._arrival_ns[slot] = now_ns
+        if self._first is None:
+            self._first = (step, now_ns)
+        first_step, first_ns = self._first
+        # Its tick: the grid of the first state's arrival.
+        self.tick_late.add(max(now_ns - first_ns - (step - first_step) * self.period_ns, 0))
+        if self._last is None or step > self._last[0]:
+            self._last = (step, now_ns)
 
     def sent(self, step: int, now_ns: int) -> None:
-        """``command[step]`` went out at ``now_ns`` (monotonic)."""
-        if 0 <= step < self._sent.size and self._sent[step] == 0:
-            self._sent[step] = now_ns
+        """``command[step]`` went out at ``now_ns`` (monotonic; the first per step counts;
+        one for a state that did not arrive, or arrived more than the ring ago, is not)."""
+        if not 0 <= step < self.steps:
+            return
+        slot = step % DEADLINE_RING
+        if self._arrival_step[slot] != step or self._answered_step[slot] >= step:
+            return
+        self._answered_step[slot] = step
+        late = now_ns - self._arrival_ns[slot]
+        self.command_late.add(late)
+        if late > self.period_ns:
+            self.commands_late += 1
 
     def report(self) -> dict[str, Any] | None:
-        """The fields of the summary's ``realtime`` block; None before any state."""
-        states = np.flatnonzero(self._arrived)
-        commands = np.flatnonzero(self._sent)
-        figures = deadlines.loop_from_times(
-            period_ns=self.period_ns,
-            state_steps=states.tolist(),
-            state_times_ns=self._arrived[states].tolist(),
-            command_steps=commands.tolist(),
-            command_times_ns=self._sent[commands].tolist(),
-        )
-        return None if figures is None else {**figures, "measured_from": MEASURED_AT_FEEDBACK}
+        """The fields of the summary's ``realtime`` block; None before any state.
+
+        Those of :func:`~servo_axis.core.deadlines.loop_from_times` of the same
+        times, the lateness to the resolution of its histograms.
+        """
+        if self._first is None or self._last is None:
+            return None
+        ticks = self.tick_late.count
+        missing = ticks - self.command_late.count
+        return {
+            "period_ns": int(self.period_ns),
+            "ticks": ticks,
+            "misses": missing + self.commands_late,
+            "commands_missing": missing,
+            "commands_late": self.commands_late,
+            "timer_rate": deadlines.timer_rate(
+                self._last[0] - self._first[0], self.period_ns, self._first[1], self._last[1]
+            ),
+            "tick_late_us": self.tick_late.stats(),
+            "command_late_us": self.command_late.stats(),
+            "measured_from": MEASURED_AT_FEEDBACK,
+        }
 
 
 class HeldSetPoint:
