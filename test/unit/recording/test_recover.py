@@ -427,3 +427,42 @@ def test_killed_split_bag_is_recovered_whole(tmp_path: Path) -> None:
     assert read_rosbags(bag) == messages
     again = recover_bag(bag)
     assert not again.needed_recovery and again.message_count == 2240 and again.files == len(names)
+
+
+def test_a_split_bags_writer_keeps_the_index_of_its_current_file_only(tmp_path: Path) -> None:
+    """One MCAP file keeps an index of every chunk in memory until its summary is
+    written: a recorder that flushes 4 times a second grows by it all run long."""
+    import tracemalloc
+
+    messages = batch(0, 20)  # a state a chunk at 80 Hz, say: the index is per chunk
+
+    def growth(directory: Path, **split: int) -> list[int]:
+        writer = open_writer(directory) if not split else split_writer(directory, **split)
+        chunks = 0
+
+        def chunk() -> None:
+            nonlocal chunks
+            for topic, t, data in messages:
+                writer.write(topic, data, log_time_ns=t + chunks * 250_000_000)
+            writer.flush()  # what the recorder does every 0.25 s
+            chunks += 1
+
+        for _ in range(10):
+            chunk()
+        kept = []
+        tracemalloc.start()
+        try:
+            for _ in range(2):
+                before = tracemalloc.get_traced_memory()[0]
+                for _ in range(40):
+                    chunk()
+                kept.append(tracemalloc.get_traced_memory()[0] - before)
+        finally:
+            tracemalloc.stop()
+            writer.close()
+        return kept
+
+    one = growth(tmp_path / "one")
+    split = growth(tmp_path / "split", max_file_duration_ns=2_500_000_000)  # 10 chunks a file
+    assert min(one) > 40 * 300, one  # the chunk indexes, hundreds of bytes each
+    assert max(split[1:]) < 10 * 1_000, split  # at most a file's
