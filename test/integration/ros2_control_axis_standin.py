@@ -38,12 +38,14 @@ was deactivated, the messages dropped, the cycles run and skipped.
 
 import json
 import math
+import signal
 import time
 
 import rclpy
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import qos_profile_system_default
+from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
@@ -118,12 +120,13 @@ class ControllerManager(Node):
             limit = self.p["torque_limit_Nm"]
             self.applied = max(-limit, min(limit, self.command))
 
-    def run(self, executor: SingleThreadedExecutor) -> None:
-        """The CM's loop; the subscriptions are served between cycles in this one thread
-        (two Python threads would wait on each other for the GIL: ms of latency)."""
+    def run(self, executor: SingleThreadedExecutor, stop: list[int]) -> None:
+        """The CM's loop, until ``stop`` holds a signal; the subscriptions are served
+        between cycles in this one thread (two Python threads would wait on each other for
+        the GIL: ms of latency)."""
         period = 1.0 / self.p["update_rate"]
         deadline = time.monotonic() + period
-        while True:
+        while not stop and rclpy.ok():
             self.read()
             self.update()
             self.write()
@@ -154,17 +157,24 @@ class ControllerManager(Node):
 
 
 def main() -> None:
-    rclpy.init()
+    # SIGINT and SIGTERM set a flag the loop looks at every cycle, and the context is
+    # shut down here, once, in this thread (rclpy's own handlers shut it down from a
+    # thread of theirs, and a try_shutdown() racing with that fails).
+    stop: list[int] = []
+    for number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(number, lambda signum, frame: stop.append(signum))
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = ControllerManager()
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     executor.add_node(node.controller)
     try:
-        node.run(executor)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        node.run(executor, stop)
     finally:
         node.save()
+        executor.shutdown()
+        node.controller.destroy_node()
+        node.destroy_node()
         rclpy.try_shutdown()
 
 

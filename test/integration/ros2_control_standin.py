@@ -37,13 +37,15 @@ skipped.
 
 import json
 import math
+import signal
 import threading
 import time
 
 import rclpy
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, qos_profile_sensor_data
+from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 
 #: joint -> (command interfaces, state interfaces), in tag order.
@@ -175,14 +177,25 @@ class TopicSystem(Node):
 
 
 def main() -> None:
-    rclpy.init()
+    # SIGINT (Ctrl-C) and SIGTERM set a flag the loop looks at every 0.1 s, and the
+    # context is shut down here, once, in this thread. rclpy's own handlers shut it down
+    # from a thread of theirs: a try_shutdown() here racing with that fails with
+    # "rcl_shutdown already called" (seen under load), and their KeyboardInterrupt can
+    # land anywhere, also in the middle of a callback.
+    stop: list[int] = []
+    for number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(number, lambda signum, frame: stop.append(signum))
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = TopicSystem()
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
     try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        while not stop and rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
     finally:
         node.save()
+        executor.shutdown()
+        node.destroy_node()
         rclpy.try_shutdown()
 
 

@@ -1,20 +1,34 @@
-"""Junk on every subscribed topic during a run changes neither the bag's own streams nor a figure.
+"""Strangers on every subscribed topic during a run change neither the bag's own streams nor a figure.
 
-A clean run and a junk run of the same short learning scenario (a 3-cycle
+A clean run and a dirty run of the same short learning scenario (a 3-cycle
 copy of ``rptc_friction_table``) go through the user's entry point
-``python -m servo_axis run``. During the junk run a stranger node in this
-process publishes, at 200 Hz, every kind of junk on every topic some node
-subscribes to: NaN, inf, short arrays, an empty message, wrong joint names or
-labels, past stamps (step 0, the recorded step - 5), stamps ahead (+1000
-steps, 1e9 s) and off the control grid; on the Float64MultiArray topics NaN,
-inf, wrong labels, past, future and fractional values. The recorder records
-all of it; the validated streams of the bag (the analysis's
+``python -m servo_axis run``. During the dirty run two stranger nodes in
+this process publish on every topic some node subscribes to:
+
+* ``/x/junk``, at 200 Hz, every kind of junk: NaN, inf, short arrays, an
+  empty message, wrong joint names or labels, past stamps (step 0, the
+  recorded step - 5), stamps ahead (+1000 steps, 1e9 s) and off the control
+  grid; on the Float64MultiArray topics NaN, inf, wrong labels, past, future
+  and fractional values;
+* ``/x/mimic``, well-formed messages with the run's own next stamps: the
+  clean run's samples of the steps just ahead of the plant (its ``/clock``),
+  each changed by 1e-9 in one value (right names, plausible values), on
+  ``state``, ``command``, ``reference`` (also at the preview's end),
+  ``learning/correction`` (the next cycle's, before the learning unit's),
+  ``plant/status`` and ``recorder/progress``; from before the run's step 0
+  (steps 0-15, every 50 ms) and during it. By content such a message cannot
+  be told from the producer's: only its publisher can.
+
+The recorder records all of it, each stranger's messages on channels of
+their own; the run's streams of the bag (the analysis's
 :func:`~servo_axis.analysis.signals.read_streams`) must equal the clean
-run's, byte for byte, and so must the summary's figures.
+run's, byte for byte, nothing dropped from them, and so must the summary's
+figures.
 """
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import subprocess
@@ -135,6 +149,8 @@ class JunkPublisher:
         self.node.create_timer(0.005, self._tick)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
+        #: Nodes of other strangers on this context and executor (:class:`MimicPublisher`).
+        self.extra_nodes: list[Any] = []
 
     def _on_progress(self, msg: Any) -> None:
         dims = list(msg.layout.dim)
@@ -284,11 +300,128 @@ class JunkPublisher:
 
     def close(self) -> None:
         self.executor.shutdown()
+        for node in self.extra_nodes:
+            node.destroy_node()
         self.node.destroy_node()
         self._rclpy.try_shutdown(context=self.context)
 
 
-def test_junk_on_every_topic_changes_no_stream_and_no_figure(ros_env: int, tmp_path: Path) -> None:
+#: Steps ahead of the plant's /clock a mimic publishes (its /clock comes every 10 steps).
+MIMIC_LEAD = 15
+#: The feedforward's preview (rptc_friction_table's preview_steps).
+PREVIEW = 200
+
+
+class MimicPublisher:
+    """A stranger with well-formed messages: the clean run's samples of the next steps, changed
+    by 1e-9 in one value, on every per-sample topic, before step 0 and along the run.
+
+    It follows the plant by its ``/clock`` (the one topic it does not publish on), refusing a
+    clock stamp that is not the next ones on the clock's grid (the junk publisher's).
+    """
+
+    def __init__(self, junk: JunkPublisher, clean: Any, *, clock_every_steps: int = 10) -> None:
+        import rclpy
+        from rosgraph_msgs.msg import Clock
+        from sensor_msgs.msg import JointState
+        from std_msgs.msg import Float64MultiArray
+
+        from servo_axis.nodes.runtime import LATCHED_QOS, STREAM_QOS
+
+        self.node = rclpy.create_node(
+            "mimic", namespace="/x", context=junk.context, enable_rosout=False
+        )
+        junk.extra_nodes = [self.node]
+        junk.executor.add_node(self.node)
+        joint = {
+            "state": JointState,
+            "command": JointState,
+            "reference": JointState,
+            "learning/correction": JointState,
+        }
+        self.pubs = {t: self.node.create_publisher(c, t, STREAM_QOS) for t, c in joint.items()}
+        self.pubs["plant/status"] = self.node.create_publisher(
+            Float64MultiArray, "plant/status", STREAM_QOS
+        )
+        self.pubs["recorder/progress"] = self.node.create_publisher(
+            Float64MultiArray, "recorder/progress", LATCHED_QOS
+        )
+        # The clean run's samples by step, changed in one value (bytes as the nodes send them).
+        self.payloads = {t: self._changed(t, clean.kept[f"/x/{t}"]) for t in joint}
+        self.clock_every = clock_every_steps
+        self.step = -1  # the plant's, by its /clock
+        self.cycles_sent: set[int] = set()
+        self.sent_before: Counter[str] = Counter()
+        self.sent_during: Counter[str] = Counter()
+        self.node.create_subscription(Clock, "/clock", self._on_clock, 100)
+        self.node.create_timer(0.05, self._before_step_0)
+
+    @staticmethod
+    def _changed(topic: str, kept: list[Any]) -> dict[int, bytes]:
+        import dataclasses
+
+        from servo_axis.wire import messages as msgs
+
+        codec = msgs.joint_codec(topic, axis="x", period_ns_=PERIOD_NS)
+        out = {}
+        for k in kept:
+            first = next(f.name for f in dataclasses.fields(k.msg) if f.name != "step")
+            sample = dataclasses.replace(k.msg, **{first: getattr(k.msg, first) + 1e-9})
+            out[k.step] = codec.encode(sample)
+        return out
+
+    def _send(self, topic: str, steps: range, sent: Counter[str]) -> None:
+        payloads = self.payloads[topic]
+        for step in steps:
+            if step in payloads:
+                self.pubs[topic].publish(payloads[step])
+                sent[topic] += 1
+
+    def _send_array(self, topic: str, values: list[float], sent: Counter[str]) -> None:
+        from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+
+        from servo_axis.wire import messages as msgs
+
+        labels = msgs.STATUS_LABELS if topic == "plant/status" else msgs.PROGRESS_LABELS
+        msg = Float64MultiArray()
+        msg.layout.dim = [MultiArrayDimension(label=lb, size=1, stride=1) for lb in labels]
+        msg.data = values
+        self.pubs[topic].publish(msg)
+        sent[topic] += 1
+
+    def _before_step_0(self) -> None:
+        if self.step >= 0:
+            return
+        for topic in ("state", "command", "reference"):
+            self._send(topic, range(MIMIC_LEAD + 1), self.sent_before)
+        self._send_array("plant/status", [0.0, 0.0, 0.0, 0.0], self.sent_before)
+        self._send_array("recorder/progress", [0.0], self.sent_before)
+
+    def _on_clock(self, msg: Any) -> None:
+        ns = msg.clock.sec * 10**9 + msg.clock.nanosec
+        step, off = divmod(ns, PERIOD_NS)
+        grid = self.clock_every
+        # The plant's next clocks only (the junk publisher's are behind, ahead or off the grid).
+        if off or step % grid or step <= self.step or step > max(self.step, 0) + 10 * grid:
+            return
+        self.step = step
+        ahead = range(step + 1, step + MIMIC_LEAD + 1)
+        self._send("state", ahead, self.sent_during)
+        self._send("command", ahead, self.sent_during)
+        self._send("reference", ahead, self.sent_during)
+        self._send("reference", range(step + PREVIEW - 5, step + PREVIEW + 5), self.sent_during)
+        cycle = step // CYCLE_STEPS + 1  # the next cycle's corrections, before the learning's
+        if step % CYCLE_STEPS >= CYCLE_STEPS - 150 and cycle not in self.cycles_sent:
+            self.cycles_sent.add(cycle)
+            corrections = range(cycle * CYCLE_STEPS, (cycle + 1) * CYCLE_STEPS)
+            self._send("learning/correction", corrections, self.sent_during)
+        self._send_array("plant/status", [float(step), 0.0, 0.0, 0.0], self.sent_during)
+        self._send_array("recorder/progress", [float(max(step - 50, 0))], self.sent_during)
+
+
+def test_strangers_on_every_topic_change_no_stream_and_no_figure(
+    ros_env: int, tmp_path: Path
+) -> None:
     # The test's own domain: no other test of this suite, or of another one
     # (SERVO_AXIS_TEST_DOMAINS), is a stranger here.
     domain = ros_env
@@ -301,8 +434,17 @@ def test_junk_on_every_topic_changes_no_stream_and_no_figure(ros_env: int, tmp_p
     clean_code = finish(clean_proc, RUN_TIMEOUT_S)
     assert clean_code == 0, tails(tmp_path / "clean")
 
+    clean = read_streams(tmp_path / "clean" / "bag", rules)
+    # The clean bag holds nothing to drop, and its streams are complete.
+    assert sum(clean.dropped.values()) == 0 and not clean.strangers, clean.first_reason
+    assert [k.step for k in clean.kept["/x/state"]] == list(range(1500))
+    assert [k.step for k in clean.kept["/x/learning/cycle_stats"]] == [1, 2]
+
     junk = JunkPublisher(domain)
+    mimic = MimicPublisher(junk, clean)
     try:
+        # The strangers publish before the run's nodes exist: step 0 is mimicked first.
+        junk.spin_while(lambda: mimic.sent_before["state"] < 3 * (MIMIC_LEAD + 1), 10.0)
         proc = start_run(scenario_path, tmp_path / "junk", domain)
         try:
             junk.spin_while(lambda: proc.poll() is None, RUN_TIMEOUT_S)
@@ -310,40 +452,56 @@ def test_junk_on_every_topic_changes_no_stream_and_no_figure(ros_env: int, tmp_p
             junk_code = finish(proc, 10.0)
     finally:
         junk.close()
-    print(f"exit codes: clean {clean_code}, junk {junk_code}")
+    print(f"exit codes: clean {clean_code}, dirty {junk_code}")
     print("junk published per (topic, kind):", dict(sorted(junk.sent.items())))
-    clean = read_streams(tmp_path / "clean" / "bag", rules)
+    print(f"mimic published before step 0: {dict(mimic.sent_before)}, during the run: "
+          f"{dict(mimic.sent_during)}")  # fmt: skip
     dirty = read_streams(tmp_path / "junk" / "bag", rules)
     for topic in clean.counts:
         got = [(k.step, k.data) for k in dirty.kept.get(topic, [])]
         want = [(k.step, k.data) for k in clean.kept.get(topic, [])]
         print(
             f"{topic}: clean {clean.counts[topic]} recorded, {len(want)} kept;"
-            f" junk run {dirty.counts.get(topic, 0)} recorded, {len(got)} kept, "
-            f"{dirty.dropped.get(topic, 0)} dropped ({dirty.first_reason.get(topic, '-')}); "
+            f" dirty run {dirty.counts.get(topic, 0)} recorded, {dirty.strangers.get(topic, 0)}"
+            f" of strangers, {len(got)} kept, {dirty.dropped.get(topic, 0)} dropped "
+            f"({dirty.first_reason.get(topic, '-')}); "
             f"kept == the clean run's first {len(got)}: {got == want[: len(got)]}"
         )
-    assert junk_code is not None, f"the junk run did not finish in {RUN_TIMEOUT_S} s:\n" + tails(
+    assert junk_code is not None, f"the dirty run did not finish in {RUN_TIMEOUT_S} s:\n" + tails(
         tmp_path / "junk"
     )
     assert junk_code in (0, 3), tails(tmp_path / "junk")
 
-    # Junk of every kind went out on every subscribed topic.
+    # Junk of every kind went out on every subscribed topic; the mimic's
+    # well-formed messages before step 0 and along the run, on every topic.
     assert {t for t, _ in junk.sent} == set(junk.pubs)
     assert all(junk.sent[job] > 0 for job in junk.jobs), junk.sent
-    # The clean bag holds nothing to drop, and its streams are complete.
-    assert sum(clean.dropped.values()) == 0, clean.first_reason
-    assert [k.step for k in clean.kept["/x/state"]] == list(range(1500))
-    assert [k.step for k in clean.kept["/x/learning/cycle_stats"]] == [1, 2]
-    # The junk run's own streams are the clean run's, byte for byte.
+    assert set(mimic.sent_before) == {"state", "command", "reference", "plant/status",
+                                      "recorder/progress"}  # fmt: skip
+    assert set(mimic.sent_during) == set(mimic.pubs), mimic.sent_during
+    # The dirty run's own streams are the clean run's, byte for byte, and
+    # nothing of them was dropped: the strangers' messages are not in them.
     for topic in COMPARED:
         got = [(k.step, k.data) for k in dirty.kept[topic]]
         want = [(k.step, k.data) for k in clean.kept[topic]]
         assert got == want, (topic, len(got), len(want), dirty.first_reason.get(topic))
-    # The recorder recorded the junk too.
-    for topic in ("/x/state", "/x/command", "/x/reference", "/clock", "/x/plant/status"):
-        assert dirty.counts[topic] > len(dirty.kept[topic]), topic
-        assert dirty.dropped[topic] > 0, topic
+    assert sum(dirty.dropped.values()) == 0, dirty.first_reason
+    # The recorder recorded the strangers' messages too, on their channels:
+    # of the producers' as many as in the clean run.
+    for topic in ("/x/state", "/x/command", "/x/reference", "/clock", "/x/plant/status",
+                  "/x/learning/correction"):  # fmt: skip
+        assert dirty.strangers[topic] > 0, topic
+    assert {t: dirty.counts[t] - dirty.strangers.get(t, 0) for t in dirty.counts} == clean.counts
+    # The nodes counted the strangers' messages and applied none.
+    reports = {
+        role: json.loads((tmp_path / "junk" / "logs" / f"{role}.health.json").read_text())
+        for role in ("plant", "feedback", "feedforward", "learning", "recorder")
+    }
+    for role, topic in (("plant", "command"), ("plant", "recorder/progress"),
+                        ("feedback", "state"), ("feedback", "reference"),
+                        ("feedforward", "learning/correction"), ("feedforward", "plant/status"),
+                        ("learning", "state"), ("recorder", "state")):  # fmt: skip
+        assert reports[role]["stranger_messages"][topic] > 0, (role, topic, reports[role])
     # The summary's figures are the clean run's.
     a = RunSummary.from_json(tmp_path / "clean" / "summary.json")
     b = RunSummary.from_json(tmp_path / "junk" / "summary.json")
@@ -394,10 +552,11 @@ def test_junk_on_every_topic_of_an_identifier_run_changes_no_stream_and_no_estim
         got = [(k.step, k.data) for k in dirty.kept[topic]]
         want = [(k.step, k.data) for k in clean.kept[topic]]
         assert got == want, (topic, len(got), len(want), dirty.first_reason.get(topic))
-    assert dirty.dropped["/tilt/identifier/estimates"] > 0
-    # The feedforward refused the junk estimates and said so in its report.
-    report = (tmp_path / "junk" / "logs" / "feedforward.health.json").read_text()
-    assert "identifier/estimates" in report
+    assert sum(dirty.dropped.values()) == 0, dirty.first_reason
+    assert dirty.strangers["/tilt/identifier/estimates"] > 0
+    # The feedforward applied none of the junk estimates and said so in its report.
+    report = json.loads((tmp_path / "junk" / "logs" / "feedforward.health.json").read_text())
+    assert report["stranger_messages"]["identifier/estimates"] > 0, report
     a = RunSummary.from_json(tmp_path / "clean" / "summary.json")
     b = RunSummary.from_json(tmp_path / "junk" / "summary.json")
     assert b.tracking_error == a.tracking_error

@@ -738,8 +738,9 @@ def test_the_learning_unit_listens_only_once_its_outputs_are_heard(context: Cont
 
 
 def test_stamps_ahead_of_the_stream_do_not_displace_it(context: Context, tmp_path: Path) -> None:
-    """A valid-looking state and reference stamped step + 1000 and 1e9 s, mid-run:
-    refused by the feedback; the run goes on and every step is commanded once."""
+    """A valid-looking state and reference stamped step + 1000 and 1e9 s, mid-run, from a
+    node that is not the plant: never applied (a stranger's, counted apart, before any
+    check); the run goes on and every step is commanded once."""
     scenario = CONFIG / "ptc_nominal.yaml"
     steps = 300
     data = load_scenario(scenario)
@@ -767,7 +768,8 @@ def test_stamps_ahead_of_the_stream_do_not_displace_it(context: Context, tmp_pat
             n.destroy_node()
     assert counts["/command"] == steps
     assert counts["/state"] == steps + 2  # the recorder keeps what was on the wire
-    assert feedback.report.health.rejected == {"state": 2, "reference": 2}
+    assert feedback.report.health.stranger_messages == {"state": 2, "reference": 2}
+    assert feedback.report.health.rejected == {}
     assert not feedback.loop.tripped and not plant.report.health.fallbacks
     assert plant.report.health.rejected == {}
 
@@ -1108,3 +1110,69 @@ def test_the_recorder_reports_a_stream_gone_only_when_no_writer_comes_back(
     finally:
         recorder.close()
         recorder.destroy_node()
+
+
+def test_the_recorder_counts_a_plant_clocks_commands_taken_before_their_states(
+    context: Context, tmp_path: Path
+) -> None:
+    """``state_stamps: plant_clock`` (realtime): each command echoes its state's stamp, on
+    the plant's own clock. A recorder that fell behind has both queues full and takes them
+    in its executor's order: here every command before any state. Each is kept until its
+    state comes and counted then; a command whose state never comes is refused."""
+    scenario = load_scenario(CONFIG / "ptc_nominal.yaml")
+    roles = roles_of(scenario)
+    extra = handshake_overrides(scenario, roles, tmp_path / "bag", CONFIG)["recorder"]
+    values = {
+        **node_params(scenario, "recorder"),
+        **extra,
+        "mode": "realtime",
+        "state_stamps": "plant_clock",
+        "wait_for_publishers": False,
+        # The two streams of the plant's clock (no reference, /clock, plant/status).
+        "topics": ["state", "command", "fault"],
+        "types": ["sensor_msgs/msg/JointState"] * 2 + ["std_msgs/msg/Float64MultiArray"],
+        "counted_topics": ["state", "command"],
+        "latched_topics": ["fault"],
+        "final_topics": [""],
+        "final_every_steps": [1],
+    }
+    recorder = RecorderNode(
+        context=context, parameter_overrides=[Parameter(k, value=v) for k, v in values.items()]
+    )
+    plant, feedback = Node("plant", context=context), Node("feedback", context=context)
+    state_pub = plant.create_publisher(JointState, "state", STREAM_QOS)
+    command_pub = feedback.create_publisher(JointState, "command", STREAM_QOS)
+    nodes = [recorder, plant, feedback]
+    t0 = time.monotonic_ns()  # the plant's own epoch: not on the k T_u grid
+    stamps = [t0 + k * PERIOD_NS + (k % 3) * 1000 for k in range(50)]
+
+    def joint(stamp_ns: int, names: list[str], **arrays: list[float]) -> JointState:
+        msg = JointState(name=names, **arrays)
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 10**9)
+        return msg
+
+    spin_until(
+        context,
+        nodes,
+        lambda: (
+            state_pub.get_subscription_count() == 1 and command_pub.get_subscription_count() == 1
+        ),
+    )
+    recorder._check_ready()
+    for ns in [*stamps, stamps[-1] + PERIOD_NS // 2]:  # the last one's state never comes
+        command_pub.publish(joint(ns, ["x_motor"], effort=[0.1]))
+    spin_until(context, nodes, lambda: recorder.message_counts["/command"] == 51)
+    assert recorder.recorded == 0 and recorder.report.health.rejected == {}
+    for ns in stamps:
+        zeros = [0.0, 0.0]
+        state_pub.publish(joint(ns, ["x_motor", "x_table"], position=zeros, velocity=zeros,
+                                effort=zeros))  # fmt: skip
+    spin_until(context, nodes, lambda: recorder.message_counts["/state"] == 50)
+    assert recorder.recorded == 50  # every command counted at its state
+    state_pub.publish(joint(stamps[-1] + PERIOD_NS, ["x_motor", "x_table"], position=[0.0, 0.0],
+                            velocity=[0.0, 0.0], effort=[0.0, 0.0]))  # fmt: skip
+    spin_until(context, nodes, lambda: recorder.message_counts["/state"] == 51)
+    assert recorder.report.health.rejected == {"command": 1}  # its state never came
+    recorder.close()
+    for n in nodes:
+        n.destroy_node()

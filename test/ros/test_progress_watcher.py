@@ -44,7 +44,9 @@ def test_filter_takes_whole_non_decreasing_values_within_the_run() -> None:
 
 @pytest.mark.ros
 def test_watcher_ignores_a_strangers_junk(ros_env: int) -> None:
-    """NaN, inf, empty, wrong labels, past and beyond-the-run values on the watched topic."""
+    """NaN, inf, empty, wrong labels, past and beyond-the-run values on the watched topic;
+    and a stranger's well-formed value (a node not called ``recorder``), which is counted
+    and never shown."""
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from std_msgs.msg import Float64MultiArray, MultiArrayDimension
@@ -91,6 +93,16 @@ def test_watcher_ignores_a_strangers_junk(ros_env: int) -> None:
             send_until(msg, lambda i=i: watcher.rejected >= i)
         assert watcher.rejected == len(junk)
         assert watcher.steps == 200
+        # A stranger with a valid value: not the recorder, so never shown.
+        stranger = rclpy.create_node("not_the_recorder", namespace="/x", context=context)
+        executor.add_node(stranger)
+        other = stranger.create_publisher(Float64MultiArray, "recorder/progress", LATCHED_QOS)
+        end = time.monotonic() + 10.0
+        while time.monotonic() < end and watcher.strangers == 0:
+            other.publish(msgs.labelled_array(PROGRESS_LABELS, [500]))
+            executor.spin_once(timeout_sec=0.0)
+            watcher.spin(0.05)
+        assert watcher.strangers >= 1 and watcher.steps == 200 and watcher.rejected == len(junk)
         send_until(msgs.labelled_array(PROGRESS_LABELS, [1000]), lambda: watcher.steps == 1000)
         assert watcher.steps == 1000
     finally:

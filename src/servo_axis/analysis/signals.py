@@ -5,7 +5,10 @@ and decoded with :mod:`servo_axis.wire.cdr`; a topic is known by its name in
 the table of topics (:mod:`servo_axis.wire.topics`) under any namespace (so
 ``/x/state`` of a namespaced axis is ``state``, ``/x/clock`` is ``/clock``).
 
-The recorder writes every message it gets, a stranger's junk included. Only
+The recorder writes every message it gets, a stranger's included: a
+message of a publisher that does not play the topic's role is on a channel
+of its own (:data:`~servo_axis.recording.reader.STRANGER_KEY`), counted in
+:attr:`BagStreams.strangers` and never part of a stream. Of the rest, only
 validated samples become signals (:func:`read_streams`): each message is
 checked as the nodes check it, by its topic's layout
 (:mod:`servo_axis.wire.layouts`, the table the nodes' conversions come from:
@@ -351,6 +354,9 @@ class BagStreams:
     repeated : dict
         Per topic with a message that repeats one already kept
         (:class:`Repeated`), how many: neither kept nor dropped.
+    strangers : dict
+        Per topic with a stranger's channel, how many messages strangers
+        published (recorded, in ``counts``; neither kept nor dropped).
     """
 
     kept: dict[str, list[Kept]]
@@ -358,6 +364,7 @@ class BagStreams:
     first_reason: dict[str, str]
     counts: dict[str, int]
     repeated: dict[str, int] = field(default_factory=dict)
+    strangers: dict[str, int] = field(default_factory=dict)
 
     def by_table_name(self, name: str) -> list[Kept]:
         """The kept messages of table topic ``name`` (``state``, ``/clock``, ...), every namespace."""
@@ -632,6 +639,7 @@ def stream_for(name: str, rules: StreamRules, origin: StampOrigin | None = None)
 class _Recorded(NamedTuple):
     type_name: str
     data: bytes
+    stranger: str = ""  #: who published it, if a stranger (its channel's)
 
 
 def recorded_by_topic(bag_dir: Path) -> dict[str, list[_Recorded]]:
@@ -647,7 +655,9 @@ def recorded_by_topic(bag_dir: Path) -> dict[str, list[_Recorded]]:
     for m in read_raw(Path(bag_dir)):  # log-time order: topics in order of first message
         by_topic.setdefault(m.topic, []).append(m)
     return {
-        topic: [_Recorded(m.type_name, m.data) for m in sorted(ms, key=lambda m: m.sequence)]
+        topic: [
+            _Recorded(m.type_name, m.data, m.stranger) for m in sorted(ms, key=lambda m: m.sequence)
+        ]
         for topic, ms in by_topic.items()
     }
 
@@ -659,20 +669,31 @@ def read_streams(bag_dir: Path, rules: StreamRules) -> BagStreams:
     checked and offered to its topic's gate in the order the recorder got
     them (:func:`recorded_by_topic`); what fails is dropped and counted.
     Topics without rules are only counted; a message that repeats one
-    already kept (:class:`Repeated`) is counted in ``repeated``.
+    already kept (:class:`Repeated`) is counted in ``repeated``; a
+    stranger's message (on a stranger's channel) in ``strangers``.
     """
     kept: dict[str, list[Kept]] = {}
     dropped: dict[str, int] = {}
     repeated: dict[str, int] = {}
     reasons: dict[str, str] = {}
     counts: dict[str, int] = {}
+    strangers: dict[str, int] = {}
     recorded = recorded_by_topic(Path(bag_dir))
     origin = None
     if rules.plant_clock:
-        states = [m for t, ms in recorded.items() if table_name(t) == "state" for m in ms]
+        states = [
+            m
+            for t, ms in recorded.items()
+            if table_name(t) == "state"
+            for m in ms
+            if not m.stranger
+        ]
         origin = plant_clock_steps(states, rules)
     for topic, messages in recorded.items():
         counts[topic] = len(messages)
+        others = sum(1 for m in messages if m.stranger)
+        if others:
+            strangers[topic] = others
         name = table_name(topic)
         stream = stream_for(name, rules, origin) if name is not None else None
         if stream is None or name is None:
@@ -680,6 +701,8 @@ def read_streams(bag_dir: Path, rules: StreamRules) -> BagStreams:
         kept[topic], dropped[topic] = [], 0
         expected = topics.topic(name).type_name
         for m in messages:
+            if m.stranger:
+                continue
             try:
                 if m.type_name and m.type_name != expected:
                     raise SignalError(f"type: expected {expected}, got {m.type_name}")
@@ -695,7 +718,12 @@ def read_streams(bag_dir: Path, rules: StreamRules) -> BagStreams:
                 continue
             kept[topic].append(Kept(step, m.data, msg))
     return BagStreams(
-        kept=kept, dropped=dropped, first_reason=reasons, counts=counts, repeated=repeated
+        kept=kept,
+        dropped=dropped,
+        first_reason=reasons,
+        counts=counts,
+        repeated=repeated,
+        strangers=strangers,
     )
 
 

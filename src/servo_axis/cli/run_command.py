@@ -120,7 +120,8 @@ def _add_outside_options(run: argparse.ArgumentParser) -> None:
         type=positive_float,
         default=120.0,
         metavar="S",
-        help="seconds to wait for the outside nodes before the first step (default 120)",
+        help="seconds to wait for the outside nodes before the first step, counted from when "
+        "the run's own nodes are up (default 120)",
     )
     run.add_argument(
         "--live",

@@ -13,10 +13,12 @@ command received (a drive's set-point).
 """
 
 import math
+import signal
 
 import rclpy
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
 
@@ -74,13 +76,28 @@ class RigidAxis(Node):
         self.pub.publish(msg)
 
 
-def main() -> None:
-    rclpy.init()
+def main(args: list[str] | None = None) -> None:
+    # Ctrl-C (SIGINT) and SIGTERM only set a flag, which the loop reads every 0.1 s, and
+    # the context is shut down once, here. rclpy's own handlers shut it down from a
+    # thread of theirs while this one still uses it (RCLError "context is not valid" from
+    # the executor or a constructor: seen under load), and their KeyboardInterrupt,
+    # raised inside rclpy's conversion of a message, comes out as another error.
+    stop: list[int] = []
+    for number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(number, lambda signum, frame: stop.append(signum))
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    node = RigidAxis()
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
     try:
-        rclpy.spin(RigidAxis())
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        while not stop:
+            executor.spin_once(timeout_sec=0.1)
+    except ExternalShutdownException:
+        pass  # rclpy.shutdown() was called (by a callback, say)
     finally:
+        # The node goes before the context, here, not in the interpreter's teardown.
+        executor.shutdown()
+        node.destroy_node()
         rclpy.try_shutdown()
 
 

@@ -23,8 +23,9 @@
     strangers, publishers in this process;
   - :attr:`~ServoNode.inputs` (:class:`~servo_axis.nodes.inputs.Inputs`):
     subscriptions made once their topic is published, with the profile that
-    matches it, each message decoded and gated before the role sees it;
-    whether a peer lives;
+    matches it, each message judged by its sender (a stranger's is counted,
+    not applied), decoded and gated before the role sees it; whether a peer
+    lives;
   - :attr:`~ServoNode.realtime`
     (:class:`~servo_axis.nodes.realtime.RealtimeScheduling`): the realtime
     priority a role asks for with :attr:`~ServoNode.realtime_below`.
@@ -120,7 +121,9 @@ class ServoNode(Node):
             external_roles=external_roles(values),
             wait_for_producers=values.wait_for_producers,
         )
-        self.inputs = Inputs(self, self.graph, reject=self.report.reject)
+        self.inputs = Inputs(
+            self, self.graph, reject=self.report.reject, stranger=self.report.stranger_message
+        )
         self.realtime = RealtimeScheduling(
             realtime_priority(
                 mode=values.mode,
@@ -202,6 +205,11 @@ class ServoNode(Node):
                 stamp_ns=self.diagnostic_stamp_ns(),
             )
         )
+
+    def destroy_node(self) -> None:
+        """Destroy the node: first the subscriptions its inputs made (rclpy does not know them)."""
+        self.inputs.destroy()
+        super().destroy_node()
 
     def close(self) -> None:
         """Called once when the node's process ends: a last look for strangers, the report, a last status.

@@ -18,7 +18,8 @@ The status is built by :func:`node_status` from plain values (no rclpy):
 * ``values``: the node's own state first (:meth:`ServoNode.diagnostic_values
   <servo_axis.nodes.base.ServoNode.diagnostic_values>`), then
   ``rejected`` (total) and ``rejected <topic>`` per topic, ``strangers
-  <topic>``, ``fallbacks`` and the last ``fallback``.
+  <topic>``, ``stranger messages <topic>`` (messages of strangers, not
+  applied), ``fallbacks`` and the last ``fallback``.
 """
 
 from __future__ import annotations
@@ -94,6 +95,9 @@ def node_status(
     values.append(("rejected", text(rejected)))
     values += [(f"rejected {t}", text(n)) for t, n in sorted(health.rejected.items())]
     values += [(f"strangers {t}", ", ".join(w)) for t, w in sorted(health.strangers.items())]
+    values += [
+        (f"stranger messages {t}", text(n)) for t, n in sorted(health.stranger_messages.items())
+    ]
     values.append(("fallbacks", text(len(health.fallbacks))))
     if health.fallbacks:
         last = health.fallbacks[-1]
@@ -104,6 +108,9 @@ def node_status(
         problems.append(f"{rejected} messages rejected ({per_topic})")
     if strangers:
         problems.append(f"{strangers} strangers on {', '.join(sorted(health.strangers))}")
+    ignored = sum(health.stranger_messages.values())
+    if ignored:
+        problems.append(f"{ignored} messages of strangers not applied")
     if error is not None or health.fallbacks:
         first = []
         if error is not None:

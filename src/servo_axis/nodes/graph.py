@@ -20,6 +20,14 @@
 * Strangers: :meth:`~GraphWatch.strangers` compares each topic's publishers
   with the declared one (:class:`Strangers`, which needs no rclpy); the base
   node looks every :data:`STRANGER_CHECK_S` and when it closes.
+* Senders: :meth:`~GraphWatch.plays_role` judges the publisher of a message
+  by its GID (:mod:`servo_axis.nodes.senders`): a run's node applies only
+  the messages of the publisher that plays the topic's role.
+
+An outside role's publisher is the first one seen on its topic that is not
+a stranger's elsewhere: a node that also publishes a topic of a role the run
+started (a junk publisher on every topic) is never declared for an outside
+role (:meth:`GraphWatch.suspect`).
 """
 
 from __future__ import annotations
@@ -29,6 +37,7 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+from servo_axis.nodes.senders import UNNAMED_GRACE_S
 from servo_axis.wire import topics
 
 if TYPE_CHECKING:
@@ -114,19 +123,97 @@ class Strangers:
         first publisher seen is declared (:meth:`declare`), whatever its name.
     """
 
-    def __init__(self, *, namespace: str, external_roles: Iterable[str]) -> None:
+    def __init__(
+        self,
+        *,
+        namespace: str,
+        external_roles: Iterable[str],
+        unnamed_grace_s: float = UNNAMED_GRACE_S,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
         self.namespace = namespace
         self.external_roles = frozenset(external_roles)
         self._declared: dict[str, str] = {}  # topic -> gid of an outside role's publisher
         self._reported: set[str] = set()
         self._twin_looks: dict[str, dict[str, int]] = {}
+        self._listed: dict[str, float] = {}  # gid -> when first listed unnamed
+        self._unnamed_grace_s = unnamed_grace_s
+        self._clock = clock
 
     def declare(self, topic: str, gid: str) -> None:
         """``gid`` publishes ``topic`` for an outside role, unless one was declared already."""
         self._declared.setdefault(topic, gid)
 
+    def declared_outside(
+        self,
+        topic: str,
+        publishers: Sequence[Endpoint],
+        suspect: Callable[[Endpoint], bool] = lambda e: False,
+    ) -> str | None:
+        """The GID of an outside role's publisher of ``topic``, or None while there is none.
+
+        The declared one while it is listed; else the first publisher listed
+        that is named and not ``suspect`` (a node that is a stranger on
+        another topic), which is then declared: when the declared one leaves
+        the graph, the first of the others takes its place (an outside node
+        restarted by its user). A publisher the graph has not named after
+        :data:`UNNAMED_GRACE_S` (a DDS application) may be declared too.
+        """
+        declared = self._declared.get(topic)
+        if declared is not None and any(p.gid == declared for p in publishers):
+            return declared
+        now = self._clock()
+        for p in publishers:
+            if p.name == UNKNOWN_NODE_NAME:
+                first = self._listed.setdefault(p.gid, now)
+                if now - first < self._unnamed_grace_s:
+                    continue
+            elif suspect(p):
+                continue
+            self._declared[topic] = p.gid
+            return p.gid
+        return None
+
+    def plays_role(
+        self,
+        topic: str,
+        producer: str,
+        publishers: Sequence[Endpoint],
+        gid: str,
+        *,
+        final: bool = False,
+        suspect: Callable[[Endpoint], bool] = lambda e: False,
+    ) -> bool | None:
+        """Whether publisher ``gid`` of ``topic`` plays its ``producer`` role (None: not known yet).
+
+        A role the run started: a publisher of the node of the role's name in
+        this namespace (a restarted one too). An outside role's: the declared
+        one (:meth:`declared_outside`). A publisher the graph does not list,
+        or whose node it has not named, is not known yet, unless ``final``:
+        then it is a stranger.
+        """
+        endpoint = next((p for p in publishers if p.gid == gid), None)
+        if producer in self.external_roles:
+            declared = self.declared_outside(topic, publishers, suspect)
+            if declared == gid:
+                return True
+            if (
+                declared is None
+                and not final
+                and (endpoint is None or endpoint.name == UNKNOWN_NODE_NAME)
+            ):
+                return None
+            return False
+        if endpoint is None or endpoint.name == UNKNOWN_NODE_NAME:
+            return False if final else None
+        return endpoint.name == producer and endpoint.namespace == self.namespace
+
     def look(
-        self, topic: str, producer: str, publishers: Sequence[Endpoint]
+        self,
+        topic: str,
+        producer: str,
+        publishers: Sequence[Endpoint],
+        suspect: Callable[[Endpoint], bool] = lambda e: False,
     ) -> tuple[list[str], str]:
         """One look at ``topic``'s publishers: the strangers not reported before, and who is declared.
 
@@ -135,7 +222,7 @@ class Strangers:
         """
         named = [p for p in publishers if p.name != UNKNOWN_NODE_NAME]
         if producer in self.external_roles:
-            strangers, declared = self._outside(topic, named)
+            strangers, declared = self._outside(topic, publishers, named, suspect)
         else:
             strangers = self._own(topic, named, producer)
             declared = f"{self.namespace.rstrip('/')}/{producer}"
@@ -143,21 +230,21 @@ class Strangers:
         self._reported.update(s.gid for s in new)
         return [s.who for s in new], declared
 
-    def _outside(self, topic: str, publishers: list[Endpoint]) -> tuple[list[Endpoint], str]:
-        """An outside role's topic: the first publisher seen is declared, any other a stranger.
-
-        When the declared one leaves the graph, the first of the others
-        takes its place (an outside node restarted by its user).
-        """
-        gids = [p.gid for p in publishers]
-        if self._declared.get(topic) not in gids and gids:
-            self._declared[topic] = gids[0]
-        declared = self._declared.get(topic, "")
+    def _outside(
+        self,
+        topic: str,
+        publishers: Sequence[Endpoint],
+        named: list[Endpoint],
+        suspect: Callable[[Endpoint], bool],
+    ) -> tuple[list[Endpoint], str]:
+        """An outside role's topic: the declared publisher (:meth:`declared_outside`), and
+        every other named one a stranger."""
+        declared = self.declared_outside(topic, publishers, suspect) or ""
         who = next(
-            (f"{p.namespace.rstrip('/')}/{p.name}" for p in publishers if p.gid == declared),
+            (f"{p.namespace.rstrip('/')}/{p.name}" for p in named if p.gid == declared),
             "its outside node",
         )
-        return [p for p in publishers if p.gid != declared], who
+        return [p for p in named if p.gid != declared], who
 
     def _own(self, topic: str, publishers: list[Endpoint], producer: str) -> list[Endpoint]:
         """A role the run started: its node (by the name the run gave it) is declared."""
@@ -238,13 +325,66 @@ class GraphWatch:
         """
         producer = topics.topic(name).producer if name in topics.BY_NAME else None
         if producer in self.external_roles:
-            if infos:
-                self._strangers.declare(name, Endpoint.of(infos[0]).gid)
-            return True
+            endpoints = [Endpoint.of(i) for i in infos]
+            return self._strangers.declared_outside(name, endpoints, self.suspect) is not None
         if not self._wait_for_producers or producer is None:
             return True
         ns = self._node.get_namespace()
         return any(i.node_name == producer and i.node_namespace == ns for i in infos)
+
+    @property
+    def judges_senders(self) -> bool:
+        """Whether the node applies only its producers' messages (a run's node:
+        ``wait_for_producers``; a node started by hand takes every publisher's)."""
+        return self._wait_for_producers
+
+    def plays_role(self, name: str, gid: str, *, final: bool = False) -> bool | None:
+        """Whether publisher ``gid`` of topic ``name`` plays the topic's producer role.
+
+        True for every publisher of a node started by hand (not
+        :attr:`judges_senders`) and of a topic outside the table; else as
+        :meth:`Strangers.plays_role` judges it from the graph now (None: not
+        known yet, never when ``final``).
+        """
+        producer = topics.topic(name).producer if name in topics.BY_NAME else None
+        if not self._wait_for_producers or producer is None:
+            return True
+        endpoints = [Endpoint.of(i) for i in self.publishers(name)]
+        return self._strangers.plays_role(
+            name, producer, endpoints, gid, final=final, suspect=self.suspect
+        )
+
+    def who(self, name: str, gid: str) -> str:
+        """Publisher ``gid`` of topic ``name`` for a person (:attr:`Endpoint.who`, the whole GID)."""
+        for info in self.publishers(name):
+            endpoint = Endpoint.of(info)
+            if endpoint.gid == gid:
+                return f"{endpoint.namespace.rstrip('/')}/{endpoint.name} {gid}"
+        return f"{UNKNOWN_NODE_NAME} {gid}"
+
+    def suspect(self, endpoint: Endpoint) -> bool:
+        """Whether ``endpoint``'s node also publishes a topic of a role the run started here.
+
+        Such a node is a stranger there, so it is not the outside node of
+        any role: a junk publisher on every topic, there before the outside
+        node, is not declared in its place. Only a run's node asks
+        (``wait_for_producers``); a node that has left the graph is not one.
+        """
+        if not self._wait_for_producers or endpoint.name == UNKNOWN_NODE_NAME:
+            return False
+        try:
+            published = self._node.get_publisher_names_and_types_by_node(
+                endpoint.name, endpoint.namespace
+            )
+        except Exception:  # NodeNameNonExistentError: it left
+            return False
+        ns = self._node.get_namespace().rstrip("/")
+        for topic_name, _ in published:
+            for entry in topics.TOPICS:
+                full = entry.name if entry.name.startswith("/") else f"{ns}/{entry.name}"
+                if topic_name == full and entry.producer not in self.external_roles:
+                    return True
+        return False
 
     def matched_settled(self, key: str, infos: Sequence[Any], matched: int) -> bool:
         """Whether a match with ``infos`` (``matched`` of them matched) can be believed.
@@ -397,6 +537,8 @@ class GraphWatch:
         found = []
         for name in names:
             endpoints = [Endpoint.of(i) for i in self.publishers(name)]
-            whos, declared = self._strangers.look(name, topics.topic(name).producer, endpoints)
+            whos, declared = self._strangers.look(
+                name, topics.topic(name).producer, endpoints, self.suspect
+            )
             found += [(name, who, declared) for who in whos]
         return found

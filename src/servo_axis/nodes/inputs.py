@@ -5,6 +5,16 @@
   sees it; a message that fails is dropped and handed to ``reject`` (the
   node's :meth:`~servo_axis.nodes.reporting.Reporter.reject`: counted,
   logged): nothing derived from it is published.
+* Senders: each message comes with its publisher's GID
+  (:class:`~servo_axis.nodes.identified.IdentifiedSubscription`); a run's
+  node (``wait_for_producers``) applies only the messages of the publisher
+  that plays the topic's role (:meth:`~servo_axis.nodes.graph.GraphWatch.plays_role`:
+  the node the run started for it, or an outside role's declared
+  publisher), and counts a stranger's per topic, never applied
+  (:meth:`~servo_axis.nodes.reporting.Reporter.stranger_message`): a
+  stranger's well-formed message with the next stamp never takes the
+  producer's place. A publisher the graph cannot name yet has its messages
+  held, in order, until it can (:class:`~servo_axis.nodes.senders.Senders`).
 * Streams: a per-sample subscription may take a
   :class:`~servo_axis.wire.streams.StreamGate` (made by
   :func:`~servo_axis.nodes.lockstep.stream_gate`); its stamp is checked
@@ -34,13 +44,25 @@ from typing import Any, TypeVar
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
-from rclpy.subscription import Subscription
+from rclpy.serialization import deserialize_message
 
 from servo_axis.core.errors import SignalError
 from servo_axis.nodes.graph import GraphWatch
+from servo_axis.nodes.identified import IdentifiedSubscription
 from servo_axis.nodes.runtime import MESSAGE_CLASSES, READER_QOS, matching_reader_qos, steady_clock
+from servo_axis.nodes.senders import Senders
 from servo_axis.wire import topics
 from servo_axis.wire.streams import StreamGate
+
+#: ``take(data, from_producer, who)``: a message's payload, whether its
+#: publisher plays the topic's role, and who that publisher is (for a person).
+Take = Callable[[bytes, bool, str], None]
+
+#: Messages handed on by a :class:`Senders`: ``(data, gid, from_producer)`` each.
+Released = list[tuple[bytes, str, bool]]
+
+#: Seconds between two looks at the graph for publishers whose messages are held.
+HOLD_POLL_S = 0.01
 
 T = TypeVar("T")
 
@@ -56,20 +78,32 @@ class Inputs:
         Its view of the graph (which producer is declared, who is in this process).
     reject : callable
         ``reject(topic, text)`` for a message that is dropped.
+    stranger : callable or None
+        ``stranger(topic, who)`` for a message of a publisher that does not
+        play the topic's role (not applied); None: not counted.
     """
 
     def __init__(
-        self, node: Node, graph: GraphWatch, *, reject: Callable[[str, str], None]
+        self,
+        node: Node,
+        graph: GraphWatch,
+        *,
+        reject: Callable[[str, str], None],
+        stranger: Callable[[str, str], None] | None = None,
     ) -> None:
         self._node = node
         self._graph = graph
         self._reject = reject
+        self._stranger = stranger
         self._alive: dict[str, int] = {}
         self._lapsed: dict[str, int] = {}
-        self._subscriptions: dict[str, Subscription] = {}
+        self._subscriptions: dict[str, IdentifiedSubscription] = {}
+        self._made: list[IdentifiedSubscription] = []
         self._topics: list[str] = []
         self._unpublished: list[tuple[str, QoSProfile, Callable[[QoSProfile], None]]] = []
         self._unpublished_timer: Any = None
+        self._senders: list[tuple[Senders[bytes], Callable[[Released], None]]] = []
+        self._hold_timer: Any = None
 
     @property
     def topics(self) -> tuple[str, ...]:
@@ -99,11 +133,17 @@ class Inputs:
         for (a late joiner that wants no history).
         """
         entry = topics.topic(name)
+        cls = MESSAGE_CLASSES[entry.type_name]
         reject = self._reject
+        stranger = self._stranger
 
-        def on_message(msg: Any) -> None:
+        def on_message(data: bytes, from_producer: bool, who: str) -> None:
+            if not from_producer:
+                if stranger is not None:
+                    stranger(name, who)
+                return
             try:
-                sample = decode(msg)
+                sample = decode(data if raw else deserialize_message(data, cls))
                 if gate is not None and sample is not None:
                     gate.accept(sample.step)  # type: ignore[attr-defined]
             except SignalError as err:
@@ -116,13 +156,12 @@ class Inputs:
             self._lapsed[name] = info.not_alive_count
 
         def create(profile: QoSProfile) -> None:
-            self._subscriptions[name] = self._node.create_subscription(
-                MESSAGE_CLASSES[entry.type_name],
+            self._subscriptions[name] = self.identified(
                 name,
+                cls,
                 on_message,
                 profile,
-                raw=raw,
-                event_callbacks=SubscriptionEventCallbacks(liveliness=on_liveliness),
+                events=SubscriptionEventCallbacks(liveliness=on_liveliness),
             )
 
         self._alive.setdefault(name, 0)
@@ -130,6 +169,77 @@ class Inputs:
         if name not in self._topics:
             self._topics.append(name)
         self.when_published(name, READER_QOS[entry.qos] if qos is None else qos, create)
+
+    def identified(
+        self,
+        name: str,
+        cls: Any,
+        take: Take,
+        profile: QoSProfile,
+        *,
+        events: SubscriptionEventCallbacks | None = None,
+    ) -> IdentifiedSubscription:
+        """A subscription to ``name`` (message class ``cls``) whose messages are sorted by sender.
+
+        ``take(data, from_producer, who)`` gets each message's CDR bytes, in
+        the order each publisher sent them, once its publisher is judged
+        (:meth:`~servo_axis.nodes.graph.GraphWatch.plays_role`); the
+        recorder takes every message so, the others through :meth:`subscribe`.
+        """
+        graph = self._graph
+        if graph.judges_senders:
+            senders: Senders[bytes] = Senders(
+                lambda gid, final: graph.plays_role(name, gid, final=final)
+            )
+        else:
+            senders = Senders(lambda gid, final: True)
+        who_of: dict[str, str] = {}
+
+        def who(gid: str) -> str:
+            if gid not in who_of:
+                who_of[gid] = graph.who(name, gid)
+            return who_of[gid]
+
+        def hand_on(released: Released) -> None:
+            for data, gid, verdict in released:
+                take(data, verdict, "" if verdict else who(gid))
+
+        def on_message(data: bytes, gid: str) -> None:
+            hand_on(senders.offer(gid, data))
+            if senders.held and self._hold_timer is None:
+                self._hold_timer = self._node.create_timer(
+                    HOLD_POLL_S, self._release_held, clock=steady_clock()
+                )
+
+        sub = IdentifiedSubscription(
+            self._node, cls, name, profile, on_message, event_callbacks=events
+        )
+        self._senders.append((senders, hand_on))
+        self._made.append(sub)
+        return sub
+
+    def _release_held(self) -> None:
+        """Hand on the held messages whose publisher the graph can judge now."""
+        for senders, hand_on in self._senders:
+            if senders.held:
+                hand_on(senders.retry())
+        if not any(s.held for s, _ in self._senders) and self._hold_timer is not None:
+            self._hold_timer.cancel()
+            self._node.destroy_timer(self._hold_timer)
+            self._hold_timer = None
+
+    def release_all(self) -> None:
+        """Hand on every held message, its publisher judged as the graph shows it now
+        (the node's end: the recorder writes them)."""
+        for senders, hand_on in self._senders:
+            hand_on(senders.flush())
+
+    def destroy(self) -> None:
+        """Destroy the subscriptions made here (before the node is destroyed)."""
+        for sub in self._made:
+            sub.destroy()
+        self._made.clear()
+        self._subscriptions.clear()
 
     def when_published(
         self, name: str, wanted: QoSProfile, create: Callable[[QoSProfile], None]
@@ -165,7 +275,7 @@ class Inputs:
             self._node.destroy_timer(self._unpublished_timer)
             self._unpublished_timer = None
 
-    def matched(self, name: str, subscription: Subscription | None = None) -> bool:
+    def matched(self, name: str, subscription: IdentifiedSubscription | None = None) -> bool:
         """Whether the subscription to ``name`` exists and is matched with a publisher.
 
         A volatile publisher among the topic's (an outside node with the

@@ -63,6 +63,9 @@ class Reporter:
         self._report_dir = report_dir
         self._log = logger
         self._complain = Throttle()
+        self._complain_stranger = Throttle()
+        #: Messages of strangers, all topics together (never applied).
+        self.stranger_messages = 0
 
     def reject(self, topic: str, text: str) -> None:
         """Count a dropped message of ``topic`` and log ``text`` (at most once a second)."""
@@ -78,6 +81,18 @@ class Reporter:
             f"stranger publishing on {topic}: {who} (the run declared only {declared}); "
             "its messages are validated like any other"
         )
+
+    def stranger_message(self, topic: str, who: str) -> None:
+        """Count a message of ``topic`` from ``who``, a publisher that does not play the
+        topic's role: not applied (logged at most once a second)."""
+        self.stranger_messages += 1
+        counts = self.health.stranger_messages
+        counts[topic] = counts.get(topic, 0) + 1
+        if self._complain_stranger.ready():
+            self._log.warning(
+                f"{topic} from a stranger ({who}): not applied "
+                f"({self.stranger_messages} stranger messages so far)"
+            )
 
     def fallback(self, kind: str, step: int, detail: str) -> None:
         """Record (log, report) that the node went on other than by the protocol."""

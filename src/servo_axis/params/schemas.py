@@ -101,18 +101,21 @@ SHARED: dict[str, Param] = {
     "external_roles": Param(
         [""],
         meaning="roles played by nodes from outside the suite (any node name; `--external` of "
-        "`run`): their topics' first publisher is the declared one, not a stranger; a subset "
-        "of plant, feedback, feedforward, learning, identifier",
+        "`run`): their topics' first publisher whose node is no stranger elsewhere is the "
+        "declared one, not a stranger; a subset of plant, feedback, feedforward, learning, "
+        "identifier",
     ),
     "wait_for_producers": Param(
         False,
         meaning="subscribe to a topic of the topic table only once the node the run started "
         "for its producer role (by that role's name, in this namespace) publishes it; an "
-        "outside role's topic (`external_roles`): once it has any publisher. A reader made "
-        "on a stranger's publisher that was there first could match the producer on its own "
-        "side late (a discovery message repaired later) and take the stranger's sample of "
-        "step 0 before the producer's; the runner sets it true. false: once the topic has "
-        "any publisher (a node started by hand, beside a probe)",
+        "outside role's topic (`external_roles`): once it has its declared publisher. A "
+        "reader made on a stranger's publisher that was there first could match the producer "
+        "on its own side late (a discovery message repaired later) and take the stranger's "
+        "sample of step 0 before the producer's. True also applies only the messages of each "
+        "topic's declared publisher (a stranger's are counted, never applied); the runner "
+        "sets it true. false: once the topic has any publisher, whose messages are all taken "
+        "(a node started by hand, beside a probe)",
     ),
     "realtime.max_miss_fraction": Param(
         0.05,

@@ -23,10 +23,21 @@ from mcap.reader import NonSeekingReader, make_reader
 
 from servo_axis.recording.errors import BagError
 
-__all__ = ["UNFINISHED_SUFFIX", "RawMessage", "mcap_files", "read_metadata", "read_raw"]
+__all__ = [
+    "STRANGER_KEY",
+    "UNFINISHED_SUFFIX",
+    "RawMessage",
+    "mcap_files",
+    "read_metadata",
+    "read_raw",
+]
 
 #: Suffix of the original file of a recovered bag (:mod:`servo_axis.recording.recover`).
 UNFINISHED_SUFFIX = ".unfinished"
+
+#: The channel metadata key of a stranger's channel (:mod:`servo_axis.recording.writer`):
+#: who published the messages on it, ``<namespace>/<node> <gid>``.
+STRANGER_KEY = "stranger_publisher"
 
 # What the mcap readers raise at the end of a file cut short (a recorder killed
 # mid-write): EndOfFile (a McapError) between records, struct.error when the
@@ -50,9 +61,12 @@ class RawMessage:
     data : bytes
         The CDR payload, encapsulation header included.
     sequence : int
-        The channel's sequence number: the order the recorder wrote the
+        The topic's sequence number: the order the recorder wrote the
         topic's messages in (its arrival order; the log times are simulation
         stamps, which a junk message can put anywhere).
+    stranger : str
+        Who published it when that was a stranger (its channel's
+        :data:`STRANGER_KEY`), ``""`` for the topic's own channel.
     """
 
     topic: str
@@ -60,6 +74,7 @@ class RawMessage:
     log_time_ns: int
     data: bytes
     sequence: int = 0
+    stranger: str = ""
 
 
 def read_metadata(directory: Path) -> dict[str, Any]:
@@ -178,4 +193,5 @@ def read_raw(directory: Path, *, topics: Iterable[str] | None = None) -> Iterato
             log_time,
             data if type(data) is bytes else bytes(data),
             msg.sequence,
+            channel.metadata.get(STRANGER_KEY, ""),
         )

@@ -52,7 +52,12 @@ from mcap.records import Channel, Chunk, DataEnd, Footer, Message, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk
 
 from servo_axis.recording.errors import BagError, NoBagError, NotMcapError
-from servo_axis.recording.reader import UNFINISHED_SUFFIX, mcap_files, read_metadata
+from servo_axis.recording.reader import (
+    STRANGER_KEY,
+    UNFINISHED_SUFFIX,
+    mcap_files,
+    read_metadata,
+)
 from servo_axis.recording.writer import (
     DEFAULT_QOS,
     BagFile,
@@ -362,7 +367,7 @@ def _copy_records(f: BinaryIO, tmp: Path, file_name: str) -> tuple[BagWriter, in
     complete record of ``f``.
     """
     schemas: dict[int, Schema] = {}
-    channels: dict[int, str] = {}
+    channels: dict[int, tuple[str, str | None]] = {}  # id -> (topic, stranger or None)
     good_end = min(len(_MAGIC), os.fstat(f.fileno()).st_size)
     writer: BagWriter | None = None
     try:
@@ -382,11 +387,13 @@ def _copy_records(f: BinaryIO, tmp: Path, file_name: str) -> tuple[BagWriter, in
             elif isinstance(record, Channel):
                 channels[record.id] = _add_channel(writer, record, schemas)
             elif record.channel_id in channels:
+                topic, stranger = channels[record.channel_id]
                 writer.write(
-                    channels[record.channel_id],
+                    topic,
                     record.data,
                     log_time_ns=record.log_time,
                     publish_time_ns=record.publish_time,
+                    stranger=stranger,
                 )
         if writer is None:  # no schema, channel or message: an empty bag
             writer = BagWriter(tmp, file_name=file_name)
@@ -396,7 +403,15 @@ def _copy_records(f: BinaryIO, tmp: Path, file_name: str) -> tuple[BagWriter, in
     return writer, good_end
 
 
-def _add_channel(writer: BagWriter, channel: Channel, schemas: dict[int, Schema]) -> str:
+def _add_channel(
+    writer: BagWriter, channel: Channel, schemas: dict[int, Schema]
+) -> tuple[str, str | None]:
+    """Register ``channel`` in ``writer``: its topic, or a stranger's channel of a topic
+    registered before (``stranger_publisher`` metadata); ``(topic, stranger)``."""
+    stranger = channel.metadata.get(STRANGER_KEY)
+    if stranger is not None and channel.topic in writer.message_counts:
+        writer.stranger_channel(channel.topic, stranger)
+        return channel.topic, stranger
     schema = schemas.get(channel.schema_id)
     if schema is None or schema.encoding != "ros2msg" or channel.message_encoding != "cdr":
         what = f"schema encoding {schema.encoding!r}" if schema is not None else "no schema"
@@ -411,7 +426,9 @@ def _add_channel(writer: BagWriter, channel: Channel, schemas: dict[int, Schema]
         qos_text=channel.metadata.get("offered_qos_profiles") or DEFAULT_QOS,
         type_hash=channel.metadata.get("topic_type_hash", ""),
     )
-    return channel.topic
+    if stranger is not None:
+        writer.stranger_channel(channel.topic, stranger)
+    return channel.topic, stranger
 
 
 def _free_name(path: Path) -> Path:

@@ -14,6 +14,16 @@ full definition text as rosbag2 builds it), one channel per topic (encoding
 ``topic_type_hash`` is the type's RIHS01 hash. Payloads are CDR bytes as
 received from a ``raw=True`` subscription or made by ``serialize_message``.
 
+A message a stranger published (a publisher that does not play the topic's
+role, :mod:`servo_axis.nodes.senders`) goes on a channel of its own: the
+same topic, schema and QoS text, and the channel metadata
+``stranger_publisher`` (:data:`STRANGER_KEY`) naming the publisher
+(``<namespace>/<node> <gid>``). Readers that merge a topic's channels
+(rosbags) see every message that was on the wire, in the topic's count of
+``metadata.yaml``; the suite's analysis leaves a stranger's channels out of
+the run's streams. The sequence numbers are the topic's, over its channels:
+the recorder's order of arrival.
+
 Independent readers that decode these bags: ``rosbags`` (``AnyReader``,
 ``rosbag2.Reader``), ``mcap-ros2-support`` (``DecoderFactory``),
 :func:`servo_axis.recording.reader.read_raw` and
@@ -28,7 +38,7 @@ from __future__ import annotations
 
 import operator
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
 from typing import Any
@@ -43,12 +53,14 @@ from servo_axis.recording.definitions import (
 )
 from servo_axis.recording.definitions import type_hash as rihs01_hash
 from servo_axis.recording.errors import BagError, BagWriteError
+from servo_axis.recording.reader import STRANGER_KEY
 
 __all__ = [
     "DEFAULT_QOS",
     "LATCHED_QOS_TEXT",
     "METADATA_VERSION",
     "MIN_SPLIT_SIZE_BYTES",
+    "STRANGER_KEY",
     "BagFile",
     "BagWriter",
     "bagfile_information",
@@ -102,6 +114,8 @@ class _Topic:
     metadata: dict[str, Any]
     definition: str
     count: int = 0
+    #: The channel of each stranger that published on the topic, by who it is.
+    strangers: dict[str, int] = field(default_factory=dict)
 
 
 @dataclass
@@ -239,6 +253,8 @@ class BagWriter:
             }
             for topic in self._topics.values():
                 topic.channel_id = self._register_channel(topic.metadata)
+                for who in topic.strangers:
+                    topic.strangers[who] = self._register_channel(topic.metadata, who)
             # The magic and header in the file at once: a bag killed before its
             # first flush is then an empty MCAP, not a file of 0 bytes.
             self._file.flush()
@@ -263,16 +279,20 @@ class BagWriter:
         self._finish_file()
         self._open_file(f"{self.directory.name}_{len(self._files)}.mcap")
 
-    def _register_channel(self, metadata: dict[str, Any]) -> int:
+    def _register_channel(self, metadata: dict[str, Any], stranger: str | None = None) -> int:
+        """A channel of the file in progress: a topic's, or a stranger's on it."""
+        channel = {
+            "offered_qos_profiles": metadata["offered_qos_profiles"],
+            "topic_type_hash": metadata["type_description_hash"],
+        }
+        if stranger is not None:
+            channel[STRANGER_KEY] = stranger
         return int(
             self._writer.register_channel(
                 topic=metadata["name"],
                 message_encoding="cdr",
                 schema_id=self._schemas[metadata["type"]],
-                metadata={
-                    "offered_qos_profiles": metadata["offered_qos_profiles"],
-                    "topic_type_hash": metadata["type_description_hash"],
-                },
+                metadata=channel,
             )
         )
 
@@ -400,8 +420,35 @@ class BagWriter:
         self._topics[name] = _Topic(channel_id, metadata, definition)
         return channel_id
 
+    def stranger_channel(self, topic: str, who: str) -> int:
+        """The channel of ``topic`` for the messages of stranger ``who`` (made on first use).
+
+        Same topic, schema, QoS text and type hash as the topic's channel;
+        its metadata's :data:`STRANGER_KEY` is ``who``.
+
+        Raises
+        ------
+        BagWriteError
+            If the topic is not registered or the bag is closed.
+        """
+        state = self._topics.get(topic)
+        if state is None:
+            raise BagWriteError(f"topic: {topic!r} was not registered with add_topic")
+        if self._closed:
+            raise BagWriteError(f"topic: cannot add a channel to {topic!r}, the bag is closed")
+        channel = state.strangers.get(who)
+        if channel is None:
+            channel = state.strangers[who] = self._register_channel(state.metadata, who)
+        return channel
+
     def write(
-        self, topic: str, data: bytes, *, log_time_ns: int, publish_time_ns: int | None = None
+        self,
+        topic: str,
+        data: bytes,
+        *,
+        log_time_ns: int,
+        publish_time_ns: int | None = None,
+        stranger: str | None = None,
     ) -> None:
         """Append one CDR-serialised message of a registered topic.
 
@@ -415,6 +462,10 @@ class BagWriter:
             Receive (log) time in ns since the epoch, >= 0.
         publish_time_ns : int or None
             Publish time in ns; ``log_time_ns`` if None.
+        stranger : str or None
+            Who published it, when that is a stranger: the message goes on
+            that stranger's channel (:meth:`stranger_channel`); None: the
+            topic's channel.
 
         Raises
         ------
@@ -449,9 +500,12 @@ class BagWriter:
         ):
             self._split()
             file = self._files[-1]
+        channel_id = (
+            state.channel_id if stranger is None else self.stranger_channel(topic, stranger)
+        )
         state.count += 1
         self._writer.add_message(
-            channel_id=state.channel_id,
+            channel_id=channel_id,
             log_time=log_time_ns,
             publish_time=publish,
             data=data if type(data) is bytes else bytes(data),

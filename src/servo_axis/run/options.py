@@ -54,7 +54,9 @@ class RunOptions:
         Roles nodes from outside the suite play (with the scenario's
         ``external_roles``).
     external_timeout_s : float
-        Seconds the run waits for its outside nodes before the first step.
+        Seconds the run waits for its outside nodes before the first step,
+        counted from when the run's own nodes are up
+        (:class:`~servo_axis.run.watch.OutsideWait`).
     live_port : int or None
         Serve the run to Foxglove / Lichtblick on this port
         (:mod:`servo_axis.run.live`); None: no live view.

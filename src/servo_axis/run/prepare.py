@@ -109,8 +109,16 @@ def _write(plan: RunPlan) -> None:
                     shutil.rmtree(plan.run_dir, ignore_errors=True)
                 raise ConfigError(f"parameter '{key}': cannot copy {source}: {err}") from None
         head = header(axis.source_path, axis=axis.axis)
-        axis.scenario_path.write_text(head + dump_params(axis.scenario))
-        axis.params_path.write_text(dump_params(dict(axis.params_file)))
+        _write_whole(axis.scenario_path, head + dump_params(axis.scenario))
+        _write_whole(axis.params_path, dump_params(dict(axis.params_file)))
+
+
+def _write_whole(path: Path, text: str) -> None:
+    """Write ``path`` so that whoever reads it (a user starting an outside node from the
+    run's ``params.yaml``) finds it whole or not at all."""
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
 
 
 def announce(run: PreparedRun) -> None:

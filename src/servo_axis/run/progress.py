@@ -11,9 +11,13 @@ What the watcher shows is validated (:class:`ProgressFilter`): a
 one finite whole number of steps, not less than the last one taken and not
 more than the run's steps; anything else (NaN, inf, a wrong layout, a value
 from the past or beyond the run) is dropped and counted, never shown and
-never raised. A stranger's message that passes every rule cannot be told
-from the recorder's (rclpy 7.1 gives a subscriber no publisher id per
-message), but it can only move the line forward within the run.
+never raised. Only the recorder's messages are taken: each comes with its
+publisher's GID (:class:`~servo_axis.nodes.identified.IdentifiedSubscription`),
+and a publisher that is not the run's recorder node (``recorder`` in the
+axis namespace, as the ROS graph names it) is a stranger, whose messages
+are counted in :attr:`ProgressWatcher.strangers` and never shown: a
+stranger's well-formed ``steps_recorded`` equal to the run's steps would
+otherwise end a run with an outside plant.
 """
 
 from __future__ import annotations
@@ -166,9 +170,37 @@ class ProgressWatcher:
             except BaseException:
                 rclpy.try_shutdown(context=self._context)
                 raise
+        from servo_axis.nodes.graph import Endpoint, Strangers
+        from servo_axis.nodes.identified import IdentifiedSubscription
+        from servo_axis.nodes.senders import Senders
+
         self.filter = ProgressFilter(steps)
+        #: ``recorder/progress`` messages of strangers (never shown).
+        self.strangers = 0
+        self._msg_type = Float64MultiArray
+        judging = Strangers(namespace=self.node.get_namespace(), external_roles=())
+        topic = self.node.resolve_topic_name("recorder/progress")
+
+        def judge(gid: str, final: bool) -> bool | None:
+            endpoints = [Endpoint.of(i) for i in self.node.get_publishers_info_by_topic(topic)]
+            return judging.plays_role("recorder/progress", "recorder", endpoints, gid, final=final)
+
+        self._senders: Senders[bytes] = Senders(judge)
+        self._subscription = IdentifiedSubscription(
+            self.node, Float64MultiArray, "recorder/progress", reader_qos("recorder/progress"),
+            self._on_raw,
+        )  # fmt: skip
+        self.node.create_timer(0.05, lambda: self._take(self._senders.retry()))
+        from diagnostic_msgs.msg import DiagnosticArray
+
+        #: The nodes that have reported on ``/diagnostics`` (their fully qualified names):
+        #: a node's first status comes once it is built and spinning.
+        self.reported: set[str] = set()
         self.node.create_subscription(
-            Float64MultiArray, "recorder/progress", self._on, reader_qos("recorder/progress")
+            DiagnosticArray,
+            "/diagnostics",
+            lambda msg: self.reported.update(s.name for s in msg.status),
+            100,
         )
         self._executor = SingleThreadedExecutor(context=self._context)
         self._executor.add_node(self.node)
@@ -182,6 +214,18 @@ class ProgressWatcher:
     def rejected(self) -> int:
         """``recorder/progress`` messages refused so far."""
         return self.filter.rejected
+
+    def _on_raw(self, data: bytes, gid: str) -> None:
+        self._take(self._senders.offer(gid, data))
+
+    def _take(self, released: list[tuple[bytes, str, bool]]) -> None:
+        from rclpy.serialization import deserialize_message
+
+        for data, _gid, from_recorder in released:
+            if from_recorder:
+                self._on(deserialize_message(data, self._msg_type))
+            else:
+                self.strangers += 1
 
     def _on(self, msg: Any) -> None:
         dims = list(msg.layout.dim)
@@ -198,6 +242,7 @@ class ProgressWatcher:
     def close(self) -> None:
         """Destroy the node and shut the context down."""
         self._executor.shutdown()
+        self._subscription.destroy()
         self.node.destroy_node()
         self._rclpy.try_shutdown(context=self._context)
 

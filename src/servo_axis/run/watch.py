@@ -4,7 +4,8 @@
 (:data:`POLL_S` per pass, shared by the axes), shows the progress, then asks
 in turn: the node-death policy (:class:`~servo_axis.run.deaths.NodeDeaths`);
 whether every plant is done; the wait for the outside nodes
-(:class:`OutsideWait`: before the first step, with its own timeout); and
+(:class:`OutsideWait`: before the first step, with its own timeout from
+when the run's own nodes are up); and
 the checks of a running run (:attr:`Watch.checks`: the stall check
 :class:`StallCheck` first). The first answer that is not None is why the
 run stops (:attr:`~servo_axis.run.state.RunState.failure`); a SIGINT or
@@ -82,14 +83,40 @@ class OvertimeCheck:
 
 
 class OutsideWait:
-    """The wait for the nodes of the roles outside nodes play, before the first step."""
+    """The wait for the nodes of the roles outside nodes play, before the first step.
+
+    ``--external-timeout`` counts from when the run's own nodes are up
+    (:attr:`t0`): every node the runner started has reported on
+    ``/diagnostics`` (its first status comes once it is built and spinning;
+    the recorder's once its bag is open), so the run's start-up on a slow
+    host is not taken from the outside node's time, and the run never ends
+    before its bag exists. Until then the wait is the stall check's (a node
+    that never comes up is no outside node's fault).
+    """
 
     def __init__(self, axes: list[AxisNodes], timeout_s: float, out: TextIO | None) -> None:
         self.missing = [(axis, role) for axis in axes for role in axis.plan.outside]
+        self.own = [
+            (axis, role) for axis in axes if axis.plan.outside for role in axis.plan.started
+        ]
         self.timeout_s = timeout_s
         self.out = out
-        self.t0 = time.monotonic()
+        self.t0: float | None = None
         self.told = 0.0
+
+    @staticmethod
+    def _up(axis: AxisNodes, role: str) -> bool:
+        assert axis.watcher is not None
+        return f"{axis.plan.namespace.rstrip('/')}/{role}" in axis.watcher.reported
+
+    @property
+    def counting(self) -> bool:
+        """Whether the run's own nodes are up, so that ``--external-timeout`` runs (from :attr:`t0`)."""
+        if self.t0 is None:
+            self.own = [(a, role) for a, role in self.own if not self._up(a, role)]
+            if not self.own:
+                self.t0 = time.monotonic()
+        return self.t0 is not None
 
     @staticmethod
     def _present(axis: AxisNodes, role: str) -> bool:
@@ -102,17 +129,24 @@ class OutsideWait:
         self.missing = [(a, role) for a, role in self.missing if not self._present(a, role)]
         if self.missing and self.out is not None and time.monotonic() - self.told >= 5.0:
             self.told = time.monotonic()
-            waited = self.told - self.t0
+            if self.counting:
+                assert self.t0 is not None
+                waited = f"{self.told - self.t0:.0f} s of {self.timeout_s:.0f} s"
+            else:
+                waited = "the run's own nodes still starting"
             for axis, role in self.missing:
                 self.out.write(
-                    f"waiting for the outside {axis.where(role)} ({waited:.0f} s of "
-                    f"{self.timeout_s:.0f} s): no publisher on {axis.plan.presence(role)} yet\n"
+                    f"waiting for the outside {axis.where(role)} ({waited}): "
+                    f"no publisher on {axis.plan.presence(role)} yet\n"
                 )
             self.out.flush()
         return not self.missing
 
     def failure(self) -> str | None:
-        """Why the run stops (the timeout passed), or None."""
+        """Why the run stops (the timeout passed since the run's own nodes were up), or None."""
+        if not self.counting:
+            return None
+        assert self.t0 is not None
         if time.monotonic() - self.t0 <= self.timeout_s:
             return None
         names = ", ".join(
@@ -190,8 +224,9 @@ class Watch:
             state.failure = self.deaths.failure(state)
             if state.failure is not None or all(axis.plant_done for axis in self.axes):
                 return
-            if not self.outside.arrived():
-                # The wait for an outside node has its own timeout, not the stall's.
+            if not self.outside.arrived() and self.outside.counting:
+                # The wait for an outside node has its own timeout, not the stall's
+                # (from when the run's own nodes are up; before, the stall check's).
                 state.failure = self.outside.failure()
                 if state.failure is not None:
                     return

@@ -59,6 +59,10 @@ class NodeHealth:
     strangers : dict
         Per topic, the publishers the run did not start
         (``"<namespace>/<node> <gid>"``), as the ROS graph showed them.
+    stranger_messages : dict
+        Per topic, the messages that came from a publisher other than the
+        one playing the topic's role: never applied (the recorder writes them
+        to the bag, on a channel of their own, and does not count them).
     fallbacks : list of Fallback
     realtime : dict
         A realtime run's figures of the node, as fields of
@@ -76,6 +80,7 @@ class NodeHealth:
     role: str
     rejected: dict[str, int] = field(default_factory=dict)
     strangers: dict[str, list[str]] = field(default_factory=dict)
+    stranger_messages: dict[str, int] = field(default_factory=dict)
     fallbacks: list[Fallback] = field(default_factory=list)
     realtime: dict[str, Any] = field(default_factory=dict)
     stepping: dict[str, Any] = field(default_factory=dict)
@@ -86,9 +91,10 @@ class NodeHealth:
         return not self.fallbacks
 
     def to_dict(self) -> dict[str, Any]:
-        """As a mapping (``realtime`` and ``stepping`` only if they hold something)."""
+        """As a mapping (``stranger_messages``, ``realtime`` and ``stepping`` only if they
+        hold something)."""
         out = asdict(self)
-        for optional in ("realtime", "stepping"):
+        for optional in ("stranger_messages", "realtime", "stepping"):
             if not out[optional]:
                 del out[optional]
         return out
@@ -99,6 +105,9 @@ class NodeHealth:
             role=str(data["role"]),
             rejected={str(k): int(v) for k, v in data.get("rejected", {}).items()},
             strangers={str(k): [str(x) for x in v] for k, v in data.get("strangers", {}).items()},
+            stranger_messages={
+                str(k): int(v) for k, v in data.get("stranger_messages", {}).items()
+            },
             fallbacks=[Fallback(**f) for f in data.get("fallbacks", [])],
             realtime=dict(data.get("realtime", {})),
             stepping=dict(data.get("stepping", {})),

@@ -220,6 +220,11 @@ class StampOrigin:
         """The step of each remembered state, by its stamp (ns)."""
         return self._steps
 
+    @property
+    def last_stamp_ns(self) -> int | None:
+        """The stamp of the last state taken (None before the first)."""
+        return None if self._last is None else self._last[0]
+
     def command_step(self, stamp_ns: int) -> int:
         """The step of the state stamped ``stamp_ns`` (a command echoes it).
 
@@ -232,6 +237,76 @@ class StampOrigin:
         if step is None:
             raise SignalError(f"stamp {stamp_ns} ns is not that of a state taken")
         return step
+
+
+class EarlyCommands:
+    """Commands of a plant that owns its clock that came before the state they echo.
+
+    A reader of both streams (the recorder) takes ``state`` and ``command``
+    from two subscriptions, in whatever order its executor runs their
+    callbacks: a reader that fell behind has both queues full and may take
+    ``command[k]`` before ``state[k]``. Such a command is kept (at most
+    ``limit``, the oldest refused past that) until the state of its stamp is
+    taken (:meth:`state_taken`); one whose stamp is not after the last state
+    taken never will be, and is refused at once; and once a state later than
+    a kept command's stamp is taken, that command's state never came and it
+    is refused then. The steps a command gets so do not depend on the order
+    of the two callbacks.
+
+    Parameters
+    ----------
+    origin : StampOrigin
+        The steps of the states taken.
+    limit : int
+        Commands kept at most, >= 1.
+    """
+
+    def __init__(self, origin: StampOrigin, *, limit: int = 4096) -> None:
+        if limit < 1:
+            raise ValueError(f"limit: expected >= 1, got {limit!r}")
+        self.origin = origin
+        self.limit = limit
+        self._waiting: dict[int, int] = {}  # stamp ns -> commands of that stamp kept
+        #: Commands refused because they were kept too long or too many.
+        self.expired = 0
+
+    @property
+    def waiting(self) -> int:
+        """Commands kept, waiting for their state."""
+        return sum(self._waiting.values())
+
+    def step(self, stamp_ns: int) -> int | None:
+        """The step of the command stamped ``stamp_ns``, or None: kept until its state comes.
+
+        Raises
+        ------
+        SignalError
+            For a stamp whose state cannot come any more (not after the last
+            state taken, not one of them), or when ``limit`` commands are kept.
+        """
+        steps = self.origin.steps_by_stamp
+        step = steps.get(stamp_ns)
+        if step is not None:
+            return step
+        last = self.origin.last_stamp_ns
+        if last is not None and stamp_ns <= last:
+            raise SignalError(f"stamp {stamp_ns} ns is not that of a state taken")
+        if self.waiting >= self.limit:
+            raise SignalError(
+                f"stamp {stamp_ns} ns: {self.limit} commands already wait for their states"
+            )
+        self._waiting[stamp_ns] = self._waiting.get(stamp_ns, 0) + 1
+        return None
+
+    def state_taken(self, stamp_ns: int, step: int) -> tuple[list[int], int]:
+        """A state stamped ``stamp_ns`` was taken as ``step``: the steps of the kept commands
+        that echo it (one per command), and how many kept ones are refused now (stamps before
+        it: their states never came)."""
+        matched = [step] * self._waiting.pop(stamp_ns, 0)
+        stale = [s for s in self._waiting if s < stamp_ns]
+        refused = sum(self._waiting.pop(s) for s in stale)
+        self.expired += refused
+        return matched, refused
 
 
 def gated(items: Iterable[tuple[int, T]], gate: StreamGate) -> Iterator[tuple[int, T]]:

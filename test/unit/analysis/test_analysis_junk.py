@@ -486,3 +486,41 @@ def test_the_recording_order_is_the_sequence_not_the_log_time(tmp_path: Path) ->
     assert sig.step.tolist() == list(range(10))
     assert_allclose(sig.encoder_rad, [value(k) for k in range(10)], rtol=0, atol=0)
     assert sig.dropped == {"/x/reference": 0, "/x/state": 10}
+
+
+def test_a_strangers_well_formed_next_sample_is_left_out_and_counted(tmp_path: Path) -> None:
+    """A stranger's sample of the next step, valid in every field and recorded before the
+    producer's, is on the stranger's channel: not in the stream, counted apart; a reader
+    that merges a topic's channels (rosbags) still has every message of the wire."""
+    from rosbags.rosbag2 import Reader
+
+    who = "/x/mimic 010f78fd316f8cfd0000000000002303"
+    with BagWriter(tmp_path / "bag") as bag:
+        bag.add_topic("/x/state", JOINT_STATE)
+        bag.add_topic("/x/reference", JOINT_STATE)
+        for k in range(10):
+            bag.write("/x/reference", reference(k), log_time_ns=10 * k + 1)
+            bag.write("/x/state", state(k, position=[9.0, 9.0]), log_time_ns=10 * k + 4,
+                      stranger=who)  # fmt: skip
+            bag.write("/x/state", state(k), log_time_ns=10 * k + 5)
+    streams = read_streams(tmp_path / "bag", RULES)
+    assert [k.step for k in streams.kept["/x/state"]] == list(range(10))
+    assert [k.data for k in streams.kept["/x/state"]] == [state(k) for k in range(10)]
+    assert streams.strangers == {"/x/state": 10}
+    assert streams.dropped == {"/x/state": 0, "/x/reference": 0}
+    assert streams.counts == {"/x/reference": 10, "/x/state": 20}
+    sig = load_signals(tmp_path / "bag", PERIOD_S)
+    assert_allclose(sig.encoder_rad, [value(k) for k in range(10)], rtol=0, atol=0)
+    with Reader(tmp_path / "bag") as reader:
+        states = [c for c in reader.connections if c.topic == "/x/state"]
+        assert [c.msgcount for c in states] == [20]
+        assert sum(1 for c, _, _ in reader.messages(connections=states)) == 20
+    from mcap.reader import make_reader
+
+    (path,) = (tmp_path / "bag").glob("*.mcap")
+    with path.open("rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    channels = [c for c in summary.channels.values() if c.topic == "/x/state"]
+    assert sorted(c.metadata.get("stranger_publisher", "") for c in channels) == ["", who]
+    assert len({c.metadata["offered_qos_profiles"] for c in channels}) == 1

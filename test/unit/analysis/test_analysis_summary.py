@@ -103,10 +103,15 @@ def test_run_summary_fields_are_typed() -> None:
         "startup_s",
         "finish_s",
         "overrides",
+        "numerics",
     }
     assert summary.realtime is None and "realtime" not in summary.to_dict()
     # overrides: written only for a run given --set, kept as given, and shown
     assert summary.overrides is None and "overrides" not in summary.to_dict()
+    # numerics: written by the runner (portable, native or host), absent from a bag alone
+    assert summary.numerics is None and "numerics" not in summary.to_dict()
+    pinned = dataclasses.replace(summary, numerics="portable")
+    assert RunSummary.from_dict(pinned.to_dict()).numerics == "portable"
     given = ("shared.duration_s=1", "feedback.dob={enabled: true}")
     with_sets = dataclasses.replace(summary, overrides=given)
     assert with_sets.to_dict()["overrides"] == list(given)

@@ -85,3 +85,49 @@ def test_a_publisher_declared_when_subscribed_stays_declared_whatever_comes_firs
     whos, declared = strangers.look("state", "plant", [junk, driver])
     assert declared == "/my_axis_driver" and whos == [junk.who]
     assert strangers.look("state", "plant", []) == ([], "its outside node")
+
+
+def test_a_message_is_the_producers_only_if_its_publisher_plays_the_role() -> None:
+    """By the GID of its publisher: the role's node in this namespace (any of its
+    publishers: a restarted one too); any other a stranger; unnamed or unlisted not known
+    yet, unless the judgment is final."""
+    strangers = Strangers(namespace="/x", external_roles=[])
+    plant, restarted = Endpoint("/x", "plant", gid(1)), Endpoint("/x", "plant", gid(5))
+    other_axis, junk = Endpoint("/y", "plant", gid(2)), Endpoint("/x", "junk", gid(3))
+    unnamed = Endpoint("/x", UNKNOWN_NODE_NAME, gid(4))
+    listed = [plant, restarted, other_axis, junk, unnamed]
+    judged = {e.gid: strangers.plays_role("state", "plant", listed, e.gid) for e in listed}
+    assert judged == {gid(1): True, gid(5): True, gid(2): False, gid(3): False, gid(4): None}
+    assert strangers.plays_role("state", "plant", listed, gid(4), final=True) is False
+    assert strangers.plays_role("state", "plant", listed, gid(9)) is None  # not listed yet
+
+
+def test_an_outside_role_is_never_declared_for_a_node_that_is_a_stranger_elsewhere() -> None:
+    """A junk publisher on every topic, there before the outside plant, is a stranger on
+    the topics of the roles the run started: it is not the outside plant, whatever it
+    publishes first."""
+    strangers = Strangers(namespace="/x", external_roles=["plant"])
+    junk = Endpoint("/x", "junk", gid(1))
+    sim = Endpoint("/x", "my_axis_sim", gid(2))
+
+    def suspect(e: Endpoint) -> bool:
+        return e.name == "junk"  # it also publishes `command`, the suite feedback's
+
+    assert strangers.declared_outside("state", [junk], suspect) is None
+    assert strangers.plays_role("state", "plant", [junk], junk.gid, suspect=suspect) is False
+    assert strangers.declared_outside("state", [junk, sim], suspect) == sim.gid
+    assert strangers.plays_role("state", "plant", [junk, sim], sim.gid, suspect=suspect)
+    whos, declared = strangers.look("state", "plant", [junk, sim], suspect)
+    assert declared == "/x/my_axis_sim" and whos == [junk.who]
+
+
+def test_an_outside_publisher_the_graph_never_names_is_declared_after_the_grace() -> None:
+    """A DDS application has no ROS node name: after the grace it may play the role."""
+    now = [0.0]
+    strangers = Strangers(
+        namespace="/", external_roles=["plant"], unnamed_grace_s=2.0, clock=lambda: now[0]
+    )
+    app = Endpoint("/", UNKNOWN_NODE_NAME, gid(7))
+    assert strangers.plays_role("state", "plant", [app], app.gid) is None
+    now[0] = 2.0
+    assert strangers.plays_role("state", "plant", [app], app.gid) is True

@@ -139,6 +139,38 @@ def test_flushed_messages_of_a_killed_writer_are_all_recovered(tmp_path: Path) -
     assert [list(s.position) for s in states[:2]] == [[0.0, 0.0], [1e-6, -1e-9]]
 
 
+def test_a_strangers_channel_is_recovered_with_its_metadata_and_messages(tmp_path: Path) -> None:
+    """A stranger's messages (a channel of their own, registered mid-recording) come back on
+    a stranger's channel of the same topic, in the topic's order of arrival."""
+    from servo_axis.recording.reader import read_raw
+
+    who = "/junk 010f78fd316f8cfd0000000000002303"
+    messages = batch(0, 300)
+    writer = open_writer(tmp_path / "live" / "bag", chunk_size=8 * 1024)
+    try:
+        write(writer, messages[:150])
+        for topic, t, data in messages[150:]:
+            if topic == "/state":
+                writer.write(topic, data, log_time_ns=t, stranger=who)
+            writer.write(topic, data, log_time_ns=t)
+        writer.flush()
+        flushed = (tmp_path / "live" / "bag" / "bag_0.mcap").read_bytes()
+    finally:
+        writer.close()
+    original = [
+        (m.topic, m.sequence, m.stranger, m.data) for m in read_raw(tmp_path / "live" / "bag")
+    ]
+    extra = sum(1 for topic, _, _ in messages[150:] if topic == "/state")
+    assert extra > 100
+    bag = killed_copy(flushed, tmp_path / "killed" / "bag")
+    report = recover_bag(bag)
+    assert report.message_counts["/state"] == 300 + extra
+    got = [(m.topic, m.sequence, m.stranger, m.data) for m in read_raw(bag)]
+    assert sorted(got) == sorted(original)
+    assert sum(1 for m in got if m[2] == who) == extra
+    assert len(read_rosbags(bag)) == len(messages) + extra  # the topic's channels merged
+
+
 def test_recovered_metadata_is_what_closing_the_writer_writes(tmp_path: Path) -> None:
     messages = batch(0, 400)
     writer = open_writer(tmp_path / "live" / "bag")
@@ -466,3 +498,30 @@ def test_a_split_bags_writer_keeps_the_index_of_its_current_file_only(tmp_path: 
     split = growth(tmp_path / "split", max_file_duration_ns=2_500_000_000)  # 10 chunks a file
     assert min(one) > 40 * 300, one  # the chunk indexes, hundreds of bytes each
     assert max(split[1:]) < 10 * 1_000, split  # at most a file's
+
+
+def test_a_strangers_channel_is_in_every_file_after_its_first_message(tmp_path: Path) -> None:
+    bag = tmp_path / "bag"
+    messages = batch(0, 600)
+    with split_writer(bag, max_file_duration_ns=200_000_000) as writer:
+        write(writer, messages[:10])
+        writer.write("/state", b"junk-a", log_time_ns=5_000_000, stranger="/x/junk 01.02")
+        write(writer, messages[10:])
+        writer.write("/state", b"junk-b", log_time_ns=599_000_000, stranger="/x/junk 01.02")
+    names = read_metadata(bag)["relative_file_paths"]
+    assert len(names) == 3
+    for name in names:
+        with (bag / name).open("rb") as f:
+            summary = make_reader(f).get_summary()
+        assert summary is not None
+        strangers = [c for c in summary.channels.values() if "stranger_publisher" in c.metadata]
+        assert [(c.topic, c.metadata["stranger_publisher"]) for c in strangers] == [
+            ("/state", "/x/junk 01.02")
+        ]
+    junk = [(m.data, m.stranger) for m in read_raw(bag) if m.stranger]
+    assert junk == [(b"junk-a", "/x/junk 01.02"), (b"junk-b", "/x/junk 01.02")]
+    counts = {
+        t["topic_metadata"]["name"]: t["message_count"]
+        for t in read_metadata(bag)["topics_with_message_count"]
+    }
+    assert counts["/state"] == 602  # the topic's, over its channels

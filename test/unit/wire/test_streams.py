@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from servo_axis.core.errors import SignalError
-from servo_axis.wire.streams import StampOrigin, StreamGate, gated
+from servo_axis.wire.streams import EarlyCommands, StampOrigin, StreamGate, gated
 
 
 def refused(gate: StreamGate, step: int, text: str) -> None:
@@ -164,3 +164,30 @@ def test_without_a_wall_clock_a_gate_refuses_every_jump_as_before() -> None:
         gate.accept(11)
     gate.accept(10)
     assert gate.skipped == 9 and gate.now_step() is None
+
+
+def test_a_command_taken_before_its_state_waits_for_it() -> None:
+    """The recorder's two callbacks in either order give every command its state's step;
+    a command whose state cannot come any more is refused, at once or once a later state
+    is taken."""
+    origin = StampOrigin(1_000_000)
+    early = EarlyCommands(origin, limit=3)
+    t0 = 5_000_000_123  # a plant clock's own epoch
+    assert early.step(t0) is None  # before any state
+    assert early.step(t0 + 1_000_000) is None
+    assert early.waiting == 2
+    assert early.state_taken(t0, origin.state_step(t0)) == ([0], 0)
+    assert early.step(t0) == 0  # its state is known now: at once
+    # A junk stamp between two states is refused once the later state is taken.
+    assert early.step(t0 + 1_500_000) is None
+    s1 = origin.state_step(t0 + 1_000_000)
+    assert early.state_taken(t0 + 1_000_000, s1) == ([1], 0)
+    s2 = origin.state_step(t0 + 2_000_000)
+    assert early.state_taken(t0 + 2_000_000, s2) == ([], 1)
+    assert early.expired == 1 and early.waiting == 0
+    with pytest.raises(SignalError, match="not that of a state taken"):
+        early.step(t0 + 1_700_000)  # before the last state: it never will be
+    for k in range(3):
+        assert early.step(t0 + (10 + k) * 1_000_000) is None
+    with pytest.raises(SignalError, match="3 commands already wait"):
+        early.step(t0 + 20 * 1_000_000)
