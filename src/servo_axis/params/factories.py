@@ -786,7 +786,7 @@ def check_recorder_topics(values: RecorderValues) -> None:
         extra = set(listed) - set(topics)
         if extra:
             raise ParameterFileError(f"parameter '{key}': {sorted(extra)} not in 'topics'")
-    from servo_axis.recording.writer import MIN_SPLIT_SIZE_BYTES
+    from servo_axis.recording.reader import MIN_SPLIT_SIZE_BYTES
 
     if 0 < values.max_bag_size_bytes < MIN_SPLIT_SIZE_BYTES:
         raise ParameterFileError(

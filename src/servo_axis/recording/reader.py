@@ -24,6 +24,7 @@ from mcap.reader import NonSeekingReader, make_reader
 from servo_axis.recording.errors import BagError
 
 __all__ = [
+    "MIN_SPLIT_SIZE_BYTES",
     "STRANGER_KEY",
     "UNFINISHED_SUFFIX",
     "RawMessage",
@@ -31,6 +32,11 @@ __all__ = [
     "read_metadata",
     "read_raw",
 ]
+
+#: Smallest ``max_file_size_bytes`` of a split bag (rosbag2's MCAP storage's
+#: ``get_minimum_split_file_size``): below it a file would hold its header only.
+#: Here, where the parameter checks (``params``) can import it without ROS.
+MIN_SPLIT_SIZE_BYTES = 1024
 
 #: Suffix of the original file of a recovered bag (:mod:`servo_axis.recording.recover`).
 UNFINISHED_SUFFIX = ".unfinished"

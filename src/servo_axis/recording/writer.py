@@ -53,7 +53,7 @@ from servo_axis.recording.definitions import (
 )
 from servo_axis.recording.definitions import type_hash as rihs01_hash
 from servo_axis.recording.errors import BagError, BagWriteError
-from servo_axis.recording.reader import STRANGER_KEY
+from servo_axis.recording.reader import MIN_SPLIT_SIZE_BYTES, STRANGER_KEY
 
 __all__ = [
     "DEFAULT_QOS",
@@ -70,10 +70,6 @@ __all__ = [
 
 #: ``rosbag2_bagfile_information.version`` written (ROS 2 Jazzy).
 METADATA_VERSION = 9
-
-#: Smallest ``max_file_size_bytes`` of a split bag (rosbag2's MCAP storage's
-#: ``get_minimum_split_file_size``): below it a file would hold its header only.
-MIN_SPLIT_SIZE_BYTES = 1024
 
 
 def offered_qos_text(*, depth: int, durability: str, lease_s: int) -> str:
