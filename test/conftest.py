@@ -141,15 +141,29 @@ def module_ros_env(
 
 
 def read_raw_payloads(bag_dir: Path) -> dict[str, list[bytes]]:
-    """CDR payloads per topic, in publication order, read with the mcap library."""
+    """CDR payloads per topic, in publication order, read with the mcap library.
+
+    Every MCAP file ``metadata.yaml`` lists (a split bag has several), in
+    order; a topic's messages in the order of the files, then of their
+    sequence numbers.
+    """
+    import yaml
     from mcap.reader import make_reader
 
-    (mcap_file,) = bag_dir.glob("*.mcap")
-    out: dict[str, list[tuple[int, bytes]]] = {}
-    with mcap_file.open("rb") as f:
-        for _schema, channel, message in make_reader(f).iter_messages():
-            out.setdefault(channel.topic, []).append((message.sequence, message.data))
-    return {t: [d for _, d in sorted(v)] for t, v in out.items()}
+    meta = bag_dir / "metadata.yaml"
+    if meta.is_file():
+        names = yaml.safe_load(meta.read_text())["rosbag2_bagfile_information"][
+            "relative_file_paths"
+        ]
+    else:  # a bag never closed: its one file
+        (only,) = bag_dir.glob("*.mcap")
+        names = [only.name]
+    out: dict[str, list[tuple[int, int, bytes]]] = {}
+    for index, name in enumerate(names):
+        with (bag_dir / name).open("rb") as f:
+            for _schema, channel, message in make_reader(f).iter_messages():
+                out.setdefault(channel.topic, []).append((index, message.sequence, message.data))
+    return {t: [d for _, _, d in sorted(v)] for t, v in out.items()}
 
 
 @pytest.fixture

@@ -108,30 +108,71 @@ def test_bag_reads_back_with_independent_readers(ros_env: int, tmp_path: Path) -
     assert np.all(np.isfinite(decoded)) and max(abs(x) for x in decoded) > 0.1
 
 
-def test_lockstep_runs_are_identical_separate_and_composed(
+def test_lockstep_runs_are_identical_separate_composed_and_split(
     ros_env: int, tmp_path: Path, raw_payloads: Any
 ) -> None:
+    from rosbags.highlevel import AnyReader
+
+    from servo_axis.analysis.signals import load_signals
+
     scenario = scenario_copy(CONFIG / "ptc_friction.yaml", tmp_path, duration_s=0.6)
     runs = [
         run_scenario(
             scenario,
-            RunOptions(
-                out_dir=tmp_path / name,
-                domain_id=ros_env,
-                composed=composed,
-                progress=None,
-                plots=False,
-            ),
+            RunOptions(out_dir=tmp_path / name, domain_id=ros_env, progress=None, plots=False),
         )
-        for name, composed in (("a", False), ("b", False), ("c", True))
+        for name in ("a", "b")
     ]
-    payloads = [raw_payloads(r.run_dir / "bag") for r in runs]
+    # The composed run, as a user starts it, with its bag split: the size
+    # bound splits at the recorder's flushes (every 0.25 s of wall time); the
+    # duration bound, on simulation time, makes sure of 3 files however fast
+    # the host runs the 0.6 s.
+    command = [sys.executable, "-m", "servo_axis", "run", str(scenario), "--composed"]
+    command += ["--no-plots", "--domain-id", str(ros_env), "--out", str(tmp_path / "c")]
+    command += ["--set", "recorder.max_bag_size_bytes=4096"]
+    command += ["--set", "recorder.max_bag_duration_s=0.25"]
+    done = subprocess.run(command, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    bags = [r.run_dir / "bag" for r in runs] + [tmp_path / "c" / "bag"]
+    payloads = [raw_payloads(b) for b in bags]  # with the mcap library, file by file
     for topic in ("/x/state", "/x/command", "/x/reference", "/clock", "/x/plant/status"):
         assert len(payloads[0][topic]) == {"/clock": 60, "/x/plant/status": 12}.get(topic, 600)
         assert payloads[0][topic] == payloads[1][topic], f"{topic}: separate runs differ"
-        assert payloads[0][topic] == payloads[2][topic], f"{topic}: composed differs from separate"
+        assert payloads[0][topic] == payloads[2][topic], f"{topic}: composed, split differs"
+    assert payloads[2] == payloads[0]  # every topic
     # Not trivially equal: the friction makes the commands vary.
     assert len(set(payloads[0]["/x/command"])) > 500
+
+    one, split = bags[0], bags[2]
+    assert [p.name for p in one.glob("*.mcap")] == ["bag_0.mcap"]
+    info = yaml.safe_load((split / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    names = info["relative_file_paths"]
+    assert len(names) >= 3 and names == [f"bag_{i}.mcap" for i in range(len(names))]
+    assert sorted(p.name for p in split.iterdir()) == sorted([*names, "metadata.yaml"])
+    assert [f["path"] for f in info["files"]] == names
+    assert all(f["duration"]["nanoseconds"] <= 250_000_000 for f in info["files"])
+    assert sum(f["message_count"] for f in info["files"]) == info["message_count"]
+
+    # rosbags' AnyReader (an independent reader of the directory) and the
+    # analysis's reader read the split bag as the one file.
+    def by_topic(directory: Path) -> dict[str, list[bytes]]:
+        out: dict[str, list[bytes]] = {}
+        with AnyReader([directory]) as reader:
+            for conn, _, raw in reader.messages():
+                out.setdefault(conn.topic, []).append(bytes(raw))
+        return out
+
+    assert by_topic(split) == by_topic(one)
+    a, c = load_signals(one, 0.001), load_signals(split, 0.001)
+    for field in ("step", "encoder_rad", "scale_m", "reference_rad", "command_Nm"):
+        np.testing.assert_array_equal(getattr(c, field), getattr(a, field), err_msg=field)
+    assert a.step.size == 600 and c.counts == a.counts
+    # The summaries the runner made from each bag are the same.
+    summaries = [json.loads((b.parent / "summary.json").read_text()) for b in (one, split)]
+    assert summaries[1]["tracking_error"] == summaries[0]["tracking_error"]
+    assert summaries[1]["message_counts"] == summaries[0]["message_counts"]
+    assert cli(["bag", "recover", str(split)]) == 0  # complete: left as it is
+    assert sorted(p.name for p in split.iterdir()) == sorted([*names, "metadata.yaml"])
 
 
 def test_friction_table_halves_the_quadrant_glitches(

@@ -378,6 +378,9 @@ class FeedbackNode(ServoNode):
         stamp = state.step if self._origin is None else self._stamps.pop(state.step)
         if state.step % 1000 == 0:  # drop references of samples that never came
             self._references.drop_before(state.step)
+            # And the stamps of states caught up past (CatchUp): never answered.
+            for old in [s for s in self._stamps if s < state.step]:
+                del self._stamps[old]
         if ref is None:
             out = LoopOutput(0.0, 0.0, 0.0, 0.0)
         else:

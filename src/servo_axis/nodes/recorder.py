@@ -16,6 +16,12 @@ counted topics (junk stamps are bounded; see the timeline's docstring). The
 bag's timeline and ``metadata.yaml``'s duration are then the simulated ones,
 the same run after run.
 
+With ``max_bag_size_bytes`` or ``max_bag_duration_s`` the bag is split as
+``ros2 bag record --max-bag-size/--max-bag-duration`` splits it: one
+directory, ``bag_0.mcap``, ``bag_1.mcap``, ... (each finished when the next
+begins), all listed in ``metadata.yaml``; every reader of the suite reads it
+as one file.
+
 Every :data:`FLUSH_PERIOD_S` of wall time (a steady-clock timer) the chunk in
 progress is closed and written to the file, so that a recorder that dies,
 even by SIGKILL, loses at most the last 0.5 s of messages; ``python -m
@@ -127,7 +133,12 @@ class RecorderNode(ServoNode):
         classes = [message_class(t) for t in types]
         self._steps = run_steps(values)
         try:
-            self.writer = BagWriter(Path(values.output_dir), compression=values.compression)
+            self.writer = BagWriter(
+                Path(values.output_dir),
+                compression=values.compression,
+                max_file_size_bytes=values.max_bag_size_bytes,
+                max_file_duration_ns=round(values.max_bag_duration_s * 1e9),
+            )
         except (OSError, ValueError) as err:
             raise ParameterFileError(f"parameter 'output_dir': {err}") from err
 

@@ -771,7 +771,8 @@ def external_roles(values: SharedValues) -> tuple[str, ...]:
 
 
 def check_recorder_topics(values: RecorderValues) -> None:
-    """One type per topic; the latched and counted topics among them; a period per final topic."""
+    """One type per topic; the latched and counted topics among them; a period per
+    final topic; a split size of 0 or at least the MCAP minimum."""
     topics, types = values.topics, values.types
     if len(topics) != len(types) or not topics:
         raise ParameterFileError(
@@ -785,6 +786,13 @@ def check_recorder_topics(values: RecorderValues) -> None:
         extra = set(listed) - set(topics)
         if extra:
             raise ParameterFileError(f"parameter '{key}': {sorted(extra)} not in 'topics'")
+    from servo_axis.recording.reader import MIN_SPLIT_SIZE_BYTES
+
+    if 0 < values.max_bag_size_bytes < MIN_SPLIT_SIZE_BYTES:
+        raise ParameterFileError(
+            f"parameter 'max_bag_size_bytes': expected 0 (no split) or >= "
+            f"{MIN_SPLIT_SIZE_BYTES} (bytes), got {values.max_bag_size_bytes}"
+        )
     finals, every = values.final_topics, values.final_every_steps
     if len(finals) != len(every):
         raise ParameterFileError(

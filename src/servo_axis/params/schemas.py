@@ -712,6 +712,24 @@ RECORDER: dict[str, Param] = {
         choices=("zstd", "lz4", "none"),
         meaning="MCAP chunk compression",
     ),
+    # As ros2 bag record --max-bag-size / --max-bag-duration: one bag
+    # directory, files <bag>_0.mcap, <bag>_1.mcap, ... listed in metadata.yaml.
+    "max_bag_size_bytes": Param(
+        0,
+        unit="bytes",
+        minimum=0,
+        meaning="split the bag: start its next MCAP file before a message once the file "
+        "holds this many bytes (what is on disk: the file ends up to one chunk, 1 MiB, "
+        "larger), as `ros2 bag record --max-bag-size`; 0 = no split, else >= 1024",
+    ),
+    "max_bag_duration_s": Param(
+        0.0,
+        unit="s",
+        minimum=0.0,
+        meaning="split the bag: start its next MCAP file before a message logged more than "
+        "this after the file's first (log times are simulation times), as `ros2 bag record "
+        "--max-bag-duration`; 0 = no split",
+    ),
     "ack_every_steps": Param(
         50,
         unit="steps",

@@ -585,6 +585,14 @@ class RecorderValues(SharedValues):
     """``final_every_steps`` (>= 1): the publishing period (samples) of each of final_topics"""
     compression: str = field(metadata={"unit": "", "range": "one of 'zstd', 'lz4', 'none'"})
     """``compression`` (one of 'zstd', 'lz4', 'none'): MCAP chunk compression"""
+    max_bag_size_bytes: int = field(metadata={"unit": "bytes", "range": ">= 0"})
+    """``max_bag_size_bytes`` (bytes, >= 0): split the bag: start its next MCAP file before a
+    message once the file holds this many bytes (what is on disk: the file ends up to one chunk,
+    1 MiB, larger), as `ros2 bag record --max-bag-size`; 0 = no split, else >= 1024"""
+    max_bag_duration_s: float = field(metadata={"unit": "s", "range": ">= 0"})
+    """``max_bag_duration_s`` (s, >= 0): split the bag: start its next MCAP file before a message
+    logged more than this after the file's first (log times are simulation times), as `ros2 bag
+    record --max-bag-duration`; 0 = no split"""
     ack_every_steps: int = field(metadata={"unit": "steps", "range": ">= 1"})
     """``ack_every_steps`` (steps, >= 1): publish recorder/progress every this many recorded steps
     (and at the end)"""

@@ -18,10 +18,9 @@ import gc
 import sys
 import threading
 import time
+from array import array
 from collections.abc import Callable
 from typing import Any
-
-import numpy as np
 
 from servo_axis.realtime import deadlines
 from servo_axis.realtime.scheduling import fifo_this_thread
@@ -184,13 +183,23 @@ class ClockThread:
             gc.enable()
 
 
+#: Ticks a :class:`ClockRecord` keeps the deadline of: a command that answers
+#: an older state (seconds late at 1 kHz) is timed against the grid instead.
+DEADLINE_RING = 4096
+
+
 class ClockRecord:
     """A realtime clock's ticks and the arrivals it waits for, against its deadlines.
 
     Tick ``j`` is due at ``d_j = start + j T``; the input that answers state
     ``k`` (the plant's command ``k``) is late by its arrival minus ``d_k``,
     so that later than one period is a missed deadline
-    (:mod:`servo_axis.realtime.deadlines`).
+    (:mod:`servo_axis.realtime.deadlines`). The first arrival of a step counts.
+
+    What it keeps is the same size for a run of any length: the lateness
+    of ticks and of arrivals as :class:`~servo_axis.realtime.deadlines.LatenessHistogram`
+    (percentiles to 1 % or 0.1 us), the counts, and the deadlines and arrivals
+    of the last :data:`DEADLINE_RING` ticks.
 
     Parameters
     ----------
@@ -206,23 +215,41 @@ class ClockRecord:
         self.start_ns = 0
         self.misses = 0
         self.last_tick_ns = 0
-        self._tick_late_ns = np.full(steps + 1, np.nan)  # by tick j (1 .. steps)
-        self._arrival_late_ns = np.full(steps, np.nan)  # by step k (0 .. steps - 1)
-        # Tick j's deadline, as the clock had it (a slip re-bases the grid).
-        self._deadline_ns = np.zeros(steps + 1, dtype=np.int64)
+        self.tick_late = deadlines.LatenessHistogram()
+        self.arrival_late = deadlines.LatenessHistogram()
+        #: Arrivals later than one period (deadline misses of their commands).
+        self.arrivals_late = 0
+        # Tick j's deadline, as the clock had it (a slip re-bases the grid), and
+        # the step whose arrival was counted, for the last DEADLINE_RING ticks.
+        # C int64 rings: a write keeps no Python int alive.
+        self._deadline_ns = array("q", [0]) * DEADLINE_RING
+        self._deadline_tick = array("q", [-1]) * DEADLINE_RING
+        self._arrived_step = array("q", [-1]) * DEADLINE_RING
 
     def arrived(self, step: int, now_ns: int) -> None:
-        """The input of ``step`` arrived at ``now_ns`` (a step outside the run is not kept)."""
-        if 0 <= step < self.steps:
-            due = int(self._deadline_ns[step]) if step > 0 else 0
-            if due == 0:
-                due = self.start_ns + step * self.period_ns
-            self._arrival_late_ns[step] = now_ns - due
+        """The input of ``step`` arrived at ``now_ns`` (a step outside the run, or a
+        second arrival of a step, is not counted)."""
+        if not 0 <= step < self.steps:
+            return
+        slot = step % DEADLINE_RING
+        if self._arrived_step[slot] >= step:
+            return
+        self._arrived_step[slot] = step
+        if step > 0 and self._deadline_tick[slot] == step:
+            due = self._deadline_ns[slot]
+        else:
+            due = self.start_ns + step * self.period_ns
+        late = now_ns - due
+        self.arrival_late.add(late)
+        if late > self.period_ns:
+            self.arrivals_late += 1
 
     def ticked(self, tick: int, deadline_ns: int, now_ns: int) -> None:
         """Tick ``tick``, due at ``deadline_ns``, ran at ``now_ns``."""
-        self._tick_late_ns[tick] = now_ns - deadline_ns
-        self._deadline_ns[tick] = deadline_ns
+        self.tick_late.add(now_ns - deadline_ns)
+        slot = tick % DEADLINE_RING
+        self._deadline_ns[slot] = deadline_ns
+        self._deadline_tick[slot] = tick
         self.last_tick_ns = now_ns
 
     def report(
@@ -233,24 +260,25 @@ class ClockRecord:
         slips: int = 0,
         slipped_periods: int = 0,
     ) -> dict[str, Any]:
-        """The figures of the first ``ticks`` ticks (the plant's ``health.realtime``).
+        """The figures of the run's ``ticks`` ticks (the plant's ``health.realtime``).
 
         ``slips``, ``slipped_periods``: the clock's (:class:`ClockThread`).
+        Arrivals are those of steps 0 .. ``ticks`` - 1 (the plant reports at
+        its last step: every step of the run).
         """
-        late = self._arrival_late_ns[:ticks]
         return {
             "clock_slips": int(slips),
             "slipped_periods": int(slipped_periods),
             "period_ns": self.period_ns,
             "ticks": int(ticks),
             "misses": int(self.misses),
-            "commands_missing": int(np.count_nonzero(np.isnan(late))),
-            "commands_late": int(np.count_nonzero(late > self.period_ns)),
+            "commands_missing": max(0, int(ticks) - self.arrival_late.count),
+            "commands_late": self.arrivals_late,
             "timer_rate": deadlines.timer_rate(
                 ticks, self.period_ns, self.start_ns, self.last_tick_ns
             ),
-            "tick_late_us": deadlines.lateness_stats(self._tick_late_ns[1 : ticks + 1]),
-            "command_late_us": deadlines.lateness_stats(late),
+            "tick_late_us": self.tick_late.stats(),
+            "command_late_us": self.arrival_late.stats(),
             "scheduling": scheduling,
         }
 
@@ -265,7 +293,8 @@ class LoopTimes:
     Such a plant (a drive, a user's node) reports no clock, so the feedback
     measures the loop (:func:`~servo_axis.realtime.deadlines.loop_from_times`):
     misses, lateness, states never answered; the summary's ``realtime``
-    block is made of it.
+    block is made of it. What it keeps is the same size for a run of any
+    length (streaming lateness, the last :data:`DEADLINE_RING` arrivals).
 
     Parameters
     ----------
@@ -277,28 +306,68 @@ class LoopTimes:
 
     def __init__(self, *, steps: int, period_ns: int) -> None:
         self.period_ns = period_ns
-        self._arrived = np.zeros(steps, dtype=np.int64)
-        self._sent = np.zeros(steps, dtype=np.int64)
+        self.steps = steps
+        self.tick_late = deadlines.LatenessHistogram()
+        self.command_late = deadlines.LatenessHistogram()
+        self.commands_late = 0
+        self._first: tuple[int, int] | None = None  # (step, arrival) of the first state
+        self._last: tuple[int, int] | None = None  # of the newest step
+        # The last DEADLINE_RING states' arrivals, and which of them were answered.
+        self._arrival_ns = array("q", [0]) * DEADLINE_RING
+        self._arrival_step = array("q", [-1]) * DEADLINE_RING
+        self._answered_step = array("q", [-1]) * DEADLINE_RING
 
     def arrived(self, step: int, now_ns: int) -> None:
         """``state[step]`` arrived at ``now_ns`` (monotonic; the first arrival counts)."""
-        if 0 <= step < self._arrived.size and self._arrived[step] == 0:
-            self._arrived[step] = now_ns
+        if not 0 <= step < self.steps:
+            return
+        slot = step % DEADLINE_RING
+        if self._arrival_step[slot] >= step:
+            return
+        self._arrival_step[slot] = step
+        self._arrival_ns[slot] = now_ns
+        if self._first is None:
+            self._first = (step, now_ns)
+        first_step, first_ns = self._first
+        # Its tick: the grid of the first state's arrival.
+        self.tick_late.add(max(now_ns - first_ns - (step - first_step) * self.period_ns, 0))
+        if self._last is None or step > self._last[0]:
+            self._last = (step, now_ns)
 
     def sent(self, step: int, now_ns: int) -> None:
-        """``command[step]`` went out at ``now_ns`` (monotonic)."""
-        if 0 <= step < self._sent.size and self._sent[step] == 0:
-            self._sent[step] = now_ns
+        """``command[step]`` went out at ``now_ns`` (monotonic; the first per step counts;
+        one for a state that did not arrive, or arrived more than the ring ago, is not)."""
+        if not 0 <= step < self.steps:
+            return
+        slot = step % DEADLINE_RING
+        if self._arrival_step[slot] != step or self._answered_step[slot] >= step:
+            return
+        self._answered_step[slot] = step
+        late = now_ns - self._arrival_ns[slot]
+        self.command_late.add(late)
+        if late > self.period_ns:
+            self.commands_late += 1
 
     def report(self) -> dict[str, Any] | None:
-        """The fields of the summary's ``realtime`` block; None before any state."""
-        states = np.flatnonzero(self._arrived)
-        commands = np.flatnonzero(self._sent)
-        figures = deadlines.loop_from_times(
-            period_ns=self.period_ns,
-            state_steps=states.tolist(),
-            state_times_ns=self._arrived[states].tolist(),
-            command_steps=commands.tolist(),
-            command_times_ns=self._sent[commands].tolist(),
-        )
-        return None if figures is None else {**figures, "measured_from": MEASURED_AT_FEEDBACK}
+        """The fields of the summary's ``realtime`` block; None before any state.
+
+        Those of :func:`~servo_axis.realtime.deadlines.loop_from_times` of the same
+        times, the lateness to the resolution of its histograms.
+        """
+        if self._first is None or self._last is None:
+            return None
+        ticks = self.tick_late.count
+        missing = ticks - self.command_late.count
+        return {
+            "period_ns": int(self.period_ns),
+            "ticks": ticks,
+            "misses": missing + self.commands_late,
+            "commands_missing": missing,
+            "commands_late": self.commands_late,
+            "timer_rate": deadlines.timer_rate(
+                self._last[0] - self._first[0], self.period_ns, self._first[1], self._last[1]
+            ),
+            "tick_late_us": self.tick_late.stats(),
+            "command_late_us": self.command_late.stats(),
+            "measured_from": MEASURED_AT_FEEDBACK,
+        }

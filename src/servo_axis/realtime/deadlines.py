@@ -19,6 +19,7 @@ a missed deadline (:func:`misses_of`).
 from __future__ import annotations
 
 import math
+from array import array
 from collections.abc import Sequence
 from typing import Any
 
@@ -27,6 +28,15 @@ from numpy.typing import ArrayLike
 
 #: Percentiles reported of each lateness (cyclictest's p50, p99 and the max).
 PERCENTILES = (50.0, 99.0)
+
+#: Relative width of a :class:`LatenessHistogram` bin.
+LATENESS_RELATIVE_RESOLUTION = 0.01
+#: Lower edge of its first log-spaced bin (ns): earlier is one bin.
+LATENESS_FLOOR_NS = 100
+#: Upper edge of its last log-spaced bin (ns): later is one bin.
+LATENESS_CEILING_NS = 100_000_000_000
+_LOG_STEP = math.log1p(LATENESS_RELATIVE_RESOLUTION)
+_BINS = math.ceil(math.log(LATENESS_CEILING_NS / LATENESS_FLOOR_NS) / _LOG_STEP)
 
 
 def deadline_ns(start_ns: int, period_ns: int, tick: int) -> int:
@@ -63,6 +73,116 @@ def misses_of(command_late_ns: ArrayLike, period_ns: int) -> int:
     """
     late = np.asarray(command_late_ns, dtype=float)
     return int(np.count_nonzero(~(late <= period_ns)))  # NaN counts as a miss
+
+
+class LatenessHistogram:
+    """A streaming summary of a lateness series: fixed-size, whatever the run's length.
+
+    Log-spaced bins of relative width :data:`LATENESS_RELATIVE_RESOLUTION`
+    (1 %) from :data:`LATENESS_FLOOR_NS` (100 ns) to :data:`LATENESS_CEILING_NS`
+    (100 s), a bin below (0 to 100 ns), one above, and one of negative
+    values (an arrival before the deadline it is timed against: its
+    percentiles are only known to lie between the min and 0); the count,
+    sum, min and max exactly. A
+    percentile is the middle of the bin its order statistic falls in, kept
+    within the min and max, interpolated between the two order statistics as
+    numpy's ``percentile`` does: within 1 % of the value numpy gives of the
+    same samples, or 100 ns below 10 us (the reports round to 0.1 us); the
+    min and max are exact. Adding a sample allocates
+    nothing that stays (about 2,100 bins, 17 kB, from the start).
+
+    Attributes
+    ----------
+    count : int
+        Samples added.
+    min_ns, max_ns : int or None
+        The smallest and largest sample (ns); None before any.
+    sum_ns : int
+        The samples' sum (ns).
+    """
+
+    __slots__ = ("_bins", "count", "max_ns", "min_ns", "sum_ns")
+
+    def __init__(self) -> None:
+        # C int64 counts: an increment keeps no Python int alive.
+        self._bins = array("q", bytes(8 * (_BINS + 3)))
+        self.count = 0
+        self.sum_ns = 0
+        self.min_ns: int | None = None
+        self.max_ns: int | None = None
+
+    def add(self, late_ns: int) -> None:
+        """Count one sample (ns)."""
+        if late_ns < 0:
+            index = 0
+        elif late_ns < LATENESS_FLOOR_NS:
+            index = 1
+        elif late_ns >= LATENESS_CEILING_NS:
+            index = _BINS + 2
+        else:
+            index = min(int(math.log(late_ns / LATENESS_FLOOR_NS) / _LOG_STEP), _BINS - 1) + 2
+        self._bins[index] += 1
+        self.count += 1
+        self.sum_ns += late_ns
+        if self.min_ns is None or late_ns < self.min_ns:
+            self.min_ns = late_ns
+        if self.max_ns is None or late_ns > self.max_ns:
+            self.max_ns = late_ns
+
+    @property
+    def mean_ns(self) -> float:
+        """The samples' mean (ns); NaN before any."""
+        return self.sum_ns / self.count if self.count else math.nan
+
+    def percentile(self, q: float) -> float:
+        """The ``q``-th percentile (0..100, ns) to the bins' resolution; NaN before any.
+
+        As numpy's default (linear): between the order statistics at
+        ``q / 100 (count - 1)``, each taken as the middle of its bin.
+        """
+        if not self.count:
+            return math.nan
+        position = q / 100.0 * (self.count - 1)
+        below = math.floor(position)
+        low = self._order_statistic(below)
+        if position == below:
+            return low
+        return low + (position - below) * (self._order_statistic(below + 1) - low)
+
+    def _order_statistic(self, rank: int) -> float:
+        """The ``rank``-th smallest sample (0-based), as the middle of its bin."""
+        assert self.min_ns is not None and self.max_ns is not None
+        if rank <= 0:
+            return float(self.min_ns)
+        if rank >= self.count - 1:
+            return float(self.max_ns)
+        seen = 0
+        index = 0
+        for index, n in enumerate(self._bins):  # noqa: B007 (the bin is what is wanted)
+            seen += n
+            if seen > rank:
+                break
+        if index == 0:
+            middle = self.min_ns / 2  # somewhere in [min, 0)
+        elif index == 1:
+            middle = LATENESS_FLOOR_NS / 2
+        elif index == _BINS + 2:
+            middle = float(self.max_ns)
+        else:
+            low = LATENESS_FLOOR_NS * math.exp((index - 2) * _LOG_STEP)
+            middle = low * (1.0 + LATENESS_RELATIVE_RESOLUTION / 2)
+        return float(min(max(middle, self.min_ns), self.max_ns))
+
+    def stats(self) -> dict[str, float] | None:
+        """What :func:`lateness_stats` gives of the same samples, to the bins' resolution."""
+        if not self.count or self.max_ns is None:
+            return None
+        p50, p99 = (self.percentile(q) for q in PERCENTILES)
+        return {
+            "p50": round(p50 * 1e-3, 1),
+            "p99": round(p99 * 1e-3, 1),
+            "max": round(self.max_ns * 1e-3, 1),
+        }
 
 
 def lateness_stats(late_ns: ArrayLike) -> dict[str, float] | None:

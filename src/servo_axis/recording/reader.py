@@ -23,7 +23,20 @@ from mcap.reader import NonSeekingReader, make_reader
 
 from servo_axis.recording.errors import BagError
 
-__all__ = ["STRANGER_KEY", "UNFINISHED_SUFFIX", "RawMessage", "read_metadata", "read_raw"]
+__all__ = [
+    "MIN_SPLIT_SIZE_BYTES",
+    "STRANGER_KEY",
+    "UNFINISHED_SUFFIX",
+    "RawMessage",
+    "mcap_files",
+    "read_metadata",
+    "read_raw",
+]
+
+#: Smallest ``max_file_size_bytes`` of a split bag (rosbag2's MCAP storage's
+#: ``get_minimum_split_file_size``): below it a file would hold its header only.
+#: Here, where the parameter checks (``params``) can import it without ROS.
+MIN_SPLIT_SIZE_BYTES = 1024
 
 #: Suffix of the original file of a recovered bag (:mod:`servo_axis.recording.recover`).
 UNFINISHED_SUFFIX = ".unfinished"
@@ -99,14 +112,25 @@ def read_metadata(directory: Path) -> dict[str, Any]:
     return info
 
 
-def _mcap_files(directory: Path) -> list[Path]:
-    # metadata.yaml is written on close only: a bag whose recorder was killed
-    # has none, and then every MCAP file of the directory is read.
+def mcap_files(directory: Path) -> list[Path]:
+    """The MCAP files of a bag, in order (a split bag has several).
+
+    Those ``metadata.yaml`` lists under ``relative_file_paths``; a bag whose
+    recorder was killed has no ``metadata.yaml`` (it is written on close
+    only), and then every ``*.mcap`` of the directory, in the order of the
+    number rosbag2 ends their names with (``bag_2`` before ``bag_10``).
+    """
+    directory = Path(directory)
     try:
         names = read_metadata(directory)["relative_file_paths"]
         return [directory / Path(str(n)).name for n in names]
     except (BagError, KeyError, TypeError):
-        return sorted(directory.glob("*.mcap"))
+        return sorted((p for p in directory.glob("*.mcap") if p.is_file()), key=_file_order)
+
+
+def _file_order(path: Path) -> tuple[str, int, str]:
+    stem, _, index = path.stem.rpartition("_")
+    return (stem, int(index), "") if index.isdigit() else (path.stem, -1, path.name)
 
 
 def _file_messages(path: Path, topics: list[str] | None) -> Iterator[tuple[int, Any, Any, Any]]:
@@ -151,7 +175,9 @@ def read_raw(directory: Path, *, topics: Iterable[str] | None = None) -> Iterato
     ----------
     directory : Path
         The bag directory (its ``metadata.yaml`` names the MCAP files; without
-        it every ``*.mcap`` in the directory is read).
+        it every ``*.mcap`` in the directory is read: :func:`mcap_files`). A
+        split bag reads as one file: its files' messages merged by log time,
+        those of equal log times in the order of the files.
     topics : iterable of str or None
         Only these topics; all if None.
 
@@ -164,7 +190,7 @@ def read_raw(directory: Path, *, topics: Iterable[str] | None = None) -> Iterato
     """
     directory = Path(directory)
     wanted = list(topics) if topics is not None else None
-    streams = [_file_messages(p, wanted) for p in _mcap_files(directory)]
+    streams = [_file_messages(p, wanted) for p in mcap_files(directory)]
     for log_time, schema, channel, msg in heapq.merge(*streams, key=operator.itemgetter(0)):
         data = msg.data
         yield RawMessage(

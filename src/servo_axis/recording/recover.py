@@ -27,6 +27,13 @@ A bag that is already complete (an MCAP file with its summary and
 ``metadata.yaml`` (the process died between the two) gets its
 ``metadata.yaml`` and nothing else.
 
+A split bag (``bag_0.mcap``, ``bag_1.mcap``, ...: the recorder's
+``max_bag_size_bytes``, ``max_bag_duration_s``) whose recorder was killed
+has its earlier files complete (each was finished when the next began) and
+its last one unfinished: each unfinished file is recovered as above, and
+``metadata.yaml`` lists every file, with the counts and times of their
+summaries.
+
 Only the ``mcap`` and ``yaml`` packages are used: no ROS is needed.
 """
 
@@ -45,8 +52,19 @@ from mcap.records import Channel, Chunk, DataEnd, Footer, Message, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk
 
 from servo_axis.recording.errors import BagError, NoBagError, NotMcapError
-from servo_axis.recording.reader import STRANGER_KEY, UNFINISHED_SUFFIX, read_metadata
-from servo_axis.recording.writer import DEFAULT_QOS, BagWriter
+from servo_axis.recording.reader import (
+    STRANGER_KEY,
+    UNFINISHED_SUFFIX,
+    mcap_files,
+    read_metadata,
+)
+from servo_axis.recording.writer import (
+    DEFAULT_QOS,
+    BagFile,
+    BagWriter,
+    bagfile_information,
+    dump_yaml,
+)
 
 __all__ = ["UNFINISHED_SUFFIX", "RecoveryReport", "recover_bag"]
 
@@ -71,10 +89,14 @@ class RecoveryReport:
     needed_recovery : bool
         Whether anything was written (False: the bag was complete).
     kept : Path or None
-        Where the original MCAP file was kept (None if it was not replaced).
+        Where the original MCAP file was kept (None if it was not replaced;
+        of a split bag, the last file's that was).
     dropped_bytes : int
         Bytes at the end of the original file that held no complete record
-        (a chunk cut short by the kill, or damaged).
+        (a chunk cut short by the kill, or damaged); of a split bag, of
+        all its files.
+    files : int
+        The bag's MCAP files (several: a split bag).
     """
 
     path: Path
@@ -84,6 +106,7 @@ class RecoveryReport:
     needed_recovery: bool = False
     kept: Path | None = None
     dropped_bytes: int = 0
+    files: int = 1
 
     @property
     def recovered(self) -> bool:
@@ -103,6 +126,8 @@ class RecoveryReport:
         else:
             first, last = self.first_log_time_ns / 1e9, self.last_log_time_ns / 1e9
             span = f"log times {first:.3f} s .. {last:.3f} s ({last - first:.3f} s)"
+        if self.files > 1:
+            span += f"; {self.files} files"
         if not self.needed_recovery:
             return (
                 f"{self.path}: complete, nothing to recover "
@@ -126,8 +151,8 @@ def recover_bag(bag_dir: Path) -> RecoveryReport:
     Parameters
     ----------
     bag_dir : Path
-        The bag directory (``metadata.yaml`` and one ``*.mcap`` file, or an
-        MCAP file alone).
+        The bag directory (``metadata.yaml`` and its ``*.mcap`` files, or
+        MCAP files alone).
 
     Returns
     -------
@@ -141,8 +166,8 @@ def recover_bag(bag_dir: Path) -> RecoveryReport:
     NotMcapError
         If the bag's file does not start with the MCAP magic.
     BagError
-        If the bag has several MCAP files, or is an MCAP file of another
-        profile than rosbag2's (``ros2msg`` schemas, ``cdr`` messages).
+        If a file of the bag is an MCAP file of another profile than
+        rosbag2's (``ros2msg`` schemas, ``cdr`` messages).
     OSError
         If a file cannot be read or written.
     """
@@ -153,44 +178,53 @@ def recover_bag(bag_dir: Path) -> RecoveryReport:
         info: dict[str, Any] | None = read_metadata(bag_dir)
     except BagError:
         info = None
-    mcap_path = _mcap_file(bag_dir, info)
-    _check_magic(mcap_path)
-    complete = _summary_counts(mcap_path)
-    if complete is not None and info is not None:
-        counts, first, last = complete
-        return RecoveryReport(bag_dir, counts, first, last, needed_recovery=False)
+    paths = _mcap_paths(bag_dir, info)
+    for path in paths:
+        _check_magic(path)
+    summaries = [_summary_counts(p) for p in paths]
+    if info is not None and all(c is not None for c in summaries):
+        return RecoveryReport(bag_dir, *_merged(summaries), needed_recovery=False, files=len(paths))
 
     tmp = Path(tempfile.mkdtemp(dir=bag_dir, prefix=".recover-"))
+    kept = None
+    dropped = 0
     try:
-        with mcap_path.open("rb") as f:
-            writer, good_end = _copy_records(f, tmp, mcap_path.name)
-        size = mcap_path.stat().st_size
-        first, last = writer.first_log_time_ns, writer.last_log_time_ns
-        counts = writer.message_counts
-        kept = None
-        if complete is None:
-            kept = _free_name(mcap_path)
+        for path, complete in zip(paths, summaries, strict=True):
+            if complete is not None:
+                continue
+            work = tmp / path.stem
+            with path.open("rb") as f:
+                _, good_end = _copy_records(f, work, path.name)
+            dropped += path.stat().st_size - good_end
+            kept = _free_name(path)
             try:
-                os.link(mcap_path, kept)
+                os.link(path, kept)
             except OSError:
-                shutil.copy2(mcap_path, kept)
-            os.replace(tmp / mcap_path.name, mcap_path)
+                shutil.copy2(path, kept)
+            os.replace(work / path.name, path)
+        files, topics = _files_and_topics(paths)
+        text = dump_yaml({"rosbag2_bagfile_information": bagfile_information(topics, files)})
+        (tmp / "metadata.yaml").write_text(text)
         os.replace(tmp / "metadata.yaml", bag_dir / "metadata.yaml")
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+    counts = {str(m["name"]): n for m, n in topics}
+    firsts = [f.first_ns for f in files if f.first_ns is not None]
+    lasts = [f.last_ns for f in files if f.last_ns is not None]
     return RecoveryReport(
         bag_dir,
         counts,
-        first,
-        last,
+        min(firsts) if firsts else None,
+        max(lasts) if lasts else None,
         needed_recovery=True,
         kept=kept,
-        dropped_bytes=size - good_end if kept is not None else 0,
+        dropped_bytes=dropped,
+        files=len(paths),
     )
 
 
-def _mcap_file(bag_dir: Path, info: dict[str, Any] | None) -> Path:
-    """The bag's one MCAP file (named by ``metadata.yaml``, else ``*.mcap``)."""
+def _mcap_paths(bag_dir: Path, info: dict[str, Any] | None) -> list[Path]:
+    """The bag's MCAP files (named by ``metadata.yaml``, else ``*.mcap``), in order."""
     names = info.get("relative_file_paths") if info is not None else None
     if isinstance(names, list) and names:
         files = [bag_dir / Path(str(n)).name for n in names]
@@ -198,15 +232,70 @@ def _mcap_file(bag_dir: Path, info: dict[str, Any] | None) -> Path:
         if missing:
             raise NoBagError(f"{bag_dir}: metadata.yaml names {missing}, which do not exist")
     else:
-        files = sorted(p for p in bag_dir.glob("*.mcap") if p.is_file())
+        files = mcap_files(bag_dir)
     if not files:
         raise NoBagError(f"{bag_dir}: no bag there (no *.mcap file)")
-    if len(files) > 1:
-        raise BagError(
-            f"{bag_dir}: {len(files)} MCAP files ({[p.name for p in files]}); "
-            "recover handles bags of one file"
+    return files
+
+
+def _merged(
+    summaries: list[tuple[dict[str, int], int | None, int | None] | None],
+) -> tuple[dict[str, int], int | None, int | None]:
+    """Counts per topic and log-time span of several files' summaries."""
+    counts: dict[str, int] = {}
+    firsts, lasts = [], []
+    for item in summaries:
+        assert item is not None
+        for topic, n in item[0].items():
+            counts[topic] = counts.get(topic, 0) + n
+        if item[1] is not None and item[2] is not None:
+            firsts.append(item[1])
+            lasts.append(item[2])
+    return counts, (min(firsts) if firsts else None), (max(lasts) if lasts else None)
+
+
+def _files_and_topics(
+    paths: list[Path],
+) -> tuple[list[BagFile], list[tuple[dict[str, Any], int]]]:
+    """Each complete file's entry, and each topic's metadata and count over all files.
+
+    Read from the files' summaries: the channels (topic, QoS text, type
+    hash) and schemas (type) in channel order, the statistics.
+    """
+    files: list[BagFile] = []
+    topics: dict[str, tuple[dict[str, Any], int]] = {}
+    for path in paths:
+        with path.open("rb") as f:
+            summary = make_reader(f).get_summary()
+        if summary is None or summary.statistics is None:
+            raise BagError(f"{path}: no summary after recovery")
+        stats = summary.statistics
+        for channel_id, channel in sorted(summary.channels.items()):
+            schema = summary.schemas.get(channel.schema_id)
+            metadata, count = topics.get(channel.topic, (None, 0))
+            if metadata is None:
+                metadata = {
+                    "name": channel.topic,
+                    "type": schema.name if schema is not None else "",
+                    "serialization_format": "cdr",
+                    "offered_qos_profiles": channel.metadata.get("offered_qos_profiles")
+                    or DEFAULT_QOS,
+                    "type_description_hash": channel.metadata.get("topic_type_hash", ""),
+                }
+            topics[channel.topic] = (
+                metadata,
+                count + stats.channel_message_counts.get(channel_id, 0),
+            )
+        empty = stats.message_count == 0
+        files.append(
+            BagFile(
+                path.name,
+                stats.message_count,
+                None if empty else stats.message_start_time,
+                None if empty else stats.message_end_time,
+            )
         )
-    return files[0]
+    return files, list(topics.values())
 
 
 def _check_magic(path: Path) -> None:

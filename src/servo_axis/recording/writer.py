@@ -2,7 +2,12 @@
 
 A bag is a directory holding ``metadata.yaml`` (``rosbag2_bagfile_information``,
 version 9, as ``ros2 bag`` of ROS 2 Jazzy writes it) and one ``<name>_0.mcap``
-file: profile ``ros2``, one schema per message type (encoding ``ros2msg``, the
+file, or, split by size or duration as ``ros2 bag record --max-bag-size`` /
+``--max-bag-duration`` splits (``max_file_size_bytes``,
+``max_file_duration_ns``), the files ``<name>_0.mcap``, ``<name>_1.mcap``, ...
+listed in order under ``relative_file_paths`` and ``files`` (each with its
+start, duration and message count), every topic registered in every file.
+Each file is profile ``ros2``, one schema per message type (encoding ``ros2msg``, the
 full definition text as rosbag2 builds it), one channel per topic (encoding
 ``cdr``) whose ``offered_qos_profiles`` metadata is the same text as in
 ``metadata.yaml`` (rosbags returns no messages when the two differ) and whose
@@ -48,14 +53,18 @@ from servo_axis.recording.definitions import (
 )
 from servo_axis.recording.definitions import type_hash as rihs01_hash
 from servo_axis.recording.errors import BagError, BagWriteError
-from servo_axis.recording.reader import STRANGER_KEY
+from servo_axis.recording.reader import MIN_SPLIT_SIZE_BYTES, STRANGER_KEY
 
 __all__ = [
     "DEFAULT_QOS",
     "LATCHED_QOS_TEXT",
     "METADATA_VERSION",
+    "MIN_SPLIT_SIZE_BYTES",
     "STRANGER_KEY",
+    "BagFile",
     "BagWriter",
+    "bagfile_information",
+    "dump_yaml",
     "offered_qos_text",
 ]
 
@@ -99,10 +108,30 @@ _COMPRESSION = {
 class _Topic:
     channel_id: int
     metadata: dict[str, Any]
-    schema_id: int
+    definition: str
     count: int = 0
     #: The channel of each stranger that published on the topic, by who it is.
     strangers: dict[str, int] = field(default_factory=dict)
+
+
+@dataclass
+class BagFile:
+    """One MCAP file of a bag: its name, messages and log-time span (ns)."""
+
+    path: str
+    count: int = 0
+    first_ns: int | None = None
+    last_ns: int | None = None
+
+    def entry(self) -> dict[str, Any]:
+        start = self.first_ns if self.first_ns is not None else 0
+        duration = (self.last_ns - start) if self.last_ns is not None else 0
+        return {
+            "path": self.path,
+            "starting_time": {"nanoseconds_since_epoch": start},
+            "duration": {"nanoseconds": duration},
+            "message_count": self.count,
+        }
 
 
 class BagWriter:
@@ -111,21 +140,30 @@ class BagWriter:
     Parameters
     ----------
     directory : Path
-        Bag directory to create; it may exist only if empty. The MCAP file is
-        ``<directory>/<directory name>_0.mcap``.
+        Bag directory to create; it may exist only if empty. The MCAP files
+        are ``<directory>/<directory name>_<i>.mcap``, ``i`` = 0, 1, ...
     compression : str
         Chunk compression: ``"zstd"``, ``"lz4"`` or ``"none"``.
     chunk_size : int
         Uncompressed chunk size in bytes.
     file_name : str or None
-        Name of the MCAP file in ``directory``; ``<directory name>_0.mcap``
-        (as rosbag2 names it) if None.
+        Name of the (one) MCAP file in ``directory``; ``<directory name>_0.mcap``
+        (as rosbag2 names it) if None. Only for a bag that is not split.
+    max_file_size_bytes : int
+        Start the next file before a message once the file holds at least
+        this many bytes (0: never). What counts is what is in the file: the
+        chunks closed so far (``chunk_size``, or a :meth:`flush`), so that a
+        file ends up to one chunk and its summary larger, as with rosbag2's
+        MCAP storage. At least :data:`MIN_SPLIT_SIZE_BYTES`.
+    max_file_duration_ns : int
+        Start the next file before a message whose log time is more than
+        this after the file's first (0: never).
 
     Raises
     ------
     BagError
-        If ``compression`` or ``chunk_size`` is invalid, or ``directory`` is a
-        file or a non-empty directory.
+        If ``compression``, ``chunk_size`` or a split bound is invalid, or
+        ``directory`` is a file or a non-empty directory.
 
     Notes
     -----
@@ -147,6 +185,8 @@ class BagWriter:
         compression: str = "zstd",
         chunk_size: int = 1024 * 1024,
         file_name: str | None = None,
+        max_file_size_bytes: int = 0,
+        max_file_duration_ns: int = 0,
     ) -> None:
         if compression not in _COMPRESSION:
             raise BagError(
@@ -165,24 +205,92 @@ class BagWriter:
             not isinstance(file_name, str) or not file_name or Path(file_name).name != file_name
         ):
             raise BagError(f"file_name: expected a plain file name, got {file_name!r}")
+        for key, bound in (
+            ("max_file_size_bytes", max_file_size_bytes),
+            ("max_file_duration_ns", max_file_duration_ns),
+        ):
+            if isinstance(bound, bool) or not isinstance(bound, int) or bound < 0:
+                raise BagError(f"{key}: expected an int >= 0 (0: no split), got {bound!r}")
+        if 0 < max_file_size_bytes < MIN_SPLIT_SIZE_BYTES:
+            raise BagError(
+                f"max_file_size_bytes: expected 0 (no split) or >= {MIN_SPLIT_SIZE_BYTES}, "
+                f"got {max_file_size_bytes}"
+            )
+        if file_name is not None and (max_file_size_bytes or max_file_duration_ns):
+            raise BagError("file_name: a bag that splits names its files itself")
         self.file_name = file_name if file_name is not None else f"{directory.name}_0.mcap"
-        self._file = (directory / self.file_name).open("wb")
+        self._max_size = max_file_size_bytes
+        self._max_duration_ns = max_file_duration_ns
+        self._chunk_size = chunk_size
+        self._compression = _COMPRESSION[compression]
+        self._schemas: dict[str, int] = {}
+        self._topics: dict[str, _Topic] = {}
+        self._files: list[BagFile] = []
+        self._first_ns: int | None = None
+        self._last_ns: int | None = None
+        self._closed = False
+        self._open_file(self.file_name)
+
+    def _open_file(self, name: str) -> None:
+        """Start MCAP file ``name``: header, then every schema and channel so far."""
+        self._file = (self.directory / name).open("wb")
         try:
             self._writer = Writer(
-                self._file, chunk_size=chunk_size, compression=_COMPRESSION[compression]
+                self._file, chunk_size=self._chunk_size, compression=self._compression
             )
             self._writer.start(profile="ros2", library=_LIBRARY)
+            # Schemas and channels in the same order: the channel ids stay.
+            definitions = {t.metadata["type"]: t.definition for t in self._topics.values()}
+            self._schemas = {
+                full: self._writer.register_schema(
+                    name=full, encoding="ros2msg", data=definitions[full].encode()
+                )
+                for full in self._schemas
+            }
+            for topic in self._topics.values():
+                topic.channel_id = self._register_channel(topic.metadata)
+                for who in topic.strangers:
+                    topic.strangers[who] = self._register_channel(topic.metadata, who)
             # The magic and header in the file at once: a bag killed before its
             # first flush is then an empty MCAP, not a file of 0 bytes.
             self._file.flush()
         except BaseException:
             self._file.close()
             raise
-        self._schemas: dict[str, int] = {}
-        self._topics: dict[str, _Topic] = {}
-        self._first_ns: int | None = None
-        self._last_ns: int | None = None
-        self._closed = False
+        self._files.append(BagFile(name))
+
+    def _finish_file(self) -> None:
+        """Finish the MCAP file in progress (its summary and rosbag2 metadata record)."""
+        try:
+            try:
+                self._writer.add_metadata(
+                    "rosbag2", {"serialized_metadata": dump_yaml(self.metadata()).rstrip("\n")}
+                )
+            finally:
+                self._writer.finish()
+        finally:
+            self._file.close()
+
+    def _split(self) -> None:
+        self._finish_file()
+        self._open_file(f"{self.directory.name}_{len(self._files)}.mcap")
+
+    def _register_channel(self, metadata: dict[str, Any], stranger: str | None = None) -> int:
+        """A channel of the file in progress: a topic's, or a stranger's on it."""
+        channel = {
+            "offered_qos_profiles": metadata["offered_qos_profiles"],
+            "topic_type_hash": metadata["type_description_hash"],
+        }
+        if stranger is not None:
+            channel[STRANGER_KEY] = stranger
+        return int(
+            self._writer.register_channel(
+                topic=metadata["name"],
+                message_encoding="cdr",
+                schema_id=self._schemas[metadata["type"]],
+                metadata=channel,
+            )
+        )
 
     @property
     def closed(self) -> bool:
@@ -203,6 +311,11 @@ class BagWriter:
     def last_log_time_ns(self) -> int | None:
         """Largest log time written (ns); None before the first message."""
         return self._last_ns
+
+    @property
+    def file_names(self) -> list[str]:
+        """The bag's MCAP files so far, in order (the last one is being written)."""
+        return [f.path for f in self._files]
 
     @property
     def message_count(self) -> int:
@@ -288,28 +401,19 @@ class BagWriter:
             raise BagError(
                 f"qos_text: expected a YAML list of QoS profiles for {name!r}, got {qos_text!r}"
             )
-        digest = type_hash
         if full not in self._schemas:
             self._schemas[full] = self._writer.register_schema(
                 name=full, encoding="ros2msg", data=definition.encode()
             )
-        channel_id = self._writer.register_channel(
-            topic=name,
-            message_encoding="cdr",
-            schema_id=self._schemas[full],
-            metadata={"offered_qos_profiles": qos_text, "topic_type_hash": digest},
-        )
-        self._topics[name] = _Topic(
-            channel_id,
-            {
-                "name": name,
-                "type": full,
-                "serialization_format": "cdr",
-                "offered_qos_profiles": qos_text,
-                "type_description_hash": digest,
-            },
-            self._schemas[full],
-        )
+        metadata = {
+            "name": name,
+            "type": full,
+            "serialization_format": "cdr",
+            "offered_qos_profiles": qos_text,
+            "type_description_hash": type_hash,
+        }
+        channel_id = self._register_channel(metadata)
+        self._topics[name] = _Topic(channel_id, metadata, definition)
         return channel_id
 
     def stranger_channel(self, topic: str, who: str) -> int:
@@ -330,16 +434,7 @@ class BagWriter:
             raise BagWriteError(f"topic: cannot add a channel to {topic!r}, the bag is closed")
         channel = state.strangers.get(who)
         if channel is None:
-            channel = state.strangers[who] = self._writer.register_channel(
-                topic=topic,
-                message_encoding="cdr",
-                schema_id=state.schema_id,
-                metadata={
-                    "offered_qos_profiles": state.metadata["offered_qos_profiles"],
-                    "topic_type_hash": state.metadata["type_description_hash"],
-                    STRANGER_KEY: who,
-                },
-            )
+            channel = state.strangers[who] = self._register_channel(state.metadata, who)
         return channel
 
     def write(
@@ -392,6 +487,15 @@ class BagWriter:
                 f"log_time_ns/publish_time_ns: expected >= 0 for {topic!r}, "
                 f"got {log_time_ns}/{publish}"
             )
+        file = self._files[-1]
+        if file.count and (
+            (self._max_size and self._file.tell() >= self._max_size)
+            or (
+                self._max_duration_ns and log_time_ns - file.first_ns > self._max_duration_ns  # type: ignore[operator]
+            )
+        ):
+            self._split()
+            file = self._files[-1]
         channel_id = (
             state.channel_id if stranger is None else self.stranger_channel(topic, stranger)
         )
@@ -403,6 +507,7 @@ class BagWriter:
             data=data if type(data) is bytes else bytes(data),
             sequence=state.count & 0xFFFFFFFF,
         )
+        _extend(file, log_time_ns)
         if self._first_ns is None:
             self._first_ns = self._last_ns = log_time_ns
         elif log_time_ns < self._first_ns:
@@ -435,33 +540,9 @@ class BagWriter:
             What :meth:`close` writes to ``metadata.yaml`` under
             ``rosbag2_bagfile_information``.
         """
-        start = self._first_ns if self._first_ns is not None else 0
-        duration = (self._last_ns - start) if self._last_ns is not None else 0
-        total = self.message_count
-        return {
-            "version": METADATA_VERSION,
-            "storage_identifier": "mcap",
-            "duration": {"nanoseconds": duration},
-            "starting_time": {"nanoseconds_since_epoch": start},
-            "message_count": total,
-            "topics_with_message_count": [
-                {"topic_metadata": dict(t.metadata), "message_count": t.count}
-                for t in self._topics.values()
-            ],
-            "compression_format": "",
-            "compression_mode": "",
-            "relative_file_paths": [self.file_name],
-            "files": [
-                {
-                    "path": self.file_name,
-                    "starting_time": {"nanoseconds_since_epoch": start},
-                    "duration": {"nanoseconds": duration},
-                    "message_count": total,
-                }
-            ],
-            "custom_data": {},
-            "ros_distro": "jazzy",
-        }
+        return bagfile_information(
+            [(t.metadata, t.count) for t in self._topics.values()], self._files
+        )
 
     def close(self) -> None:
         """Finish the MCAP file and write ``metadata.yaml`` (idempotent).
@@ -474,15 +555,9 @@ class BagWriter:
         self._closed = True
         info = self.metadata()
         try:
-            try:
-                self._writer.add_metadata(
-                    "rosbag2", {"serialized_metadata": _dump_yaml(info).rstrip("\n")}
-                )
-            finally:
-                self._writer.finish()
+            self._finish_file()
         finally:
-            self._file.close()
-            text = _dump_yaml({"rosbag2_bagfile_information": info})
+            text = dump_yaml({"rosbag2_bagfile_information": info})
             tmp = self.directory / "metadata.yaml.tmp"
             tmp.write_text(text)
             os.replace(tmp, self.directory / "metadata.yaml")
@@ -499,5 +574,51 @@ class BagWriter:
         self.close()
 
 
-def _dump_yaml(data: dict[str, Any]) -> str:
+def bagfile_information(
+    topics: list[tuple[dict[str, Any], int]], files: list[BagFile]
+) -> dict[str, Any]:
+    """The ``rosbag2_bagfile_information`` mapping of a bag (metadata version 9).
+
+    Parameters
+    ----------
+    topics : list of (dict, int)
+        Each topic's ``topic_metadata`` (name, type, serialization_format,
+        offered_qos_profiles, type_description_hash) and its message count,
+        in registration order.
+    files : list of BagFile
+        The MCAP files in order: name, message count, log-time span.
+    """
+    firsts = [f.first_ns for f in files if f.first_ns is not None]
+    lasts = [f.last_ns for f in files if f.last_ns is not None]
+    start = min(firsts) if firsts else 0
+    duration = (max(lasts) - start) if lasts else 0
+    return {
+        "version": METADATA_VERSION,
+        "storage_identifier": "mcap",
+        "duration": {"nanoseconds": duration},
+        "starting_time": {"nanoseconds_since_epoch": start},
+        "message_count": sum(count for _, count in topics),
+        "topics_with_message_count": [
+            {"topic_metadata": dict(metadata), "message_count": count} for metadata, count in topics
+        ],
+        "compression_format": "",
+        "compression_mode": "",
+        "relative_file_paths": [f.path for f in files],
+        "files": [f.entry() for f in files],
+        "custom_data": {},
+        "ros_distro": "jazzy",
+    }
+
+
+def _extend(file: BagFile, log_time_ns: int) -> None:
+    """Count one message of log time ``log_time_ns`` in ``file``."""
+    file.count += 1
+    if file.first_ns is None or log_time_ns < file.first_ns:
+        file.first_ns = log_time_ns
+    if file.last_ns is None or log_time_ns > file.last_ns:
+        file.last_ns = log_time_ns
+
+
+def dump_yaml(data: dict[str, Any]) -> str:
+    """``data`` as the YAML text of ``metadata.yaml`` (key order kept, no line wrap)."""
     return str(yaml.safe_dump(data, sort_keys=False, width=1_000_000, allow_unicode=True))

@@ -322,6 +322,16 @@ CASES: list[tuple[list[str], str]] = [
         "--set shared.duration_s=0.0005: parameter 'duration_s'",
     ),
     (
+        [*R, "--set", "recorder.max_bag_size_bytes=100"],
+        "--set recorder.max_bag_size_bytes=100: parameter 'max_bag_size_bytes': expected 0 "
+        "(no split) or >= 1024 (bytes), got 100",
+    ),
+    (
+        [*R, "--set", "recorder.max_bag_duration_s=-1"],
+        "--set recorder.max_bag_duration_s=-1: parameter 'max_bag_duration_s': expected a "
+        "value >= 0",
+    ),
+    (
         [*R, "--set", "learning.law=rptc"],
         "--set learning.law=rptc: the scenario has no 'learning' section",
     ),

@@ -81,3 +81,46 @@ def test_a_feedback_keeps_the_first_arrival_and_send_of_each_step() -> None:
     assert got is not None and got["measured_from"] == MEASURED_AT_FEEDBACK
     assert (got["ticks"], got["misses"], got["commands_missing"]) == (3, 2, 1)
     assert_allclose(got["command_late_us"]["max"], 1500.0)
+
+
+def test_a_feedbacks_streaming_figures_are_loop_from_times_of_the_same_times() -> None:
+    rng = np.random.default_rng(40)
+    steps = 3_000
+    arrivals = T0 + np.arange(steps) * T + rng.exponential(30_000.0, steps).astype(np.int64)
+    arrivals[1_200] += 40 * T  # a stall: the states after it come late too
+    arrivals[1_201:] += 40 * T
+    skipped = set(rng.choice(steps, 30, replace=False).tolist())  # never arrived
+    answers = rng.exponential(300_000.0, steps).astype(np.int64)
+    answers[::97] += 2 * T  # late
+    unanswered = set(rng.choice(steps, 20, replace=False).tolist())
+    times = LoopTimes(steps=steps, period_ns=T)
+    state_steps, state_times, command_steps, command_times = [], [], [], []
+    for k in range(steps):
+        if k in skipped:
+            continue
+        times.arrived(k, int(arrivals[k]))
+        state_steps.append(k)
+        state_times.append(int(arrivals[k]))
+        if k not in unanswered:
+            sent = int(arrivals[k] + answers[k])
+            times.sent(k, sent)
+            times.sent(k, sent + 5)  # a second send of the step: the first counts
+            command_steps.append(k)
+            command_times.append(sent)
+    got = times.report()
+    want = loop_from_times(
+        period_ns=T,
+        state_steps=state_steps,
+        state_times_ns=state_times,
+        command_steps=command_steps,
+        command_times_ns=command_times,
+    )
+    assert got is not None and want is not None
+    for key in ("period_ns", "ticks", "misses", "commands_missing", "commands_late"):
+        assert got[key] == want[key], key
+    assert got["commands_missing"] == len(unanswered - skipped) and got["commands_late"] > 20
+    assert_allclose(got["timer_rate"], want["timer_rate"], rtol=1e-12)
+    for key in ("tick_late_us", "command_late_us"):
+        assert got[key]["max"] == want[key]["max"], key
+        for q in ("p50", "p99"):  # to 1 % or 0.1 us
+            assert_allclose(got[key][q], want[key][q], rtol=0.01, atol=0.1 + 1e-9, err_msg=key)

@@ -159,3 +159,79 @@ def test_an_on_time_controller_answers_every_state_with_the_estimate() -> None:
 
     assert answered("arrivals") == 1000
     assert answered("state 0") == 200
+
+
+def _histogram_of(samples: np.ndarray) -> dl.LatenessHistogram:
+    hist = dl.LatenessHistogram()
+    for x in samples:
+        hist.add(int(x))
+    return hist
+
+
+def test_the_lateness_histogram_gives_numpys_percentiles_to_its_resolution() -> None:
+    rng = np.random.default_rng(40)
+    series = {
+        # A timer's lateness: tens of us, a heavy tail, one stall of 75 ms.
+        "exponential with a stall": np.append(rng.exponential(20_000.0, 20_000), 75_000_000),
+        "below 10 us": rng.uniform(0.0, 10_000.0, 5_000),
+        "lognormal over 6 decades": rng.lognormal(10.0, 3.0, 10_000),
+        "few samples": np.array([300.0, 1_500.0, 900.0, 2_500.0]),
+        "one sample": np.array([12_345.0]),
+    }
+    for name, samples in series.items():
+        samples = np.round(samples)
+        hist = _histogram_of(samples)
+        assert hist.count == samples.size, name
+        assert hist.min_ns == samples.min() and hist.max_ns == samples.max(), name
+        assert_allclose(hist.mean_ns, samples.mean(), rtol=1e-12, err_msg=name)
+        for q in (0.0, 1.0, 50.0, 90.0, 99.0, 99.9, 100.0):
+            # 1 % (the bins' width) or 100 ns (the bin below 100 ns).
+            assert_allclose(
+                hist.percentile(q),
+                np.percentile(samples, q),
+                rtol=dl.LATENESS_RELATIVE_RESOLUTION,
+                atol=dl.LATENESS_FLOOR_NS,
+                err_msg=f"{name}: p{q}",
+            )
+        stats, exact = hist.stats(), dl.lateness_stats(samples)
+        assert stats is not None and exact is not None and stats.keys() == exact.keys()
+        assert stats["max"] == exact["max"], name
+        for key in ("p50", "p99"):  # us, rounded to 0.1 us
+            assert_allclose(stats[key], exact[key], rtol=0.01, atol=0.1 + 1e-9, err_msg=name)
+
+
+def test_negative_lateness_is_counted_and_bounded() -> None:
+    samples = np.array([-400, -100, -50, 20_000, 30_000])
+    hist = _histogram_of(samples)
+    assert hist.count == 5 and hist.min_ns == -400 and hist.max_ns == 30_000
+    assert -400 <= hist.percentile(25.0) < 0  # numpy: -100
+    assert_allclose(hist.percentile(100.0), 30_000)
+    assert_allclose(hist.percentile(75.0), 20_000, rtol=dl.LATENESS_RELATIVE_RESOLUTION)
+
+
+def test_an_empty_lateness_histogram_has_no_figures() -> None:
+    hist = dl.LatenessHistogram()
+    assert hist.stats() is None and math.isnan(hist.percentile(50.0))
+    assert math.isnan(hist.mean_ns) and hist.count == 0
+
+
+def test_the_lateness_histogram_is_the_same_size_for_any_number_of_samples() -> None:
+    import tracemalloc
+
+    hist = dl.LatenessHistogram()
+    for x in range(1, 2_000):  # every bin that these samples reach, once
+        hist.add(x * 1_000)
+    kept = []
+    tracemalloc.start()
+    try:
+        for _ in range(2):
+            before = tracemalloc.get_traced_memory()[0]
+            for x in range(1, 20_000):
+                hist.add(1_000 * (x % 2_000 + 1))
+            kept.append(tracemalloc.get_traced_memory()[0] - before)
+    finally:
+        tracemalloc.stop()
+    assert hist.count == 1_999 + 2 * 19_999
+    # N samples, then N more: at most a few ints (count, sum), where a list
+    # of 20k samples would be 160 kB.
+    assert max(kept) < 500, kept

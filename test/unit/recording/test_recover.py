@@ -1,13 +1,18 @@
-"""recover_bag: a bag whose recorder died, made readable again by independent readers."""
+"""recover_bag: a bag whose recorder died, made readable again by independent readers.
+
+And split bags: one rosbag2 directory, several MCAP files, read as one by every reader.
+"""
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 from typing import Any
 
 import pytest
 import yaml
 from builtin_interfaces.msg import Time
+from mcap.reader import make_reader
 from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -15,8 +20,9 @@ from std_msgs.msg import Float64MultiArray
 
 from servo_axis.__main__ import main as cli
 from servo_axis.recording.errors import BagError, NoBagError, NotMcapError
+from servo_axis.recording.reader import mcap_files, read_metadata, read_raw
 from servo_axis.recording.recover import RecoveryReport, recover_bag
-from servo_axis.recording.writer import BagWriter
+from servo_axis.recording.writer import MIN_SPLIT_SIZE_BYTES, BagWriter
 
 TYPES = {
     "/state": "sensor_msgs/msg/JointState",
@@ -79,7 +85,7 @@ def read_rosbags(bag: Path) -> list[tuple[str, int, bytes]]:
 
 
 def read_mcap_ros2(bag: Path) -> list[tuple[str, int, Any]]:
-    from mcap.reader import make_reader
+
     from mcap_ros2.decoder import DecoderFactory
 
     (path,) = bag.glob("*.mcap")
@@ -181,7 +187,6 @@ def test_recovered_metadata_is_what_closing_the_writer_writes(tmp_path: Path) ->
     assert info["message_count"] == len(messages)
     assert info["duration"]["nanoseconds"] == 399 * 1_000_000
     # The MCAP file is a finished one: summary, statistics, the rosbag2 metadata record.
-    from mcap.reader import make_reader
 
     with (bag / "bag_0.mcap").open("rb") as f:
         reader = make_reader(f)
@@ -192,7 +197,6 @@ def test_recovered_metadata_is_what_closing_the_writer_writes(tmp_path: Path) ->
 
 
 def test_truncated_file_gives_every_message_of_its_complete_chunks(tmp_path: Path) -> None:
-    from mcap.reader import make_reader
 
     parts = [batch(0, 300), batch(300, 300), batch(600, 300)]
     writer = open_writer(tmp_path / "live" / "bag")
@@ -303,10 +307,11 @@ def test_what_is_not_a_bag_is_refused_with_a_bag_error(tmp_path: Path) -> None:
         recover_bag(tmp_path / "text")
     assert sorted(p.name for p in (tmp_path / "text").iterdir()) == ["text_0.mcap"]
     (tmp_path / "two").mkdir()
-    for name in ("a.mcap", "b.mcap"):
-        (tmp_path / "two" / name).write_bytes(b"\x89MCAP0\r\n")
-    with pytest.raises(BagError, match="2 MCAP files"):
-        recover_bag(tmp_path / "two")
+    (tmp_path / "two" / "two_0.mcap").write_bytes(b"\x89MCAP0\r\n")
+    (tmp_path / "two" / "two_1.mcap").write_text("not mcap")
+    with pytest.raises(NotMcapError, match=r"two_1\.mcap: not an MCAP file"):
+        recover_bag(tmp_path / "two")  # a split bag: every file is checked first
+    assert sorted(p.name for p in (tmp_path / "two").iterdir()) == ["two_0.mcap", "two_1.mcap"]
     assert issubclass(NoBagError, BagError) and issubclass(NotMcapError, BagError)
 
 
@@ -334,3 +339,189 @@ def test_report_is_frozen(tmp_path: Path) -> None:
     report = RecoveryReport(tmp_path, {"/a": 1}, 0, 0, needed_recovery=True)
     with pytest.raises(AttributeError):
         report.needed_recovery = False  # type: ignore[misc]
+
+
+def split_writer(directory: Path, **split: int) -> BagWriter:
+    # Small chunks, so that the file grows on disk as messages come.
+    writer = BagWriter(directory, chunk_size=2048, **split)
+    for topic, type_name in TYPES.items():
+        writer.add_topic(topic, type_name)
+    return writer
+
+
+def read_ours(bag: Path) -> Written:
+    return [(m.topic, m.log_time_ns, m.data) for m in read_raw(bag)]
+
+
+def test_split_by_size_lists_every_file_and_reads_as_one(tmp_path: Path) -> None:
+    messages = batch(0, 3000)
+    bag = tmp_path / "bag"
+    with split_writer(bag, max_file_size_bytes=20_000) as writer:
+        write(writer, messages)
+    info = read_metadata(bag)
+    names = [f"bag_{i}.mcap" for i in range(len(info["relative_file_paths"]))]
+    assert len(names) >= 3, names
+    assert info["relative_file_paths"] == names
+    assert sorted(p.name for p in bag.glob("*.mcap")) == sorted(names)
+    assert [f["path"] for f in info["files"]] == names
+    assert (
+        sum(f["message_count"] for f in info["files"]) == info["message_count"] == 3000 + 300 + 60
+    )
+    for name in names[:-1]:
+        # Split once the file's data held the bound, past it by at most what the
+        # writer had in hand: the chunk that crossed it and the one in progress,
+        # with their message indexes (the summary follows; the footer says where).
+        data = (bag / name).read_bytes()
+        summary_start = int.from_bytes(data[-28:-20], "little")
+        assert 20_000 <= summary_start < 20_000 + 3 * 2048, (name, summary_start)
+    for name, entry in zip(names, info["files"], strict=True):
+        with (bag / name).open("rb") as f:
+            summary = make_reader(f).get_summary()
+        assert summary is not None and summary.statistics is not None
+        assert sorted(c.topic for c in summary.channels.values()) == sorted(TYPES)
+        assert summary.statistics.message_count == entry["message_count"]
+        assert (
+            summary.statistics.message_start_time
+            == entry["starting_time"]["nanoseconds_since_epoch"]
+        )
+    assert read_ours(bag) == messages
+    assert read_rosbags(bag) == messages  # an independent reader of rosbag2 directories
+
+
+def test_split_by_duration_is_by_log_time(tmp_path: Path) -> None:
+    bag = tmp_path / "bag"
+    with split_writer(bag, max_file_duration_ns=250_000_000) as writer:
+        write(writer, batch(0, 1000))
+    # A file ends before the first message more than 250 ms after its first
+    # (states at k ms, clocks at +1 ns, statuses at +2 ns): the clock at
+    # 250 ms + 1 starts file 1, the status at 500 ms + 2 file 2 (whose status
+    # at 750 ms + 2 is exactly 250 ms after its first), the state at 751 ms
+    # file 3. File 0: states 0..250 ms, clocks 0..240 ms, statuses 0..200 ms.
+    files = read_metadata(bag)["files"]
+    assert [f["starting_time"]["nanoseconds_since_epoch"] for f in files] == [
+        0,
+        250_000_001,
+        500_000_002,
+        751_000_000,
+    ]
+    assert [f["duration"]["nanoseconds"] for f in files] == [250_000_000] * 3 + [248_000_000]
+    assert [f["message_count"] for f in files] == [251 + 25 + 5, 281, 281, 1120 - 3 * 281]
+    info = read_metadata(bag)
+    assert info["starting_time"]["nanoseconds_since_epoch"] == 0
+    assert info["duration"]["nanoseconds"] == 999_000_000
+
+
+def test_split_bounds_are_checked_naming_the_argument(tmp_path: Path) -> None:
+    for kwargs, match in (
+        ({"max_file_size_bytes": -1}, "max_file_size_bytes: expected an int >= 0"),
+        ({"max_file_size_bytes": MIN_SPLIT_SIZE_BYTES - 1}, "max_file_size_bytes: expected 0"),
+        ({"max_file_duration_ns": 0.5}, "max_file_duration_ns: expected an int >= 0"),
+        ({"max_file_duration_ns": 1, "file_name": "a.mcap"}, "file_name: a bag that splits"),
+    ):
+        with pytest.raises(BagError, match=match):
+            BagWriter(tmp_path / "bad", **kwargs)  # type: ignore[arg-type]
+        assert not (tmp_path / "bad").exists() or not any((tmp_path / "bad").iterdir())
+
+
+def test_files_without_metadata_are_read_in_the_order_of_their_numbers(tmp_path: Path) -> None:
+    for i in (0, 1, 2, 10, 11):
+        (tmp_path / f"bag_{i}.mcap").write_bytes(b"")
+    assert [p.name for p in mcap_files(tmp_path)] == [
+        "bag_0.mcap",
+        "bag_1.mcap",
+        "bag_2.mcap",
+        "bag_10.mcap",
+        "bag_11.mcap",
+    ]
+
+
+def test_killed_split_bag_is_recovered_whole(tmp_path: Path) -> None:
+    messages = batch(0, 2000)
+    live = tmp_path / "live" / "bag"
+    writer = split_writer(live, max_file_size_bytes=10_000)
+    write(writer, messages)
+    writer.flush()
+    # What SIGKILL leaves: the finished files, the last one flushed but unfinished.
+    bag = tmp_path / "k" / "bag"
+    shutil.copytree(live, bag)
+    writer.close()
+    names = writer.file_names
+    assert len(names) >= 3 and not (bag / "metadata.yaml").exists()
+    assert read_ours(bag) == messages  # readable file by file, even before recovery
+    report = recover_bag(bag)
+    assert report.needed_recovery and report.files == len(names)
+    assert report.kept == bag / f"{names[-1]}.unfinished"
+    assert report.message_counts == {"/state": 2000, "/clock": 200, "/status": 40, "/never": 0}
+    assert f"; {len(names)} files" in report.line()
+    recovered = read_metadata(bag)
+    closed = yaml.safe_load((live / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert recovered == closed  # as the recorder would have closed it
+    assert read_rosbags(bag) == messages
+    again = recover_bag(bag)
+    assert not again.needed_recovery and again.message_count == 2240 and again.files == len(names)
+
+
+def test_a_split_bags_writer_keeps_the_index_of_its_current_file_only(tmp_path: Path) -> None:
+    """One MCAP file keeps an index of every chunk in memory until its summary is
+    written: a recorder that flushes 4 times a second grows by it all run long."""
+    import tracemalloc
+
+    messages = batch(0, 20)  # a state a chunk at 80 Hz, say: the index is per chunk
+
+    def growth(directory: Path, **split: int) -> list[int]:
+        writer = open_writer(directory) if not split else split_writer(directory, **split)
+        chunks = 0
+
+        def chunk() -> None:
+            nonlocal chunks
+            for topic, t, data in messages:
+                writer.write(topic, data, log_time_ns=t + chunks * 250_000_000)
+            writer.flush()  # what the recorder does every 0.25 s
+            chunks += 1
+
+        for _ in range(10):
+            chunk()
+        kept = []
+        tracemalloc.start()
+        try:
+            for _ in range(2):
+                before = tracemalloc.get_traced_memory()[0]
+                for _ in range(40):
+                    chunk()
+                kept.append(tracemalloc.get_traced_memory()[0] - before)
+        finally:
+            tracemalloc.stop()
+            writer.close()
+        return kept
+
+    one = growth(tmp_path / "one")
+    split = growth(tmp_path / "split", max_file_duration_ns=2_500_000_000)  # 10 chunks a file
+    assert min(one) > 40 * 300, one  # the chunk indexes, hundreds of bytes each
+    assert max(split[1:]) < 10 * 1_000, split  # at most a file's
+
+
+def test_a_strangers_channel_is_in_every_file_after_its_first_message(tmp_path: Path) -> None:
+    bag = tmp_path / "bag"
+    messages = batch(0, 600)
+    with split_writer(bag, max_file_duration_ns=200_000_000) as writer:
+        write(writer, messages[:10])
+        writer.write("/state", b"junk-a", log_time_ns=5_000_000, stranger="/x/junk 01.02")
+        write(writer, messages[10:])
+        writer.write("/state", b"junk-b", log_time_ns=599_000_000, stranger="/x/junk 01.02")
+    names = read_metadata(bag)["relative_file_paths"]
+    assert len(names) == 3
+    for name in names:
+        with (bag / name).open("rb") as f:
+            summary = make_reader(f).get_summary()
+        assert summary is not None
+        strangers = [c for c in summary.channels.values() if "stranger_publisher" in c.metadata]
+        assert [(c.topic, c.metadata["stranger_publisher"]) for c in strangers] == [
+            ("/state", "/x/junk 01.02")
+        ]
+    junk = [(m.data, m.stranger) for m in read_raw(bag) if m.stranger]
+    assert junk == [(b"junk-a", "/x/junk 01.02"), (b"junk-b", "/x/junk 01.02")]
+    counts = {
+        t["topic_metadata"]["name"]: t["message_count"]
+        for t in read_metadata(bag)["topics_with_message_count"]
+    }
+    assert counts["/state"] == 602  # the topic's, over its channels
