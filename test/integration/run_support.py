@@ -128,3 +128,11 @@ def shm_left_behind(before: set[str], ours: set[str] | None = None) -> set[str]:
         return set()
     mapped = shm_mapped_by()
     return {n for n in new if n not in mapped and _segment(n) not in mapped}
+
+
+def cpu_hogs() -> int:
+    """CPU-bound jobs beside a test's runs: two, or one where another pytest-xdist worker
+    runs tests at the same time (scripts/test.sh: two workers on a 2-core host), whose
+    runs keep the other core busy (two hogs as well took 90 s of CPU from its tests)."""
+    workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
+    return 2 if workers <= 1 else 1

@@ -11,13 +11,13 @@ timeout. The figures in docs/history/index.md (Determinism) come from the same s
 
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 import yaml
+from run_support import cpu_hogs
 
 from servo_axis.params.scenario import load_scenario
 
@@ -32,14 +32,6 @@ CONFIG = REPO / "config"
 #: 2000 steps of 0.5 ms through the reversal at 0.5 s. The end of the run
 #: (the plant's last /clock and status) is there whatever the length.
 SECONDS = {"rptc_friction_table": 1.5, "fast_reversal_sigmoid": 1.0}
-
-
-def cpu_hogs() -> int:
-    """CPU-bound jobs beside the runs: two, or one where another pytest-xdist worker runs
-    tests at the same time (scripts/test.sh: two workers on a 2-core host), whose runs
-    keep the other core busy (two hogs as well took 90 s of CPU from its tests)."""
-    workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
-    return 2 if workers <= 1 else 1
 
 
 def short_copy(scenario: str, path: Path) -> Path:

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
+from run_support import cpu_hogs
 from sensor_msgs.msg import JointState
 
 from servo_axis.params.factories import run_steps
@@ -343,10 +344,11 @@ def refused(port: int, give_up: threading.Event, out: list[object]) -> None:
 def test_under_load_two_viewers_get_the_last_step_and_a_refused_one_is_told(
     ros_env: int, tmp_path: Path
 ) -> None:
-    """Two CPU hogs beside the run: the live view drains until the run's last step
-    (it once stopped 3 s after the nodes, two viewers at step 1,982 of 3,000, silently),
-    and the runner's terminal says why a viewer offering only foxglove.websocket.v1 was
-    refused (the SDK answers HTTP 400 and logged only "handshake failed")."""
+    """CPU hogs beside the run (two, one beside another pytest-xdist worker): the live
+    view drains until the run's last step (it once stopped 3 s after the nodes, two
+    viewers at step 1,982 of 3,000, silently), and the runner's terminal says why a
+    viewer offering only foxglove.websocket.v1 was refused (the SDK answers HTTP 400
+    and logged only "handshake failed")."""
     steps = run_steps(node_values(load_scenario(find_scenario(SCENARIO)), "plant"))
     port = free_port()
     viewers = [Viewer(port), Viewer(port)]
@@ -354,7 +356,7 @@ def test_under_load_two_viewers_get_the_last_step_and_a_refused_one_is_told(
     clients = [threading.Thread(target=v.watch, args=(give_up,), daemon=True) for v in viewers]
     answer: list[object] = []
     clients.append(threading.Thread(target=refused, args=(port, give_up, answer), daemon=True))
-    hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
+    hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(cpu_hogs())]
     try:
         for c in clients:
             c.start()
