@@ -112,8 +112,11 @@ def clean_stale_shm(
             # A lock file just made may not be locked yet (its owner opens it,
             # then locks it). A dead owner's segment goes even while its peers
             # still map it or look at its lock (nobody writes to it any more).
-            if _lock_held(lock) or now - lock.stat().st_mtime < LOCK_GRACE_S:
-                continue
+            try:
+                if _lock_held(lock) or now - lock.stat().st_mtime < LOCK_GRACE_S:
+                    continue
+            except FileNotFoundError:
+                continue  # removed meanwhile: its owner closed, or another run cleaned it
         elif dead_owners_only:
             continue
         else:

@@ -56,6 +56,30 @@ def test_only_stale_files_of_this_run_are_removed(tmp_path: Path) -> None:
     ]
 
 
+def test_a_lock_file_removed_while_it_is_looked_at_is_passed_over(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Its owner (or another run's clean-up) removes it between the listing and the look:
+    the clean-up goes on with the others (it raised FileNotFoundError from a test's teardown)."""
+    import servo_axis.run.fastdds as fastdds
+
+    since = time.time() - 10
+    for name in ("fastrtps_going", "fastrtps_going_el", "fastrtps_dead", "fastrtps_dead_el"):
+        (tmp_path / name).write_bytes(b"x")
+        os.utime(tmp_path / name, (since + 1, since + 1))
+    looked_at = fastdds._lock_held
+
+    def removed_meanwhile(lock: Path) -> bool:
+        if lock.name == "fastrtps_going_el":
+            lock.unlink()
+            (tmp_path / "fastrtps_going").unlink()
+        return looked_at(lock)
+
+    monkeypatch.setattr(fastdds, "_lock_held", removed_meanwhile)
+    assert clean_stale_shm(since=since, shm_dir=tmp_path) == ["fastrtps_dead"]
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_while_a_run_goes_on_only_segments_of_dead_owners_are_removed(tmp_path: Path) -> None:
     since = time.time() - 10
     for name in ("fastrtps_live", "fastrtps_live_el", "fastrtps_port7413", "fastrtps_port7413_el"):
