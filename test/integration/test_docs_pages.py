@@ -766,9 +766,20 @@ def killed_after(command: str, steps: int) -> Given:
     The recorder acknowledges the steps it has written on ``recorder/progress`` and
     flushes every 0.25 s. Once ``steps`` are acknowledged the plant is stopped
     (SIGSTOP: in lockstep no step is taken without it, however fast the machine, so
-    the run cannot reach its end first), 0.6 s later they are all on disk, and the
-    runner and its nodes are SIGKILLed at once.
+    the run cannot reach its end first); once the bag on disk holds every state up to
+    ``steps`` (read as ``bag recover`` reads an unfinished file: a loaded host once
+    flushed later than a fixed 0.6 s, and the page's identify found steps missing),
+    the runner and its nodes are SIGKILLed at once.
     """
+
+    def on_disk(bag: Path) -> set[int]:
+        try:
+            return {
+                cdr.decode("sensor_msgs/msg/JointState", m.data).stamp_ns // 500_000
+                for m in read_raw(bag, topics=["/x/state"])
+            }
+        except Exception:  # a file still being written: read it again
+            return set()
 
     def given(root: Path, where: str, env: dict[str, str]) -> None:
         import os
@@ -793,9 +804,10 @@ def killed_after(command: str, steps: int) -> Given:
                 watcher.spin(0.05)
             (plant,) = pids_of(out, "plant")
             os.kill(plant, signal.SIGSTOP)
-            flushed = time.monotonic() + 0.6
-            while time.monotonic() < flushed:
-                watcher.spin(0.05)
+            flushed = time.monotonic() + 60
+            while not set(range(steps)) <= on_disk(out / "bag"):
+                assert time.monotonic() < flushed, f"the first {steps} states never reached disk"
+                watcher.spin(0.2)
         finally:
             watcher.close()
             os.killpg(runner.pid, signal.SIGKILL)  # the runner; its nodes by PR_SET_PDEATHSIG
