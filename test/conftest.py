@@ -100,8 +100,37 @@ def _isolated_ros(monkeypatch: pytest.MonkeyPatch, log_dir: Path, what: str) -> 
     from servo_axis.run.fastdds import clean_stale_shm
 
     left = clean_stale_shm(since=started)
+    for _ in range(4 if left else 0):
+        # A killed participant's peers may still be exiting (their locks held a
+        # little longer than their pids are listed): their files go once they are.
+        time.sleep(0.25)
+        left += clean_stale_shm(since=started)
     if left:
         warnings.warn(f"{what} left Fast DDS shared memory behind (removed): {left}", stacklevel=1)
+
+
+_SESSION_STARTED = time.time()
+
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    """Remove what dead participants of this session left in /dev/shm.
+
+    A test's teardown removes only segments whose owner is gone by then; a
+    node that a SIGKILLed runner takes down (PR_SET_PDEATHSIG) may still hold
+    its lock at that moment and leave its files once it dies (118 were found
+    after a day of suites). Dead owners only: other suites may be running.
+    """
+    from servo_axis.run.fastdds import clean_stale_shm
+
+    clean_stale_shm(since=_SESSION_STARTED, dead_owners_only=True)
+
+
+def pytest_sessionstart(session: pytest.Session) -> None:
+    """Remove what dead participants of earlier sessions left (the last test's nodes
+    may outlive the finish above by the interpreter's exit)."""
+    from servo_axis.run.fastdds import clean_stale_shm
+
+    clean_stale_shm(since=0.0, dead_owners_only=True)
 
 
 @pytest.fixture
