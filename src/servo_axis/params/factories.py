@@ -45,7 +45,6 @@ from servo_axis.core.models.base import NominalModel, Plant
 from servo_axis.core.reference import Reference, make_reference
 from servo_axis.core.timing import SampleGrid
 from servo_axis.params import schemas
-from servo_axis.params.names import namespace_problem
 from servo_axis.params.param import Param, build, check_values
 from servo_axis.params.registry import FEEDFORWARD_TERMS as FEEDFORWARD_TERMS
 from servo_axis.params.registry import IDENTIFIERS as IDENTIFIERS
@@ -56,6 +55,11 @@ from servo_axis.params.registry import IdentifierEntry as IdentifierEntry
 from servo_axis.params.registry import LearningLawEntry as LearningLawEntry
 from servo_axis.params.registry import PlantModelEntry as PlantModelEntry
 from servo_axis.params.registry import feedforward_class, feedforward_terms
+from servo_axis.params.topic_checks import (
+    check_command_source,
+    check_forward_topic,
+    check_recorder_topics,
+)
 from servo_axis.params.typed import Values, from_flat
 from servo_axis.params.values import (
     FeedbackValues,
@@ -713,41 +717,6 @@ def check_consistency(role: str, values: Any) -> None:
             method.build(values)
 
 
-def check_command_source(values: PlantValues) -> None:
-    """``command_source: drive_setpoint`` only in realtime (a set-point has no step to wait for).
-
-    Raises
-    ------
-    ParameterFileError
-        Naming ``command_source`` and ``mode``.
-    """
-    if values.command_source == "drive_setpoint" and values.mode == "lockstep":
-        raise ParameterFileError(
-            "parameter 'command_source': drive_setpoint needs mode: realtime (a drive's "
-            "set-point carries no step of the k T_u grid, which lockstep waits for; "
-            "got mode: lockstep)"
-        )
-
-
-def check_forward_topic(values: FeedbackValues) -> None:
-    """``forward_commands_topic``: empty, or a ROS topic name (absolute or relative).
-
-    Raises
-    ------
-    ParameterFileError
-        Naming ``forward_commands_topic`` and what rcl would refuse.
-    """
-    topic = values.forward_commands_topic
-    if not topic:
-        return
-    problem = namespace_problem(topic if topic.startswith("/") else f"/{topic}")
-    if problem is not None or topic in ("/", "~"):
-        raise ParameterFileError(
-            f"parameter 'forward_commands_topic': {topic!r} is not a ROS topic name: "
-            f"{problem or 'no name'}"
-        )
-
-
 #: The roles a node from outside the suite may play (``external_roles``).
 EXTERNAL_ROLES = ("plant", "feedback", "feedforward", "learning", "identifier")
 
@@ -768,34 +737,3 @@ def external_roles(values: SharedValues) -> tuple[str, ...]:
                 f"got {role!r}"
             )
     return roles
-
-
-def check_recorder_topics(values: RecorderValues) -> None:
-    """One type per topic; the latched and counted topics among them; a period per
-    final topic; a split size of 0 or at least the MCAP minimum."""
-    topics, types = values.topics, values.types
-    if len(topics) != len(types) or not topics:
-        raise ParameterFileError(
-            f"parameter 'types': expected one type per topic ({len(topics)} topics), "
-            f"got {len(types)}"
-        )
-    for key, listed in (
-        ("latched_topics", values.latched_topics),
-        ("counted_topics", values.counted_topics),
-    ):
-        extra = set(listed) - set(topics)
-        if extra:
-            raise ParameterFileError(f"parameter '{key}': {sorted(extra)} not in 'topics'")
-    from servo_axis.recording.reader import MIN_SPLIT_SIZE_BYTES
-
-    if 0 < values.max_bag_size_bytes < MIN_SPLIT_SIZE_BYTES:
-        raise ParameterFileError(
-            f"parameter 'max_bag_size_bytes': expected 0 (no split) or >= "
-            f"{MIN_SPLIT_SIZE_BYTES} (bytes), got {values.max_bag_size_bytes}"
-        )
-    finals, every = values.final_topics, values.final_every_steps
-    if len(finals) != len(every):
-        raise ParameterFileError(
-            f"parameter 'final_every_steps': expected one period per final topic "
-            f"({len(finals)} topics), got {len(every)}"
-        )
