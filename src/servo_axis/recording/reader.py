@@ -38,6 +38,10 @@ __all__ = [
 #: Here, where the parameter checks (``params``) can import it without ROS.
 MIN_SPLIT_SIZE_BYTES = 1024
 
+#: Above this many messages a finished file is read in mcap's log-time order
+#: (its memory bounded by a chunk) rather than read whole and sorted (faster).
+SORTED_IN_MEMORY_MESSAGES = 2_000_000
+
 #: Suffix of the original file of a recovered bag (:mod:`servo_axis.recording.recover`).
 UNFINISHED_SUFFIX = ".unfinished"
 
@@ -151,8 +155,25 @@ def _file_messages(path: Path, topics: list[str] | None) -> Iterator[tuple[int, 
         except _UNFINISHED:
             summary = None
         if summary is not None:
-            for schema, channel, msg in reader.iter_messages(topics=topics, log_time_order=True):
-                yield msg.log_time, schema, channel, msg
+            stats = summary.statistics
+            if stats is None or stats.message_count > SORTED_IN_MEMORY_MESSAGES:
+                for schema, channel, msg in reader.iter_messages(
+                    topics=topics, log_time_order=True
+                ):
+                    yield msg.log_time, schema, channel, msg
+                return
+            # The same order as mcap's log-time order (equal log times in file
+            # order: the sort is stable), in half the CPU: mcap's heap compares
+            # its messages in Python (a 13,000-step run's 40,560 messages: 0.23
+            # s against 0.42 s).
+            items = [
+                (msg.log_time, schema, channel, msg)
+                for schema, channel, msg in reader.iter_messages(
+                    topics=topics, log_time_order=False
+                )
+            ]
+            items.sort(key=operator.itemgetter(0))
+            yield from items
             return
         f.seek(0)
         items = []

@@ -472,6 +472,39 @@ def test_out_of_order_log_times_are_read_in_order(tmp_path: Path) -> None:
     assert [m.message.clock.nanosec for m in read_messages(tmp_path / "b")] == [10, 20, 30]
 
 
+@pytest.mark.parametrize("sorted_in_memory", [True, False])
+def test_read_raw_keeps_mcaps_log_time_order_over_chunks_and_ties(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, sorted_in_memory: bool
+) -> None:
+    """Read whole and sorted, or streamed in mcap's log-time order: the same order,
+    equal log times in file order, across chunks whose times overlap."""
+    from servo_axis.recording import reader
+
+    monkeypatch.setattr(reader, "SORTED_IN_MEMORY_MESSAGES", 10**9 if sorted_in_memory else 0)
+    rng = np.random.default_rng(7)
+    times = [int(t) for t in rng.integers(0, 40, size=300)]  # many ties, out of order
+    with BagWriter(tmp_path / "b", chunk_size=512) as writer:
+        writer.add_topic("/clock", "rosgraph_msgs/msg/Clock")
+        writer.add_topic("/trace", "std_msgs/msg/Float64MultiArray")
+        for i, t in enumerate(times):
+            if i % 2:
+                payload = serialize_message(Float64MultiArray(data=[float(i)]))
+                writer.write("/trace", payload, log_time_ns=t)
+            else:
+                writer.write("/clock", serialize_message(Clock(clock=_stamp(i))), log_time_ns=t)
+    (path,) = (tmp_path / "b").glob("*.mcap")
+    with path.open("rb") as f:
+        mcap_reader = make_reader(f)
+        assert len(mcap_reader.get_summary().chunk_indexes) > 10
+        expected = [
+            (c.topic, m.log_time, bytes(m.data))
+            for _s, c, m in mcap_reader.iter_messages(log_time_order=True)
+        ]
+    got = [(r.topic, r.log_time_ns, r.data) for r in read_raw(tmp_path / "b")]
+    assert got == expected
+    assert [t for _topic, t, _d in got] == sorted(times)
+
+
 # --------------------------------------------------------------- validation
 
 
