@@ -233,14 +233,20 @@ def plot_error_overlay(
     return Path(path)
 
 
-def plot(run_dir: Path) -> list[Path]:
+def plot(run_dir: Path, *, series: RunSeries | None = None) -> list[Path]:
     """Write ``reference_position.png``, ``error.png``, for a periodic
     reference ``cycle_errors.png``, for a run with an identifier the
     :data:`IDENTIFICATION_FIGURES` and, for a run with the ``deformation``
-    topic, :data:`DEFORMATION_FIGURE` into the run directory."""
+    topic, :data:`DEFORMATION_FIGURE` into the run directory.
+
+    ``series`` is what :func:`~servo_axis.analysis.summary.run_series` reads
+    from ``run_dir``, if the caller has it already
+    (:func:`~servo_axis.analysis.summary.summarise_series`).
+    """
     plt = _pyplot()
     run_dir = Path(run_dir)
-    series = run_series(run_dir)
+    if series is None:
+        series = run_series(run_dir)
     summary, sig, y, lead = series.summary, series.signals, series.y_rad, series.lead_m_per_rad
     t = series.time_s
     q = position_error(summary.unit)

@@ -25,7 +25,7 @@ from servo_axis.run.state import AxisNodes, RunState
 from servo_axis.wire.node_report import NodeHealth, read_health
 
 if TYPE_CHECKING:
-    from servo_axis.analysis.summary import AxesSummary, RunSummary
+    from servo_axis.analysis.summary import AxesSummary, RunSeries, RunSummary
 
 
 def stepping_span(
@@ -80,7 +80,8 @@ def summarise_run(
     recovered = recovered or set()
     gathered = _Axes()
     for axis in axes:
-        summary, reports, span = _summarise_axis(axis, plan, state, recovered, floor)
+        series, reports, span = _summarise_axis(axis, plan, state, recovered, floor)
+        summary = series.summary
         (axis.plan.dir / summaries.SUMMARY_FILE).write_text(summary.to_json())
         gathered.summaries[axis.plan.axis] = summary
         gathered.deaths += axis.deaths
@@ -88,7 +89,9 @@ def summarise_run(
         if span is not None:
             gathered.spans.append(span)
         if plots:
-            figures.plot(axis.plan.dir)
+            # The signals the summary read: the bag is not read a second time.
+            written = summaries.RunSummary.from_json(axis.plan.dir / summaries.SUMMARY_FILE)
+            figures.plot(axis.plan.dir, series=dataclasses.replace(series, summary=written))
     if not plan.multi_axis:
         return gathered.summaries[""]
     axes_summary = _summarise_axes(plan, state, gathered, bool(recovered))
@@ -103,13 +106,14 @@ def _summarise_axis(
     state: RunState,
     recovered: set[str],
     floor: dict[int, dict[str, Any]] | None,
-) -> tuple[RunSummary, dict[str, NodeHealth], tuple[float, float] | None]:
-    """One axis's summary with its health and realtime block; its nodes' reports; the plant's steps."""
+) -> tuple[RunSeries, dict[str, NodeHealth], tuple[float, float] | None]:
+    """One axis's summary with its health and realtime block (with the signals it read); its
+    nodes' reports; the plant's steps."""
     from servo_axis.analysis import summary as summaries
 
     reports = read_health(axis.plan.logs)
     span = stepping_span(reports.get("plant"), state.t_start, state.t_end)
-    summary = summaries.summarise(
+    series = summaries.summarise_series(
         axis.plan.dir,
         scenario=axis.plan.summary_scenario(),
         scenario_path=axis.plan.scenario_path,
@@ -117,6 +121,7 @@ def _summarise_axis(
         wall_time_s=state.wall_time_s if span is None else span[1] - span[0],
         mode="composed" if plan.composed else "separate processes",
     )
+    summary = series.summary
     if span is not None:
         summary = dataclasses.replace(
             summary, startup_s=span[0] - state.t_start, finish_s=state.t_end - span[1]
@@ -151,7 +156,7 @@ def _summarise_axis(
     summary = dataclasses.replace(
         summary, health=health, overrides=plan.overrides or None, numerics=numerics.mode()
     )
-    return summary, reports, span
+    return dataclasses.replace(series, summary=summary), reports, span
 
 
 def _summarise_axes(

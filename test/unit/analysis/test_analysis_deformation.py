@@ -28,7 +28,9 @@ from servo_axis.analysis.summary import (
     DEFORMATION_WINDOWS_S,
     RunSummary,
     reference_stops,
+    run_series,
     summarise,
+    summarise_series,
 )
 from servo_axis.analysis.text import format_summary
 from servo_axis.core.deformation import DeformationTrace, deformation_ratio
@@ -469,3 +471,25 @@ def test_plots_are_written(runs: dict[str, Any], tmp_path: Path) -> None:
     assert detail.read_bytes()[:8] == PNG_MAGIC
     with pytest.raises(ConfigError, match="t_stop"):
         plot_reversal_detail(run, 99.0, tmp_path / "none.png")
+
+
+def test_the_series_the_summary_read_is_what_the_run_directory_reads_back(
+    runs: dict[str, Any], tmp_path: Path
+) -> None:
+    """What the runner hands the figures (the summary's signals) is run_series of the
+    run directory, array for array, and the figures from it are the same bytes."""
+    run: Path = runs["clean_run"]
+    path = run / "scenario.yaml"
+    given = summarise_series(
+        run, scenario=load_scenario(path), scenario_path=path, wall_time_s=1.0, mode="processes"
+    )
+    read = run_series(run)
+    assert given.summary == read.summary
+    assert given.lead_m_per_rad == read.lead_m_per_rad
+    assert_array_equal(given.target_rad, read.target_rad)
+    assert_array_equal(given.y_rad, read.y_rad)
+    assert_array_equal(given.signals.step, read.signals.step)
+    assert_trace_equal(given.signals.deformation, RUN.trace)
+    assert given.signals.counts == read.signals.counts
+    figures = {p.name: p.read_bytes() for p in plot(run)}
+    assert {p.name: p.read_bytes() for p in plot(run, series=given)} == figures
