@@ -131,6 +131,9 @@ def main(argv: list[str] | None = None, prog: str = "python -m servo_axis") -> i
         return done.code if isinstance(done.code, int) else 2
     if args.command is None:
         args = parser.parse_args(["run", DEFAULT_SCENARIO])
+    from servo_axis.numerics import scipy_import
+
+    scipy_import.install()
     try:
         code = int(args.func(args))
     except BrokenPipeError:
