@@ -264,7 +264,9 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     ``scripts/test.sh`` keeps this order (``--no-loadscope-reorder``).
     Without xdist the order stays the collection's.
     """
-    if getattr(config.option, "dist", "no") == "no":
+    # Under xdist the order that counts is the workers' (the controller sends
+    # them the modules in it), and a worker's own options say dist "no".
+    if getattr(config.option, "dist", "no") == "no" and not hasattr(config, "workerinput"):
         return
 
     def rank(item: pytest.Item) -> int:
