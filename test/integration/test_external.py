@@ -312,10 +312,13 @@ def outside_suite_node_gives_the_suites_own_result(
 ) -> None:
     """Run ``scenario`` by the suite alone, then with ``--external role`` played by the
     suite's own node of that role started by hand as ``name`` with the run's parameter file
-    (its section renamed, as a user would); the two bags must be equal, byte for byte."""
+    (its section renamed, as a user would); the two bags must be equal, byte for byte.
+    The suite alone runs composed: the same bag as its separate processes
+    (test_runs.py::test_lockstep_runs_are_identical_separate_composed_and_split), in
+    less CPU time."""
     path = short(scenario, tmp_path, duration_s=duration_s)
     alone = tmp_path / "alone"
-    assert finish(start_run(path, alone), RUN_TIMEOUT_S) == 0, tails(alone)
+    assert finish(start_run(path, alone, "--composed"), RUN_TIMEOUT_S) == 0, tails(alone)
 
     out = tmp_path / "outside"
     proc = start_run(path, out, "--external", role)
