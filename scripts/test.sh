@@ -6,9 +6,7 @@
 #    time a stop of child processes allow 0.4 s or more of slack), beside
 #    the `shm` tests (a SIGKILLed participant, /dev/shm checks: another
 #    run's segments would count), one at a time: those mostly wait (a
-#    participant's lease, a timeout) and leave a core to the unit tests,
-#    which run at nice 10 so that the shm tests' runs get the CPU first
-#    (measured: both done at 139 s; at nice 0 the part took 150-175 s).
+#    participant's lease, a timeout) and leave a core to the unit tests.
 # 2. test/ros and test/integration but the `realtime` and `shm` tests, two at
 #    a time (-n 2): lockstep runs are deterministic whatever the load, and
 #    each worker takes its own half of the ROS domains (test/conftest.py). A
@@ -35,7 +33,7 @@ beside() {
   # The unit tests in the background, their output in a file shown after.
   local log
   log=$(mktemp)
-  nice -n 10 .venv/bin/python -m pytest -p no:cacheprovider -n 2 test/unit >"$log" 2>&1 &
+  .venv/bin/python -m pytest -p no:cacheprovider -n 2 test/unit >"$log" 2>&1 &
   local unit=$!
   local code=0
   "$@" || code=$?
