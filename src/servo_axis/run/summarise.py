@@ -89,9 +89,7 @@ def summarise_run(
         if span is not None:
             gathered.spans.append(span)
         if plots:
-            # The signals the summary read: the bag is not read a second time.
-            written = summaries.RunSummary.from_json(axis.plan.dir / summaries.SUMMARY_FILE)
-            figures.plot(axis.plan.dir, series=dataclasses.replace(series, summary=written))
+            figures.plot(axis.plan.dir, series=series)  # the signals the summary read
     if not plan.multi_axis:
         return gathered.summaries[""]
     axes_summary = _summarise_axes(plan, state, gathered, bool(recovered))
