@@ -16,7 +16,10 @@ the suite's ``state`` (:func:`servo_axis.wire.joint_states.axis_state`),
 stamped with the broadcaster's own stamp. It follows the start rule of an
 outside plant: nothing is published before ``command`` has a publisher, so
 the first state it publishes is step 0 for every node of the run, whatever
-the broadcaster sent before. It subscribes to ``command`` (the run waits for
+the broadcaster sent before; and, as a plant that can count its readers
+does, not before its own ``state`` writer has matched every subscription
+of ``state`` it lists, the counts held :data:`~servo_axis.nodes.graph.MATCH_SETTLE_S`
+(a reader this process learns of late would miss the first states). It subscribes to ``command`` (the run waits for
 its plant there) and keeps the newest torque for a motor effort the
 broadcaster has not (NaN). The torque reaches ros2_control through the
 feedback's ``forward_commands_topic`` (one hop fewer than through here). It
@@ -39,6 +42,7 @@ from rclpy.time import Time
 from sensor_msgs.msg import JointState
 
 from servo_axis.core.errors import ConfigError, require_positive
+from servo_axis.nodes.graph import Settle
 from servo_axis.nodes.runtime import run_main, steady_clock
 from servo_axis.params.schemas import SHARED
 from servo_axis.wire.joint_states import BridgeStream, axis_state
@@ -72,6 +76,7 @@ class JointStateBridge(Node):
         self.stream = BridgeStream()
         self.started = self.finished = False
         self.held_torque_Nm = 0.0
+        self._matched = Settle()
         self._gone_since: Time | None = None
         # Reliable, volatile, keep-last 10: what the suite's readers take from a default publisher.
         self.pub = self.create_publisher(JointState, "state", QoSProfile(depth=10))
@@ -108,9 +113,12 @@ class JointStateBridge(Node):
     def _check(self) -> None:
         commanded = self.commands.get_publisher_count() > 0
         if not self.started:
-            if commanded:  # the start rule: `command` has a publisher
+            if commanded and self._writer_matched():  # the start rule
                 self.started = True
-                self.get_logger().info("command has a publisher: the next joint state is step 0")
+                self.get_logger().info(
+                    f"command has a publisher and state {self.pub.get_subscription_count()} "
+                    "matched readers: the next joint state is step 0"
+                )
             return
         now = self.get_clock().now()
         if commanded:
@@ -119,6 +127,21 @@ class JointStateBridge(Node):
             self._gone_since = now
         elif (now - self._gone_since).nanoseconds * 1e-9 >= GONE_S:
             self.finished = True
+
+    def _writer_matched(self) -> bool:
+        """Whether the ``state`` writer has matched each reader listed, held a while.
+
+        Measured (CI, a loaded host): the recorder's reader was listed at the
+        feedback 0.5 s before it made ``command``, yet the first 5 states
+        reached the feedback and not the recorder: this process had not yet
+        matched it. Only the writer's side can tell.
+        """
+        listed = self.count_subscribers(self.pub.topic_name)
+        matched = self.pub.get_subscription_count()
+        if listed == 0 or matched < listed:
+            self._matched.forget("state")
+            return False
+        return self._matched.held("state", (listed, matched))
 
     def _on_command(self, msg: JointState) -> None:
         if len(msg.effort) and math.isfinite(msg.effort[0]):
