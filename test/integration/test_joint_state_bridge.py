@@ -88,9 +88,10 @@ def test_the_bridge_starts_only_once_its_writer_has_matched_a_late_reader(ros_en
         tick = [0]
         reader("first")
         deadline = time.monotonic() + 30
-        while node.count_publishers(f"{NS}/state") == 0 or node.count_subscribers(
-            f"{NS}/command"
-        ) == 0:  # the bridge is up
+        while (
+            node.count_publishers(f"{NS}/state") == 0
+            or node.count_subscribers(f"{NS}/command") == 0
+        ):  # the bridge is up
             assert time.monotonic() < deadline, "the bridge never came up"
             spin_for(0.05, tick)
         command = node.create_publisher(JointState, f"{NS}/command", 10)
