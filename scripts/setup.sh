@@ -19,7 +19,7 @@ install() {
   local uv=.venv-lock/bin/uv  # the one scripts/lock.sh uses
   if [ -x "$uv" ] || { "$PY" -m venv .venv-lock && .venv-lock/bin/python -m pip install -q 'uv==0.13.9'; }; then
     export VIRTUAL_ENV=$PWD/.venv
-    "$uv" pip install --upgrade pip &&
+    "$uv" pip install --compile-bytecode --upgrade pip &&
       "$uv" pip install --compile-bytecode --require-hashes -r requirements.lock &&
       "$uv" pip install --no-deps --no-build-isolation -e .
   else
