@@ -21,6 +21,7 @@ from rclpy.qos import (
     ReliabilityPolicy,
 )
 from rclpy.signals import SignalHandlerOptions
+from rclpy.task import Future
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
@@ -206,19 +207,29 @@ def make_executor(context: rclpy.context.Context | None = None) -> rclpy.executo
     return EventsExecutor(context=context)
 
 
+#: Seconds between two looks at ``done()`` (and at a stop a signal asked for)
+#: while the executor runs callbacks.
+DONE_POLL_S = 0.05
+
+
 def spin_nodes(nodes: Sequence[Node], done: Callable[[], bool]) -> None:
     """Spin ``nodes`` on one executor until ``done()`` or shutdown.
 
-    ``spin_once`` in a loop rather than ``spin``: EventsExecutor.spin() was
-    seen to ignore SIGTERM in a standalone process (ROS_NOTES).
+    Time-bounded spins in a loop rather than ``spin``: EventsExecutor.spin()
+    was seen to ignore SIGTERM in a standalone process (ROS_NOTES).
     """
     executor = make_executor()
     for node in nodes:
         executor.add_node(node)
     try:
+        # Many callbacks per call into the executor, not one: a spin_once per
+        # callback cost a composed run a third of its steps per second
+        # (measure_frf_ball_screw: 1,321 -> 1,965 steps/s, the same payloads).
+        # ``done()`` and a signal are seen within DONE_POLL_S.
+        never = Future()  # the loop ends on done(), not on a future
         while rclpy.ok() and not done():
             try:
-                executor.spin_once(timeout_sec=0.1)
+                executor.spin_until_future_complete(never, timeout_sec=DONE_POLL_S)
             except RuntimeError:
                 # A signal shut the context down while the EventsExecutor was
                 # handing a message to Python; that is a normal stop.
