@@ -265,6 +265,29 @@ def test_every_tutorial_and_how_to_has_its_test() -> None:
     assert tested == set(PAGES), sorted(set(PAGES) ^ tested)
 
 
+def test_the_readme(ros_env: int, clone: Clone) -> None:
+    """The README's commands as a new user copies them, from its two first ones on."""
+    result = run_page("../README.md", clone, ros_env)
+    runs = clone.root / "runs"
+    # The default run, another scenario, their comparison.
+    for pattern in ("rptc_friction_table-*", "ptc_friction_table-*"):
+        assert summary(only(pattern, runs))["health"]["exit_code"] == 0, pattern
+    assert (runs / "cycles.png").stat().st_size > 10_000
+    assert "rptc_friction_table" in result.output_of(".venv/bin/python -m servo_axis list")
+    compared = result.output_of(".venv/bin/python -m servo_axis compare")
+    assert "max tracking error per cycle (um)" in compared, compared
+    # The axis without its feedback, the example PD in its place: a complete run whose
+    # commands all came from the outside node (the suite started no feedback).
+    outside = summary(only("ptc_nominal-*", runs))
+    assert outside["health"]["outcome"] == "complete", outside["health"]
+    assert "feedback" not in outside["health"]["nodes"], outside["health"]["nodes"]
+    assert outside["message_counts"]["/x/command"] == outside["message_counts"]["/x/state"]
+    # Measured, then identified into a scenario that names the fitted plant.
+    fitted = load_scenario(runs / "my_axis.yaml")
+    assert fitted["plant"]["ros__parameters"]["model"] == "ball_screw"
+    assert len(result.skipped) == 3  # test.sh, mkdocs serve and build
+
+
 # -- the tutorials ------------------------------------------------------------------------------
 
 
